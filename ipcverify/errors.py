@@ -1,0 +1,41 @@
+"""Exceptions raised by ipcverify.
+
+Every error a user can cause by bad input subclasses :class:`InvalidInputError`
+(itself a :class:`ValueError`); the CLI turns those into a one-line message and
+exit status 2. Messages state the rule that was broken and what to do about it.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "IPCVerifyError",
+    "InvalidInputError",
+    "DataError",
+    "ModelFileError",
+    "SetError",
+    "SampleSizeError",
+]
+
+
+class IPCVerifyError(Exception):
+    """Base class of every error raised on purpose by ipcverify."""
+
+
+class InvalidInputError(IPCVerifyError, ValueError):
+    """The caller passed something ipcverify cannot use; the message says what to fix."""
+
+
+class DataError(InvalidInputError):
+    """A dataset file or array is missing columns, empty, ragged or non-finite."""
+
+
+class ModelFileError(InvalidInputError):
+    """A model file is missing, corrupt, of an unknown format, or unsafe to load."""
+
+
+class SetError(InvalidInputError):
+    """A set (ellipsoid, box, polytope) was given non-finite or degenerate parameters."""
+
+
+class SampleSizeError(InvalidInputError):
+    """Too few samples for the requested (epsilon, delta); the message gives the minimum."""
