@@ -141,9 +141,7 @@ class Ellipsoid:
         if p.ndim == 1:
             p = np.broadcast_to(p, self.centers.shape)
         if p.shape != self.centers.shape:
-            raise SetError(
-                f"points must have shape (n,) or (B, n) = {self.centers.shape}; got {p.shape}"
-            )
+            raise SetError(f"points must have shape (n,) or (B, n) = {self.centers.shape}; got {p.shape}")
         return p
 
     def g(self, y: ArrayLike) -> FloatArray:

@@ -1,0 +1,396 @@
+"""Perception logs: triples (state x, truth y, estimate yhat) loaded, validated and split.
+
+File formats
+------------
+CSV and Parquet files hold one sample per row with columns ``x_0..x_{d-1}``,
+``y_0..y_{n-1}`` and ``yhat_0..yhat_{n-1}`` (names overridable). NPZ files hold the
+arrays ``x`` (N, d), ``y`` (N, n) and ``yhat`` (N, n). Any other columns of a table
+are kept as :attr:`PerceptionDataset.extra` (for example a group label for Mondrian
+calibration).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import re
+import tempfile
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from numpy.typing import NDArray
+
+from ipcverify.errors import DataError
+
+__all__ = ["PerceptionDataset", "DatasetSplits", "load_dataset", "save_dataset", "atomic_write"]
+
+FloatArray = NDArray[np.float64]
+SUFFIXES = (".csv", ".parquet", ".pq", ".npz")
+
+
+def _numbered(prefix: str, columns: Sequence[str]) -> list[str]:
+    pat = re.compile(rf"^{re.escape(prefix)}_(\d+)$")
+    found = sorted((int(m.group(1)), c) for c in columns if (m := pat.match(c)))
+    names = [c for _, c in found]
+    idx = [i for i, _ in found]
+    if idx != list(range(len(idx))):
+        missing = sorted(set(range(max(idx) + 1)) - set(idx)) if idx else []
+        raise DataError(
+            f"columns {prefix}_0..{prefix}_{max(idx)} are not contiguous: missing "
+            + ", ".join(f"{prefix}_{i}" for i in missing)
+        )
+    return names
+
+
+@dataclass(frozen=True, eq=False)
+class PerceptionDataset:
+    """An immutable, validated set of perception samples.
+
+    Parameters
+    ----------
+    x : array_like, shape (N, d)
+        System states.
+    y : array_like, shape (N, n)
+        Ground-truth values of the perceived quantity.
+    yhat : array_like, shape (N, n)
+        Perceived values.
+    source : str
+        Where the data came from (used in error messages).
+    x_columns, y_columns, yhat_columns : tuple of str
+        Column names (default ``x_i``, ``y_i``, ``yhat_i``).
+    extra : mapping of str to array, optional
+        Other per-sample columns (length N each), e.g. a group label.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> ds = PerceptionDataset(np.zeros((4, 2)), np.ones((4, 3)), np.ones((4, 3)))
+    >>> len(ds), ds.x_dim, ds.y_dim
+    (4, 2, 3)
+    """
+
+    x: FloatArray
+    y: FloatArray
+    yhat: FloatArray
+    source: str = "<memory>"
+    x_columns: tuple[str, ...] = ()
+    y_columns: tuple[str, ...] = ()
+    yhat_columns: tuple[str, ...] = ()
+    extra: Mapping[str, NDArray[Any]] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        arrays = {}
+        for name in ("x", "y", "yhat"):
+            a = np.array(getattr(self, name), dtype=np.float64, copy=True)
+            if a.ndim == 1:
+                a = a[:, None]
+            if a.ndim != 2:
+                raise DataError(f"{self.source}: {name} must be 2-D (N, dim); got shape {a.shape}")
+            arrays[name] = a
+        x, y, yhat = arrays["x"], arrays["y"], arrays["yhat"]
+        if x.shape[0] == 0:
+            raise DataError(f"{self.source}: the dataset is empty (0 samples); log some data first")
+        if not (x.shape[0] == y.shape[0] == yhat.shape[0]):
+            raise DataError(
+                f"{self.source}: x, y and yhat have different numbers of rows "
+                f"({x.shape[0]}, {y.shape[0]}, {yhat.shape[0]})"
+            )
+        if y.shape[1] != yhat.shape[1]:
+            raise DataError(
+                f"{self.source}: y has dimension {y.shape[1]} but yhat has {yhat.shape[1]}; "
+                "the estimate and the truth must describe the same quantity"
+            )
+        cols = {
+            "x": tuple(self.x_columns) or tuple(f"x_{i}" for i in range(x.shape[1])),
+            "y": tuple(self.y_columns) or tuple(f"y_{i}" for i in range(y.shape[1])),
+            "yhat": tuple(self.yhat_columns) or tuple(f"yhat_{i}" for i in range(yhat.shape[1])),
+        }
+        for name, names in cols.items():
+            if len(names) != arrays[name].shape[1]:
+                raise DataError(f"{self.source}: {len(names)} names given for {name} columns")
+            bad = ~np.isfinite(arrays[name])
+            if bad.any():
+                r, c = np.argwhere(bad)[0]
+                raise DataError(
+                    f"{self.source}: row {int(r)}, column {names[int(c)]!r}: non-finite value "
+                    f"{arrays[name][r, c]!r}; drop or repair that row"
+                )
+            arrays[name].setflags(write=False)
+        extra = {}
+        for k, v in dict(self.extra).items():
+            a = np.array(v, copy=True)
+            if a.shape[:1] != (x.shape[0],):
+                raise DataError(f"{self.source}: extra column {k!r} has length {a.shape[:1]}")
+            a.setflags(write=False)
+            extra[k] = a
+        object.__setattr__(self, "x", x)
+        object.__setattr__(self, "y", y)
+        object.__setattr__(self, "yhat", yhat)
+        object.__setattr__(self, "x_columns", cols["x"])
+        object.__setattr__(self, "y_columns", cols["y"])
+        object.__setattr__(self, "yhat_columns", cols["yhat"])
+        object.__setattr__(self, "extra", extra)
+
+    def __len__(self) -> int:
+        return int(self.x.shape[0])
+
+    def __repr__(self) -> str:
+        return (
+            f"PerceptionDataset(n={len(self)}, x_dim={self.x_dim}, y_dim={self.y_dim}, "
+            f"source={self.source!r})"
+        )
+
+    @property
+    def x_dim(self) -> int:
+        """State dimension ``d``."""
+        return int(self.x.shape[1])
+
+    @property
+    def y_dim(self) -> int:
+        """Dimension ``n`` of the perceived quantity."""
+        return int(self.y.shape[1])
+
+    def column(self, name: str) -> NDArray[Any]:
+        """One column by name, from x, y, yhat or the extra columns.
+
+        Raises
+        ------
+        DataError
+            If no column has that name; the message lists the available ones.
+        """
+        for names, arr in (
+            (self.x_columns, self.x),
+            (self.y_columns, self.y),
+            (self.yhat_columns, self.yhat),
+        ):
+            if name in names:
+                return arr[:, names.index(name)]
+        if name in self.extra:
+            return self.extra[name]
+        avail = [*self.x_columns, *self.y_columns, *self.yhat_columns, *self.extra]
+        raise DataError(f"{self.source}: no column {name!r}; available: {', '.join(avail)}")
+
+    def subset(self, index: NDArray[Any] | Sequence[int], label: str = "subset") -> PerceptionDataset:
+        """The samples at ``index`` (integer indices or a boolean mask)."""
+        idx = np.asarray(index)
+        return PerceptionDataset(
+            self.x[idx],
+            self.y[idx],
+            self.yhat[idx],
+            source=f"{self.source}[{label}]",
+            x_columns=self.x_columns,
+            y_columns=self.y_columns,
+            yhat_columns=self.yhat_columns,
+            extra={k: v[idx] for k, v in self.extra.items()},
+        )
+
+    def content_hash(self) -> str:
+        """SHA-256 of the numeric content (x, y, yhat as little-endian float64)."""
+        h = hashlib.sha256()
+        for a in (self.x, self.y, self.yhat):
+            h.update(np.asarray(a.shape, dtype="<i8").tobytes())
+            h.update(np.ascontiguousarray(a, dtype="<f8").tobytes())
+        return h.hexdigest()
+
+    def split(self, fractions: Sequence[float] = (0.6, 0.2, 0.2), seed: int = 0) -> DatasetSplits:
+        """Deterministic random train / calibration / test split.
+
+        Parameters
+        ----------
+        fractions : three floats summing to 1
+            Shares of train, calibration and test samples. A share may be 0.
+        seed : int
+            The same seed always gives the same split of the same data.
+        """
+        fr = np.asarray(fractions, dtype=float)
+        if fr.shape != (3,) or (fr < 0).any() or not np.isclose(fr.sum(), 1.0):
+            raise DataError(
+                f"split fractions must be three non-negative numbers summing to 1; got {list(fractions)}"
+            )
+        n = len(self)
+        perm = np.random.default_rng(seed).permutation(n)
+        n_train = int(round(fr[0] * n))
+        n_cal = int(round(fr[1] * n))
+        n_cal = min(n_cal, n - n_train)
+        parts = np.split(perm, [n_train, n_train + n_cal])
+        return DatasetSplits(
+            *(
+                self.subset(np.sort(p), label) if len(p) else None
+                for p, label in zip(parts, ("train", "calibration", "test"), strict=True)
+            )
+        )
+
+    def to_frame(self) -> pd.DataFrame:
+        """All columns as a pandas DataFrame."""
+        data: dict[str, Any] = {}
+        for names, arr in (
+            (self.x_columns, self.x),
+            (self.y_columns, self.y),
+            (self.yhat_columns, self.yhat),
+        ):
+            for i, c in enumerate(names):
+                data[c] = arr[:, i]
+        data.update(self.extra)
+        return pd.DataFrame(data)
+
+
+@dataclass(frozen=True)
+class DatasetSplits:
+    """Train, calibration and test parts of a dataset (a part may be ``None`` if empty)."""
+
+    train: PerceptionDataset | None
+    calibration: PerceptionDataset | None
+    test: PerceptionDataset | None
+
+
+def _read_table(path: Path) -> pd.DataFrame:
+    suffix = path.suffix.lower()
+    try:
+        if suffix == ".csv":
+            return pd.read_csv(path)
+        return pd.read_parquet(path)
+    except pd.errors.EmptyDataError:
+        raise DataError(f"{path}: the file is empty; expected a header row and samples") from None
+    except (pd.errors.ParserError, UnicodeDecodeError, OSError, ValueError) as exc:
+        if isinstance(exc, FileNotFoundError):
+            raise
+        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise DataError(f"{path}: cannot read as {suffix[1:].upper()}: {msg}") from None
+
+
+def load_dataset(
+    path: str | os.PathLike[str],
+    x_columns: Sequence[str] | None = None,
+    y_columns: Sequence[str] | None = None,
+    yhat_columns: Sequence[str] | None = None,
+) -> PerceptionDataset:
+    """Load and validate a perception log from CSV, Parquet or NPZ.
+
+    Parameters
+    ----------
+    path : path-like
+        A ``.csv``, ``.parquet``/``.pq`` or ``.npz`` file.
+    x_columns, y_columns, yhat_columns : sequence of str, optional
+        Column names to use instead of the defaults ``x_i``, ``y_i``, ``yhat_i``
+        (tables only).
+
+    Raises
+    ------
+    DataError
+        With the file, row and column at fault: unknown format, missing columns,
+        y and yhat of different dimension, a non-finite or non-numeric value, an
+        empty file.
+    FileNotFoundError
+        If ``path`` does not exist.
+
+    Examples
+    --------
+    >>> import tempfile, os, numpy as np
+    >>> d = tempfile.mkdtemp()
+    >>> p = os.path.join(d, "log.npz")
+    >>> np.savez(p, x=np.zeros((3, 2)), y=np.ones((3, 1)), yhat=np.ones((3, 1)))
+    >>> load_dataset(p).y_dim
+    1
+    """
+    p = Path(path)
+    if not p.exists():
+        raise FileNotFoundError(2, "No such file", str(p))
+    suffix = p.suffix.lower()
+    if suffix not in SUFFIXES:
+        raise DataError(f"{p}: unknown data format {suffix!r}; use one of {', '.join(SUFFIXES)}")
+    if suffix == ".npz":
+        if x_columns or y_columns or yhat_columns:
+            raise DataError(f"{p}: column names apply to CSV/Parquet, not NPZ (arrays x, y, yhat)")
+        try:
+            with np.load(p, allow_pickle=False) as z:
+                missing = [k for k in ("x", "y", "yhat") if k not in z.files]
+                if missing:
+                    raise DataError(f"{p}: NPZ lacks array(s) {', '.join(missing)}; it needs x, y and yhat")
+                arrs = {k: z[k] for k in ("x", "y", "yhat")}
+        except DataError:
+            raise
+        except (ValueError, OSError) as exc:
+            raise DataError(f"{p}: cannot read as NPZ: {exc}") from None
+        for k, a in arrs.items():
+            if not np.issubdtype(a.dtype, np.number):
+                raise DataError(f"{p}: array {k!r} is not numeric (dtype {a.dtype})")
+        return PerceptionDataset(**arrs, source=str(p))
+
+    df = _read_table(p)
+    if len(df) == 0:
+        raise DataError(f"{p}: the file has a header but no samples")
+    cols = [str(c) for c in df.columns]
+    xs = list(x_columns) if x_columns else _numbered("x", cols)
+    ys = list(y_columns) if y_columns else _numbered("y", cols)
+    yhs = list(yhat_columns) if yhat_columns else _numbered("yhat", cols)
+    for kind, names in (("x", xs), ("y", ys), ("yhat", yhs)):
+        if not names:
+            raise DataError(
+                f"{p}: no {kind} columns (expected {kind}_0, {kind}_1, ...; "
+                f"found: {', '.join(cols[:12])}{' ...' if len(cols) > 12 else ''})"
+            )
+        missing = [c for c in names if c not in cols]
+        if missing:
+            raise DataError(f"{p}: missing column(s) {', '.join(missing)}")
+    if len(ys) != len(yhs):
+        raise DataError(
+            f"{p}: y has {len(ys)} columns but yhat has {len(yhs)}; they must describe the same quantity"
+        )
+    used = set(xs) | set(ys) | set(yhs)
+    blocks = []
+    for names in (xs, ys, yhs):
+        block = df[names]
+        for c in names:
+            if not pd.api.types.is_numeric_dtype(block[c]):
+                conv = pd.to_numeric(block[c], errors="coerce")
+                bad = conv.isna() & block[c].notna()
+                r = int(np.flatnonzero(bad.to_numpy())[0]) if bad.any() else 0
+                raise DataError(f"{p}: row {r}, column {c!r}: not a number ({block[c].iloc[r]!r})")
+        blocks.append(block.to_numpy(dtype=np.float64))
+    extra = {c: df[c].to_numpy() for c in cols if c not in used}
+    return PerceptionDataset(
+        *blocks,
+        source=str(p),
+        x_columns=tuple(xs),
+        y_columns=tuple(ys),
+        yhat_columns=tuple(yhs),
+        extra=extra,
+    )
+
+
+def atomic_write(path: str | os.PathLike[str], write: Any, mode: str = "wb") -> None:
+    """Write a file atomically: ``write(fileobj)`` to a temp file, then rename over ``path``.
+
+    A crash or error leaves any existing file at ``path`` untouched.
+    """
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
+    try:
+        with os.fdopen(fd, mode) as f:
+            write(f)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, p)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def save_dataset(dataset: PerceptionDataset, path: str | os.PathLike[str]) -> None:
+    """Write a dataset atomically as CSV, Parquet or NPZ (chosen by the suffix)."""
+    p = Path(path)
+    suffix = p.suffix.lower()
+    if suffix not in SUFFIXES:
+        raise DataError(f"{p}: unknown data format {suffix!r}; use one of {', '.join(SUFFIXES)}")
+    if suffix == ".npz":
+        atomic_write(p, lambda f: np.savez(f, x=dataset.x, y=dataset.y, yhat=dataset.yhat))
+    elif suffix == ".csv":
+        atomic_write(p, lambda f: dataset.to_frame().to_csv(f, index=False, float_format="%.17g"))
+    else:
+        atomic_write(p, lambda f: dataset.to_frame().to_parquet(f, index=False))

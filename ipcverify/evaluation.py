@@ -1,0 +1,151 @@
+"""Empirical evaluation of an IPC on labelled data."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ipcverify.data import PerceptionDataset
+from ipcverify.errors import InvalidInputError
+from ipcverify.model import IPCModel
+
+__all__ = ["Evaluation", "BinCoverage", "evaluate", "coverage_by_bin"]
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class BinCoverage:
+    """Violation rate of an IPC per bin of one column (conditional coverage)."""
+
+    column: str
+    edges: tuple[float, ...]
+    counts: tuple[int, ...]
+    violations: tuple[int, ...]
+
+    @property
+    def rates(self) -> tuple[float, ...]:
+        """Violation rate per bin (NaN for an empty bin)."""
+        return tuple(v / c if c else float("nan") for v, c in zip(self.violations, self.counts, strict=True))
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-data form."""
+        return {
+            "column": self.column,
+            "edges": list(self.edges),
+            "counts": list(self.counts),
+            "violations": list(self.violations),
+            "rates": [None if np.isnan(r) else r for r in self.rates],
+        }
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """How an IPC did on a labelled dataset.
+
+    Attributes
+    ----------
+    n, violations : int
+        Number of samples and of samples with ``y`` outside its set.
+    violation_rate : float
+        ``violations / n``.
+    log_volume_mean, log_volume_median : float
+        Natural log of the sets' volumes (units of y cubed, for n = 3).
+    mean_extent : tuple of float
+        Mean full width of the sets' bounding boxes per dimension.
+    by_bin : BinCoverage or None
+        Violation rate per bin of a chosen column.
+    calibrated : bool
+        Whether the model's calibration was applied.
+    """
+
+    n: int
+    violations: int
+    violation_rate: float
+    log_volume_mean: float
+    log_volume_median: float
+    mean_extent: tuple[float, ...]
+    calibrated: bool
+    by_bin: BinCoverage | None = field(default=None)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form with keys ``n``, ``violations``, ``violation_rate``, ``log_volume``..."""
+        return {
+            "n": self.n,
+            "violations": self.violations,
+            "violation_rate": self.violation_rate,
+            "log_volume": {"mean": self.log_volume_mean, "median": self.log_volume_median},
+            "mean_extent": list(self.mean_extent),
+            "calibrated": self.calibrated,
+            "by_bin": None if self.by_bin is None else self.by_bin.to_dict(),
+        }
+
+
+def coverage_by_bin(
+    values: FloatArray, violated: NDArray[np.bool_], column: str, bins: int = 10
+) -> BinCoverage:
+    """Violation counts per quantile bin of ``values`` (or per value if few distinct)."""
+    if bins < 1:
+        raise InvalidInputError(f"bins must be >= 1; got {bins}")
+    v = np.asarray(values, dtype=np.float64)
+    uniq = np.unique(v)
+    if len(uniq) <= bins:
+        edges = np.concatenate([uniq, [uniq[-1]]])
+        idx = np.searchsorted(uniq, v)
+        nb = len(uniq)
+    else:
+        edges = np.unique(np.quantile(v, np.linspace(0, 1, bins + 1)))
+        idx = np.clip(np.searchsorted(edges, v, side="right") - 1, 0, len(edges) - 2)
+        nb = len(edges) - 1
+    counts = np.bincount(idx, minlength=nb)
+    viol = np.bincount(idx, weights=violated.astype(float), minlength=nb).astype(int)
+    return BinCoverage(
+        column, tuple(float(e) for e in edges), tuple(int(c) for c in counts), tuple(int(c) for c in viol)
+    )
+
+
+def evaluate(
+    model: IPCModel,
+    data: PerceptionDataset,
+    bin_column: str | None = None,
+    bins: int = 10,
+) -> Evaluation:
+    """Empirical violation rate, set volumes and extents of ``model`` on ``data``.
+
+    Uses the model's calibrated sets if it carries a calibration.
+
+    Examples
+    --------
+    >>> from ipcverify.synthetic import make_lagged_perception
+    >>> from ipcverify.training import train, TrainConfig
+    >>> ds = make_lagged_perception(300, seed=0)
+    >>> ev = evaluate(train(ds, train_config=TrainConfig(epochs=1)).model, ds)
+    >>> ev.n
+    300
+    """
+    if (data.x_dim, data.y_dim) != (model.config.x_dim, model.config.y_dim):
+        raise InvalidInputError(
+            f"{data.source}: data has x_dim={data.x_dim}, y_dim={data.y_dim} but the model "
+            f"expects x_dim={model.config.x_dim}, y_dim={model.config.y_dim}"
+        )
+    sets = model.predict(data.x, data.yhat)
+    violated = ~sets.contains(data.y)
+    logvol = sets.log_volume()
+    extent = 2.0 * sets.half_widths()
+    by_bin = None
+    if bin_column is not None:
+        by_bin = coverage_by_bin(np.asarray(data.column(bin_column), dtype=float), violated, bin_column, bins)
+    k = int(violated.sum())
+    return Evaluation(
+        n=len(data),
+        violations=k,
+        violation_rate=k / len(data),
+        log_volume_mean=float(np.mean(logvol)),
+        log_volume_median=float(np.median(logvol)),
+        mean_extent=tuple(float(e) for e in extent.mean(axis=0)),
+        calibrated=model.calibration is not None,
+        by_bin=by_bin,
+    )

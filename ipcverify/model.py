@@ -1,0 +1,310 @@
+"""The IPC network: (x, yhat) -> ellipsoid E(c, C) that should contain y.
+
+Architecture (paper, "Machine learning setup"): an MLP on ``concat(x, yhat)`` with
+hidden sizes (64, 128). Inputs are standardised with statistics stored in the
+model. The raw output is split into a centre head and a shape head:
+
+* centre ``offset`` (default): ``c = yhat + sigma * o``; centre ``raw``:
+  ``c = mu_y + sigma * o`` where ``o`` is the network's centre output and
+  ``sigma`` the per-dimension scale of the residual ``y - yhat`` (stored).
+* shape ``cholesky`` (default): ``L`` lower-triangular with diagonal
+  ``exp(clamp(l_ii, -12, 12))``, so ``log det(C^T C)`` is finite and cheap;
+  shape ``full``: the paper's ``n^2`` raw entries. Either way
+  ``C = L diag(1 / sigma)``, i.e. ``||C (y - c)|| = ||L ((y - c) / sigma)||``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, field
+from typing import Any, Literal, Protocol
+
+import numpy as np
+import torch
+from numpy.typing import NDArray
+from torch import nn
+
+from ipcverify.errors import InvalidInputError
+from ipcverify.sets import Ellipsoid
+
+__all__ = ["ModelConfig", "IPCNetwork", "IPCModel", "SetCalibration", "LOGDIAG_CLAMP"]
+
+FloatArray = NDArray[np.float64]
+Param = Literal["cholesky", "full"]
+Center = Literal["offset", "raw"]
+#: Bound on the log of the Cholesky diagonal (keeps exp finite in float32).
+LOGDIAG_CLAMP = 12.0
+_ACTIVATIONS: dict[str, type[nn.Module]] = {"relu": nn.ReLU, "tanh": nn.Tanh, "elu": nn.ELU}
+
+
+@dataclass(frozen=True, kw_only=True)
+class ModelConfig:
+    """Architecture of an IPC network.
+
+    Parameters
+    ----------
+    x_dim, y_dim : int
+        State dimension ``d`` and dimension ``n`` of the perceived quantity.
+    hidden : tuple of int
+        Hidden layer widths (paper: (64, 128)).
+    param : {"cholesky", "full"}
+        Parameterisation of the shape matrix.
+    center : {"offset", "raw"}
+        Centre as ``yhat`` plus a learned offset, or predicted directly.
+    activation : {"relu", "tanh", "elu"}
+        Hidden-layer non-linearity.
+
+    Examples
+    --------
+    >>> ModelConfig(x_dim=6, y_dim=3).n_outputs
+    9
+    >>> ModelConfig(x_dim=6, y_dim=3, param="full").n_outputs
+    12
+    """
+
+    x_dim: int
+    y_dim: int
+    hidden: tuple[int, ...] = (64, 128)
+    param: Param = "cholesky"
+    center: Center = "offset"
+    activation: str = "relu"
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "hidden", tuple(int(h) for h in self.hidden))
+        if self.x_dim < 0 or self.y_dim < 1:
+            raise InvalidInputError(
+                f"need x_dim >= 0 and y_dim >= 1; got x_dim={self.x_dim}, y_dim={self.y_dim}"
+            )
+        if not self.hidden or any(h < 1 for h in self.hidden):
+            raise InvalidInputError(f"hidden sizes must be positive integers, e.g. 64,128; got {self.hidden}")
+        if self.param not in ("cholesky", "full"):
+            raise InvalidInputError(f"param must be 'cholesky' or 'full'; got {self.param!r}")
+        if self.center not in ("offset", "raw"):
+            raise InvalidInputError(f"center must be 'offset' or 'raw'; got {self.center!r}")
+        if self.activation not in _ACTIVATIONS:
+            raise InvalidInputError(
+                f"activation must be one of {', '.join(_ACTIVATIONS)}; got {self.activation!r}"
+            )
+
+    @property
+    def n_shape_outputs(self) -> int:
+        """Number of network outputs used for the shape matrix."""
+        n = self.y_dim
+        return n * n if self.param == "full" else n * (n + 1) // 2
+
+    @property
+    def n_outputs(self) -> int:
+        """Total network output size (centre + shape)."""
+        return self.y_dim + self.n_shape_outputs
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-data form (for model files)."""
+        d = asdict(self)
+        d["hidden"] = list(self.hidden)
+        return d
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> ModelConfig:
+        """Inverse of :meth:`to_dict`; unknown keys are refused."""
+        known = {"x_dim", "y_dim", "hidden", "param", "center", "activation"}
+        unknown = set(data) - known
+        if unknown:
+            raise InvalidInputError(f"unknown model config key(s): {', '.join(sorted(unknown))}")
+        return cls(**{k: (tuple(v) if k == "hidden" else v) for k, v in data.items()})
+
+
+class IPCNetwork(nn.Module):
+    """The neural network behind an IPC (float32, CPU).
+
+    ``body`` is a plain :class:`torch.nn.Sequential` MLP; normalisation buffers
+    ``in_mean``, ``in_std``, ``y_mean`` and ``sigma`` are stored in the state dict.
+
+    Examples
+    --------
+    >>> net = IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(8,)))
+    >>> c, C, logdet = net(torch.zeros(5, 2), torch.zeros(5, 3))
+    >>> tuple(C.shape), tuple(logdet.shape)
+    ((5, 3, 3), (5,))
+    """
+
+    def __init__(self, config: ModelConfig) -> None:
+        super().__init__()
+        self.config = config
+        d, n = config.x_dim, config.y_dim
+        act = _ACTIVATIONS[config.activation]
+        layers: list[nn.Module] = []
+        width = d + n
+        for h in config.hidden:
+            layers += [nn.Linear(width, h), act()]
+            width = h
+        layers.append(nn.Linear(width, config.n_outputs))
+        self.body = nn.Sequential(*layers)
+        self.register_buffer("in_mean", torch.zeros(d + n))
+        self.register_buffer("in_std", torch.ones(d + n))
+        self.register_buffer("y_mean", torch.zeros(n))
+        self.register_buffer("sigma", torch.ones(n))
+        rows, cols = torch.tril_indices(n, n)
+        self.register_buffer("_tril_rows", rows, persistent=False)
+        self.register_buffer("_tril_cols", cols, persistent=False)
+        self.register_buffer("_diag_mask", rows == cols, persistent=False)
+        embed = torch.zeros(len(rows), n * n)
+        embed[torch.arange(len(rows)), rows * n + cols] = 1.0
+        # maps the packed lower triangle to a flat n*n matrix without in-place ops
+        self.register_buffer("_tril_embed", embed, persistent=False)
+
+    def set_normalisation(self, x: FloatArray, y: FloatArray, yhat: FloatArray) -> None:
+        """Set input standardisation and output scale from training data."""
+        inp = np.concatenate([x, yhat], axis=1)
+        mean = inp.mean(axis=0)
+        std = inp.std(axis=0)
+        std = np.where(std > 1e-12 * np.maximum(1.0, np.abs(mean)), std, 1.0)
+        resid = y - yhat if self.config.center == "offset" else y - y.mean(axis=0)
+        sigma = resid.std(axis=0)
+        scale = np.maximum(np.abs(y).max(axis=0), 1.0)
+        sigma = np.where(sigma > 1e-9 * scale, sigma, 1e-3 * scale)
+        with torch.no_grad():
+            self.in_mean.copy_(torch.as_tensor(mean, dtype=torch.float32))
+            self.in_std.copy_(torch.as_tensor(std, dtype=torch.float32))
+            self.y_mean.copy_(torch.as_tensor(y.mean(axis=0), dtype=torch.float32))
+            self.sigma.copy_(torch.as_tensor(sigma, dtype=torch.float32))
+
+    def forward(self, x: torch.Tensor, yhat: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Centres (B, n), shape matrices C (B, n, n) and ``log det(C^T C)`` (B,)."""
+        n = self.config.y_dim
+        z = (torch.cat([x, yhat], dim=1) - self.in_mean) / self.in_std
+        out = self.body(z)
+        o, s = out[:, :n], out[:, n:]
+        base = yhat if self.config.center == "offset" else self.y_mean.expand_as(yhat)
+        center = base + self.sigma * o
+        inv_sigma = 1.0 / self.sigma
+        if self.config.param == "full":
+            L = s.reshape(-1, n, n)
+            logdet_L2 = 2.0 * torch.linalg.slogdet(L)[1]
+        else:
+            vals = torch.where(self._diag_mask, torch.exp(torch.clamp(s, -LOGDIAG_CLAMP, LOGDIAG_CLAMP)), s)
+            L = (vals @ self._tril_embed).reshape(-1, n, n)
+            logdet_L2 = 2.0 * torch.clamp(s[:, self._diag_mask], -LOGDIAG_CLAMP, LOGDIAG_CLAMP).sum(1)
+        C = L * inv_sigma
+        logdet = logdet_L2 + 2.0 * torch.log(inv_sigma).sum()
+        return center, C, logdet
+
+    def score(
+        self, x: torch.Tensor, y: torch.Tensor, yhat: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """``g = ||C (y - c)||`` (B,) and ``log det(C^T C)`` (B,)."""
+        center, C, logdet = self(x, yhat)
+        g = torch.linalg.vector_norm(torch.einsum("bij,bj->bi", C, y - center), dim=1)
+        return g, logdet
+
+
+class SetCalibration(Protocol):
+    """What a calibration must provide to rescale an IPC's sets."""
+
+    def scale_factors(self, x: FloatArray, yhat: FloatArray) -> FloatArray:
+        """Per-sample scale factors ``s`` (B,): the calibrated set is ``E(c, C / s)``."""
+        ...
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-data form stored in the model file."""
+        ...
+
+
+@dataclass(frozen=True, eq=False)
+class IPCModel:
+    """A trained inverse perception contract, optionally calibrated.
+
+    Parameters
+    ----------
+    network : IPCNetwork
+        The trained network (put in eval mode).
+    calibration : SetCalibration, optional
+        Scale factors applied to the raw sets; see :mod:`ipcverify.calibration`.
+    metadata : mapping
+        Plain data recorded with the model (training settings, data hash, history).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(8,))))
+    >>> m.predict(np.zeros((4, 2)), np.zeros((4, 3))).batch_size
+    4
+    """
+
+    network: IPCNetwork
+    calibration: SetCalibration | None = None
+    metadata: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.network.eval()
+
+    @property
+    def config(self) -> ModelConfig:
+        """The network architecture."""
+        return self.network.config
+
+    @property
+    def n_parameters(self) -> int:
+        """Number of trainable scalar parameters ``p``."""
+        return sum(p.numel() for p in self.network.parameters())
+
+    def _check(self, x: Any, yhat: Any) -> tuple[FloatArray, FloatArray]:
+        xa = np.asarray(x, dtype=np.float64)
+        ya = np.asarray(yhat, dtype=np.float64)
+        if xa.ndim == 1:
+            xa = xa[None]
+        if ya.ndim == 1:
+            ya = ya[None]
+        cfg = self.config
+        if xa.shape[1:] != (cfg.x_dim,) or ya.shape[1:] != (cfg.y_dim,) or len(xa) != len(ya):
+            raise InvalidInputError(
+                f"the model expects x of shape (B, {cfg.x_dim}) and yhat of shape (B, {cfg.y_dim}); "
+                f"got {xa.shape} and {ya.shape}"
+            )
+        if not (np.isfinite(xa).all() and np.isfinite(ya).all()):
+            raise InvalidInputError("x and yhat must be finite")
+        return xa, ya
+
+    def raw_arrays(self, x: Any, yhat: Any, batch_size: int = 65536) -> tuple[FloatArray, FloatArray]:
+        """Uncalibrated centres (B, n) and shapes (B, n, n) as float64 arrays."""
+        xa, ya = self._check(x, yhat)
+        centers, shapes = [], []
+        with torch.inference_mode():
+            for i in range(0, len(xa), batch_size):
+                c, C, _ = self.network(
+                    torch.tensor(xa[i : i + batch_size], dtype=torch.float32),
+                    torch.tensor(ya[i : i + batch_size], dtype=torch.float32),
+                )
+                centers.append(c.double().numpy())
+                shapes.append(C.double().numpy())
+        n = self.config.y_dim
+        if not centers:
+            return np.zeros((0, n)), np.zeros((0, n, n))
+        return np.concatenate(centers), np.concatenate(shapes)
+
+    def predict_raw(self, x: Any, yhat: Any) -> Ellipsoid:
+        """The network's own sets, ignoring any calibration."""
+        return Ellipsoid(*self.raw_arrays(x, yhat))
+
+    def predict(self, x: Any, yhat: Any) -> Ellipsoid:
+        """The contract's sets: calibrated if the model carries a calibration.
+
+        Parameters
+        ----------
+        x : array_like, shape (B, d) or (d,)
+        yhat : array_like, shape (B, n) or (n,)
+        """
+        xa, ya = self._check(x, yhat)
+        sets = Ellipsoid(*self.raw_arrays(xa, ya))
+        if self.calibration is not None:
+            sets = sets.scaled(self.calibration.scale_factors(xa, ya))
+        return sets
+
+    def raw_scores(self, x: Any, y: Any, yhat: Any) -> FloatArray:
+        """Uncalibrated scores ``g = ||C (y - c)||`` (B,) in float64."""
+        centers, shapes = self.raw_arrays(x, yhat)
+        ya = np.asarray(y, dtype=np.float64).reshape(centers.shape)
+        return np.linalg.norm(np.einsum("bij,bj->bi", shapes, ya - centers), axis=1)
+
+    def with_calibration(self, calibration: SetCalibration | None) -> IPCModel:
+        """A copy of this model carrying ``calibration`` (the network is shared)."""
+        return IPCModel(self.network, calibration, self.metadata)

@@ -1,0 +1,291 @@
+"""Training an IPC by the paper's objective.
+
+The loss on a batch is ``mean(l(g - 1)) + lam * mean(-log det(C^T C))`` with the
+hinge ``l(t) = max(0, t / alpha + 1)`` (paper, eq. for L_ERM and L_REG): the hinge
+pushes every score ``g = ||C (y - c)||`` below ``1 - alpha``, the log-determinant
+term shrinks the ellipsoids.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+import torch
+from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+from ipcverify.data import PerceptionDataset
+from ipcverify.errors import InvalidInputError
+from ipcverify.model import IPCModel, IPCNetwork, ModelConfig
+
+__all__ = ["TrainConfig", "TrainResult", "hinge", "ipc_loss", "train", "NonFiniteLossError"]
+
+
+class NonFiniteLossError(InvalidInputError):
+    """Training produced a non-finite loss (possible with the ``full`` parameterisation)."""
+
+
+@dataclass(frozen=True, kw_only=True)
+class TrainConfig:
+    """Optimisation settings.
+
+    Parameters
+    ----------
+    epochs : int
+        Passes over the training data (paper: 20).
+    lr : float
+        Adam learning rate (paper: 1e-3).
+    batch_size : int
+        Mini-batch size.
+    alpha : float
+        Hinge margin ``alpha > 0``.
+    lam : float
+        Weight ``lambda >= 0`` of the volume penalty.
+    seed : int
+        Seeds initialisation and shuffling; CPU training is reproducible.
+    val_fraction : float
+        Share of the training data held out for validation (0 disables it).
+    patience : int or None
+        With validation, stop after this many epochs without improvement and
+        restore the best weights.
+
+    Examples
+    --------
+    >>> TrainConfig(epochs=5).lr
+    0.001
+    """
+
+    epochs: int = 20
+    lr: float = 1e-3
+    batch_size: int = 64
+    alpha: float = 0.1
+    lam: float = 0.01
+    seed: int = 0
+    val_fraction: float = 0.0
+    patience: int | None = None
+
+    def __post_init__(self) -> None:
+        checks = [
+            (self.epochs >= 1, f"epochs must be >= 1; got {self.epochs}"),
+            (self.lr > 0 and math.isfinite(self.lr), f"lr must be > 0; got {self.lr}"),
+            (self.batch_size >= 1, f"batch size must be >= 1; got {self.batch_size}"),
+            (self.alpha > 0 and math.isfinite(self.alpha), f"alpha must be > 0; got {self.alpha}"),
+            (self.lam >= 0 and math.isfinite(self.lam), f"lam must be >= 0; got {self.lam}"),
+            (0 <= self.val_fraction < 1, f"val_fraction must be in [0, 1); got {self.val_fraction}"),
+            (
+                self.patience is None or self.patience >= 1,
+                f"patience must be >= 1; got {self.patience}",
+            ),
+            (
+                self.patience is None or self.val_fraction > 0,
+                "patience (early stopping) needs a validation split: set val_fraction > 0",
+            ),
+        ]
+        for ok, msg in checks:
+            if not ok:
+                raise InvalidInputError(msg)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-data form (stored in model files)."""
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class TrainResult:
+    """A trained model and the per-epoch history (``loss``, ``hinge``, ``logdet``, ...)."""
+
+    model: IPCModel
+    history: list[dict[str, float]]
+
+
+def hinge(t: torch.Tensor, alpha: float) -> torch.Tensor:
+    """The paper's hinge ``l(t) = max(0, t / alpha + 1)``."""
+    return torch.clamp(t / alpha + 1.0, min=0.0)
+
+
+def ipc_loss(
+    g: torch.Tensor, logdet: torch.Tensor, alpha: float, lam: float
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """The paper's objective on a batch.
+
+    Parameters
+    ----------
+    g : Tensor (B,)
+        Scores ``||C (y - c)||``.
+    logdet : Tensor (B,)
+        ``log det(C^T C)`` per sample.
+
+    Returns
+    -------
+    loss, hinge_term, reg_term : Tensor
+        ``loss = hinge_term + lam * reg_term`` with ``hinge_term = mean l(g - 1)`` and
+        ``reg_term = mean(-logdet)``.
+
+    Examples
+    --------
+    >>> g = torch.tensor([0.5, 1.0]); ld = torch.tensor([2.0, 0.0])
+    >>> [round(float(v), 4) for v in ipc_loss(g, ld, alpha=0.5, lam=0.1)]
+    [0.4, 0.5, -1.0]
+    """
+    h = hinge(g - 1.0, alpha).mean()
+    reg = (-logdet).mean()
+    return h + lam * reg, h, reg
+
+
+def _tensors(ds: PerceptionDataset) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    return (
+        torch.tensor(ds.x, dtype=torch.float32),
+        torch.tensor(ds.y, dtype=torch.float32),
+        torch.tensor(ds.yhat, dtype=torch.float32),
+    )
+
+
+def _evaluate_loss(net: IPCNetwork, ds: PerceptionDataset, cfg: TrainConfig) -> dict[str, float]:
+    x, y, yhat = _tensors(ds)
+    with torch.no_grad():
+        g, logdet = net.score(x, y, yhat)
+        loss, h, reg = ipc_loss(g, logdet, cfg.alpha, cfg.lam)
+    return {
+        "loss": float(loss),
+        "hinge": float(h),
+        "neg_logdet": float(reg),
+        "violation_rate": float((g > 1).float().mean()),
+    }
+
+
+def train(
+    train_data: PerceptionDataset,
+    model_config: ModelConfig | None = None,
+    train_config: TrainConfig | None = None,
+    progress: bool = False,
+) -> TrainResult:
+    """Learn an IPC from a perception log.
+
+    Parameters
+    ----------
+    train_data : PerceptionDataset
+        Training samples (keep calibration and test data apart).
+    model_config : ModelConfig, optional
+        Architecture; default: paper's (64, 128) MLP with Cholesky shape.
+    train_config : TrainConfig, optional
+        Optimisation settings; default: Adam 1e-3 for 20 epochs.
+    progress : bool
+        Show a rich progress bar.
+
+    Returns
+    -------
+    TrainResult
+        The model (uncalibrated) and the per-epoch history.
+
+    Raises
+    ------
+    NonFiniteLossError
+        If the loss becomes NaN or infinite (possible with ``param="full"``, whose
+        ``log det`` is ``-inf`` at a singular ``C``); switch to ``cholesky``.
+
+    Examples
+    --------
+    >>> from ipcverify.synthetic import make_lagged_perception
+    >>> ds = make_lagged_perception(200, seed=0)
+    >>> res = train(ds, train_config=TrainConfig(epochs=2))
+    >>> len(res.history)
+    2
+    """
+    tc = train_config or TrainConfig()
+    mc = model_config or ModelConfig(x_dim=train_data.x_dim, y_dim=train_data.y_dim)
+    if (mc.x_dim, mc.y_dim) != (train_data.x_dim, train_data.y_dim):
+        raise InvalidInputError(
+            f"model expects x_dim={mc.x_dim}, y_dim={mc.y_dim} but the data has "
+            f"x_dim={train_data.x_dim}, y_dim={train_data.y_dim}"
+        )
+    torch.manual_seed(tc.seed)
+    gen = torch.Generator().manual_seed(tc.seed)
+
+    fit, val = train_data, None
+    if tc.val_fraction > 0:
+        parts = train_data.split((1 - tc.val_fraction, 0.0, tc.val_fraction), seed=tc.seed)
+        if parts.train is None or parts.test is None:
+            raise InvalidInputError("too few samples to hold out a validation split")
+        fit, val = parts.train, parts.test
+
+    net = IPCNetwork(mc)
+    net.set_normalisation(fit.x, fit.y, fit.yhat)
+    opt = torch.optim.Adam(net.parameters(), lr=tc.lr)
+    x, y, yhat = _tensors(fit)
+    n = len(fit)
+    history: list[dict[str, float]] = []
+    best_state: dict[str, Any] | None = None
+    best_val = math.inf
+    stale = 0
+
+    bar = Progress(
+        TextColumn("training"),
+        BarColumn(),
+        TextColumn("epoch {task.completed}/{task.total} loss {task.fields[loss]:.4f}"),
+        TimeRemainingColumn(),
+        disable=not progress,
+        transient=True,
+    )
+    with bar:
+        task = bar.add_task("train", total=tc.epochs, loss=float("nan"))
+        for epoch in range(tc.epochs):
+            net.train()
+            perm = torch.randperm(n, generator=gen)
+            total = 0.0
+            for i in range(0, n, tc.batch_size):
+                idx = perm[i : i + tc.batch_size]
+                g, logdet = net.score(x[idx], y[idx], yhat[idx])
+                loss, _, _ = ipc_loss(g, logdet, tc.alpha, tc.lam)
+                if not torch.isfinite(loss):
+                    raise NonFiniteLossError(
+                        f"non-finite training loss at epoch {epoch + 1} "
+                        f"(param={mc.param!r}); use --param cholesky, whose log det is always "
+                        "finite, or lower the learning rate"
+                    )
+                opt.zero_grad(set_to_none=True)
+                loss.backward()
+                opt.step()
+                total += float(loss.detach()) * len(idx)
+            net.eval()
+            rec = {"epoch": float(epoch + 1), "train_loss": total / n}
+            rec.update({f"fit_{k}": v for k, v in _evaluate_loss(net, fit, tc).items()})
+            if val is not None:
+                vrec = _evaluate_loss(net, val, tc)
+                rec.update({f"val_{k}": v for k, v in vrec.items()})
+                if vrec["loss"] < best_val:
+                    best_val, stale = vrec["loss"], 0
+                    best_state = copy.deepcopy(net.state_dict())
+                else:
+                    stale += 1
+            history.append(rec)
+            bar.update(task, advance=1, loss=rec["train_loss"])
+            if tc.patience is not None and stale >= tc.patience:
+                break
+    if best_state is not None and tc.patience is not None:
+        net.load_state_dict(best_state)
+    net.eval()
+    metadata = {
+        "train_config": tc.to_dict(),
+        "train_data_hash": train_data.content_hash(),
+        "train_n": len(train_data),
+        "x_columns": list(train_data.x_columns),
+        "y_columns": list(train_data.y_columns),
+        "yhat_columns": list(train_data.yhat_columns),
+        "history": history,
+    }
+    return TrainResult(IPCModel(net, None, metadata), history)
+
+
+def set_threads(n: int | None) -> None:
+    """Limit torch's intra-op threads (``None`` leaves the default)."""
+    if n is not None:
+        torch.set_num_threads(max(1, int(n)))
+
+
+def as_numpy_history(history: list[dict[str, float]]) -> dict[str, np.ndarray]:
+    """History as column arrays, e.g. for plotting."""
+    keys = sorted({k for rec in history for k in rec})
+    return {k: np.array([rec.get(k, np.nan) for rec in history]) for k in keys}
