@@ -107,7 +107,7 @@ def load_model(path: str | os.PathLike[str]) -> IPCModel:
         payload = torch.load(p, map_location="cpu", weights_only=True)
     except pickle.UnpicklingError as exc:
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
-        if "weights_only" in str(exc) or "Unsupported global" in str(exc):
+        if "Unsupported global" in str(exc):
             raise ModelFileError(
                 f"{p}: refused to load: the file holds objects other than tensors and plain "
                 "data, which could run code; only load model files written by ipcverify"

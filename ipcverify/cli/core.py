@@ -1,5 +1,198 @@
-"""CLI commands (core); registered on the shared app."""
+"""Core CLI commands: ``train``, ``evaluate``, ``predict`` and ``demo``.
+
+Each command parses its arguments, calls one library function and prints the
+result; nothing else happens here.
+"""
 
 from __future__ import annotations
 
-from ipcverify.cli.app import app  # noqa: F401
+import json
+from pathlib import Path
+
+import click
+import numpy as np
+from rich.table import Table
+
+from ipcverify.cli.app import app, console
+from ipcverify.data import PerceptionDataset, atomic_write, load_dataset
+from ipcverify.demo import run_demo
+from ipcverify.errors import InvalidInputError
+from ipcverify.evaluation import Evaluation, evaluate
+from ipcverify.model import ModelConfig
+from ipcverify.modelio import load_model, save_model
+from ipcverify.training import TrainConfig, train
+
+__all__ = ["parse_hidden"]
+
+_EXISTING = click.Path(exists=True, dir_okay=False, path_type=Path)
+
+
+def parse_hidden(text: str) -> tuple[int, ...]:
+    """Parse ``"64,128"`` into ``(64, 128)``.
+
+    Examples
+    --------
+    >>> parse_hidden("64, 128")
+    (64, 128)
+    """
+    try:
+        sizes = tuple(int(t) for t in text.split(",") if t.strip())
+    except ValueError:
+        raise InvalidInputError(
+            f"--hidden must be comma-separated positive integers such as 64,128; got {text!r}"
+        ) from None
+    if not sizes or any(s < 1 for s in sizes):
+        raise InvalidInputError(
+            f"--hidden must be comma-separated positive integers such as 64,128; got {text!r}"
+        )
+    return sizes
+
+
+def _columns(text: str | None) -> list[str] | None:
+    return [c.strip() for c in text.split(",") if c.strip()] if text else None
+
+
+def _print_evaluation(ev: Evaluation, title: str) -> None:
+    table = Table(title=title, show_header=False)
+    table.add_row("samples", str(ev.n))
+    table.add_row("violations (y outside its set)", f"{ev.violations} ({100 * ev.violation_rate:.2f} %)")
+    table.add_row("log-volume mean / median", f"{ev.log_volume_mean:.3f} / {ev.log_volume_median:.3f}")
+    table.add_row("mean extent per dim", ", ".join(f"{e:.4g}" for e in ev.mean_extent))
+    table.add_row("sets", "calibrated" if ev.calibrated else "raw network (uncalibrated)")
+    console.print(table)
+    if ev.by_bin is not None:
+        bt = Table(title=f"violation rate by {ev.by_bin.column}")
+        bt.add_column("bin")
+        bt.add_column("n", justify="right")
+        bt.add_column("violations", justify="right")
+        bt.add_column("rate", justify="right")
+        for i, (c, v) in enumerate(zip(ev.by_bin.counts, ev.by_bin.violations, strict=True)):
+            lo, hi = ev.by_bin.edges[i], ev.by_bin.edges[min(i + 1, len(ev.by_bin.edges) - 1)]
+            bt.add_row(f"[{lo:.4g}, {hi:.4g}]", str(c), str(v), f"{100 * v / c:.2f} %" if c else "-")
+        console.print(bt)
+
+
+@app.command("train")
+@click.argument("data", type=_EXISTING)
+@click.option("--out", type=click.Path(dir_okay=False, path_type=Path), required=True, help="Model file.")
+@click.option("--hidden", default="64,128", show_default=True, help="Hidden layer widths.")
+@click.option("--epochs", default=20, show_default=True, type=int)
+@click.option("--lr", default=1e-3, show_default=True, type=float, help="Adam learning rate.")
+@click.option("--alpha", default=TrainConfig.alpha, show_default=True, type=float, help="Hinge margin.")
+@click.option("--lam", default=TrainConfig.lam, show_default=True, type=float, help="Volume penalty weight.")
+@click.option("--batch-size", default=TrainConfig.batch_size, show_default=True, type=int)
+@click.option("--param", type=click.Choice(["cholesky", "full"]), default="cholesky", show_default=True)
+@click.option("--center", type=click.Choice(["offset", "raw"]), default="offset", show_default=True)
+@click.option("--seed", default=0, show_default=True, type=int)
+@click.option("--val-fraction", default=0.0, show_default=True, type=float, help="Hold out for validation.")
+@click.option("--patience", default=None, type=int, help="Early stopping patience (needs --val-fraction).")
+@click.option("--x-columns", default=None, help="Comma-separated state columns (default x_0, x_1, ...).")
+@click.option("--y-columns", default=None, help="Comma-separated truth columns (default y_0, ...).")
+@click.option("--yhat-columns", default=None, help="Comma-separated estimate columns (default yhat_0, ...).")
+def train_cmd(
+    data: Path,
+    out: Path,
+    hidden: str,
+    epochs: int,
+    lr: float,
+    alpha: float,
+    lam: float,
+    batch_size: int,
+    param: str,
+    center: str,
+    seed: int,
+    val_fraction: float,
+    patience: int | None,
+    x_columns: str | None,
+    y_columns: str | None,
+    yhat_columns: str | None,
+) -> None:
+    """Train an IPC on DATA (CSV, Parquet or NPZ) and save it to --out."""
+    ds = load_dataset(data, _columns(x_columns), _columns(y_columns), _columns(yhat_columns))
+    mc = ModelConfig(x_dim=ds.x_dim, y_dim=ds.y_dim, hidden=parse_hidden(hidden), param=param, center=center)  # type: ignore[arg-type]
+    tc = TrainConfig(
+        epochs=epochs,
+        lr=lr,
+        alpha=alpha,
+        lam=lam,
+        batch_size=batch_size,
+        seed=seed,
+        val_fraction=val_fraction,
+        patience=patience,
+    )
+    result = train(ds, mc, tc, progress=True)
+    save_model(result.model, out)
+    last = result.history[-1]
+    console.print(
+        f"trained on {len(ds)} samples for {len(result.history)} epochs: loss {last['fit_loss']:.4f}, "
+        f"training violation rate {100 * last['fit_violation_rate']:.2f} % -> {out}"
+    )
+
+
+@app.command("evaluate")
+@click.argument("model", type=_EXISTING)
+@click.argument("data", type=_EXISTING)
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of tables.")
+@click.option("--bin-column", default=None, help="Report the violation rate per bin of this column.")
+@click.option("--bins", default=10, show_default=True, type=int)
+def evaluate_cmd(model: Path, data: Path, as_json: bool, bin_column: str | None, bins: int) -> None:
+    """Empirical violation rate and set sizes of MODEL on labelled DATA."""
+    m = load_model(model)
+    ds = _load_for_model(data, m.metadata)
+    ev = evaluate(m, ds, bin_column=bin_column, bins=bins)
+    if as_json:
+        click.echo(json.dumps(ev.to_dict()))
+    else:
+        _print_evaluation(ev, f"{model.name} on {data.name}")
+
+
+def _load_for_model(data: Path, metadata: object) -> PerceptionDataset:
+    """Load DATA with the column names the model was trained on."""
+    meta = metadata if isinstance(metadata, dict) else {}
+    suffix = data.suffix.lower()
+    if suffix == ".npz":
+        return load_dataset(data)
+    return load_dataset(
+        data, meta.get("x_columns") or None, meta.get("y_columns") or None, meta.get("yhat_columns") or None
+    )
+
+
+@app.command("predict")
+@click.argument("model", type=_EXISTING)
+@click.argument("data", type=_EXISTING)
+@click.option("--out", type=click.Path(dir_okay=False, path_type=Path), required=True, help="Output .npz.")
+def predict_cmd(model: Path, data: Path, out: Path) -> None:
+    """Write the IPC's sets for DATA to an NPZ with arrays `center` (B, n) and `shape` (B, n, n).
+
+    E_i = {y : ||shape_i (y - center_i)|| <= 1}. Calibrated models give calibrated sets.
+    DATA needs the state and estimate columns; truth columns are not used.
+    """
+    if out.suffix.lower() != ".npz":
+        raise InvalidInputError(f"--out must end in .npz; got {out.name}")
+    m = load_model(model)
+    ds = _load_for_model(data, m.metadata)
+    sets = m.predict(ds.x, ds.yhat)
+    atomic_write(out, lambda f: np.savez(f, center=sets.centers, shape=sets.shapes))
+    console.print(f"wrote {sets.batch_size} {'calibrated' if m.calibration else 'raw'} ellipsoids to {out}")
+
+
+@app.command("demo")
+@click.option(
+    "--out",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=Path("ipcverify-demo"),
+    show_default=True,
+    help="Directory for the example data and model.",
+)
+@click.option("--n", "n_samples", default=5000, show_default=True, type=int, help="Training samples.")
+@click.option("--seed", default=0, show_default=True, type=int)
+def demo_cmd(out: Path, n_samples: int, seed: int) -> None:
+    """Generate the bundled synthetic lagged-perception data, train an IPC, evaluate it."""
+    summary = run_demo(out, n_train=n_samples, seed=seed, progress=True)
+    _print_evaluation(summary.evaluation, "IPC on fresh test data")
+    console.print(
+        f"global error ellipsoid with the same test coverage: log-volume {summary.global_log_volume:.3f} "
+        f"(the IPC's mean is {summary.evaluation.log_volume_mean:.3f}: "
+        f"{np.exp(summary.global_log_volume - summary.evaluation.log_volume_mean):.1f}x smaller on average)"
+    )
+    console.print(f"files in {out}/: train.csv, test.csv, model.pt")

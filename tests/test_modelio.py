@@ -1,0 +1,110 @@
+"""Tests of safe model files."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import pytest
+import torch
+
+from ipcverify.errors import ModelFileError
+from ipcverify.model import IPCModel, IPCNetwork, ModelConfig
+from ipcverify.modelio import load_model, save_model
+from ipcverify.synthetic import make_lagged_perception
+from ipcverify.training import TrainConfig, train
+
+
+def test_save_load_gives_identical_outputs(tmp_path):
+    ds = make_lagged_perception(300, seed=0)
+    model = train(ds, train_config=TrainConfig(epochs=2)).model
+    p = tmp_path / "m.pt"
+    save_model(model, p)
+    back = load_model(p)
+    a, b = model.predict(ds.x, ds.yhat), back.predict(ds.x, ds.yhat)
+    assert np.array_equal(a.centers, b.centers)
+    assert np.array_equal(a.shapes, b.shapes)
+    assert back.metadata["train_data_hash"] == ds.content_hash()
+    assert back.config == model.config
+
+
+class _Payload:
+    """Unpickling this object would create a marker file: proof that code ran."""
+
+    def __init__(self, marker: str) -> None:
+        self.marker = marker
+
+    def __reduce__(self):
+        return (open, (self.marker, "w"))
+
+
+def test_malicious_model_file_is_refused_and_never_runs(tmp_path):
+    marker = tmp_path / "PWNED"
+    p = tmp_path / "evil.pt"
+    torch.save({"format": "ipcverify-model", "format_version": 1, "x": _Payload(str(marker))}, p)
+    # sanity: the payload does run when loaded unsafely
+    torch.load(p, weights_only=False)
+    assert marker.exists()
+    marker.unlink()
+    with pytest.raises(ModelFileError, match=r"refused to load: the file holds objects other than tensors"):
+        load_model(p)
+    assert not marker.exists()
+
+
+def test_not_a_model_file(tmp_path):
+    p = tmp_path / "junk.pt"
+    p.write_bytes(b"definitely not a zip or pickle")
+    with pytest.raises(ModelFileError, match=r"junk\.pt: not a readable model file"):
+        load_model(p)
+
+
+def test_other_torch_file(tmp_path):
+    p = tmp_path / "other.pt"
+    torch.save({"weights": torch.zeros(3)}, p)
+    with pytest.raises(ModelFileError, match="not an ipcverify model file"):
+        load_model(p)
+
+
+def test_future_version(tmp_path):
+    p = tmp_path / "v9.pt"
+    torch.save({"format": "ipcverify-model", "format_version": 9}, p)
+    with pytest.raises(ModelFileError, match="model format version 9 is not supported"):
+        load_model(p)
+
+
+def test_damaged_state_dict(tmp_path):
+    m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(4,))))
+    p = tmp_path / "m.pt"
+    save_model(m, p)
+    payload = torch.load(p, weights_only=True)
+    del payload["state_dict"]["body.0.weight"]
+    torch.save(payload, p)
+    with pytest.raises(ModelFileError, match="damaged model file"):
+        load_model(p)
+
+
+def test_non_finite_weights(tmp_path):
+    m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(4,))))
+    p = tmp_path / "m.pt"
+    save_model(m, p)
+    payload = torch.load(p, weights_only=True)
+    payload["state_dict"]["body.0.bias"][0] = float("nan")
+    torch.save(payload, p)
+    with pytest.raises(ModelFileError, match=r"parameter 'body\.0\.bias' holds non-finite values"):
+        load_model(p)
+
+
+def test_save_is_atomic(tmp_path, monkeypatch):
+    m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(4,))))
+    p = tmp_path / "m.pt"
+    save_model(m, p)
+    before = p.read_bytes()
+
+    def boom(*args, **kwargs):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(torch, "save", boom)
+    with pytest.raises(OSError):
+        save_model(m, p)
+    assert p.read_bytes() == before
+    assert os.listdir(tmp_path) == ["m.pt"]
