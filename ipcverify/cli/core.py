@@ -193,6 +193,6 @@ def demo_cmd(out: Path, n_samples: int, seed: int) -> None:
     console.print(
         f"global error ellipsoid with the same test coverage: log-volume {summary.global_log_volume:.3f} "
         f"(the IPC's mean is {summary.evaluation.log_volume_mean:.3f}: "
-        f"{np.exp(summary.global_log_volume - summary.evaluation.log_volume_mean):.1f}x smaller on average)"
+        f"{np.exp(summary.global_log_volume - summary.evaluation.log_volume_mean):.1f}x smaller in geometric mean)"
     )
     console.print(f"files in {out}/: train.csv, test.csv, model.pt")

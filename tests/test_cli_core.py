@@ -1,0 +1,118 @@
+"""Tests of the core CLI verbs: train, evaluate, predict, demo, and their errors."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from ipcverify.data import save_dataset
+from ipcverify.modelio import load_model
+from ipcverify.synthetic import make_lagged_perception
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    d = tmp_path_factory.mktemp("cli")
+    save_dataset(make_lagged_perception(600, seed=0), d / "train.parquet")
+    save_dataset(make_lagged_perception(400, seed=1), d / "test.csv")
+    return d
+
+
+@pytest.fixture(scope="module")
+def model_path(files):
+    from ipcverify.cli import main
+
+    p = files / "model.pt"
+    with pytest.raises(SystemExit) as exc:
+        main(["train", str(files / "train.parquet"), "--out", str(p), "--epochs", "3", "--hidden", "16,16"])
+    assert exc.value.code == 0
+    return p
+
+
+def test_train_writes_a_loadable_model(model_path):
+    m = load_model(model_path)
+    assert m.config.hidden == (16, 16)
+    assert m.metadata["train_config"]["epochs"] == 3
+
+
+def test_evaluate_json(run_cli, files, model_path):
+    res = run_cli("evaluate", model_path, files / "test.csv", "--json")
+    assert res.code == 0, res.stderr
+    out = json.loads(res.stdout)
+    assert out["n"] == 400
+    assert out["violations"] == round(out["violation_rate"] * 400)
+    assert set(out["log_volume"]) == {"mean", "median"}
+    # the numbers agree with the library
+    from ipcverify.data import load_dataset
+    from ipcverify.evaluation import evaluate
+
+    ev = evaluate(load_model(model_path), load_dataset(files / "test.csv"))
+    assert out["violations"] == ev.violations
+    assert out["log_volume"]["mean"] == pytest.approx(ev.log_volume_mean)
+
+
+def test_evaluate_table_with_bins(run_cli, files, model_path):
+    res = run_cli("evaluate", model_path, files / "test.csv", "--bin-column", "x_5", "--bins", "4")
+    assert res.code == 0, res.stderr
+    assert "violation rate by x_5" in res.stdout
+
+
+def test_predict_npz(run_cli, files, model_path, tmp_path):
+    out = tmp_path / "sets.npz"
+    res = run_cli("predict", model_path, files / "test.csv", "--out", out)
+    assert res.code == 0, res.stderr
+    z = np.load(out)
+    assert z["center"].shape == (400, 3) and z["shape"].shape == (400, 3, 3)
+    from ipcverify.data import load_dataset
+
+    ds = load_dataset(files / "test.csv")
+    e = load_model(model_path).predict(ds.x, ds.yhat)
+    assert np.array_equal(z["center"], e.centers) and np.array_equal(z["shape"], e.shapes)
+
+
+def test_demo(run_cli, tmp_path):
+    res = run_cli("demo", "--out", tmp_path / "demo", "--n", "400")
+    assert res.code == 0, res.stderr
+    assert "IPC on fresh test data" in res.stdout
+    assert (tmp_path / "demo" / "model.pt").is_file()
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["train", "{train}", "--out", "{tmp}/m.pt", "--hidden", "64,abc"], "--hidden must be comma-separated"),
+        (["train", "{train}", "--out", "{tmp}/m.pt", "--epochs", "0"], "epochs must be >= 1"),
+        (["train", "{train}", "--out", "{tmp}/m.pt", "--lr", "-1"], "lr must be > 0"),
+        (["train", "{train}", "--out", "{tmp}/m.pt", "--patience", "2"], "needs a validation split"),
+        (["train", "{tmp}/missing.csv", "--out", "{tmp}/m.pt"], "does not exist"),
+        (["train", "{bad}", "--out", "{tmp}/m.pt"], "non-finite value"),
+        (["evaluate", "{bad}", "{test}"], "not a readable model file"),
+        (["predict", "{model}", "{test}", "--out", "{tmp}/sets.csv"], "--out must end in .npz"),
+        (["evaluate", "{model}", "{test}", "--bin-column", "speed"], "no column 'speed'"),
+        (["train", "{train}", "--out", "{tmp}/m.pt", "--param", "diag"], "Invalid value for '--param'"),
+    ],
+)
+def test_user_errors_exit_2_with_one_line(run_cli, files, model_path, tmp_path, args, message):
+    bad = tmp_path / "bad.csv"
+    bad.write_text("x_0,y_0,yhat_0\n1,inf,2\n")
+    subs = {
+        "{train}": str(files / "train.parquet"),
+        "{test}": str(files / "test.csv"),
+        "{model}": str(model_path),
+        "{bad}": str(bad),
+        "{tmp}": str(tmp_path),
+    }
+    argv = []
+    for a in args:
+        for k, v in subs.items():
+            a = a.replace(k, v)
+        argv.append(a)
+    res = run_cli(*argv)
+    assert res.code == 2
+    assert message in res.stderr
+    assert "Traceback" not in res.stderr
+    if not message.startswith("Invalid value") and message != "does not exist":
+        assert len(res.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "m.pt").exists()
