@@ -1,0 +1,291 @@
+"""Exact binomial machinery behind ipcverify's certificates.
+
+Every function here is distribution-free: it relies only on the calibration or
+test samples being exchangeable (for example i.i.d.) with the data the contract
+will meet in deployment. The proofs are in ``proofs/clopper_pearson.md`` and
+``proofs/pac_calibration.md``.
+
+* :func:`clopper_pearson_upper` / :func:`clopper_pearson_interval` -- exact
+  binomial confidence bounds on a violation rate from ``k`` violations in ``n``
+  held-out samples.
+* :func:`pac_calibration_index` -- the order statistic ``k`` such that, with
+  probability at least ``1 - delta`` over the calibration set, the contract scaled
+  by the ``k``-th smallest score violates with probability at most ``epsilon``.
+* :func:`marginal_conformal_index` -- split conformal's ``ceil((n + 1)(1 - epsilon))``.
+* :func:`min_calibration_size` -- the smallest ``n`` for which either index exists.
+
+Binomial tails come from :mod:`scipy.stats` (regularised incomplete beta
+function, relative accuracy near 1e-15). Wherever rounding could tip a decision
+the wrong way, the comparison is tightened by the relative margin
+:data:`TAIL_MARGIN`, which can only make a result more conservative.
+"""
+
+from __future__ import annotations
+
+import math
+from fractions import Fraction
+from typing import Literal
+
+from scipy import stats
+
+from ipcverify.errors import InvalidInputError, SampleSizeError
+
+__all__ = [
+    "CalibrationMode",
+    "TAIL_MARGIN",
+    "clopper_pearson_upper",
+    "clopper_pearson_lower",
+    "clopper_pearson_interval",
+    "pac_calibration_index",
+    "pac_epsilon",
+    "marginal_conformal_index",
+    "min_calibration_size",
+    "calibration_index",
+]
+
+CalibrationMode = Literal["pac", "marginal"]
+
+#: Relative safety margin on binomial tail comparisons (guards against rounding in
+#: the incomplete beta function; it only ever makes a bound more conservative).
+TAIL_MARGIN = 1e-9
+
+
+def _check_probability(name: str, value: float, *, open_interval: bool = True) -> float:
+    v = float(value)
+    ok = 0.0 < v < 1.0 if open_interval else 0.0 <= v <= 1.0
+    if not (math.isfinite(v) and ok):
+        raise InvalidInputError(f"{name} must lie strictly between 0 and 1; got {value!r}")
+    return v
+
+
+def _check_counts(k: int, n: int) -> tuple[int, int]:
+    if int(n) != n or int(k) != k:
+        raise InvalidInputError(f"k and n must be integers; got k={k!r}, n={n!r}")
+    k, n = int(k), int(n)
+    if n < 1:
+        raise InvalidInputError(f"need at least one sample (n >= 1); got n={n}")
+    if not 0 <= k <= n:
+        raise InvalidInputError(f"the number of violations k must satisfy 0 <= k <= n; got k={k}, n={n}")
+    return k, n
+
+
+def clopper_pearson_upper(k: int, n: int, delta: float) -> float:
+    """One-sided Clopper--Pearson upper confidence bound on a violation rate.
+
+    With ``K ~ Binomial(n, p)`` the returned ``u(K)`` satisfies
+    ``P(p <= u(K)) >= 1 - delta`` for every ``p``. It is the ``p`` solving
+    ``P(Binomial(n, p) <= k) = delta``, i.e. the ``1 - delta`` quantile of
+    ``Beta(k + 1, n - k)`` (and 1 when ``k = n``).
+
+    Parameters
+    ----------
+    k : int
+        Observed violations, ``0 <= k <= n``.
+    n : int
+        Held-out samples (independent of whatever produced the sets).
+    delta : float
+        Allowed probability that the bound is wrong, ``0 < delta < 1``.
+
+    Returns
+    -------
+    float
+        The upper bound, in ``[k / n, 1]``.
+
+    Examples
+    --------
+    >>> round(clopper_pearson_upper(0, 100, 0.05), 5)  # the "rule of three": ~3/n
+    0.02951
+    >>> clopper_pearson_upper(5, 5, 0.1)
+    1.0
+    """
+    k, n = _check_counts(k, n)
+    delta = _check_probability("delta", delta)
+    if k == n:
+        return 1.0
+    u = float(stats.beta.ppf(1.0 - delta, k + 1, n - k))
+    # rounding guard: never report less than the observed rate, nudge upwards
+    return min(1.0, max(u * (1.0 + TAIL_MARGIN), k / n))
+
+
+def clopper_pearson_lower(k: int, n: int, delta: float) -> float:
+    """One-sided Clopper--Pearson lower confidence bound (``delta`` quantile of ``Beta(k, n - k + 1)``).
+
+    Examples
+    --------
+    >>> clopper_pearson_lower(0, 10, 0.05)
+    0.0
+    >>> round(clopper_pearson_lower(10, 10, 0.05), 4)
+    0.7411
+    """
+    k, n = _check_counts(k, n)
+    delta = _check_probability("delta", delta)
+    if k == 0:
+        return 0.0
+    lo = float(stats.beta.ppf(delta, k, n - k + 1))
+    return max(0.0, min(lo * (1.0 - TAIL_MARGIN), k / n))
+
+
+def clopper_pearson_interval(k: int, n: int, delta: float) -> tuple[float, float]:
+    """Two-sided Clopper--Pearson interval with coverage at least ``1 - delta``.
+
+    Each side is a one-sided bound at ``delta / 2``.
+
+    Examples
+    --------
+    >>> lo, hi = clopper_pearson_interval(3, 100, 0.05)
+    >>> round(lo, 4), round(hi, 4)
+    (0.0062, 0.0852)
+    """
+    return clopper_pearson_lower(k, n, delta / 2.0), clopper_pearson_upper(k, n, delta / 2.0)
+
+
+def _binom_cdf(m: int, n: int, p: float) -> float:
+    return float(stats.binom.cdf(m, n, p))
+
+
+def _pac_min_n(epsilon: float, delta: float) -> int:
+    """Smallest n with (1 - epsilon)^n <= delta (with the rounding margin)."""
+    guess = max(1, math.ceil(math.log(delta) / math.log1p(-epsilon)))
+    n = max(1, guess - 2)
+    while _binom_cdf(0, n, epsilon) > delta * (1.0 - TAIL_MARGIN):
+        n += 1
+    return n
+
+
+def pac_calibration_index(n: int, epsilon: float, delta: float) -> int:
+    """Order statistic for a PAC (training-conditional) calibration.
+
+    Returns the smallest ``k`` with ``P(Binomial(n, epsilon) <= n - k) <= delta``.
+    If ``s`` is the ``k``-th smallest of ``n`` i.i.d. calibration scores, then with
+    probability at least ``1 - delta`` over the calibration set,
+    ``P(score > s) <= epsilon`` for a fresh sample (proofs/pac_calibration.md).
+
+    Parameters
+    ----------
+    n : int
+        Number of calibration samples.
+    epsilon : float
+        Target violation probability, ``0 < epsilon < 1``.
+    delta : float
+        Allowed probability that the calibration set is unlucky, ``0 < delta < 1``.
+
+    Raises
+    ------
+    SampleSizeError
+        If no ``k <= n`` works, i.e. ``(1 - epsilon)^n > delta``; the message gives
+        the minimum ``n``.
+
+    Examples
+    --------
+    >>> pac_calibration_index(5000, 0.01, 0.001)
+    4971
+    >>> pac_calibration_index(688, 0.01, 0.001)  # the minimum n: k = n
+    688
+    """
+    epsilon = _check_probability("epsilon", epsilon)
+    delta = _check_probability("delta", delta)
+    if int(n) != n or n < 1:
+        raise InvalidInputError(f"n must be a positive integer; got {n!r}")
+    n = int(n)
+    threshold = delta * (1.0 - TAIL_MARGIN)
+    if _binom_cdf(0, n, epsilon) > threshold:
+        need = _pac_min_n(epsilon, delta)
+        raise SampleSizeError(
+            f"{n} calibration samples are too few for a PAC calibration at epsilon={epsilon:g}, "
+            f"delta={delta:g}: at least {need} are needed (n >= ln(delta) / ln(1 - epsilon)); "
+            "use more calibration data, a larger epsilon or delta, or --mode marginal"
+        )
+    # largest m in [0, n - 1] with cdf(m) <= threshold; cdf is increasing in m
+    lo, hi = 0, n - 1
+    while lo < hi:
+        mid = (lo + hi + 1) // 2
+        if _binom_cdf(mid, n, epsilon) <= threshold:
+            lo = mid
+        else:
+            hi = mid - 1
+    return n - lo
+
+
+def pac_epsilon(n: int, k: int, delta: float) -> float:
+    """The smallest violation rate certified by the ``k``-th of ``n`` scores at confidence ``1 - delta``.
+
+    Equal to :func:`clopper_pearson_upper` ``(n - k, n, delta)``: the ``epsilon`` at
+    which ``P(Binomial(n, epsilon) <= n - k) = delta``.
+
+    Examples
+    --------
+    >>> k = pac_calibration_index(5000, 0.01, 0.001)
+    >>> pac_epsilon(5000, k, 0.001) <= 0.01
+    True
+    """
+    if int(k) != k or not 1 <= k <= n:
+        raise InvalidInputError(f"k must be an integer in [1, n]; got k={k!r}, n={n!r}")
+    return clopper_pearson_upper(int(n) - int(k), n, delta)
+
+
+def marginal_conformal_index(n: int, epsilon: float) -> int:
+    """Split-conformal order statistic ``ceil((n + 1)(1 - epsilon))``.
+
+    The ``k``-th smallest of ``n`` exchangeable calibration scores bounds a fresh
+    score with probability at least ``1 - epsilon``, on average over the calibration
+    set (marginal coverage). The ceiling is computed exactly on the rational value
+    of the float ``epsilon``.
+
+    Raises
+    ------
+    SampleSizeError
+        If ``k > n`` (``n < 1 / epsilon - 1``); the message gives the minimum ``n``.
+
+    Examples
+    --------
+    >>> marginal_conformal_index(99, 0.01)
+    99
+    >>> marginal_conformal_index(1000, 0.1)
+    901
+    """
+    epsilon = _check_probability("epsilon", epsilon)
+    if int(n) != n or n < 1:
+        raise InvalidInputError(f"n must be a positive integer; got {n!r}")
+    n = int(n)
+    k = math.ceil((n + 1) * (1 - Fraction(epsilon)))
+    if k > n:
+        need = math.ceil(1 / Fraction(epsilon) - 1)
+        raise SampleSizeError(
+            f"{n} calibration samples are too few for marginal calibration at epsilon={epsilon:g}: "
+            f"at least {need} are needed (n >= 1/epsilon - 1); use more calibration data or a larger epsilon"
+        )
+    return max(k, 1)
+
+
+def calibration_index(n: int, epsilon: float, delta: float, mode: CalibrationMode) -> int:
+    """Dispatch to :func:`pac_calibration_index` or :func:`marginal_conformal_index`.
+
+    Examples
+    --------
+    >>> calibration_index(1000, 0.1, 0.01, "marginal")
+    901
+    """
+    if mode == "pac":
+        return pac_calibration_index(n, epsilon, delta)
+    if mode == "marginal":
+        return marginal_conformal_index(n, epsilon)
+    raise InvalidInputError(f"mode must be 'pac' or 'marginal'; got {mode!r}")
+
+
+def min_calibration_size(epsilon: float, delta: float, mode: CalibrationMode = "pac") -> int:
+    """The smallest number of calibration samples for which a calibration exists.
+
+    Examples
+    --------
+    >>> min_calibration_size(0.01, 0.001, "pac")
+    688
+    >>> min_calibration_size(0.01, 0.001, "marginal")
+    99
+    """
+    epsilon = _check_probability("epsilon", epsilon)
+    delta = _check_probability("delta", delta)
+    if mode == "pac":
+        return _pac_min_n(epsilon, delta)
+    if mode == "marginal":
+        return max(1, math.ceil(1 / Fraction(epsilon) - 1))
+    raise InvalidInputError(f"mode must be 'pac' or 'marginal'; got {mode!r}")
