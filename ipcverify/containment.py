@@ -628,7 +628,9 @@ class ContainmentCertificate:
         them exactly and does not read them).
     margin : float or None
         Float estimate of the slack: ``min_j (b_j - max_E a_j^T y)`` for boxes and
-        polytopes (units of ``b``), ``1 - tau`` for ellipsoids. ``>= 0`` when contained.
+        polytopes (units of ``b``); for ellipsoids ``1 - tau_solver``, where ``tau_solver``
+        estimates ``max_{y in E1} ||C2 (y - c2)||^2`` (the certified bound is the
+        ``tau`` multiplier). ``>= 0`` when contained, up to rounding.
     witness : tuple of Fraction or None
         For REFUTED (required): an exact point inside ``inner`` and outside ``outer``.
     detail : str
@@ -790,11 +792,8 @@ def certificate_from_dict(data: Any) -> ContainmentCertificate:
         raise InvalidInputError(
             f"field 'outer': dimension {outer.dim} != inner dimension {inner.dim}"
         )
-    try:
-        _check_method(method, outer)
-        return ContainmentCertificate(inner, outer, method, status, mult, margin, witness, detail)
-    except InvalidInputError as exc:
-        raise InvalidInputError(f"certificate: {exc}") from None
+    _check_method(method, outer)
+    return ContainmentCertificate(inner, outer, method, status, mult, margin, witness, detail)
 
 
 # ---------------------------------------------------------------------- verify
@@ -1166,7 +1165,7 @@ def _prove_sdp(ex: _Exact, inner: Ellipsoid, outer: Ellipsoid) -> ContainmentCer
                         **base,
                         status=Status.PROVEN,
                         multipliers={"lambda": (lq,), "tau": (tq,)},
-                        margin=float(1 - tq),
+                        margin=1.0 - tau,
                         detail=f"{notes[0]}; {why}; {how}",
                     )
             notes.append("no multiplier candidate passed the exact PSD test")

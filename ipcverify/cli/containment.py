@@ -1,5 +1,140 @@
-"""CLI commands (containment); registered on the shared app."""
+"""CLI commands ``prove-containment`` and ``check-certificate``.
+
+Thin wrappers over :mod:`ipcverify.containment`: parse the JSON, call the library,
+write or print the result. The JSON formats are described in ``docs/containment.md``.
+"""
 
 from __future__ import annotations
 
-from ipcverify.cli.app import app  # noqa: F401
+import json
+from pathlib import Path
+from typing import Any
+
+import click
+
+from ipcverify.cli.app import app, console
+from ipcverify.containment import (
+    ContainmentCertificate,
+    certificate_from_dict,
+    problem_from_dict,
+    prove_containment,
+    verify,
+)
+from ipcverify.data import atomic_write
+from ipcverify.errors import InvalidInputError
+
+__all__ = ["load_json_items"]
+
+_EXISTING = click.Path(exists=True, dir_okay=False, path_type=Path)
+
+
+def load_json_items(path: Path, what: str) -> list[Any]:
+    """Read a JSON file holding one object or a list of objects.
+
+    Raises
+    ------
+    InvalidInputError
+        If the file is not valid JSON or not an object / list of objects.
+    """
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise InvalidInputError(f"{path}: not UTF-8 text; expected a JSON file") from None
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise InvalidInputError(
+            f"{path}: not valid JSON ({exc.msg} at line {exc.lineno}, column {exc.colno})"
+        ) from None
+    if isinstance(data, dict):
+        return [data]
+    if isinstance(data, list):
+        return data
+    raise InvalidInputError(f"{path}: expected one {what} object or a list of them")
+
+
+def _fmt_margin(m: float | None) -> str:
+    return "n/a" if m is None else f"{m:.3g}"
+
+
+@app.command("prove-containment")
+@click.argument("problems", type=_EXISTING)
+@click.option(
+    "--out",
+    type=click.Path(dir_okay=False, path_type=Path),
+    required=True,
+    help="Where to write the certificates (JSON list, same order as the problems).",
+)
+def prove_containment_cmd(problems: Path, out: Path) -> None:
+    """Prove or refute 'inner ellipsoid inside outer set' for every problem in PROBLEMS.
+
+    PROBLEMS is a JSON object {"inner": ..., "outer": ...} or a list of them; the
+    outer set is a box, a polytope or an ellipsoid. Each certificate says PROVEN,
+    REFUTED (with a witness point) or UNKNOWN; re-check them with check-certificate.
+    """
+    items = load_json_items(problems, "problem")
+    parsed = []
+    for i, item in enumerate(items):
+        try:
+            parsed.append(problem_from_dict(item))
+        except InvalidInputError as exc:
+            raise InvalidInputError(f"{problems}: problem {i}: {exc}") from None
+    certs: list[ContainmentCertificate] = []
+    for inner, outer, method in parsed:
+        certs.append(prove_containment(inner, outer, method=method))
+    # one certificate per line: readable, and floats round-trip exactly (json uses repr)
+    lines = [json.dumps(c.to_dict(), allow_nan=False) for c in certs]
+    payload = "[\n" + ",\n".join(lines) + "\n]\n" if lines else "[]\n"
+    atomic_write(out, lambda f: f.write(payload), mode="w")
+    for i, c in enumerate(certs):
+        console.print(
+            f"problem {i}: {c.status.value} ({c.method.value}, {type(c.outer).__name__.lower()}, "
+            f"margin {_fmt_margin(c.margin)})",
+            markup=False,
+            highlight=False,
+        )
+    counts = {s: sum(c.status.value == s for c in certs) for s in ("PROVEN", "REFUTED", "UNKNOWN")}
+    console.print(
+        f"wrote {len(certs)} certificates to {out}: "
+        + ", ".join(f"{v} {k}" for k, v in counts.items()),
+        markup=False,
+        highlight=False,
+    )
+
+
+@app.command("check-certificate")
+@click.argument("certificates", type=_EXISTING)
+def check_certificate_cmd(certificates: Path) -> None:
+    """Re-verify every certificate in CERTIFICATES in exact rational arithmetic.
+
+    Exits with status 1 if any certificate claims PROVEN or REFUTED and the exact
+    check does not support the claim (the failing ones are named).
+    """
+    items = load_json_items(certificates, "certificate")
+    certs = []
+    for i, item in enumerate(items):
+        try:
+            certs.append(certificate_from_dict(item))
+        except InvalidInputError as exc:
+            raise InvalidInputError(f"{certificates}: certificate {i}: {exc}") from None
+    failed = []
+    for i, cert in enumerate(certs):
+        v = verify(cert)
+        if v.ok:
+            line = f"certificate {i}: {cert.status.value} re-verified ({v.reason})"
+        else:
+            failed.append(i)
+            line = (
+                f"certificate {i}: FAILED: claims {cert.status.value} but the exact check gives "
+                f"{v.status.value} ({v.reason})"
+            )
+        console.print(line, markup=False, highlight=False, soft_wrap=True)
+    if failed:
+        console.print(
+            f"{len(failed)} of {len(certs)} certificates failed: "
+            + ", ".join(str(i) for i in failed),
+            markup=False,
+            highlight=False,
+        )
+        raise click.exceptions.Exit(1)
+    console.print(f"all {len(certs)} certificates re-verified", markup=False, highlight=False)
