@@ -25,6 +25,7 @@ from numpy.typing import NDArray
 from torch import nn
 
 from ipcverify.errors import InvalidInputError
+from ipcverify.inference import LOGDIAG_CLAMP, InferenceEngine
 from ipcverify.sets import Ellipsoid
 
 __all__ = ["ModelConfig", "IPCNetwork", "IPCModel", "SetCalibration", "LOGDIAG_CLAMP"]
@@ -32,8 +33,6 @@ __all__ = ["ModelConfig", "IPCNetwork", "IPCModel", "SetCalibration", "LOGDIAG_C
 FloatArray = NDArray[np.float64]
 Param = Literal["cholesky", "full"]
 Center = Literal["offset", "raw"]
-#: Bound on the log of the Cholesky diagonal (keeps exp finite in float32).
-LOGDIAG_CLAMP = 12.0
 _ACTIVATIONS: dict[str, type[nn.Module]] = {"relu": nn.ReLU, "tanh": nn.Tanh, "elu": nn.ELU}
 
 
@@ -236,6 +235,12 @@ class IPCModel:
 
     def __post_init__(self) -> None:
         self.network.eval()
+        object.__setattr__(self, "_engine", InferenceEngine.from_network(self.network))
+
+    @property
+    def engine(self) -> InferenceEngine:
+        """The float64 NumPy evaluation of the network (see :mod:`ipcverify.inference`)."""
+        return self._engine  # type: ignore[attr-defined,no-any-return]
 
     @property
     def config(self) -> ModelConfig:
@@ -265,21 +270,23 @@ class IPCModel:
         return xa, ya
 
     def raw_arrays(self, x: Any, yhat: Any, batch_size: int = 65536) -> tuple[FloatArray, FloatArray]:
-        """Uncalibrated centres (B, n) and shapes (B, n, n) as float64 arrays."""
+        """Uncalibrated centres (B, n) and shapes (B, n, n), evaluated in float64.
+
+        All of ipcverify evaluates a trained model through this one path (the
+        float64 engine of :mod:`ipcverify.inference`), so calibration, certificates
+        and the controller see exactly the same sets.
+        """
         xa, ya = self._check(x, yhat)
-        centers, shapes = [], []
-        with torch.inference_mode():
-            for i in range(0, len(xa), batch_size):
-                c, C, _ = self.network(
-                    torch.tensor(xa[i : i + batch_size], dtype=torch.float32),
-                    torch.tensor(ya[i : i + batch_size], dtype=torch.float32),
-                )
-                centers.append(c.double().numpy())
-                shapes.append(C.double().numpy())
         n = self.config.y_dim
-        if not centers:
+        if len(xa) <= batch_size:
+            return self._engine.batch(xa, ya)  # type: ignore[attr-defined,no-any-return]
+        parts = [
+            self._engine.batch(xa[i : i + batch_size], ya[i : i + batch_size])  # type: ignore[attr-defined]
+            for i in range(0, len(xa), batch_size)
+        ]
+        if not parts:
             return np.zeros((0, n)), np.zeros((0, n, n))
-        return np.concatenate(centers), np.concatenate(shapes)
+        return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
 
     def predict_raw(self, x: Any, yhat: Any) -> Ellipsoid:
         """The network's own sets, ignoring any calibration."""

@@ -50,7 +50,16 @@ def test_network_logdet_and_sets_are_consistent(param, center):
     m = IPCModel(net)
     e = m.predict(x, yhat)
     assert np.allclose(e.g(y), m.raw_scores(x, y, yhat))
-    assert np.allclose(e.centers, c.detach().double().numpy())
+    # the float64 engine agrees with torch's float32 forward to float32 precision ...
+    assert np.allclose(e.centers, c.detach().double().numpy(), rtol=1e-5, atol=1e-6)
+    assert np.allclose(e.shapes, C.detach().double().numpy(), rtol=1e-5, atol=1e-5)
+    # ... and with torch in float64 to float64 precision (same function, same weights)
+    import copy
+
+    net64 = copy.deepcopy(net).double()
+    c64, C64, _ = net64(torch.tensor(x), torch.tensor(yhat))
+    assert np.allclose(e.centers, c64.detach().numpy(), rtol=1e-12, atol=1e-13)
+    assert np.allclose(e.shapes, C64.detach().numpy(), rtol=1e-12, atol=1e-13)
 
 
 def _heteroscedastic(n: int, seed: int) -> tuple[PerceptionDataset, np.ndarray]:

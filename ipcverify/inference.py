@@ -1,0 +1,126 @@
+"""Float64 NumPy inference for trained IPC networks: the contract's reference evaluation.
+
+Training runs in torch (float32). Once trained, an IPC is *evaluated* everywhere —
+prediction, calibration, evaluation, certificates, the landing controller — by this
+engine: the same weights (float32 values are exact in float64) applied in float64
+NumPy. One evaluation path means the calibrated guarantee is about exactly the sets
+the controller uses, and NumPy has far less per-call overhead than torch for the
+single queries of a control loop.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+import torch
+from numpy.typing import NDArray
+
+if TYPE_CHECKING:
+    from ipcverify.model import ModelConfig
+
+__all__ = ["InferenceEngine", "LOGDIAG_CLAMP"]
+
+#: Bound on the log of the Cholesky diagonal (keeps exp finite in float32).
+LOGDIAG_CLAMP = 12.0
+
+FloatArray = NDArray[np.float64]
+
+
+def _np(t: torch.Tensor) -> FloatArray:
+    return np.ascontiguousarray(t.detach().cpu().double().numpy())
+
+
+@dataclass(frozen=True, eq=False)
+class InferenceEngine:
+    """Float64 forward pass of an :class:`~ipcverify.model.IPCNetwork`.
+
+    Build it with :meth:`from_network`; call :meth:`batch` for (B, ·) arrays or
+    :meth:`single` for one query (1-D arrays, lowest latency).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from ipcverify.model import IPCNetwork, ModelConfig
+    >>> net = IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(8,)))
+    >>> eng = InferenceEngine.from_network(net)
+    >>> c, C = eng.batch(np.zeros((4, 2)), np.zeros((4, 3)))
+    >>> c.shape, C.shape
+    ((4, 3), (4, 3, 3))
+    """
+
+    config: ModelConfig
+    weights: tuple[FloatArray, ...]
+    biases: tuple[FloatArray, ...]
+    in_mean: FloatArray
+    in_scale: FloatArray
+    y_mean: FloatArray
+    sigma: FloatArray
+    inv_sigma: FloatArray
+    tril_rows: NDArray[np.intp]
+    tril_cols: NDArray[np.intp]
+    diag_pos: NDArray[np.intp]
+
+    @classmethod
+    def from_network(cls, network: torch.nn.Module) -> InferenceEngine:
+        """Extract the weights and normalisation of a trained network."""
+        cfg: ModelConfig = network.config  # type: ignore[assignment]
+        linears = [m for m in network.body if isinstance(m, torch.nn.Linear)]  # type: ignore[union-attr]
+        n = cfg.y_dim
+        rows, cols = np.tril_indices(n)
+        sigma = _np(network.sigma)  # type: ignore[arg-type]
+        return cls(
+            config=cfg,
+            weights=tuple(np.ascontiguousarray(_np(m.weight).T) for m in linears),
+            biases=tuple(_np(m.bias) for m in linears),
+            in_mean=_np(network.in_mean),  # type: ignore[arg-type]
+            in_scale=1.0 / _np(network.in_std),  # type: ignore[arg-type]
+            y_mean=_np(network.y_mean),  # type: ignore[arg-type]
+            sigma=sigma,
+            inv_sigma=1.0 / sigma,
+            tril_rows=rows,
+            tril_cols=cols,
+            diag_pos=np.flatnonzero(rows == cols),
+        )
+
+    def _activation(self, h: FloatArray) -> FloatArray:
+        act = self.config.activation
+        if act == "relu":
+            return np.maximum(h, 0.0, out=h)
+        if act == "tanh":
+            return np.tanh(h, out=h)
+        return np.where(h > 0, h, np.expm1(np.minimum(h, 0.0)))  # elu, alpha = 1
+
+    def _mlp(self, z: FloatArray) -> FloatArray:
+        last = len(self.weights) - 1
+        for i, (w, b) in enumerate(zip(self.weights, self.biases, strict=True)):
+            z = z @ w
+            z += b
+            if i < last:
+                z = self._activation(z)
+        return z
+
+    def batch(self, x: FloatArray, yhat: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Centres (B, n) and shape matrices (B, n, n) for validated float64 inputs."""
+        n = self.config.y_dim
+        z = np.concatenate([x, yhat], axis=1)
+        z -= self.in_mean
+        z *= self.in_scale
+        out = self._mlp(z)
+        o, s = out[:, :n], out[:, n:]
+        base = yhat if self.config.center == "offset" else self.y_mean
+        center = base + self.sigma * o
+        if self.config.param == "full":
+            L = s.reshape(-1, n, n)
+        else:
+            L = np.zeros((len(s), n, n))
+            vals = s.copy()
+            vals[:, self.diag_pos] = np.exp(np.clip(vals[:, self.diag_pos], -LOGDIAG_CLAMP, LOGDIAG_CLAMP))
+            L[:, self.tril_rows, self.tril_cols] = vals
+        return center, L * self.inv_sigma
+
+    def single(self, x: FloatArray, yhat: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Centre (n,) and shape matrix (n, n) for one query given as 1-D float64 arrays."""
+        c, C = self.batch(x[None, :], yhat[None, :])
+        return c[0], C[0]
