@@ -173,9 +173,7 @@ class Box:
         lo = _float_array(self.lower, 1, "box lower")
         up = _float_array(self.upper, 1, "box upper")
         if lo.shape != up.shape or lo.size == 0:
-            raise SetError(
-                f"box lower {lo.shape} and upper {up.shape} must both have shape (n,), n >= 1"
-            )
+            raise SetError(f"box lower {lo.shape} and upper {up.shape} must both have shape (n,), n >= 1")
         if not (lo <= up).all():
             i = int(np.flatnonzero(~(lo <= up))[0])
             raise SetError(
@@ -297,9 +295,7 @@ def _json_matrix(v: Any, where: str, cols: int | None = None) -> list[list[float
     width = len(rows[0])
     for i, r in enumerate(rows):
         if len(r) != width:
-            raise InvalidInputError(
-                f"field '{where}[{i}]': row has {len(r)} entries, expected {width}"
-            )
+            raise InvalidInputError(f"field '{where}[{i}]': row has {len(r)} entries, expected {width}")
     return rows
 
 
@@ -346,8 +342,7 @@ def set_from_dict(d: Any, where: str = "") -> OuterSet:
             s = _json_matrix(_field(d, "shape", where), f"{where}shape", len(c))
             if len(s) != len(c):
                 raise InvalidInputError(
-                    f"field '{where}shape': expected {len(c)} rows to match the center, "
-                    f"got {len(s)}"
+                    f"field '{where}shape': expected {len(c)} rows to match the center, got {len(s)}"
                 )
             return Ellipsoid(np.array(c), np.array(s))
     except SetError as exc:
@@ -392,9 +387,7 @@ def _parse_method(v: Any, where: str) -> Method:
         return Method(v)
     except ValueError:
         names = ", ".join(m.value for m in Method)
-        raise InvalidInputError(
-            f"field '{where}': {json.dumps(v)[:40]} is not one of {names}"
-        ) from None
+        raise InvalidInputError(f"field '{where}': {json.dumps(v)[:40]} is not one of {names}") from None
 
 
 def _check_method(method: Method, outer: OuterSet) -> None:
@@ -429,9 +422,7 @@ def support_slack(inner: Ellipsoid, outer: Box | Polytope) -> FloatArray:
         if outer.dim != inner.dim:
             raise SetError(f"box dimension {outer.dim} != ellipsoid dimension {inner.dim}")
         h = inner.half_widths()
-        return np.concatenate(
-            [outer.upper - inner.centers - h, inner.centers - h - outer.lower], axis=1
-        )
+        return np.concatenate([outer.upper - inner.centers - h, inner.centers - h - outer.lower], axis=1)
     if isinstance(outer, Polytope):
         if outer.dim != inner.dim:
             raise SetError(f"polytope dimension {outer.dim} != ellipsoid dimension {inner.dim}")
@@ -490,10 +481,7 @@ class _Exact:
         n = len(self.c)
         cols = list(zip(*self.C, strict=True))
         a = [
-            [
-                sum((x * y for x, y in zip(cols[i], cols[j], strict=True)), Fraction(0))
-                for j in range(n)
-            ]
+            [sum((x * y for x, y in zip(cols[i], cols[j], strict=True)), Fraction(0)) for j in range(n)]
             for i in range(n)
         ]
         ac = matvec(a, self.c)
@@ -568,9 +556,7 @@ def _as_float_witness(ex: _Exact, outer: OuterSet, y: Sequence[Fraction]) -> Exa
     return None
 
 
-def _witness_from_direction(
-    ex: _Exact, outer: OuterSet, u: Sequence[Fraction]
-) -> ExactVector | None:
+def _witness_from_direction(ex: _Exact, outer: OuterSet, u: Sequence[Fraction]) -> ExactVector | None:
     """``c + C^{-1} u`` pulled exactly into the inner ellipsoid; returned if outside ``outer``."""
     uu = sqnorm(u)
     if uu > 1:
@@ -659,16 +645,12 @@ class ContainmentCertificate:
     def __post_init__(self) -> None:
         _single(self.inner, "certificate inner set")
         if not isinstance(self.outer, (Box, Polytope, Ellipsoid)):
-            raise SetError(
-                f"outer must be a Box, Polytope or Ellipsoid; got {type(self.outer).__name__}"
-            )
+            raise SetError(f"outer must be a Box, Polytope or Ellipsoid; got {type(self.outer).__name__}")
         if isinstance(self.outer, Ellipsoid):
             _single(self.outer, "certificate outer set")
         if self.outer.dim != self.inner.dim:
             raise SetError(f"outer dimension {self.outer.dim} != inner dimension {self.inner.dim}")
-        method = (
-            self.method if isinstance(self.method, Method) else _parse_method(self.method, "method")
-        )
+        method = self.method if isinstance(self.method, Method) else _parse_method(self.method, "method")
         status = self.status if isinstance(self.status, Status) else Status(self.status)
         _check_method(method, self.outer)
         object.__setattr__(self, "method", method)
@@ -682,9 +664,7 @@ class ContainmentCertificate:
         if method is Method.SDP and status is Status.PROVEN:
             for key in ("lambda", "tau"):
                 if len(self.multipliers.get(key, ())) != 1:
-                    raise InvalidInputError(
-                        f"a PROVEN sdp certificate needs one '{key}' multiplier"
-                    )
+                    raise InvalidInputError(f"a PROVEN sdp certificate needs one '{key}' multiplier")
         if status is Status.REFUTED:
             if self.witness is None or len(self.witness) != self.inner.dim:
                 raise InvalidInputError(
@@ -789,9 +769,7 @@ def certificate_from_dict(data: Any) -> ContainmentCertificate:
     if not isinstance(detail, str):
         raise InvalidInputError("field 'detail': expected a string")
     if outer.dim != inner.dim:
-        raise InvalidInputError(
-            f"field 'outer': dimension {outer.dim} != inner dimension {inner.dim}"
-        )
+        raise InvalidInputError(f"field 'outer': dimension {outer.dim} != inner dimension {inner.dim}")
     _check_method(method, outer)
     return ContainmentCertificate(inner, outer, method, status, mult, margin, witness, detail)
 
@@ -878,9 +856,7 @@ def verify(certificate: ContainmentCertificate) -> Verification:
     if claimed is Status.REFUTED:
         w = list(certificate.witness or ())
         if inner.g2(w) > 1:
-            return Verification(
-                claimed, Status.UNKNOWN, "witness is not inside the inner ellipsoid"
-            )
+            return Verification(claimed, Status.UNKNOWN, "witness is not inside the inner ellipsoid")
         if not _outside(certificate.outer, w):
             return Verification(claimed, Status.UNKNOWN, "witness is not outside the outer set")
         return Verification(
@@ -899,9 +875,7 @@ def verify(certificate: ContainmentCertificate) -> Verification:
 
 
 # ------------------------------------------------------------ closed form prover
-def _prove_closed_form(
-    ex: _Exact, inner: Ellipsoid, outer: Box | Polytope
-) -> ContainmentCertificate:
+def _prove_closed_form(ex: _Exact, inner: Ellipsoid, outer: Box | Polytope) -> ContainmentCertificate:
     faces = _exact_faces(ex, outer)
     support = [math.sqrt(float(f.zz)) for f in faces]
     margin = min(f.margin for f in faces)
@@ -1061,24 +1035,31 @@ def _q2n(d_mat: FloatArray, d: FloatArray) -> FloatArray:
     return 0.5 * (q + q.T) if n else q
 
 
-def _trs_maximiser(d_mat: FloatArray, d: FloatArray) -> FloatArray:
-    """Float ``argmax_{||u|| <= 1} ||D (u - d)||^2`` (trust-region subproblem, secular equation)."""
+def _trs_maximiser(d_mat: FloatArray, d: FloatArray) -> tuple[FloatArray, float]:
+    """Float ``argmax_{||u|| <= 1} ||D (u - d)||^2`` and its multiplier ``mu``.
+
+    The trust-region subproblem: with ``H = D^T D = V diag(h) V^T`` and ``a = h * V^T d``,
+    the maximiser is ``u = V w`` with ``w_i = -a_i / (mu - h_i)`` where ``mu >= max h``
+    solves ``sum_i a_i^2 / (mu - h_i)^2 = 1`` (bisection); ``mu`` is also the S-lemma
+    multiplier ``lambda*``. If the top component of ``a`` vanishes (the "hard case"),
+    ``mu = max h`` and the top eigenvector fills ``w`` up to unit length.
+    """
     h_mat = d_mat.T @ d_mat
     h, v = np.linalg.eigh(0.5 * (h_mat + h_mat.T))
     e = v.T @ d
     a = h * e  # stationarity: (mu - h_i) w_i = -a_i
-    hmax = h[-1]
+    hmax = float(h[-1])
     top = h >= hmax - 1e-14 * max(hmax, 1e-300)
     with np.errstate(all="ignore"):
         if np.linalg.norm(a[top]) <= 1e-15 * (np.linalg.norm(a) + 1e-300):
             rest = ~top
             gaps = hmax - h[rest]
             w = np.zeros_like(h)
-            w[rest] = np.where(gaps > 0, a[rest] / np.where(gaps > 0, gaps, 1.0), 0.0)
+            w[rest] = np.where(gaps > 0, -a[rest] / np.where(gaps > 0, gaps, 1.0), 0.0)
             r2 = float(w @ w)
             if r2 <= 1.0:  # hard case: fill the top eigenspace
                 w[np.flatnonzero(top)[0]] = math.sqrt(1.0 - r2)
-                return v @ w
+                return v @ w, hmax
         lo, hi = hmax, hmax + float(np.linalg.norm(a)) + 1e-300
         for _ in range(200):
             mid = 0.5 * (lo + hi)
@@ -1095,7 +1076,23 @@ def _trs_maximiser(d_mat: FloatArray, d: FloatArray) -> FloatArray:
         w = np.zeros_like(h)
         w[-1] = 1.0
         nrm = 1.0
-    return v @ (w / nrm)
+    return v @ (w / nrm), hi
+
+
+def _normalised_exact(ex: _Exact, outer: Ellipsoid) -> tuple[FloatArray, FloatArray]:
+    """``D = C2 C1^{-1}`` and ``d = C1 (c2 - c1)`` computed exactly, then rounded once.
+
+    Slower than :func:`_normalised` but accurate to one rounding even when ``C1``
+    is ill-conditioned; used when the fast path neither proves nor refutes.
+    """
+    o = _Exact.of(outer)
+    ci_cols = list(zip(*ex.cinv, strict=True))
+    d_mat = [
+        [float(sum((x * y for x, y in zip(row, col, strict=True)), Fraction(0))) for col in ci_cols]
+        for row in o.C
+    ]
+    d = matvec(ex.C, [a - b for a, b in zip(o.c, ex.c, strict=True)])
+    return np.array(d_mat, dtype=np.float64), np.array([float(v) for v in d])
 
 
 def _sdp_candidates(lam: float, tau: float, lift: float) -> list[tuple[Fraction, Fraction, str]]:
@@ -1110,6 +1107,7 @@ def _sdp_candidates(lam: float, tau: float, lift: float) -> list[tuple[Fraction,
         dq = Fraction(delta)
         if tau_q + 2 * dq <= 1:
             out.append((lam_q + dq, tau_q + 2 * dq, f"solver multipliers lifted by {delta:.3g}"))
+    out.append((lam_q, Fraction(1), "solver lambda, tau = 1"))
     if tau_q < 1:
         dq = (1 - tau_q) / 2
         out.append((lam_q + dq, Fraction(1), "solver lambda lifted, tau = 1"))
@@ -1154,9 +1152,7 @@ def _prove_sdp(ex: _Exact, inner: Ellipsoid, outer: Ellipsoid) -> ContainmentCer
         e[n, n] = 1.0
         eig = float(np.linalg.eigvalsh(lam * q1n - q2n + tau * e).min())
         cond = float(np.linalg.cond(inner.shapes[0]))
-        lift = 2.0 * max(0.0, -eig) + 8.0 * cond * np.finfo(float).eps * max(
-            1.0, scale, lam, abs(tau)
-        )
+        lift = 2.0 * max(0.0, -eig) + 8.0 * cond * np.finfo(float).eps * max(1.0, scale, lam, abs(tau))
         if tau <= 1.0 + 1e-6:
             for lq, tq, why in _sdp_candidates(lam, tau, lift):
                 ok, how = _check_lmi(q1, q2, lq, tq)
@@ -1172,11 +1168,10 @@ def _prove_sdp(ex: _Exact, inner: Ellipsoid, outer: Ellipsoid) -> ContainmentCer
     else:
         notes.append("not 'optimal', so no proof is attempted")
     margin = None if math.isnan(tau) else 1.0 - tau
-    mult = (
-        {} if math.isnan(tau) else {"lambda": (Fraction(max(lam, 0.0)),), "tau": (Fraction(tau),)}
-    )
-    if True:
-        u = _trs_maximiser(d_mat, d)
+    mult = {} if math.isnan(tau) else {"lambda": (Fraction(max(lam, 0.0)),), "tau": (Fraction(tau),)}
+    solver_ok = not math.isnan(tau)
+
+    def refuted(u: FloatArray, how: str) -> ContainmentCertificate | None:
         for cand in (u, -u):
             y = _witness_from_direction(ex, outer, exact_vector(cand))
             if y is not None:
@@ -1186,9 +1181,32 @@ def _prove_sdp(ex: _Exact, inner: Ellipsoid, outer: Ellipsoid) -> ContainmentCer
                     multipliers=mult,
                     margin=margin,
                     witness=tuple(y),
-                    detail="; ".join(notes + ["witness: trust-region maximiser, checked exactly"]),
+                    detail="; ".join([*notes, how]),
                 )
-        notes.append("no exact witness found")
+        return None
+
+    u, _ = _trs_maximiser(d_mat, d)
+    cert = refuted(u, "witness: trust-region maximiser, checked exactly")
+    if cert is not None:
+        return cert
+    # slow path: normalise exactly (one rounding), re-solve the trust-region problem
+    d_mat, d = _normalised_exact(ex, outer)
+    u, mu = _trs_maximiser(d_mat, d)
+    if solver_ok:
+        for lq in (Fraction(mu), Fraction(mu) * (1 + Fraction(1, 2**40))):
+            ok, how = _check_lmi(q1, q2, lq, Fraction(1))
+            if ok:
+                return ContainmentCertificate(
+                    **base,
+                    status=Status.PROVEN,
+                    multipliers={"lambda": (lq,), "tau": (Fraction(1),)},
+                    margin=margin,
+                    detail=f"{notes[0]}; lambda refined by the trust-region secular equation, tau = 1; {how}",
+                )
+    cert = refuted(u, "witness: trust-region maximiser of the exactly normalised problem")
+    if cert is not None:
+        return cert
+    notes.append("no exact witness found")
     return ContainmentCertificate(
         **base, status=Status.UNKNOWN, multipliers=mult, margin=margin, detail="; ".join(notes)
     )
