@@ -1,0 +1,266 @@
+"""Configuration: ``defaults.toml`` beside this module, read with :mod:`tomllib`.
+
+:func:`load_config` reads the defaults, merges an optional override file and/or a
+nested mapping of overrides on top (section by section, key by key), and builds a
+frozen :class:`SimConfig` whose parts validate themselves. Unknown sections or keys are
+errors, so typos do not pass silently. Nothing is ever ``eval``-ed.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from case_studies.quad_landing.camera import CameraParams
+from case_studies.quad_landing.dynamics import QuadParams
+from case_studies.quad_landing.lqr import LqrParams, SettleParams
+from case_studies.quad_landing.marker import MarkerParams, Pad, RenderParams
+from case_studies.quad_landing.paths import PathParams
+from case_studies.quad_landing.perception import DetectorParams
+from ipcverify.errors import InvalidInputError
+
+__all__ = [
+    "ConfigError",
+    "SimParams",
+    "CollectParams",
+    "SimConfig",
+    "load_config",
+    "DEFAULTS_PATH",
+]
+
+#: The defaults file shipped beside the code.
+DEFAULTS_PATH = Path(__file__).with_name("defaults.toml")
+
+
+class ConfigError(InvalidInputError):
+    """A configuration file or override is malformed; the message names the key."""
+
+
+@dataclass(frozen=True, kw_only=True)
+class SimParams:
+    """Simulation settings.
+
+    Parameters
+    ----------
+    physics_rate : float
+        Integration rate (Hz), >= 200 and an integer multiple of the camera rate.
+    ground_z : float
+        Floor height in W (m).
+    workspace_min, workspace_max : tuple of 3 floats
+        Corners of the box the quadrotor may fly in (m).
+
+    Examples
+    --------
+    >>> SimParams().physics_rate
+    240.0
+    """
+
+    physics_rate: float = 240.0
+    ground_z: float = 0.0
+    workspace_min: tuple[float, float, float] = (-3.0, -3.0, 0.0)
+    workspace_max: tuple[float, float, float] = (3.0, 3.0, 3.0)
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.physics_rate) and self.physics_rate >= 200):
+            raise ConfigError(f"sim.physics_rate must be >= 200 Hz, got {self.physics_rate}")
+        lo = tuple(float(v) for v in self.workspace_min)
+        hi = tuple(float(v) for v in self.workspace_max)
+        if len(lo) != 3 or len(hi) != 3 or not all(a < b for a, b in zip(lo, hi, strict=True)):
+            raise ConfigError(
+                "sim.workspace_min and workspace_max must be 3 numbers each with min < max, "
+                f"got {self.workspace_min} and {self.workspace_max}"
+            )
+        if not lo[2] <= self.ground_z < hi[2]:
+            raise ConfigError(f"sim.ground_z ({self.ground_z}) must lie in the workspace's z range")
+        object.__setattr__(self, "physics_rate", float(self.physics_rate))
+        object.__setattr__(self, "workspace_min", lo)
+        object.__setattr__(self, "workspace_max", hi)
+
+
+@dataclass(frozen=True, kw_only=True)
+class CollectParams:
+    """Data-collection settings.
+
+    Parameters
+    ----------
+    n : int
+        Number of samples with a detection to collect.
+    buffer_size : int
+        Camera buffer size ``k`` (frames of lag).
+    sample_every : int
+        Take a measurement every this many camera frames.
+    warmup_time : float
+        Seconds flown on each path before sampling starts.
+
+    Examples
+    --------
+    >>> CollectParams().n
+    5000
+    """
+
+    n: int = 5000
+    buffer_size: int = 1
+    sample_every: int = 2
+    warmup_time: float = 1.0
+
+    def __post_init__(self) -> None:
+        for name, lo in (("n", 1), ("buffer_size", 0), ("sample_every", 1)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or int(value) != value or value < lo:
+                raise ConfigError(f"collect.{name} must be an integer >= {lo}, got {value!r}")
+            object.__setattr__(self, name, int(value))
+        if not (np.isfinite(self.warmup_time) and self.warmup_time >= 0):
+            raise ConfigError(f"collect.warmup_time must be >= 0 s, got {self.warmup_time}")
+
+
+@dataclass(frozen=True, kw_only=True)
+class SimConfig:
+    """Everything the simulator and data collection need; see ``defaults.toml``.
+
+    Examples
+    --------
+    >>> cfg = load_config()
+    >>> cfg.camera.width, cfg.quad.mass
+    (320, 1.5)
+    >>> cfg.replace(collect={"buffer_size": 3}).collect.buffer_size
+    3
+    """
+
+    quad: QuadParams
+    sim: SimParams
+    lqr: LqrParams
+    settle: SettleParams
+    camera: CameraParams
+    marker: MarkerParams
+    pad: Pad
+    render: RenderParams
+    detector: DetectorParams
+    paths: PathParams
+    collect: CollectParams
+
+    def __post_init__(self) -> None:
+        ratio = self.sim.physics_rate / self.camera.fps
+        if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
+            raise ConfigError(
+                f"sim.physics_rate ({self.sim.physics_rate} Hz) must be an integer multiple of "
+                f"camera.fps ({self.camera.fps} Hz), e.g. 240 for 60 fps"
+            )
+        lo, hi = np.asarray(self.sim.workspace_min), np.asarray(self.sim.workspace_max)
+        if np.any(self.pad.position < lo) or np.any(self.pad.position > hi):
+            raise ConfigError(f"pad.position {self.pad.position.tolist()} is outside the workspace")
+
+    @property
+    def substeps(self) -> int:
+        """Physics steps per camera frame."""
+        return int(round(self.sim.physics_rate / self.camera.fps))
+
+    def as_dict(self) -> dict[str, dict[str, Any]]:
+        """The configuration as nested plain data (TOML layout)."""
+        out: dict[str, dict[str, Any]] = {}
+        for f in dataclasses.fields(self):
+            part = getattr(self, f.name)
+            if isinstance(part, Pad):
+                out[f.name] = {"position": part.position.tolist(), "yaw": part.yaw}
+            else:
+                out[f.name] = {
+                    k: list(v) if isinstance(v, tuple) else v
+                    for k, v in dataclasses.asdict(part).items()
+                }
+        return out
+
+    def replace(self, **sections: Mapping[str, Any]) -> SimConfig:
+        """A copy with some keys of some sections replaced, e.g. ``replace(camera={"fx": 250})``."""
+        return _build(_merge(self.as_dict(), sections, "override"))
+
+
+_SECTIONS: dict[str, type] = {
+    "quad": QuadParams,
+    "sim": SimParams,
+    "lqr": LqrParams,
+    "settle": SettleParams,
+    "camera": CameraParams,
+    "marker": MarkerParams,
+    "pad": Pad,
+    "render": RenderParams,
+    "detector": DetectorParams,
+    "paths": PathParams,
+    "collect": CollectParams,
+}
+
+
+def _merge(
+    base: Mapping[str, Mapping[str, Any]], over: Mapping[str, Any], source: str
+) -> dict[str, dict[str, Any]]:
+    out = {name: dict(section) for name, section in base.items()}
+    for name, section in over.items():
+        if name not in _SECTIONS:
+            raise ConfigError(
+                f"{source}: unknown section [{name}]; valid sections: {', '.join(_SECTIONS)}"
+            )
+        if not isinstance(section, Mapping):
+            raise ConfigError(f"{source}: [{name}] must be a table of keys, got {section!r}")
+        valid = {f.name for f in dataclasses.fields(_SECTIONS[name]) if f.init}
+        for key, value in section.items():
+            if key not in valid:
+                raise ConfigError(
+                    f"{source}: unknown key {name}.{key}; valid keys: {', '.join(sorted(valid))}"
+                )
+            out.setdefault(name, {})[key] = value
+    return out
+
+
+def _build(tree: Mapping[str, Mapping[str, Any]]) -> SimConfig:
+    parts: dict[str, Any] = {}
+    for name, cls in _SECTIONS.items():
+        values = {k: tuple(v) if isinstance(v, list) else v for k, v in tree.get(name, {}).items()}
+        try:
+            parts[name] = cls(**values)
+        except TypeError as exc:  # missing required keys
+            raise ConfigError(f"[{name}]: {exc}") from None
+    return SimConfig(**parts)
+
+
+def _read_toml(path: Path) -> dict[str, Any]:
+    try:
+        with open(path, "rb") as fh:
+            return tomllib.load(fh)
+    except FileNotFoundError:
+        raise ConfigError(f"config file {path} does not exist") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"config file {path} is not valid TOML: {exc}") from None
+
+
+def load_config(
+    path: str | Path | None = None, overrides: Mapping[str, Mapping[str, Any]] | None = None
+) -> SimConfig:
+    """Read ``defaults.toml``, then merge ``path`` (a TOML file) and ``overrides`` on top.
+
+    Parameters
+    ----------
+    path : str or Path, optional
+        A TOML file with any subset of the sections and keys of ``defaults.toml``.
+    overrides : mapping, optional
+        ``{section: {key: value}}`` applied last.
+
+    Raises
+    ------
+    ConfigError
+        If a file is missing or malformed, or a section, key or value is invalid.
+
+    Examples
+    --------
+    >>> load_config(overrides={"collect": {"buffer_size": 5}}).collect.buffer_size
+    5
+    """
+    tree = _merge({}, _read_toml(DEFAULTS_PATH), str(DEFAULTS_PATH))
+    if path is not None:
+        tree = _merge(tree, _read_toml(Path(path)), str(path))
+    if overrides:
+        tree = _merge(tree, overrides, "override")
+    return _build(tree)
