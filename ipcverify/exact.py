@@ -50,9 +50,7 @@ _ZERO = Fraction(0)
 
 def _check_finite(values: np.ndarray, what: str) -> None:
     if not np.isfinite(values).all():
-        raise InvalidInputError(
-            f"{what} has a non-finite entry; exact arithmetic needs finite floats"
-        )
+        raise InvalidInputError(f"{what} has a non-finite entry; exact arithmetic needs finite floats")
 
 
 def exact_vector(values: ArrayLike) -> ExactVector:
@@ -105,9 +103,7 @@ def matmul(a: Sequence[Sequence[Fraction]], b: Sequence[Sequence[Fraction]]) -> 
     [[Fraction(6, 1)]]
     """
     cols = list(zip(*b, strict=True))
-    return [
-        [sum((x * y for x, y in zip(row, col, strict=True)), _ZERO) for col in cols] for row in a
-    ]
+    return [[sum((x * y for x, y in zip(row, col, strict=True)), _ZERO) for col in cols] for row in a]
 
 
 def sqnorm(v: Iterable[Fraction]) -> Fraction:

@@ -89,6 +89,7 @@ def test_halfspace_at_rounded_sqrt2():
         (1.0, 0.5, Status.REFUTED),
         (1.0, math.nextafter(1.0, 0.0), Status.REFUTED),  # one ulp too small
     ],
+    ids=["half", "identical", "quarter-in-4", "larger", "one-ulp-larger"],
 )
 def test_concentric_balls(r_in, r_out, expected):
     c = np.array([0.3, -1.0, 2.0])
@@ -117,9 +118,7 @@ def test_internally_tangent_balls_are_proven():
 
 def test_sdp_multipliers_for_concentric_balls_are_the_known_optimum():
     # max_{|y| <= 1/2} |y|^2 = 1/4: tau* = lambda* = 1/4
-    cert = prove_containment(
-        Ellipsoid(np.zeros(2), 2 * np.eye(2)), Ellipsoid(np.zeros(2), np.eye(2))
-    )
+    cert = prove_containment(Ellipsoid(np.zeros(2), 2 * np.eye(2)), Ellipsoid(np.zeros(2), np.eye(2)))
     assert cert.method is Method.SDP
     assert abs(cert.margin - 0.75) < 1e-7
     assert cert.multipliers["tau"][0] <= 1
@@ -192,9 +191,7 @@ def test_rational_witness_round_trips():
 
 
 def test_sdp_certificate_round_trips():
-    cert = prove_containment(
-        Ellipsoid(np.zeros(3), 2 * np.eye(3)), Ellipsoid(np.ones(3) * 0.1, np.eye(3))
-    )
+    cert = prove_containment(Ellipsoid(np.zeros(3), 2 * np.eye(3)), Ellipsoid(np.ones(3) * 0.1, np.eye(3)))
     back = _json_round_trip(cert)
     assert back.multipliers == cert.multipliers
     assert verify(back).status is Status.PROVEN
@@ -221,9 +218,7 @@ def test_tampered_closed_form_certificate_fails_verification():
 
 
 def test_tampered_sdp_certificate_fails_verification():
-    cert = prove_containment(
-        Ellipsoid(np.zeros(2), 2 * np.eye(2)), Ellipsoid(np.zeros(2), np.eye(2))
-    )
+    cert = prove_containment(Ellipsoid(np.zeros(2), 2 * np.eye(2)), Ellipsoid(np.zeros(2), np.eye(2)))
     d = cert.to_dict()
     d["multipliers"]["tau"] = [0.2]  # below the true optimum 1/4
     assert not verify(certificate_from_dict(d)).ok
@@ -278,9 +273,7 @@ def test_sdp_not_optimal_is_never_proven(monkeypatch):
         )
 
     monkeypatch.setattr(cm, "_sdp_problem", fake)
-    cert = prove_containment(
-        Ellipsoid(np.zeros(2), 2 * np.eye(2)), Ellipsoid(np.zeros(2), np.eye(2))
-    )
+    cert = prove_containment(Ellipsoid(np.zeros(2), 2 * np.eye(2)), Ellipsoid(np.zeros(2), np.eye(2)))
     assert cert.status is Status.UNKNOWN
     assert "optimal_inaccurate" in cert.detail
 
@@ -290,9 +283,7 @@ def test_sdp_not_optimal_may_still_refute_with_exact_witness(monkeypatch):
         return _FakeProblem("infeasible"), _FakeValue(None), _FakeValue(None), _FakeValue(None)
 
     monkeypatch.setattr(cm, "_sdp_problem", fake)
-    cert = prove_containment(
-        Ellipsoid(np.zeros(2), np.eye(2)), Ellipsoid(np.zeros(2), 2 * np.eye(2))
-    )
+    cert = prove_containment(Ellipsoid(np.zeros(2), np.eye(2)), Ellipsoid(np.zeros(2), 2 * np.eye(2)))
     assert cert.status is Status.REFUTED
     assert verify(cert).status is Status.REFUTED
 

@@ -37,9 +37,7 @@ def _det(m):
     """Laplace expansion: an independent determinant for small matrices."""
     if len(m) == 1:
         return m[0][0]
-    return sum(
-        (-1) ** j * m[0][j] * _det([r[:j] + r[j + 1 :] for r in m[1:]]) for j in range(len(m))
-    )
+    return sum((-1) ** j * m[0][j] * _det([r[:j] + r[j + 1 :] for r in m[1:]]) for j in range(len(m)))
 
 
 def _psd_by_minors(m) -> bool:

@@ -95,8 +95,7 @@ def prove_containment_cmd(problems: Path, out: Path) -> None:
         )
     counts = {s: sum(c.status.value == s for c in certs) for s in ("PROVEN", "REFUTED", "UNKNOWN")}
     console.print(
-        f"wrote {len(certs)} certificates to {out}: "
-        + ", ".join(f"{v} {k}" for k, v in counts.items()),
+        f"wrote {len(certs)} certificates to {out}: " + ", ".join(f"{v} {k}" for k, v in counts.items()),
         markup=False,
         highlight=False,
     )
@@ -131,8 +130,7 @@ def check_certificate_cmd(certificates: Path) -> None:
         console.print(line, markup=False, highlight=False, soft_wrap=True)
     if failed:
         console.print(
-            f"{len(failed)} of {len(certs)} certificates failed: "
-            + ", ".join(str(i) for i in failed),
+            f"{len(failed)} of {len(certs)} certificates failed: " + ", ".join(str(i) for i in failed),
             markup=False,
             highlight=False,
         )
