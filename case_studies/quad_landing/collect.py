@@ -2,7 +2,8 @@
 
 :func:`collect` flies :mod:`.paths` one after another (each starts at its own reference,
 flies ``warmup_time`` unrecorded, then records a measurement every ``sample_every``
-camera frames) until ``n`` measurements *with a detection* are recorded. Frames
+camera frames; :func:`fly_path`) until ``n`` measurements *with a detection* are
+recorded. Frames
 without a detection are not rows of the dataset; they are counted in
 :class:`CollectStats`, split into "marker (partly) outside the lagged image" and "in
 view but not detected".
@@ -21,10 +22,13 @@ Columns of the returned DataFrame (float64 unless noted):
 from __future__ import annotations
 
 import json
+import multiprocessing
 import os
 import tempfile
 import time
-from collections.abc import Callable
+from collections import deque
+from collections.abc import Callable, Iterator
+from concurrent.futures import Future, ProcessPoolExecutor
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -40,9 +44,13 @@ from ipcverify.errors import InvalidInputError
 
 __all__ = [
     "CollectStats",
+    "PathRecord",
     "collect",
+    "fly_path",
+    "path_rng",
     "write_dataset",
     "start_state",
+    "pad_outline_world",
     "Y_COLUMNS",
     "YHAT_COLUMNS",
     "XW_COLUMNS",
@@ -137,8 +145,130 @@ def start_state(path: ExplorationPath) -> np.ndarray:
     return x
 
 
-def _pad_outline_w(config: SimConfig) -> np.ndarray:
+def pad_outline_world(config: SimConfig) -> np.ndarray:
+    """Corners of the white pad square in W, shape (4, 3)."""
     return config.pad.world_from_marker().apply(config.marker.pad_outline())
+
+
+@dataclass(frozen=True, eq=False)
+class PathRecord:
+    """What flying one exploration path produced (see :func:`fly_path`).
+
+    Attributes
+    ----------
+    index : int
+        Path index (seeds the path and its sensor noise).
+    rows : ndarray, shape (m, 36)
+        One row per detection, the float columns of :data:`DATASET_COLUMNS`.
+    times : ndarray, shape (m,)
+        Flight time of each detection (s).
+    outcomes : ndarray of int8
+        One code per measurement, in order: 0 detected, 1 missed with the marker (partly)
+        outside the lagged image, 2 missed although it was inside.
+    flight_time : float
+        Time flown on the path, warm-up included (s).
+    """
+
+    index: int
+    rows: np.ndarray
+    times: np.ndarray
+    outcomes: np.ndarray
+    flight_time: float
+
+
+def path_rng(seed: int, index: int) -> np.random.Generator:
+    """The generator of path ``index`` in a collection seeded with ``seed``.
+
+    Depends on nothing else, so path ``i`` is the same for every buffer size, sample
+    count and number of worker processes.
+    """
+    return np.random.default_rng([int(seed), int(index)])
+
+
+def fly_path(flight: Flight, index: int, seed: int, limit: int | None = None) -> PathRecord:
+    """Fly exploration path ``index`` and record a measurement every ``sample_every`` frames.
+
+    Parameters
+    ----------
+    flight : Flight
+        The simulator (its config and buffer size are used).
+    index : int
+        Path index: the template is ``TEMPLATES[index % 5]``; parameters and sensor noise
+        come from :func:`path_rng`.
+    seed : int
+        Collection seed.
+    limit : int, optional
+        Stop after this many detections.
+    """
+    cfg = flight.config
+    params = cfg.collect
+    rng = path_rng(seed, index)
+    path = make_path(TEMPLATES[index % len(TEMPLATES)], rng, flight.pad.position, cfg.paths)
+    path = fit_to_view(path, flight.camera, pad_outline_world(cfg), cfg.paths.view_margin_px,
+                       cfg.quad.gravity)  # fmt: skip
+    flight.reset(start_state(path), seed=int(rng.integers(2**31)))
+    fps = cfg.camera.fps
+    warmup = int(round(params.warmup_time * fps))
+    rows: list[np.ndarray] = []
+    times: list[float] = []
+    outcomes: list[int] = []
+    for frame in flight.follow(path, warmup / fps + path.duration):
+        if frame <= warmup or (frame - warmup) % params.sample_every:
+            continue
+        m = flight.measure()
+        if m.yhat_c is None:
+            outcomes.append(2 if m.pad_in_view else 1)
+            continue
+        outcomes.append(0)
+        T = m.world_from_camera
+        rows.append(np.concatenate([m.x_c, m.y_c, m.yhat_c, m.state, T.apply(m.y_c),
+                                    T.apply(m.yhat_c)]))  # fmt: skip
+        times.append(m.time)
+        if limit is not None and len(rows) >= limit:
+            break
+    return PathRecord(
+        index=index,
+        rows=np.array(rows).reshape(-1, _N_FLOAT),
+        times=np.array(times),
+        outcomes=np.array(outcomes, dtype=np.int8),
+        flight_time=flight.time,
+    )
+
+
+_WORKER_FLIGHT: Flight | None = None
+
+
+def _worker_init(config: SimConfig) -> None:
+    global _WORKER_FLIGHT
+    import cv2
+
+    cv2.setNumThreads(1)  # one process per core already
+    _WORKER_FLIGHT = Flight(config)
+
+
+def _worker_fly(index: int, seed: int) -> PathRecord:
+    assert _WORKER_FLIGHT is not None
+    return fly_path(_WORKER_FLIGHT, index, seed)
+
+
+def _records(cfg: SimConfig, seed: int, jobs: int) -> Iterator[PathRecord]:
+    """Path records in index order, flown here (jobs = 1) or by worker processes."""
+    if jobs == 1:
+        flight = Flight(cfg)
+        index = 0
+        while True:
+            yield fly_path(flight, index, seed)
+            index += 1
+    ctx = multiprocessing.get_context("spawn")  # OpenCV's threads do not survive fork
+    with ProcessPoolExecutor(jobs, mp_context=ctx, initializer=_worker_init,
+                             initargs=(cfg,)) as pool:  # fmt: skip
+        index = 0
+        pending: deque[Future[PathRecord]] = deque()
+        while True:
+            while len(pending) < 2 * jobs:
+                pending.append(pool.submit(_worker_fly, index, seed))
+                index += 1
+            yield pending.popleft().result()
 
 
 def collect(
@@ -147,9 +277,15 @@ def collect(
     buffer_size: int | None = None,
     seed: int = 0,
     config: SimConfig | None = None,
+    jobs: int = 1,
     progress: Callable[[int], None] | None = None,
 ) -> tuple[pd.DataFrame, CollectStats]:
     """Collect ``n`` lagged measurements with a detection along exploration paths.
+
+    Path ``i`` is always the same path with the same sensor noise for a given ``seed``
+    (:func:`path_rng`), whatever ``n``, ``buffer_size`` or ``jobs``: datasets for
+    different buffer sizes are flown on the same paths, and ``jobs`` only changes the
+    wall time, never the data.
 
     Parameters
     ----------
@@ -158,11 +294,13 @@ def collect(
     buffer_size : int, optional
         Camera buffer size ``k`` (``config.collect.buffer_size`` if None).
     seed : int
-        Seeds the path parameters and the sensor noise; equal seeds give equal data.
+        Seeds the path parameters and the sensor noise.
     config : SimConfig, optional
         Defaults from ``defaults.toml`` if None.
+    jobs : int
+        Worker processes flying paths in parallel (1 = in this process).
     progress : callable, optional
-        Called with the number of new samples after each recorded measurement.
+        Called with the number of new samples as they are added.
 
     Returns
     -------
@@ -174,8 +312,8 @@ def collect(
     Examples
     --------
     >>> data, stats = collect(20, buffer_size=1, seed=0)
-    >>> len(data), stats.samples
-    (20, 20)
+    >>> len(data), stats.samples, stats.measurements >= 20
+    (20, 20, True)
     """
     cfg = load_config() if config is None else config
     overrides: dict[str, object] = {}
@@ -187,58 +325,41 @@ def collect(
         cfg = cfg.replace(collect=overrides)
     if isinstance(seed, bool) or int(seed) != seed or seed < 0:
         raise InvalidInputError(f"seed must be a non-negative integer, got {seed!r}")
-    params = cfg.collect
-    rng = np.random.default_rng(int(seed))
-    flight = Flight(cfg, buffer_size=params.buffer_size, seed=int(rng.integers(2**31)))
-    outline = _pad_outline_w(cfg)
-    rows = np.empty((params.n, _N_FLOAT))
-    path_idx = np.empty(params.n, dtype=np.int64)
-    times = np.empty(params.n)
-    n_done = n_meas = n_out = n_in = n_paths = 0
-    flight_time = 0.0
-    fps = cfg.camera.fps
-    warmup = int(round(params.warmup_time * fps))
+    if isinstance(jobs, bool) or int(jobs) != jobs or jobs < 1:
+        raise InvalidInputError(f"jobs must be a positive integer, got {jobs!r}")
+    n_target = cfg.collect.n
     t0 = time.perf_counter()
-    while n_done < params.n:
-        template = TEMPLATES[n_paths % len(TEMPLATES)]
-        path = make_path(template, rng, cfg.pad.position, cfg.paths)
-        path = fit_to_view(path, flight.camera, outline, cfg.paths.view_margin_px,
-                           cfg.quad.gravity)  # fmt: skip
-        flight.reset(start_state(path))
-        for frame in flight.follow(path, warmup / fps + path.duration):
-            if frame <= warmup or (frame - warmup) % params.sample_every or n_done >= params.n:
-                continue
-            m = flight.measure()
-            n_meas += 1
-            if m.yhat_c is None:
-                if m.pad_in_view:
-                    n_in += 1
-                else:
-                    n_out += 1
-                continue
-            yhat_w = m.world_from_camera.apply(m.yhat_c)
-            rows[n_done] = np.concatenate(
-                [m.x_c, m.y_c, m.yhat_c, m.state, m.world_from_camera.apply(m.y_c), yhat_w]
-            )
-            path_idx[n_done] = n_paths
-            times[n_done] = m.time
-            n_done += 1
-            if progress is not None:
-                progress(1)
-        flight_time += flight.time
-        n_paths += 1
-    data = pd.DataFrame(rows, columns=list(DATASET_COLUMNS[:-2]))
-    data["path"] = path_idx
-    data["t"] = times
+    parts: list[PathRecord] = []
+    n_done = 0
+    records = _records(cfg, int(seed), int(jobs))
+    try:
+        for rec in records:
+            take = min(len(rec.rows), n_target - n_done)
+            if take < len(rec.rows):  # keep measurements up to the last sample used
+                last = int(np.flatnonzero(rec.outcomes == 0)[take - 1]) if take else -1
+                rec = PathRecord(rec.index, rec.rows[:take], rec.times[:take],
+                                 rec.outcomes[: last + 1], rec.flight_time)  # fmt: skip
+            parts.append(rec)
+            n_done += take
+            if progress is not None and take:
+                progress(take)
+            if n_done >= n_target:
+                break
+    finally:
+        records.close()
+    outcomes = np.concatenate([r.outcomes for r in parts])
+    data = pd.DataFrame(np.vstack([r.rows for r in parts]), columns=list(DATASET_COLUMNS[:-2]))
+    data["path"] = np.concatenate([np.full(len(r.rows), r.index, np.int64) for r in parts])
+    data["t"] = np.concatenate([r.times for r in parts])
     stats = CollectStats(
-        buffer_size=params.buffer_size,
+        buffer_size=cfg.collect.buffer_size,
         seed=int(seed),
         samples=n_done,
-        measurements=n_meas,
-        missed_out_of_view=n_out,
-        missed_in_view=n_in,
-        paths=n_paths,
-        flight_time=flight_time,
+        measurements=len(outcomes),
+        missed_out_of_view=int(np.sum(outcomes == 1)),
+        missed_in_view=int(np.sum(outcomes == 2)),
+        paths=len(parts),
+        flight_time=float(sum(r.flight_time for r in parts)),
         wall_time=time.perf_counter() - t0,
     )
     return data, stats

@@ -63,7 +63,7 @@ class PathParams:
     duration: float = 15.0
     min_height: float = 0.8
     max_height: float = 2.4
-    view_margin_px: float = 10.0
+    view_margin_px: float = 3.0
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.duration) and self.duration > 0):
@@ -156,11 +156,15 @@ class ExplorationPath:
             float(r.yaw_rate[0]),
         )  # fmt: skip
 
-    def shrunk(self, factor: float) -> ExplorationPath:
-        """The same path with its horizontal amplitudes multiplied by ``factor``."""
+    def shrunk(self, factor: float, anchor: ArrayLike) -> ExplorationPath:
+        """The path with its horizontal amplitudes and its centre's horizontal offset
+        from ``anchor`` (a point in W, e.g. the pad) multiplied by ``factor``."""
         a = self.amplitude.copy()
         a[:2] *= factor
-        return replace(self, amplitude=a)
+        c = self.center.copy()
+        anchor_xy = np.asarray(anchor, dtype=np.float64).reshape(-1)[:2]
+        c[:2] = anchor_xy + factor * (c[:2] - anchor_xy)
+        return replace(self, amplitude=a, center=c)
 
 
 def _attitudes(acc: FloatArray, yaw: FloatArray, gravity: float) -> FloatArray:
@@ -207,6 +211,9 @@ def fit_to_view(
 ) -> ExplorationPath:  # fmt: skip
     """Shrink the horizontal motion (bisection on the scale) until the pad stays in view.
 
+    Amplitudes and the centre's horizontal offset from the pad are scaled together,
+    so the path contracts towards the column above the pad.
+
     Raises
     ------
     InvalidInputError
@@ -215,7 +222,8 @@ def fit_to_view(
     """
     if pad_in_view_along(path, camera, pad_corners_w, margin_px, gravity):
         return path
-    if not pad_in_view_along(path.shrunk(0.0), camera, pad_corners_w, margin_px, gravity):
+    anchor = pad_corners_w.mean(axis=0)
+    if not pad_in_view_along(path.shrunk(0.0, anchor), camera, pad_corners_w, margin_px, gravity):
         raise InvalidInputError(
             f"path {path.name!r}: the pad leaves the image even without horizontal motion; "
             "raise paths.min_height, reduce view_margin_px or tilt the camera down"
@@ -223,11 +231,11 @@ def fit_to_view(
     lo, hi = 0.0, 1.0
     for _ in range(10):
         mid = 0.5 * (lo + hi)
-        if pad_in_view_along(path.shrunk(mid), camera, pad_corners_w, margin_px, gravity):
+        if pad_in_view_along(path.shrunk(mid, anchor), camera, pad_corners_w, margin_px, gravity):
             lo = mid
         else:
             hi = mid
-    return path.shrunk(lo)
+    return path.shrunk(lo, anchor)
 
 
 def make_path(
@@ -280,7 +288,10 @@ def make_path(
         amp = (u(0.2, 0.7), u(0.2, 0.7), az)
         omega = (u(0.8, 2.5), u(0.8, 2.5), u(0.8, 2.5))
         yaw = dict(yaw_rate=u(-0.6, 0.6), yaw_amplitude=u(0, 0.8), yaw_omega=u(0.5, 2.0))
-    center = pad + np.array([0.0, 0.0, h])
+    # off-centre by up to 0.6 h so the pad is seen across the whole image
+    off = 0.0 if template == "dash" else u(0.0, 0.6 * h)
+    bearing = u(-np.pi, np.pi)
+    center = pad + np.array([off * np.cos(bearing), off * np.sin(bearing), h])
     return ExplorationPath(
         name=template, center=center, amplitude=amp, omega=omega, phase=phase,
         yaw0=yaw0, duration=params.duration, **yaw,

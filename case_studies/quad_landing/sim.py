@@ -200,11 +200,12 @@ class Flight:
             raise InvalidInputError("call Flight.reset(state) before flying or measuring")
         return self._state
 
-    def reset(self, state: ArrayLike, pad: Pad | None = None) -> None:
-        """Start a flight at ``state`` (12,) with the pad at ``pad`` (config pad if None).
+    def reset(self, state: ArrayLike, pad: Pad | None = None, *, seed: int | None = None) -> None:
+        """Start a flight at ``state`` (12,) with the pad at ``pad`` (unchanged if None).
 
         The frame buffer is filled with images of the start state, motors are on and
-        the reference is to hold the start position and heading.
+        the reference is to hold the start position and heading. ``seed`` re-seeds the
+        sensor noise.
         """
         x = np.array(state, dtype=np.float64).reshape(-1)
         if x.shape != (12,) or not np.all(np.isfinite(x)):
@@ -212,6 +213,8 @@ class Flight:
         self._check_in_workspace(x[:3], "start position")
         if pad is not None:
             self.pad = pad
+        if seed is not None:
+            self._rng = np.random.default_rng(seed)
         self._state = x
         self._time = 0.0
         self.motors_on = True

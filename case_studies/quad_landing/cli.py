@@ -1,0 +1,135 @@
+"""Command line: ``python -m case_studies.quad_landing {collect,pictures,bias}``.
+
+Thin click wrappers over :func:`.collect.collect`, :func:`.pictures.write_pictures` and
+:func:`.bias.refinement_bias`. Bad input (a bad option value, a bad config file, an
+output path that cannot be written) prints one ``error: ...`` line and exits with
+status 2.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import click
+from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+from case_studies.quad_landing.config import SimConfig, load_config
+from case_studies.quad_landing.framebuffer import MAX_BUFFER_SIZE
+from ipcverify.errors import InvalidInputError
+
+__all__ = ["quad", "main"]
+
+console = Console()
+err_console = Console(stderr=True)
+
+
+def _config(path: str | None) -> SimConfig:
+    return load_config(path)
+
+
+@click.group(
+    name="quad_landing",
+    context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100},
+)
+def quad() -> None:
+    """Quad-landing case study: simulate, perceive with a lagged camera, collect data."""
+
+
+@quad.command("collect")
+@click.option("--buffer-size", "-k", type=click.IntRange(0, MAX_BUFFER_SIZE), default=None,
+              help="Camera buffer size k (frames of lag) [default: from the config, 1].")
+@click.option("--n", "n", type=click.IntRange(min=1), default=None,
+              help="Samples with a detection to collect [default: from the config, 5000].")
+@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
+              help="Random seed.")
+@click.option("--out", type=click.Path(dir_okay=False), required=True,
+              help="Output dataset, .parquet or .csv; a <stem>.stats.json is written beside.")
+@click.option("--config", "config_path", type=click.Path(dir_okay=False), default=None,
+              help="TOML file overriding defaults.toml.")
+@click.option("--quiet", is_flag=True, help="No progress bar.")
+def collect_command(buffer_size: int | None, n: int | None, seed: int, out: str,
+                    config_path: str | None, quiet: bool) -> None:  # fmt: skip
+    """Fly the exploration paths and write a dataset of lagged measurements."""
+    from case_studies.quad_landing.collect import collect, write_dataset
+
+    out_path = Path(out)
+    if out_path.suffix.lower() not in (".parquet", ".csv"):
+        raise InvalidInputError(f"--out must end in .parquet or .csv, got {out_path.name!r}")
+    if not out_path.parent.exists():
+        raise InvalidInputError(f"--out directory {out_path.parent} does not exist; create it")
+    overrides: dict[str, int] = {}
+    if n is not None:
+        overrides["n"] = n
+    if buffer_size is not None:
+        overrides["buffer_size"] = buffer_size
+    cfg = _config(config_path)
+    if overrides:
+        cfg = cfg.replace(collect=overrides)
+    with Progress(
+        TextColumn("collecting"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+        console=err_console, transient=True, disable=quiet,
+    ) as bar:  # fmt: skip
+        task = bar.add_task("collect", total=cfg.collect.n)
+        data, stats = collect(seed=seed, config=cfg,
+                              progress=lambda k: bar.advance(task, k))  # fmt: skip
+    write_dataset(data, out_path, stats)
+    console.print(f"wrote {out_path}: {stats.summary()}", markup=False, highlight=False,
+                  soft_wrap=True)  # fmt: skip
+
+
+@quad.command("pictures")
+@click.option("--out", type=click.Path(file_okay=False), default="docs/img", show_default=True,
+              help="Directory for quad_camera_frame.png, quad_paths.png, quad_lag_error.png.")
+@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
+              help="Random seed.")
+@click.option("--config", "config_path", type=click.Path(dir_okay=False), default=None,
+              help="TOML file overriding defaults.toml.")
+def pictures_command(out: str, seed: int, config_path: str | None) -> None:
+    """Write the documentation pictures (a camera frame, the paths, lag error per k)."""
+    from case_studies.quad_landing.pictures import write_pictures
+
+    info = write_pictures(out, seed=seed, config=_config(config_path))
+    frame = info["frame"]
+    console.print(
+        f"wrote pictures to {out}: frame at {frame['speed']:.2f} m/s, error "
+        f"{100 * frame['error']:.1f} cm; median error by k (cm): "
+        + ", ".join(f"{k}: {100 * v:.2f}" for k, v in info["median_error_by_k"].items()),
+        markup=False, highlight=False, soft_wrap=True,
+    )  # fmt: skip
+
+
+@quad.command("bias")
+@click.option("--poses", type=click.IntRange(min=1), default=100, show_default=True, help="Poses per range.")
+@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
+              help="Random seed.")
+@click.option("--config", "config_path", type=click.Path(dir_okay=False), default=None,
+              help="TOML file overriding defaults.toml.")
+def bias_command(poses: int, seed: int, config_path: str | None) -> None:
+    """Measure the range bias and speed of each ArUco corner refinement (no lag)."""
+    from case_studies.quad_landing.bias import refinement_bias
+
+    df = refinement_bias(poses=poses, seed=seed, config=_config(config_path))
+    click.echo(df.to_string(index=False, float_format=lambda v: f"{v:.3f}"))
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Run the CLI; bad input exits with status 2 and a single ``error:`` line on stderr."""
+    try:
+        rc = quad.main(args=argv, prog_name="python -m case_studies.quad_landing",
+                       standalone_mode=False)  # fmt: skip
+    except InvalidInputError as exc:
+        err_console.print(f"error: {exc}", markup=False, highlight=False, soft_wrap=True)
+        sys.exit(2)
+    except click.UsageError as exc:
+        err_console.print(f"error: {exc.format_message()}", markup=False, highlight=False,
+                          soft_wrap=True)  # fmt: skip
+        sys.exit(2)
+    except click.ClickException as exc:
+        exc.show()
+        sys.exit(exc.exit_code)
+    except click.exceptions.Abort:
+        err_console.print("aborted", markup=False)
+        sys.exit(1)
+    sys.exit(rc if isinstance(rc, int) else 0)
