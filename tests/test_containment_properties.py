@@ -189,6 +189,10 @@ def test_socp_agrees_with_closed_form_when_decisive(seed, n, log_cond, margin, s
     _check_against_truth(socp, truth)
     if socp.status is not Status.UNKNOWN:
         assert socp.status is closed.status
+        # and the solver's support values match the closed form's
+        h_socp = np.array([float(v) for v in socp.multipliers["support"]])
+        h_closed = np.array([float(v) for v in closed.multipliers["support"]])
+        np.testing.assert_allclose(h_socp, h_closed, rtol=1e-5, atol=1e-9 * h_closed.max())
     if margin >= 1e-3:  # comfortably away from touching: the cross-check must decide
         assert socp.status is closed.status, socp.detail
 
@@ -284,7 +288,11 @@ def test_sdp_general_pairs_are_sound(seed, n, log_cond, margin, sign):
     e2 = Ellipsoid(e2.centers[0], e2.shapes[0] * np.sqrt((1.0 - sign * margin) / tau))
     tau = _tau_star_mp(e1, e2)
     assume(abs(tau - 1) > 1e-30)
-    _check_against_truth(prove_containment(e1, e2), bool(tau < 1))
+    cert = prove_containment(e1, e2)
+    _check_against_truth(cert, bool(tau < 1))
+    # the SDP value agrees with the trust-region closed form (margin = 1 - tau_solver)
+    assert cert.margin is not None
+    assert abs(cert.margin - (1 - float(tau))) <= 1e-6
 
 
 @PROPS
