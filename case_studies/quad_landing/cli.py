@@ -48,9 +48,11 @@ def quad() -> None:
               help="Output dataset, .parquet or .csv; a <stem>.stats.json is written beside.")
 @click.option("--config", "config_path", type=click.Path(dir_okay=False), default=None,
               help="TOML file overriding defaults.toml.")
+@click.option("--jobs", "-j", type=click.IntRange(1, 64), default=1, show_default=True,
+              help="Worker processes (the data do not depend on it).")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 def collect_command(buffer_size: int | None, n: int | None, seed: int, out: str,
-                    config_path: str | None, quiet: bool) -> None:  # fmt: skip
+                    config_path: str | None, jobs: int, quiet: bool) -> None:  # fmt: skip
     """Fly the exploration paths and write a dataset of lagged measurements."""
     from case_studies.quad_landing.collect import collect, write_dataset
 
@@ -72,7 +74,7 @@ def collect_command(buffer_size: int | None, n: int | None, seed: int, out: str,
         console=err_console, transient=True, disable=quiet,
     ) as bar:  # fmt: skip
         task = bar.add_task("collect", total=cfg.collect.n)
-        data, stats = collect(seed=seed, config=cfg,
+        data, stats = collect(seed=seed, config=cfg, jobs=jobs,
                               progress=lambda k: bar.advance(task, k))  # fmt: skip
     write_dataset(data, out_path, stats)
     console.print(f"wrote {out_path}: {stats.summary()}", markup=False, highlight=False,

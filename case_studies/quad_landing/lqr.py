@@ -10,12 +10,12 @@ view.
 
 The control law, for a reference ``(p_r, v_r, a_r, j_r, psi_r, psidot_r)``::
 
-    a' = Rz(psi)^T a_r,  L = g + a_r,z          (feedforward acceleration, yaw frame)
-    roll_r = -atan(a'_y / L),  pitch_r = atan(a'_x / L)
-    omega_r ~ d/dt (roll_r, pitch_r, psi_r)     (from the jerk j_r, small angles)
+    a' = Rz(psi)^T a_r,  L = g + a_r,z,  N = |a' + g e3|   (feedforward, yaw frame)
+    roll_r = -asin(a'_y / N),  pitch_r = atan2(a'_x, L)     (thrust along a_r + g e3)
+    omega_r = body rates of d/dt (roll_r, pitch_r, psi_r)    (from the jerk j_r)
     e = [Rz(psi)^T clamp(p - p_r), Rz(psi)^T (v - v_r),
          roll - roll_r, pitch - pitch_r, wrap(psi - psi_r), omega - omega_r]
-    u = clip(u_hover L / g - K e, 0, max_rotor_thrust)
+    u = clip(u_hover N / g - K e, 0, max_rotor_thrust)
 
 The feedforward tilts the vehicle ahead of time on curved paths so that exploration
 paths are tracked to a few centimetres; for waypoints it is zero.
@@ -69,8 +69,8 @@ class LqrParams:
     0.5
     """
 
-    q_position: tuple[float, float, float] = (8.0, 8.0, 10.0)
-    q_velocity: tuple[float, float, float] = (2.0, 2.0, 2.0)
+    q_position: tuple[float, float, float] = (30.0, 30.0, 30.0)
+    q_velocity: tuple[float, float, float] = (6.0, 6.0, 6.0)
     q_attitude: tuple[float, float, float] = (4.0, 4.0, 4.0)
     q_rate: tuple[float, float, float] = (0.2, 0.2, 0.2)
     r_thrust: float = 1.0
@@ -200,7 +200,7 @@ class HoverLqr:
         self, x: FloatArray, p_ref: FloatArray, v_ref: FloatArray, ff: FloatArray,
         yaw_ref: float,
     ) -> tuple[FloatArray, float]:  # fmt: skip
-        """``ff = [acceleration (3), jerk (3), yaw_rate]``; returns ``e`` and ``L / g``."""
+        """``ff = [acceleration (3), jerk (3), yaw_rate]``; returns ``e`` and ``N / g``."""
         psi = x[8]
         c, s = np.cos(psi), np.sin(psi)
         dp = x[0:3] - p_ref
@@ -210,12 +210,22 @@ class HoverLqr:
             dp[0:2] *= lim / horiz
         dp[2] = min(max(dp[2], -self.params.max_position_error_z), self.params.max_position_error_z)
         dv = x[3:6] - v_ref
-        # feedforward attitude and body rates (small-angle, yaw frame)
+        # feedforward attitude (thrust along a_r + g e3) and its body rates, yaw frame
         lift = self.gravity + ff[2]
         ax, ay = c * ff[0] + s * ff[1], -s * ff[0] + c * ff[1]
         yaw_rate = ff[6]
-        jx = c * ff[3] + s * ff[4] + yaw_rate * ay
-        jy = -s * ff[3] + c * ff[4] - yaw_rate * ax
+        dax = c * ff[3] + s * ff[4] + yaw_rate * ay  # d/dt of the yaw-frame acceleration
+        day = -s * ff[3] + c * ff[4] - yaw_rate * ax
+        dlift = ff[5]
+        hxz2 = ax * ax + lift * lift
+        norm = np.sqrt(hxz2 + ay * ay)
+        roll_r = -np.arcsin(ay / norm)
+        pitch_r = np.arctan2(ax, lift)
+        dnorm = (ax * dax + ay * day + lift * dlift) / norm
+        droll = -(day * norm - ay * dnorm) / (norm * np.sqrt(hxz2))
+        dpitch = (lift * dax - ax * dlift) / hxz2
+        sr, cr = np.sin(roll_r), np.cos(roll_r)
+        sp, cp = np.sin(pitch_r), np.cos(pitch_r)
         e = np.empty(12)
         e[0] = c * dp[0] + s * dp[1]
         e[1] = -s * dp[0] + c * dp[1]
@@ -223,13 +233,14 @@ class HoverLqr:
         e[3] = c * dv[0] + s * dv[1]
         e[4] = -s * dv[0] + c * dv[1]
         e[5] = dv[2]
-        e[6] = x[6] + np.arctan2(ay, lift)
-        e[7] = x[7] - np.arctan2(ax, lift)
+        e[6] = x[6] - roll_r
+        e[7] = x[7] - pitch_r
         e[8] = (psi - yaw_ref + np.pi) % (2.0 * np.pi) - np.pi
-        e[9] = x[9] - (-jy / lift + ay * ff[5] / lift**2)
-        e[10] = x[10] - (jx / lift - ax * ff[5] / lift**2)
-        e[11] = x[11] - yaw_rate
-        return e, lift / self.gravity
+        # ZYX Euler rates -> body rates
+        e[9] = x[9] - (droll - sp * yaw_rate)
+        e[10] = x[10] - (cr * dpitch + sr * cp * yaw_rate)
+        e[11] = x[11] - (-sr * dpitch + cr * cp * yaw_rate)
+        return e, norm / self.gravity
 
     def thrusts(
         self, x: FloatArray, p_ref: FloatArray, v_ref: FloatArray, ff: FloatArray,

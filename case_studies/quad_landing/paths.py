@@ -6,9 +6,9 @@ templates give diverse positions, velocities (up to about 2 m/s) and rotations:
 
 * ``orbit`` — circles around the pad while the heading spins;
 * ``figure8`` — a horizontal figure of eight with a swinging heading;
-* ``bob`` — fast climbs and descents over the pad with slow spin;
+* ``bob`` — fast climbs and descents, off-centre, with slow spin;
 * ``dash`` — quick side-to-side dashes (large roll rates), heading swinging;
-* ``lissajous`` — random frequency ratios on all three axes.
+* ``lissajous`` — random frequency ratios on all three axes, off-centre.
 
 Template parameters are drawn from a seeded generator, then the horizontal part of the
 path is shrunk (:func:`fit_to_view`) until the pad stays inside the image along the
@@ -270,10 +270,11 @@ def make_path(
         omega = (w, 2 * w, u(0.5, 1.5))
         yaw = dict(yaw_amplitude=u(0.3, 1.0), yaw_omega=u(0.6, 2.0))
     elif template == "bob":
-        az = u(0.3, 0.5 * (hi - lo))
+        az = u(0.4, 0.5 * (hi - lo))
         h = u(lo + az, hi - az)
         amp = (u(0.05, 0.2), u(0.05, 0.2), az)
-        omega = (u(0.5, 1.5), u(0.5, 1.5), u(2.0, 3.5))
+        # vertical speed up to ~2.3 m/s; peak acceleration at most 6 m/s^2 (thrust margin)
+        omega = (u(0.5, 1.5), u(0.5, 1.5), min(u(2.5, 3.5), np.sqrt(6.0 / az)))
         yaw = dict(yaw_rate=u(-1.0, 1.0), yaw_amplitude=u(0, 0.3), yaw_omega=u(0.5, 1.5))
     elif template == "dash":
         h = u(lo + 0.4, hi - 0.1)
@@ -288,8 +289,9 @@ def make_path(
         amp = (u(0.2, 0.7), u(0.2, 0.7), az)
         omega = (u(0.8, 2.5), u(0.8, 2.5), u(0.8, 2.5))
         yaw = dict(yaw_rate=u(-0.6, 0.6), yaw_amplitude=u(0, 0.8), yaw_omega=u(0.5, 2.0))
-    # off-centre by up to 0.6 h so the pad is seen across the whole image
-    off = 0.0 if template == "dash" else u(0.0, 0.6 * h)
+    # bob and lissajous are off-centre by up to 0.6 h so that the pad is seen across
+    # the whole image; the others are centred over the pad to leave room for speed
+    off = u(0.0, 0.6 * h) if template in ("bob", "lissajous") else 0.0
     bearing = u(-np.pi, np.pi)
     center = pad + np.array([off * np.cos(bearing), off * np.sin(bearing), h])
     return ExplorationPath(
