@@ -27,7 +27,7 @@ angle = st.floats(-np.pi, np.pi, allow_nan=False)
 coord = st.floats(-5, 5, allow_nan=False)
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=60, deadline=None, derandomize=True)
 @given(roll=angle, pitch=st.floats(-1.5, 1.5), yaw=angle)
 def test_euler_round_trip(roll, pitch, yaw):
     R = euler_to_matrix(roll, pitch, yaw)
@@ -36,7 +36,7 @@ def test_euler_round_trip(roll, pitch, yaw):
     np.testing.assert_allclose(wrap_angle(back - [roll, pitch, yaw]), 0.0, atol=1e-9)
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=60, deadline=None, derandomize=True)
 @given(r1=angle, p1=st.floats(-1.5, 1.5), y1=angle, r2=angle, p2=st.floats(-1.5, 1.5), y2=angle,
        t1=st.tuples(coord, coord, coord), t2=st.tuples(coord, coord, coord),
        pt=st.tuples(coord, coord, coord))  # fmt: skip
@@ -49,7 +49,7 @@ def test_pose_inverse_and_compose_round_trip(r1, p1, y1, r2, p2, y2, t1, t2, pt)
     np.testing.assert_allclose(A.compose(A.inverse()).matrix(), np.eye(4), atol=1e-9)
 
 
-@settings(max_examples=40, deadline=None)
+@settings(max_examples=40, deadline=None, derandomize=True)
 @given(p=st.tuples(st.floats(-3, 3), st.floats(-3, 3), st.floats(0.5, 3)),
        att=st.tuples(st.floats(-0.5, 0.5), st.floats(-0.5, 0.5), angle),
        point=st.tuples(coord, coord, st.floats(0, 0.5)))  # fmt: skip
@@ -149,3 +149,27 @@ def test_x_c_carries_the_lag_kinematics():
     v_cam = camera_velocity_world(x0, CAM)
     R = world_from_quad(x0).R
     np.testing.assert_allclose(v_cam, x0[3:6] + R @ np.cross(x0[9:12], CFG.camera.offset))
+
+
+@settings(max_examples=40, deadline=None, derandomize=True)
+@given(att=st.tuples(angle, st.floats(-1.5, 1.5), angle), t=st.tuples(coord, coord, coord),
+       seed=st.integers(0, 10_000))  # fmt: skip
+def test_ellipsoid_moves_with_its_points(att, t, seed):
+    from case_studies.quad_landing.frames import transform_ellipsoid
+
+    rng = np.random.default_rng(seed)
+    T = Pose(euler_to_matrix(*att), t)
+    c, C = rng.normal(size=3), rng.normal(size=(3, 3)) + 3 * np.eye(3)
+    pts = c + rng.normal(size=(50, 3)) * 0.5
+    inside_b = np.linalg.norm((pts - c) @ C.T, axis=1)
+    cw, Cw = transform_ellipsoid(c, C, T)
+    inside_a = np.linalg.norm((T.apply(pts) - cw) @ Cw.T, axis=1)
+    np.testing.assert_allclose(inside_a, inside_b, rtol=1e-9, atol=1e-9)
+
+
+def test_pad_in_view_matches_the_geometry():
+    f = Flight(CFG, buffer_size=0)
+    f.reset(hover_state((0.0, 0.0, 1.0)))
+    assert f.pad_in_view()
+    assert not f.pad_in_view(hover_state((1.5, 0.0, 1.0)))
+    assert not f.pad_in_view(hover_state((0.0, 0.0, 0.3)))  # too close: pad bigger than view

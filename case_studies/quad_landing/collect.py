@@ -23,8 +23,6 @@ from __future__ import annotations
 
 import json
 import multiprocessing
-import os
-import tempfile
 import time
 from collections import deque
 from collections.abc import Callable, Iterator
@@ -40,6 +38,7 @@ from case_studies.quad_landing.dynamics import STATE_NAMES
 from case_studies.quad_landing.features import X_COLUMNS
 from case_studies.quad_landing.paths import TEMPLATES, ExplorationPath, fit_to_view, make_path
 from case_studies.quad_landing.sim import Flight
+from ipcverify.data import atomic_write
 from ipcverify.errors import InvalidInputError
 
 __all__ = [
@@ -369,7 +368,8 @@ def write_dataset(data: pd.DataFrame, out: str | Path, stats: CollectStats | Non
     """Write ``data`` atomically to ``.parquet`` or ``.csv`` (by extension).
 
     The file is written to a temporary file in the same directory and moved into place
-    with :func:`os.replace`, so readers never see a partial file. With ``stats``, a
+    with :func:`os.replace` (:func:`ipcverify.data.atomic_write`), so readers never see a
+    partial file and a failed write leaves an old file intact. With ``stats``, a
     ``<stem>.stats.json`` sidecar is written the same way.
 
     Raises
@@ -386,23 +386,12 @@ def write_dataset(data: pd.DataFrame, out: str | Path, stats: CollectStats | Non
     if not path.parent.exists():
         raise InvalidInputError(f"output directory {path.parent} does not exist; create it first")
 
-    def _atomic(target: Path, write: Callable[[str], None]) -> None:
-        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
-        os.close(fd)
-        try:
-            write(tmp)
-            os.replace(tmp, target)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
-
     if suffix == ".parquet":
-        _atomic(path, lambda tmp: data.to_parquet(tmp, index=False))
+        atomic_write(path, lambda fh: data.to_parquet(fh, index=False))
     else:
-        _atomic(path, lambda tmp: data.to_csv(tmp, index=False, float_format="%.9g"))
+        atomic_write(path, lambda fh: data.to_csv(fh, index=False, float_format="%.17g"), "w")
     if stats is not None:
-        sidecar = path.with_name(path.stem + ".stats.json")
         text = json.dumps(stats.as_dict(), indent=2) + "\n"
-        _atomic(sidecar, lambda tmp: Path(tmp).write_text(text))
+        atomic_write(path.with_name(path.stem + ".stats.json"), lambda fh: fh.write(text), "w")
     return path
 

@@ -67,8 +67,8 @@ class QuadParams:
     Examples
     --------
     >>> p = QuadParams(mass=1.5, inertia=(0.029, 0.029, 0.055), arm_length=0.25)
-    >>> round(hover_thrust(p), 4)
-    3.6788
+    >>> round(hover_thrust(p), 3)  # 1.5 kg * 9.81 m/s^2 / 4
+    3.679
     """
 
     mass: float

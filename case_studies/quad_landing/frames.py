@@ -34,6 +34,7 @@ __all__ = [
     "mount_rotation",
     "wrap_angle",
     "world_from_quad",
+    "transform_ellipsoid",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -95,8 +96,8 @@ def matrix_to_euler(R: ArrayLike) -> FloatArray:
 
     Examples
     --------
-    >>> matrix_to_euler(np.eye(3))
-    array([0., 0., 0.])
+    >>> matrix_to_euler(np.eye(3)).tolist()
+    [0.0, -0.0, 0.0]
     """
     m = np.asarray(R, dtype=np.float64)
     pitch = float(np.arcsin(np.clip(-m[2, 0], -1.0, 1.0)))
@@ -136,7 +137,7 @@ def mount_rotation(tilt_deg: float) -> FloatArray:
 
     Examples
     --------
-    >>> np.round(mount_rotation(90.0), 12)
+    >>> np.round(mount_rotation(90.0), 12) + 0.0  # + 0.0 turns -0. into 0.
     array([[ 0., -1.,  0.],
            [-1.,  0.,  0.],
            [ 0.,  0., -1.]])
@@ -249,3 +250,38 @@ def world_from_quad(state: ArrayLike) -> Pose:
     if x.shape != (12,) or not np.all(np.isfinite(x)):
         raise InvalidInputError(f"a quadrotor state is 12 finite numbers, got shape {x.shape}")
     return Pose._trusted(euler_to_matrix(x[6], x[7], x[8]), x[0:3])
+
+
+def transform_ellipsoid(
+    center: ArrayLike, shape: ArrayLike, pose: Pose
+) -> tuple[FloatArray, FloatArray]:
+    """Move the ellipsoid ``{y : ||C (y - c)|| <= 1}`` through ``p_A = R p_B + t``.
+
+    The image is ``{y : ||C R^T (y - (R c + t))|| <= 1}``: centre ``R c + t`` and shape
+    ``C R^T`` — e.g. an IPC ellipsoid in the camera frame to the world frame with
+    ``pose = T_WC`` (:attr:`.sim.Measurement.world_from_camera`).
+
+    Parameters
+    ----------
+    center : array_like, shape (3,)
+        ``c`` in frame B.
+    shape : array_like, shape (3, 3)
+        ``C`` in frame B.
+    pose : Pose
+        ``T_AB``.
+
+    Returns
+    -------
+    center_a, shape_a : ndarray
+        ``R c + t`` and ``C R^T``.
+
+    Examples
+    --------
+    >>> T = Pose(rot_z(np.pi / 2), np.array([1.0, 0.0, 0.0]))
+    >>> c, C = transform_ellipsoid([0.0, 0.0, 0.0], np.diag([1.0, 2.0, 3.0]), T)
+    >>> c.tolist(), np.round(np.diag(C @ C.T), 12).tolist()
+    ([1.0, 0.0, 0.0], [1.0, 4.0, 9.0])
+    """
+    c = np.asarray(center, dtype=np.float64).reshape(3)
+    C = np.asarray(shape, dtype=np.float64).reshape(3, 3)
+    return pose.apply(c), C @ pose.R.T

@@ -13,7 +13,7 @@ import numpy as np
 from matplotlib import colormaps
 from matplotlib.figure import Figure
 
-from case_studies.quad_landing.collect import collect, pad_outline_world, start_state
+from case_studies.quad_landing.collect import collect, pad_outline_world, path_rng, start_state
 from case_studies.quad_landing.config import SimConfig, load_config
 from case_studies.quad_landing.paths import TEMPLATES, fit_to_view, make_path
 from case_studies.quad_landing.sim import Flight
@@ -64,27 +64,25 @@ def camera_frame_picture(out: Path, *, buffer_size: int = 2, seed: int = 0,
         f"speed {speed:.2f} m/s, |yhat_C - y_C| = {100 * err:.1f} cm",
         "red: detected (lagged image)   green: true now",
     ]
+    img[: 14 + 22 * len(lines)] //= 3  # dark banner behind the text
     for i, text in enumerate(lines):
-        y = 22 + 22 * i
-        cv2.putText(img, text, (8, y), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (0, 0, 0), 3, cv2.LINE_AA)
-        cv2.putText(img, text, (8, y), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (255, 255, 255), 1,
-                    cv2.LINE_AA)  # fmt: skip
+        cv2.putText(img, text, (8, 22 + 22 * i), cv2.FONT_HERSHEY_SIMPLEX, 0.55,
+                    (255, 255, 255), 1, cv2.LINE_AA)  # fmt: skip
     cv2.imwrite(str(out), img, [cv2.IMWRITE_PNG_COMPRESSION, 9])
     return {"speed": speed, "error": err}
 
 
 def paths_picture(out: Path, *, seed: int = 0, config: SimConfig | None = None) -> None:
-    """Plot one flown path of each template in 3-D and from above, with the pad."""
+    """Plot the first five paths of a collection with ``seed`` (one per template), as flown."""
     cfg = load_config() if config is None else config
     flight = Flight(cfg, buffer_size=0, seed=seed)
-    rng = np.random.default_rng(seed)
     outline = pad_outline_world(cfg)
     fig = Figure(figsize=(9.0, 4.2), dpi=90)
     ax3 = fig.add_subplot(1, 2, 1, projection="3d")
     ax2 = fig.add_subplot(1, 2, 2)
     colors = colormaps["tab10"].colors
     for i, name in enumerate(TEMPLATES):
-        path = make_path(name, rng, cfg.pad.position, cfg.paths)
+        path = make_path(name, path_rng(seed, i), cfg.pad.position, cfg.paths)
         path = fit_to_view(path, flight.camera, outline, cfg.paths.view_margin_px)
         flight.reset(start_state(path))
         track = np.array([flight.state[:3] for _ in flight.follow(path, 8.0)])
@@ -103,7 +101,7 @@ def paths_picture(out: Path, *, seed: int = 0, config: SimConfig | None = None) 
     fig.savefig(out)
 
 
-def lag_error_picture(out: Path, *, n: int = 600, seed: int = 0,
+def lag_error_picture(out: Path, *, n: int = 1500, seed: int = 0,
                       config: SimConfig | None = None) -> dict[int, float]:  # fmt: skip
     """Box plot of ``|yhat_C - y_C|`` for buffer sizes 0..5 on the same paths.
 
@@ -123,7 +121,7 @@ def lag_error_picture(out: Path, *, n: int = 600, seed: int = 0,
     ax.boxplot(errors, whis=(1, 99), showfliers=False)
     ax.set_xticks(range(1, 7), [str(k) for k in range(6)])
     ax.set(xlabel="camera buffer size k (frames of lag)", ylabel="|yhat_C - y_C| (cm)",
-           title=f"perception error on the same paths ({n} samples each)")  # fmt: skip
+           title=f"error vs lag: same paths, {n} samples per k, whiskers 1-99 %")  # fmt: skip
     ax.grid(axis="y", alpha=0.3)
     fig.tight_layout()
     fig.savefig(out)

@@ -212,6 +212,9 @@ class Flight:
             raise InvalidInputError(f"start state must be 12 finite numbers, got shape {x.shape}")
         self._check_in_workspace(x[:3], "start position")
         if pad is not None:
+            if not isinstance(pad, Pad):
+                raise InvalidInputError(f"pad must be a Pad, got {type(pad).__name__}")
+            self._check_in_workspace(pad.position, "pad position")
             self.pad = pad
         if seed is not None:
             self._rng = np.random.default_rng(seed)
@@ -243,6 +246,16 @@ class Flight:
         return Frame(
             self._time, x, render=lambda: self.renderer.render(camera_from_world, pad, key)
         )
+
+    def pad_in_view(self, state: ArrayLike | None = None, margin_px: float = 0.0) -> bool:
+        """True if the whole white pad would be inside the image at ``state`` (default: now).
+
+        A geometric check (no rendering, no detection, no lag), e.g. to choose a
+        waypoint from which a measurement will see the pad.
+        """
+        x = self._require_state() if state is None else np.asarray(state, dtype=np.float64)
+        outline = self.renderer.pad_corners_camera(self.camera_pose(x).inverse(), self.pad)
+        return self.camera.in_view(outline, margin_px=margin_px)
 
     def latest_image(self) -> NDArray[np.uint8]:
         """The newest captured image (the current state's, without lag)."""
