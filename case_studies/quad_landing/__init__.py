@@ -3,28 +3,40 @@
 A CasADi quadrotor (F450-class) flies under an LQR over a landing pad with an ArUco
 marker; a 320 x 240, 60 fps camera renders what it sees, OpenCV's ArUco pipeline
 estimates the pad position ``yhat_C``, and a frame buffer of size ``k`` makes the image
-lag the state by ``k`` frames, the main error source in the paper.
+lag the state by ``k`` frames, the main error source in the paper. See
+``docs/case_study.md``.
 
 Public API
 ----------
 * :func:`load_config`, :class:`SimConfig` — defaults from ``defaults.toml``.
-* :class:`Flight` — reset / fly_to / hold / step / measure / cut_motors.
+* :class:`Flight` — ``reset`` / ``fly_to`` / ``hold`` / ``step`` / ``follow`` /
+  ``measure`` / ``pad_in_view`` / ``cut_motors``.
 * :class:`Measurement` — ``x_c``, ``y_c``, ``yhat_c`` and the camera pose ``T_WC``.
-* :func:`collect` — exploration data as a pandas DataFrame plus :class:`CollectStats`.
+* :func:`transform_ellipsoid` — move an ellipsoid from the camera to the world frame.
+* :func:`collect`, :class:`CollectStats`, :func:`write_dataset` — exploration data.
 
 Run ``python -m case_studies.quad_landing --help`` for the command line.
 """
 
 from __future__ import annotations
 
+from case_studies.quad_landing.collect import (
+    DATASET_COLUMNS,
+    CollectStats,
+    collect,
+    write_dataset,
+)
 from case_studies.quad_landing.config import SimConfig, load_config
 from case_studies.quad_landing.dynamics import hover_state
-from case_studies.quad_landing.frames import Pose
+from case_studies.quad_landing.features import X_COLUMNS, X_DESCRIPTIONS
+from case_studies.quad_landing.frames import Pose, transform_ellipsoid
 from case_studies.quad_landing.lqr import Reference
 from case_studies.quad_landing.marker import Pad
 from case_studies.quad_landing.sim import Flight, FlyResult, LandingResult, Measurement
 
 __all__ = [
+    "DATASET_COLUMNS",
+    "CollectStats",
     "Flight",
     "FlyResult",
     "LandingResult",
@@ -33,6 +45,11 @@ __all__ = [
     "Pose",
     "Reference",
     "SimConfig",
+    "X_COLUMNS",
+    "X_DESCRIPTIONS",
+    "collect",
     "hover_state",
     "load_config",
+    "transform_ellipsoid",
+    "write_dataset",
 ]
