@@ -34,7 +34,6 @@ import numpy as np
 import pandas as pd
 
 from case_studies.quad_landing.config import SimConfig, load_config
-from case_studies.quad_landing.dynamics import STATE_NAMES
 from case_studies.quad_landing.features import X_COLUMNS
 from case_studies.quad_landing.paths import TEMPLATES, ExplorationPath, fit_to_view, make_path
 from case_studies.quad_landing.sim import Flight
@@ -60,7 +59,7 @@ __all__ = [
 Y_COLUMNS: tuple[str, ...] = ("y_0", "y_1", "y_2")
 #: Perceived pad centre in C.
 YHAT_COLUMNS: tuple[str, ...] = ("yhat_0", "yhat_1", "yhat_2")
-#: World-frame state, in :data:`.dynamics.STATE_NAMES` order.
+#: World-frame state ``[p, v, roll, pitch, yaw, omega]`` (:data:`.dynamics.STATE_NAMES`).
 XW_COLUMNS: tuple[str, ...] = tuple(f"xw_{i}" for i in range(12))
 YW_COLUMNS: tuple[str, ...] = ("yw_0", "yw_1", "yw_2")
 YHATW_COLUMNS: tuple[str, ...] = ("yhatw_0", "yhatw_1", "yhatw_2")
@@ -69,7 +68,6 @@ DATASET_COLUMNS: tuple[str, ...] = (
     X_COLUMNS + Y_COLUMNS + YHAT_COLUMNS + XW_COLUMNS + YW_COLUMNS + YHATW_COLUMNS + ("path", "t")
 )
 _N_FLOAT = len(DATASET_COLUMNS) - 2
-assert len(STATE_NAMES) == 12
 
 
 @dataclass(frozen=True)

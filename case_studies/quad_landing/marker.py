@@ -2,8 +2,9 @@
 
 A camera frame is drawn in three steps:
 
-1. the floor: a fixed procedural tile texture warped by the ground-plane homography
-   (or a flat grey when the horizon is in view, e.g. with a forward camera);
+1. the floor: a fixed procedural texture (mottled concrete, optionally tiled) warped
+   by the ground-plane homography (or flat grey when the horizon is in view, e.g.
+   with a forward camera);
 2. the pad: the marker texture from ``cv2.aruco.generateImageMarker`` with a white
    quiet zone, warped onto the image with ``cv2.warpPerspective`` by the homography
    that maps its corners to their pinhole projections;

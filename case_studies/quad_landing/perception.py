@@ -9,8 +9,10 @@ inside the black border, so the marker looks smaller and the range comes out too
 by 0.5-3 % (comparable to the lag error this case study is about). AprilTag refinement
 (``CORNER_REFINE_APRILTAG``) fits lines to the edges and is unbiased; raising
 ``aprilTagMinWhiteBlackDiff`` from its default 5 to 30 skips low-contrast clusters and
-makes it about 15x faster with the same accuracy. ``python -m case_studies.quad_landing
-bias`` measures this (numbers in docs/case_study.md).
+makes it about 15x faster with the same accuracy. Its corners come out about half a
+pixel right and down of OpenCV's pixel-centre convention, which is corrected
+(:attr:`DetectorParams.april_tag_corner_shift_px`). ``python -m case_studies.quad_landing
+bias`` measures all this (numbers in docs/case_study.md).
 """
 
 from __future__ import annotations
