@@ -13,6 +13,7 @@ import click
 from ipcverify.cli import certify as _certify  # noqa: F401  (registers commands)
 from ipcverify.cli import containment as _containment  # noqa: F401
 from ipcverify.cli import core as _core  # noqa: F401
+from ipcverify.cli import export as _export  # noqa: F401
 from ipcverify.cli.app import app, err_console
 from ipcverify.errors import InvalidInputError
 
