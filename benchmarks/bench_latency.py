@@ -1,0 +1,221 @@
+"""Latency and throughput of one IPC: single queries against a bare torch forward, batches, ONNX.
+
+Single query (what a control loop does once per camera frame), all with torch and
+ONNX Runtime limited to **one thread**:
+
+* ``bare_forward`` -- the reference: ``model.network.body`` (a plain
+  ``torch.nn.Sequential``) on a pre-normalised float32 tensor of shape (1, d + n),
+  inside one ``torch.inference_mode()`` block entered outside the timing loop (the
+  cheapest torch call there is; no normalisation, no set, no decision).
+* ``ellipsoid`` -- :meth:`ipcverify.query.IPCQuery.ellipsoid`: (x, yhat) -> calibrated (c, C).
+* ``decide_float`` -- query -> ellipsoid -> float landing decision (not a proof).
+* ``decide`` -- query -> ellipsoid -> landing decision of record (float pre-check,
+  exact proof on every accept), over the test split's queries in order: the path the
+  landing controller runs. Also split into its rejecting and accepting queries.
+* ``onnx_float64`` / ``onnx_float32`` -- ONNX Runtime on the exported graph, (1, d) inputs.
+
+Each is timed call by call in interleaved rounds; p50 and p99 are taken per round and
+the median (and min/max) over rounds is reported. Batch throughput is queries per
+second of ``model.predict`` (validated ``Ellipsoid``), the bare float64 engine arrays,
+ONNX Runtime (float64 and float32) and the bare torch forward.
+"""
+
+from __future__ import annotations
+
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from benchmarks.common import spread, time_calls
+from ipcverify.data import PerceptionDataset
+from ipcverify.model import IPCModel
+from ipcverify.query import IPCQuery
+
+__all__ = ["BATCH_SIZES", "single_query", "batch_throughput", "bench_latency"]
+
+BATCH_SIZES: tuple[int, ...] = (1, 10, 100, 1_000, 10_000, 100_000)
+
+
+def _onnx_sessions(model: IPCModel, folder: Path) -> dict[str, Any]:
+    from ipcverify.export import export_onnx, onnx_session
+
+    try:
+        import onnx  # noqa: F401
+        import onnxruntime  # noqa: F401
+    except ImportError:
+        return {}
+    out = {}
+    for dtype in ("float64", "float32"):
+        info = export_onnx(model, folder / f"ipc_{dtype}.onnx", dtype=dtype)  # type: ignore[arg-type]
+        out[dtype] = (
+            onnx_session(info.path, threads=1),
+            np.float64 if dtype == "float64" else np.float32,
+            info,
+        )
+    return out
+
+
+def single_query(
+    model: IPCModel,
+    queries: PerceptionDataset,
+    rounds: int = 5,
+    calls: int = 2000,
+    onnx: dict[str, Any] | None = None,
+) -> dict[str, Any]:
+    """Per-call latency (microseconds) of the single-query paths; see the module docstring."""
+    q = IPCQuery(model)
+    body = model.network.body
+    eng = model.engine
+    xs, ys = np.ascontiguousarray(queries.x), np.ascontiguousarray(queries.yhat)
+    m = len(xs)
+    z = ((np.hstack([xs, ys]) - eng.in_mean) * eng.in_scale).astype(np.float32)
+    zt = [torch.from_numpy(z[i : i + 1].copy()) for i in range(min(m, 256))]
+    accepts = np.array([q.decide(xs[i], ys[i]).accept for i in range(m)])
+    acc_idx, rej_idx = np.flatnonzero(accepts), np.flatnonzero(~accepts)
+
+    def cycler(fn: Any, idx: np.ndarray) -> Any:
+        state = {"i": 0}
+        n_idx = len(idx)
+
+        def call() -> None:
+            j = idx[state["i"] % n_idx]
+            state["i"] += 1
+            fn(j)
+
+        return call
+
+    paths: dict[str, Any] = {}
+    with torch.inference_mode():
+        paths["bare_forward"] = cycler(lambda j: body(zt[j % len(zt)]), np.arange(len(zt)))
+        paths["ellipsoid"] = cycler(lambda j: q.ellipsoid(xs[j], ys[j]), np.arange(m))
+        paths["decide_float"] = cycler(lambda j: q.decide_float(xs[j], ys[j]), np.arange(m))
+        paths["decide"] = cycler(lambda j: q.decide(xs[j], ys[j]), np.arange(m))
+        if len(rej_idx):
+            paths["decide_rejecting_queries"] = cycler(lambda j: q.decide(xs[j], ys[j]), rej_idx)
+        if len(acc_idx):
+            paths["decide_accepting_queries"] = cycler(lambda j: q.decide(xs[j], ys[j]), acc_idx)
+        paths["model_predict_one"] = cycler(
+            lambda j: model.predict(xs[j : j + 1], ys[j : j + 1]), np.arange(m)
+        )
+        for dtype, entry in (onnx or {}).items():
+            sess, np_t, _ = entry
+            xo, yo = xs.astype(np_t), ys.astype(np_t)
+            paths[f"onnx_{dtype}"] = cycler(
+                lambda j, s=sess, a=xo, b=yo: s.run(None, {"x": a[j : j + 1], "yhat": b[j : j + 1]}),
+                np.arange(m),
+            )
+        p50: dict[str, list[float]] = {k: [] for k in paths}
+        p99: dict[str, list[float]] = {k: [] for k in paths}
+        for _ in range(rounds):
+            for name, fn in paths.items():
+                n_calls = calls if "accepting" not in name and name != "decide" else max(calls // 5, 200)
+                t = time_calls(fn, n_calls) * 1e6
+                p50[name].append(float(np.median(t)))
+                p99[name].append(float(np.quantile(t, 0.99)))
+    out: dict[str, Any] = {
+        "unit": "microseconds per query",
+        "torch_threads": torch.get_num_threads(),
+        "queries": m,
+        "accept_fraction": float(accepts.mean()),
+        "paths": {k: {"p50": spread(p50[k]), "p99": spread(p99[k])} for k in paths},
+    }
+    bare = out["paths"]["bare_forward"]["p50"]["median"]
+    for k in paths:
+        out["paths"][k]["p50_ratio_to_bare_forward"] = out["paths"][k]["p50"]["median"] / bare
+    return out
+
+
+def _rate(fn: Any, batch: int, min_seconds: float = 0.15, rounds: int = 3) -> dict[str, float]:
+    fn()
+    rates = []
+    for _ in range(rounds):
+        calls, t0 = 0, time.perf_counter()
+        while True:
+            fn()
+            calls += 1
+            dt = time.perf_counter() - t0
+            if dt >= min_seconds:
+                break
+        rates.append(calls * batch / dt)
+    return spread(rates)
+
+
+def batch_throughput(
+    model: IPCModel,
+    queries: PerceptionDataset,
+    sizes: tuple[int, ...] = BATCH_SIZES,
+    onnx: dict[str, Any] | None = None,
+) -> dict[str, Any]:
+    """Queries per second per batch size for predict, engine arrays, ONNX Runtime and bare torch."""
+    reps = -(-max(sizes) // len(queries))
+    xs_all, ys_all = np.tile(queries.x, (reps, 1)), np.tile(queries.yhat, (reps, 1))
+    eng = model.engine
+    body = model.network.body
+    scale = 1.0 if model.calibration is None else None
+    out: dict[str, Any] = {"unit": "queries per second", "sizes": list(sizes), "paths": {}}
+    for b in sizes:
+        xs, ys = xs_all[:b].copy(), ys_all[:b].copy()
+        z = torch.from_numpy(((np.hstack([xs, ys]) - eng.in_mean) * eng.in_scale).astype(np.float32))
+
+        def engine_arrays(xs: np.ndarray = xs, ys: np.ndarray = ys) -> None:
+            c, C = model.raw_arrays(xs, ys)
+            if scale is None:
+                C / model.calibration.scale_factors(xs, ys)[:, None, None]  # type: ignore[union-attr]
+
+        def bare(z: torch.Tensor = z) -> None:
+            with torch.inference_mode():
+                body(z)
+
+        fns: dict[str, Any] = {
+            "model_predict": lambda xs=xs, ys=ys: model.predict(xs, ys),
+            "engine_arrays": engine_arrays,
+            "bare_torch_forward": bare,
+        }
+        for dtype, entry in (onnx or {}).items():
+            sess, np_t, _ = entry
+            xo, yo = xs.astype(np_t), ys.astype(np_t)
+            fns[f"onnx_{dtype}"] = lambda s=sess, a=xo, c=yo: s.run(None, {"x": a, "yhat": c})
+        for name, fn in fns.items():
+            out["paths"].setdefault(name, {})[str(b)] = _rate(fn, b)
+    onnx_names = [k for k in out["paths"] if k.startswith("onnx_")]
+    out["onnx_faster_than_engine_at"] = {
+        k: [
+            b
+            for b in sizes
+            if out["paths"][k][str(b)]["median"] > out["paths"]["engine_arrays"][str(b)]["median"]
+        ]
+        for k in onnx_names
+    }
+    return out
+
+
+def bench_latency(
+    model: IPCModel,
+    queries: PerceptionDataset,
+    rounds: int = 5,
+    calls: int = 2000,
+    sizes: tuple[int, ...] = BATCH_SIZES,
+) -> dict[str, Any]:
+    """Single-query latency, batch throughput and the ONNX check, in one dictionary."""
+    torch.set_num_threads(1)
+    with tempfile.TemporaryDirectory() as tmp:
+        onnx = _onnx_sessions(model, Path(tmp))
+        result: dict[str, Any] = {"onnx_available": bool(onnx)}
+        if onnx:
+            from ipcverify.export import check_onnx
+
+            n = min(len(queries), 2000)
+            result["onnx_check"] = {
+                dtype: vars(check_onnx(model, onnx[dtype][2].path, queries.x[:n], queries.yhat[:n]))
+                for dtype in ("float64", "float32")
+            }
+        result["single_query"] = single_query(model, queries, rounds, calls, onnx)
+        result["batch_throughput"] = batch_throughput(model, queries, sizes, onnx)
+    sq = result["single_query"]["paths"]
+    result["single_query_ratio_to_bare_forward"] = sq["decide"]["p50_ratio_to_bare_forward"]
+    result["single_query_float_ratio_to_bare_forward"] = sq["decide_float"]["p50_ratio_to_bare_forward"]
+    return result

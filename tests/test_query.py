@@ -1,0 +1,132 @@
+"""Tests of the single-query API: same sets as predict, exact landing decisions, input errors."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ipcverify.calibration import calibrate
+from ipcverify.errors import InvalidInputError, SetError
+from ipcverify.landing import check_landing, landing_accept_float, landing_decision
+from ipcverify.model import IPCModel, IPCNetwork, ModelConfig
+from ipcverify.query import PRECHECK_MARGIN, IPCQuery
+from ipcverify.sets import Ellipsoid
+from ipcverify.synthetic import make_lagged_perception
+from ipcverify.training import TrainConfig, train
+
+
+@pytest.fixture(scope="module")
+def data():
+    return make_lagged_perception(1500, seed=0), make_lagged_perception(1000, seed=1)
+
+
+@pytest.fixture(scope="module", params=[("cholesky", "offset"), ("full", "raw"), ("cholesky", "raw")])
+def trained(request, data):
+    param, center = request.param
+    mc = ModelConfig(x_dim=6, y_dim=3, hidden=(16, 16), param=param, center=center)
+    return train(data[0], mc, TrainConfig(epochs=2, seed=1)).model
+
+
+@pytest.mark.parametrize("calibrated", [False, True])
+def test_query_sets_are_the_models_sets(trained, data, calibrated):
+    model = calibrate(trained, data[1], 0.05, 0.01) if calibrated else trained
+    q = IPCQuery(model)
+    test = make_lagged_perception(50, seed=2)
+    ref = model.predict(test.x, test.yhat)
+    for i in range(len(test)):
+        c, C = q.ellipsoid(test.x[i], test.yhat[i])
+        np.testing.assert_allclose(c, ref.centers[i], rtol=1e-12, atol=1e-15)
+        np.testing.assert_allclose(C, ref.shapes[i], rtol=1e-12, atol=1e-15)
+
+
+def test_mondrian_calibration_is_applied_per_query(data):
+    model = train(data[0], ModelConfig(x_dim=6, y_dim=3, hidden=(8,)), TrainConfig(epochs=1)).model
+    cal = calibrate(model, make_lagged_perception(3000, seed=5), 0.1, 0.05, group_column="x_5", bins=2)
+    test = make_lagged_perception(20, seed=3)
+    ref = cal.predict(test.x, test.yhat)
+    q = IPCQuery(cal)
+    for i in range(len(test)):
+        np.testing.assert_allclose(q.ellipsoid(test.x[i], test.yhat[i])[1], ref.shapes[i], rtol=1e-12)
+
+
+def _near_threshold_ellipsoids(rng, count):
+    """Random 3-D ellipsoids scaled so that the tightest face is within +-1e-6 relative of touching."""
+    out = []
+    for _ in range(count):
+        q, _ = np.linalg.qr(rng.standard_normal((3, 3)))
+        C = q @ np.diag(1.0 / rng.uniform(0.01, 0.04, 3))
+        if rng.random() < 0.5:
+            C = np.linalg.cholesky(C.T @ C).T  # upper-triangular factor, same set
+        e = Ellipsoid(rng.normal(scale=2.0, size=3), C)
+        h = e.half_widths()[0]
+        critical = max(h[0] / 0.05, h[1] / 0.05, 2 * h[2] / 0.05)
+        factor = critical * (1.0 + rng.choice([-1.0, 1.0]) * 10.0 ** rng.uniform(-12, -6))
+        out.append(Ellipsoid(e.centers[0], e.shapes[0] * factor))
+    return out
+
+
+def test_decide_agrees_with_the_exact_decision_near_the_threshold(trained):
+    q = IPCQuery(trained)
+    rng = np.random.default_rng(11)
+    cases = _near_threshold_ellipsoids(rng, 150)
+    cases += [Ellipsoid(rng.normal(size=3), np.diag(1.0 / rng.uniform(0.005, 0.1, 3))) for _ in range(150)]
+    accepted = 0
+    for e in cases:
+        d = q.decide_ellipsoid(e.centers[0], e.shapes[0])
+        exact = landing_decision(e)
+        assert d.accept == exact.accept
+        if d.accept:
+            accepted += 1
+            assert d.proven and check_landing(d.proof).status.name == "PROVEN"
+            np.testing.assert_array_equal(d.turnoff, exact.turnoff)
+    assert 0 < accepted < len(cases)
+
+
+def test_decide_float_matches_landing_accept_float_away_from_the_threshold(trained):
+    q = IPCQuery(trained)
+    rng = np.random.default_rng(3)
+    es = [Ellipsoid(rng.normal(size=3), np.diag(1.0 / rng.uniform(0.005, 0.1, 3))) for _ in range(200)]
+    batch = Ellipsoid(np.stack([e.centers[0] for e in es]), np.stack([e.shapes[0] for e in es]))
+    expected = landing_accept_float(batch)
+    for e, exp in zip(es, expected, strict=True):
+        h = e.half_widths()[0]
+        if abs(max(h[0], h[1], 2 * h[2]) / 0.05 - 1.0) < 1e-6:
+            continue
+        c, C = e.centers[0], e.shapes[0]
+        p, worst = q._float_turnoff_and_fit(c, C)
+        assert (worst >= -PRECHECK_MARGIN) == bool(exp)
+
+
+def test_decide_end_to_end_runs_and_reports_a_proof_only_for_accepts(trained, data):
+    q = IPCQuery(calibrate(trained, data[1], 0.05, 0.01))
+    test = make_lagged_perception(30, seed=4)
+    for i in range(len(test)):
+        d = q.decide(test.x[i], test.yhat[i])
+        assert d.proven == d.accept
+        assert d.turnoff.shape == (3,)
+        assert q.decide_float(test.x[i], test.yhat[i]).accept >= d.accept  # float never stricter here
+
+
+@pytest.mark.parametrize(
+    ("x", "yhat", "match"),
+    [
+        (np.zeros(5), np.zeros(3), r"x of shape \(6,\) and yhat of shape \(3,\)"),
+        (np.zeros((1, 6)), np.zeros(3), "use IPCModel.predict for batches"),
+        (np.zeros(6), np.array([0.0, np.nan, 0.0]), "must be finite"),
+    ],
+)
+def test_bad_queries_are_refused_with_a_message(trained, x, yhat, match):
+    with pytest.raises(InvalidInputError, match=match):
+        IPCQuery(trained).decide(x, yhat)
+
+
+def test_landing_needs_three_dimensions():
+    q = IPCQuery(IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=2, hidden=(4,)))))
+    assert q.ellipsoid(np.zeros(2), np.zeros(2))[1].shape == (2, 2)
+    with pytest.raises(SetError, match="needs a 3-D ellipsoid"):
+        q.decide(np.zeros(2), np.zeros(2))
+
+
+def test_query_needs_a_model():
+    with pytest.raises(InvalidInputError, match="needs an IPCModel"):
+        IPCQuery("model.pt")  # type: ignore[arg-type]
