@@ -36,6 +36,7 @@ CANDIDATES: dict[str, dict[str, Any]] = {
     "alpha=1": {"alpha": 1.0, "lam": 0.01},
     "alpha=1, lam=0.003": {"alpha": 1.0, "lam": 0.003},
     "alpha=1, lam=0.03": {"alpha": 1.0, "lam": 0.03},
+    "alpha=1, lam=0.08": {"alpha": 1.0, "lam": 0.08},
     "alpha=1, 40 ep": {"alpha": 1.0, "lam": 0.01, "epochs": 40},
     "alpha=0.1, 100 ep": {"alpha": 0.1, "lam": 0.01, "epochs": 100},
     "lam=0.1": {"alpha": 0.1, "lam": 0.1},
@@ -83,6 +84,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         "candidates": {},
     }
     names = args.only or list(CANDIDATES)
+    if args.only and OUT.is_file():  # add to the earlier results instead of replacing them
+        results["candidates"] = json.loads(OUT.read_text()).get("candidates", {})
     for ds in DATASETS:
         splits = load_splits(ds, args.n, args.n, args.n)
         for name in names:

@@ -1,0 +1,64 @@
+"""Cost of the pipeline steps: training, calibration, certification, containment batches, SDP proofs.
+
+Training and calibration times are taken from the tightness runs (paper network (64, 128),
+N = 5000, 20 epochs, Adam 1e-3, batch 64 -- ipcverify's defaults). Certification calls
+:func:`ipcverify.certify.certify` with the training data (so Theorem 1 and its Lipschitz
+bounds are computed). Containment: the vectorised float landing check and the closed
+form over a batch of 10^5 ellipsoids, and the compiled S-lemma SDP per problem
+(:mod:`benchmarks.bench_containment`).
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+
+from benchmarks.bench_containment import bench_closed_form_batch, bench_sdp
+from benchmarks.common import spread
+from benchmarks.datasets import Splits
+from ipcverify.landing import landing_accept_float
+from ipcverify.model import IPCModel
+
+__all__ = ["bench_cost"]
+
+
+def _certify_seconds(model: IPCModel, splits: Splits, repeats: int) -> dict[str, Any]:
+    try:
+        from ipcverify.certify import certify
+    except ImportError as exc:  # certify.py is being finished by another engineer
+        return {"skipped": f"ipcverify.certify not importable: {exc}"}
+    times = []
+    status = None
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        try:
+            res = certify(model, splits.test, train_data=splits.train)
+        except Exception as exc:  # noqa: BLE001 - report whatever stops it, do not hide it
+            return {"skipped": f"certify failed: {type(exc).__name__}: {exc}"}
+        times.append(time.perf_counter() - t0)
+        status = res.certificate.status.name
+    return {"seconds": spread(times), "status": status, "with_train_data": True}
+
+
+def bench_cost(
+    model: IPCModel, splits: Splits, tightness_ipc: dict[str, Any], repeats: int = 3, sdp_count: int = 60
+) -> dict[str, Any]:
+    """Pipeline costs for one (calibrated) model on one dataset; see the module docstring."""
+    rng = np.random.default_rng(20240601)
+    sets = model.predict(splits.test.x, splits.test.yhat)
+    landing = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        landing_accept_float(sets)
+        landing.append(time.perf_counter() - t0)
+    return {
+        "training_seconds": tightness_ipc["spread"]["train_seconds"],
+        "training_setting": f"N = {len(splits.train)}, 20 epochs, (64, 128), Adam 1e-3, batch 64",
+        "calibration_seconds": tightness_ipc["spread"]["calibrate_seconds"],
+        "certification": _certify_seconds(model, splits, repeats),
+        "landing_accept_float_batch": {"batch": len(sets), "seconds": spread(landing)},
+        "containment_closed_form_batch": bench_closed_form_batch(rng, b=100_000, repeats=repeats),
+        "sdp_proof_per_problem": bench_sdp(rng, count=sdp_count),
+    }

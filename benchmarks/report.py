@@ -1,0 +1,244 @@
+"""Turn benchmark results into the issue's targets, a markdown table and a volume plot."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+__all__ = ["LABELS", "targets", "render_markdown", "plot_tightness"]
+
+#: Display names of the methods.
+LABELS: dict[str, str] = {
+    "ipc": "ipcverify IPC (calibrated)",
+    "global_mahalanobis": "global Mahalanobis ellipsoid",
+    "bonferroni_box": "Bonferroni box",
+    "mapie_multivariate": "MAPIE 1.6 multivariate score",
+    "raw_ipc": "raw paper IPC (UNCALIBRATED)",
+    "raw_ipc_paper_head": "raw paper IPC, paper head (UNCALIBRATED)",
+}
+_CM3 = 1e6  # m^3 -> cm^3
+
+
+def _target(value: float | None, limit: float, what: str) -> dict[str, Any]:
+    if value is None:
+        return {"what": what, "value": None, "limit": limit, "met": None}
+    return {"what": what, "value": value, "limit": limit, "met": value <= limit, "by": value / limit}
+
+
+def targets(results: dict[str, Any]) -> dict[str, Any]:
+    """Issue 7's targets, computed from the measured numbers."""
+    out: dict[str, Any] = {}
+    quad = results["tightness"].get("quad_landing")
+    if quad is not None:
+        ipc = quad["ipc"]["mean_volume"]
+        out["quad_ipc_vs_global_mahalanobis"] = _target(
+            ipc / quad["global_mahalanobis"]["mean_volume"],
+            0.5,
+            "calibrated IPC mean volume / global Mahalanobis mean volume (quad landing)",
+        )
+        mapie = quad["mapie_multivariate"].get("mean_volume")
+        out["quad_ipc_vs_mapie"] = _target(
+            None if mapie is None else ipc / mapie,
+            1.0,
+            "calibrated IPC mean volume / MAPIE multivariate mean volume (quad landing)",
+        )
+    lat = results.get("latency")
+    if lat is not None:
+        out["single_query_latency"] = _target(
+            lat["single_query_ratio_to_bare_forward"],
+            1.2,
+            "p50 of query -> ellipsoid -> landing decision of record (exact proof on accepts) / bare forward",
+        )
+        out["single_query_latency_float_decision"] = _target(
+            lat["single_query_float_ratio_to_bare_forward"],
+            1.2,
+            "p50 of query -> ellipsoid -> float landing decision (not a proof) / bare forward",
+        )
+    return out
+
+
+def _fmt(v: float, digits: int = 3) -> str:
+    return f"{v:.{digits}g}"
+
+
+def _vol(r: dict[str, Any], key: str) -> str:
+    s = r["spread"][key]
+    if s["n"] == 1:
+        return _fmt(r[key] * _CM3)
+    return f"{_fmt(r[key] * _CM3)} [{_fmt(s['min'] * _CM3)}–{_fmt(s['max'] * _CM3)}]"
+
+
+def _tightness_table(name: str, res: dict[str, Any]) -> list[str]:
+    first = next(iter(res.values()))
+    eps, delta = res["ipc"]["epsilon"], res["ipc"]["delta"]
+    lines = [
+        f"**{name}** — PAC calibration at ε = {eps:g}, δ = {delta:g} on {res['ipc']['calibration_n']} "
+        f"samples; test split of {res['ipc']['test_n']}. Volumes in cm³: median over training seeds "
+        "[min–max].",
+        "",
+        "| method | calibrated | mean volume | median volume | test coverage | mean vol. / global |",
+        "|---|---|---|---|---|---|",
+    ]
+    del first
+    for method, r in res.items():
+        label = LABELS.get(method, method)
+        if "skipped" in r:
+            lines.append(f"| {label} | – | not run: {r['skipped']} | | | |")
+            continue
+        cal = "yes" if r["calibrated"] else "**no**"
+        cov = f"{100 * r['coverage']:.2f} %"
+        lines.append(
+            f"| {label} | {cal} | {_vol(r, 'mean_volume')} | {_vol(r, 'median_volume')} | {cov} | "
+            f"{r['mean_volume_ratio_to_global_mahalanobis']:.3f} |"
+        )
+    return lines
+
+
+def render_markdown(results: dict[str, Any]) -> str:
+    """The results as markdown tables (what the README shows)."""
+    m = results["machine"]
+    lines = [
+        "# Benchmark results",
+        "",
+        f"`{results['command']}` on {results['date_utc']}, {results['runtime_seconds']:.0f} s. Machine: "
+        f"{m['cpu_count']} cores ({m['processor']}), load average {m['load_average_at_start']} at start, "
+        f"{m['note']}; torch {m['torch']} with 1 thread, numpy {m['numpy']}, onnxruntime {m['onnxruntime']}, "
+        f"mapie {m['mapie']}.",
+        "",
+        "## Tightness at matched certified coverage",
+        "",
+    ]
+    for name, res in results["tightness"].items():
+        lines += _tightness_table(name, res) + [""]
+    lat = results.get("latency")
+    if lat is not None:
+        sq = lat["single_query"]
+        lines += [
+            "## Single-query latency",
+            "",
+            f"One query (x, ŷ) on the {lat['dataset']} test split ({sq['queries']} queries in order; "
+            f"{100 * sq['accept_fraction']:.1f} % are accepted for landing). µs per query, median over "
+            "rounds of the per-round p50 / p99; torch and ONNX Runtime with 1 thread.",
+            "",
+            "| path | p50 µs | p99 µs | p50 / bare forward |",
+            "|---|---|---|---|",
+        ]
+        for path, r in sq["paths"].items():
+            lines.append(
+                f"| {path} | {r['p50']['median']:.1f} | {r['p99']['median']:.1f} | "
+                f"{r['p50_ratio_to_bare_forward']:.2f} |"
+            )
+        bt = lat["batch_throughput"]
+        names = list(bt["paths"])
+        lines += [
+            "",
+            "## Batch throughput (queries per second)",
+            "",
+            "| batch | " + " | ".join(names) + " |",
+            "|---" * (len(names) + 1) + "|",
+        ]
+        for b in bt["sizes"]:
+            lines.append(
+                f"| {b:,} | " + " | ".join(f"{bt['paths'][k][str(b)]['median']:,.0f}" for k in names) + " |"
+            )
+        if "onnx_check" in lat:
+            chk = lat["onnx_check"]
+
+            def worst(dtype: str, ref: str) -> float:
+                return max(chk[dtype][f"vs_{ref}_center"], chk[dtype][f"vs_{ref}_shape"])
+
+            lines += [
+                "",
+                "ONNX export check (max relative difference): float64 graph vs float64 engine "
+                f"{worst('float64', 'engine'):.1e}, vs float32 torch {worst('float64', 'torch'):.1e}; "
+                f"float32 graph vs engine {worst('float32', 'engine'):.1e}. ONNX Runtime is faster than "
+                f"the NumPy engine at batch sizes {bt['onnx_faster_than_engine_at']}.",
+            ]
+    lines += ["", "## Cost", "", "| step | dataset | seconds (median [min–max]) |", "|---|---|---|"]
+    for name, c in results["cost"].items():
+        for key, label in (
+            ("data_seconds", "load / fly the three splits"),
+            ("training_seconds", f"training ({c['training_setting']})"),
+            ("calibration_seconds", "calibration"),
+        ):
+            v = c[key]
+            if isinstance(v, dict):
+                lines.append(f"| {label} | {name} | {v['median']:.3g} [{v['min']:.3g}–{v['max']:.3g}] |")
+            else:
+                lines.append(f"| {label} | {name} | {v:.3g} |")
+        cert = c["certification"]
+        if "seconds" in cert:
+            s = cert["seconds"]
+            lines.append(
+                f"| certification (with Theorem 1; status {cert['status']}) | {name} | "
+                f"{s['median']:.3g} [{s['min']:.3g}–{s['max']:.3g}] |"
+            )
+        else:
+            lines.append(f"| certification | {name} | not run: {cert['skipped']} |")
+        lb = c["landing_accept_float_batch"]
+        lines.append(
+            f"| float landing check, batch of {lb['batch']:,} | {name} | {lb['seconds']['median']:.3g} |"
+        )
+    first = next(iter(results["cost"].values()))
+    cf = first["containment_closed_form_batch"]
+    sdp = first["sdp_proof_per_problem"]
+    lines += [
+        f"| containment closed form, batch of {cf['batch']:,} (box) | – | {cf['box_total_ms'] / 1e3:.3g} |",
+        f"| S-lemma SDP proof per problem (end to end, exact re-check) | – | "
+        f"{sdp['prove_containment_end_to_end']['median_ms'] / 1e3:.3g} |",
+        "",
+        "## Targets (issue 7)",
+        "",
+        "| target | measured | limit | met |",
+        "|---|---|---|---|",
+    ]
+    for t in results["targets"].values():
+        val = "n/a" if t["value"] is None else f"{t['value']:.3g}"
+        met = "n/a" if t["met"] is None else ("yes" if t["met"] else f"**no** ({t['by']:.3g}× the limit)")
+        lines.append(f"| {t['what']} | {val} | ≤ {t['limit']:g} | {met} |")
+    return "\n".join(lines) + "\n"
+
+
+def plot_tightness(results: dict[str, Any], path: Path) -> None:
+    """Bar chart of mean volume per method and dataset (log scale), coverage printed on the bars."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    data = results["tightness"]
+    fig, axes = plt.subplots(1, len(data), figsize=(6.2 * len(data), 4.4), squeeze=False)
+    for ax, (name, res) in zip(axes[0], data.items(), strict=True):
+        methods = [k for k, r in res.items() if "mean_volume" in r]
+        vals = [res[k]["mean_volume"] * _CM3 for k in methods]
+        lo = [v - res[k]["spread"]["mean_volume"]["min"] * _CM3 for k, v in zip(methods, vals, strict=True)]
+        hi = [res[k]["spread"]["mean_volume"]["max"] * _CM3 - v for k, v in zip(methods, vals, strict=True)]
+        colors = [
+            "#1b7837" if k == "ipc" else ("#bbbbbb" if not res[k]["calibrated"] else "#4575b4")
+            for k in methods
+        ]
+        bars = ax.bar(range(len(methods)), vals, yerr=[lo, hi], color=colors, capsize=3)
+        for b, k in zip(bars, methods, strict=True):
+            if not res[k]["calibrated"]:
+                b.set_hatch("//")
+            ax.annotate(
+                f"{100 * res[k]['coverage']:.1f} %",
+                (b.get_x() + b.get_width() / 2, b.get_height()),
+                ha="center",
+                va="bottom",
+                fontsize=8,
+                xytext=(0, 2),
+                textcoords="offset points",
+            )
+        ax.set_yscale("log")
+        ax.set_xticks(range(len(methods)))
+        ax.set_xticklabels(
+            [LABELS[k].replace(" (", "\n(") for k in methods], rotation=35, ha="right", fontsize=7
+        )
+        eps = res["ipc"]["epsilon"]
+        ax.set_title(f"{name}: mean set volume at PAC ε = {eps:g} (test coverage on bars)", fontsize=9)
+        ax.set_ylabel("mean volume (cm³, log scale)")
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

@@ -1,0 +1,166 @@
+"""The benchmark suite in one command: speed and tightness of ipcverify against its peers.
+
+Run from the repository root (about 8-10 minutes on 2 shared cores; the first run also
+flies the quad-landing data, about 1 minute, cached in ``benchmarks/.cache/``)::
+
+    pip install -e ".[bench,onnx]"
+    python -m benchmarks.run
+
+It writes ``benchmarks/results.json`` (every number), ``benchmarks/results.md`` (the
+tables) and ``docs/img/bench_tightness.png``. ``--quick`` runs everything on tiny sizes
+(a smoke test of the harness; its numbers mean nothing) and writes to ``--out``.
+
+Sections: ``latency`` (:mod:`benchmarks.bench_latency`), ``cost``
+(:mod:`benchmarks.bench_cost`), ``tightness`` (:mod:`benchmarks.bench_tightness`) and
+``targets`` (issue 7's targets, computed from the numbers above, never typed in).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+import torch
+
+from benchmarks.bench_cost import bench_cost
+from benchmarks.bench_latency import BATCH_SIZES, bench_latency
+from benchmarks.bench_tightness import bench_tightness
+from benchmarks.common import machine_info, write_json
+from benchmarks.datasets import CACHE, DATASETS, load_splits
+from benchmarks.report import render_markdown, targets
+from ipcverify.errors import InvalidInputError
+
+__all__ = ["RunConfig", "run", "main"]
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+@dataclass(frozen=True, kw_only=True)
+class RunConfig:
+    """Sizes and repeats of one benchmark run (defaults: the full run)."""
+
+    n_train: int = 5000
+    n_calibration: int = 5000
+    n_test: int = 5000
+    seeds: int = 3
+    mapie_seeds: int = 2
+    mapie_epochs: int = 60
+    epsilon: float = 0.01
+    delta: float = 0.001
+    latency_rounds: int = 5
+    latency_calls: int = 2000
+    batch_sizes: tuple[int, ...] = BATCH_SIZES
+    cost_repeats: int = 3
+    sdp_count: int = 60
+
+    def __post_init__(self) -> None:
+        if min(self.n_train, self.n_calibration, self.n_test, self.seeds, self.mapie_seeds) < 1:
+            raise InvalidInputError("sizes and repeats must be positive")
+
+    @classmethod
+    def quick(cls) -> RunConfig:
+        """Tiny sizes for a smoke test of the harness."""
+        return cls(
+            n_train=400,
+            n_calibration=800,
+            n_test=200,
+            seeds=1,
+            mapie_seeds=1,
+            mapie_epochs=1,
+            epsilon=0.05,
+            delta=0.05,
+            latency_rounds=1,
+            latency_calls=50,
+            batch_sizes=(1, 100),
+            cost_repeats=1,
+            sdp_count=3,
+        )
+
+
+def run(
+    cfg: RunConfig, out_dir: Path, figure: Path | None, datasets: tuple[str, ...] = DATASETS
+) -> dict[str, Any]:
+    """Run every section, write ``results.json`` and ``results.md`` in ``out_dir`` (and the figure)."""
+    t_start = time.perf_counter()
+    torch.set_num_threads(1)
+    results: dict[str, Any] = {
+        "command": "python -m benchmarks.run",
+        "date_utc": datetime.now(UTC).isoformat(timespec="seconds"),
+        "machine": machine_info(),
+        "settings": {
+            **{k: (list(v) if isinstance(v, tuple) else v) for k, v in vars(cfg).items()},
+            "mode": "pac",
+            "torch_threads": 1,
+            "quad_cache": str(CACHE.relative_to(ROOT)) if CACHE.is_relative_to(ROOT) else str(CACHE),
+        },
+        "tightness": {},
+        "cost": {},
+    }
+    models = {}
+    for name in datasets:
+        t0 = time.perf_counter()
+        splits = load_splits(name, cfg.n_train, cfg.n_calibration, cfg.n_test)
+        load_s = time.perf_counter() - t0
+        tight, ipc = bench_tightness(
+            splits,
+            cfg.epsilon,
+            cfg.delta,
+            "pac",
+            seeds=cfg.seeds,
+            mapie_epochs=cfg.mapie_epochs,
+            mapie_seeds=cfg.mapie_seeds,
+        )
+        results["tightness"][name] = tight
+        models[name] = (ipc, splits, load_s)
+        print(f"[{time.perf_counter() - t_start:6.1f} s] tightness on {name} done", flush=True)
+    lat_name = "quad_landing" if "quad_landing" in models else datasets[0]
+    ipc, splits, _ = models[lat_name]
+    results["latency"] = {
+        "dataset": lat_name,
+        "model": "the calibrated IPC of the first training seed; queries = the test split, in order",
+        **bench_latency(ipc, splits.test, cfg.latency_rounds, cfg.latency_calls, cfg.batch_sizes),
+    }
+    print(f"[{time.perf_counter() - t_start:6.1f} s] latency done", flush=True)
+    for name, (ipc, splits, load_s) in models.items():
+        results["cost"][name] = {
+            "data_seconds": load_s,
+            **bench_cost(ipc, splits, results["tightness"][name]["ipc"], cfg.cost_repeats, cfg.sdp_count),
+        }
+    print(f"[{time.perf_counter() - t_start:6.1f} s] cost done", flush=True)
+    results["targets"] = targets(results)
+    results["runtime_seconds"] = time.perf_counter() - t_start
+    out_dir.mkdir(parents=True, exist_ok=True)
+    write_json(out_dir / "results.json", results)
+    md = render_markdown(results)
+    (out_dir / "results.md").write_text(md)
+    if figure is not None:
+        from benchmarks.report import plot_tightness
+
+        plot_tightness(results, figure)
+    print(md)
+    return results
+
+
+def main(argv: list[str] | None = None) -> dict[str, Any]:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="tiny sizes: a smoke test, numbers mean nothing")
+    parser.add_argument("--out", type=Path, default=None, help="output folder (default: benchmarks/)")
+    parser.add_argument(
+        "--figure", type=Path, default=None, help="plot path (default: docs/img/bench_tightness.png)"
+    )
+    parser.add_argument("--datasets", nargs="+", default=list(DATASETS), choices=list(DATASETS))
+    args = parser.parse_args(argv)
+    cfg = RunConfig.quick() if args.quick else RunConfig()
+    if args.quick and args.out is None:
+        parser.error("--quick needs --out (do not overwrite the real results with smoke-test numbers)")
+    out = args.out or Path(__file__).resolve().parent
+    figure = args.figure or (None if args.quick else ROOT / "docs" / "img" / "bench_tightness.png")
+    return run(cfg, out, figure, tuple(args.datasets))
+
+
+if __name__ == "__main__":
+    main()
