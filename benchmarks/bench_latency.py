@@ -17,11 +17,14 @@ ONNX Runtime limited to **one thread**:
 Each is timed call by call in interleaved rounds; p50 and p99 are taken per round and
 the median (and min/max) over rounds is reported. Batch throughput is queries per
 second of ``model.predict`` (validated ``Ellipsoid``), the bare float64 engine arrays,
-ONNX Runtime (float64 and float32) and the bare torch forward.
+ONNX Runtime (float64 and float32) and the bare torch forward, all single-threaded;
+``engine_arrays_blas_default_threads`` repeats the engine with NumPy's BLAS at one thread
+per core (its default), which on 2 shared cores is far slower for mid-sized batches.
 """
 
 from __future__ import annotations
 
+import os
 import tempfile
 import time
 from pathlib import Path
@@ -181,6 +184,14 @@ def batch_throughput(
             fns[f"onnx_{dtype}"] = lambda s=sess, a=xo, c=yo: s.run(None, {"x": a, "yhat": c})
         for name, fn in fns.items():
             out["paths"].setdefault(name, {})[str(b)] = _rate(fn, b)
+        try:
+            from threadpoolctl import threadpool_limits
+        except ImportError:
+            continue
+        with threadpool_limits(limits=os.cpu_count(), user_api="blas"):
+            out["paths"].setdefault("engine_arrays_blas_default_threads", {})[str(b)] = _rate(
+                engine_arrays, b
+            )
     onnx_names = [k for k in out["paths"] if k.startswith("onnx_")]
     out["onnx_faster_than_engine_at"] = {
         k: [

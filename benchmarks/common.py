@@ -14,7 +14,33 @@ from typing import Any
 import numpy as np
 import torch
 
-__all__ = ["machine_info", "spread", "time_calls", "write_json"]
+__all__ = ["blas_single_thread", "blas_threads", "machine_info", "spread", "time_calls", "write_json"]
+
+
+def blas_single_thread() -> bool:
+    """Limit NumPy's BLAS to one thread for the rest of the process (needs threadpoolctl).
+
+    On 2 shared cores OpenBLAS's worker threads make the float64 engine up to ~100x
+    slower for batches of 100-1000 rows; the benchmark runs torch, ONNX Runtime and BLAS
+    single-threaded and measures the BLAS default separately. Returns False (nothing
+    changed) if threadpoolctl is missing.
+    """
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:
+        return False
+    threadpool_limits(limits=1, user_api="blas")
+    return True
+
+
+def blas_threads() -> int | None:
+    """NumPy's current BLAS thread count (None without threadpoolctl)."""
+    try:
+        from threadpoolctl import threadpool_info
+    except ImportError:
+        return None
+    counts = [p["num_threads"] for p in threadpool_info() if p.get("user_api") == "blas"]
+    return max(counts) if counts else None
 
 
 def machine_info() -> dict[str, Any]:
@@ -28,6 +54,7 @@ def machine_info() -> dict[str, Any]:
         "numpy": np.__version__,
         "torch": torch.__version__,
         "torch_threads": torch.get_num_threads(),
+        "blas_threads": blas_threads(),
         "note": "2 cores shared with other engineers' jobs while this ran; medians over repeats",
     }
     try:

@@ -29,7 +29,7 @@ import torch
 from benchmarks.bench_cost import bench_cost
 from benchmarks.bench_latency import BATCH_SIZES, bench_latency
 from benchmarks.bench_tightness import bench_tightness
-from benchmarks.common import machine_info, write_json
+from benchmarks.common import blas_single_thread, machine_info, write_json
 from benchmarks.datasets import CACHE, DATASETS, load_splits
 from benchmarks.report import render_markdown, targets
 from ipcverify.errors import InvalidInputError
@@ -87,6 +87,7 @@ def run(
     """Run every section, write ``results.json`` and ``results.md`` in ``out_dir`` (and the figure)."""
     t_start = time.perf_counter()
     torch.set_num_threads(1)
+    blas_single_thread()
     results: dict[str, Any] = {
         "command": "python -m benchmarks.run",
         "date_utc": datetime.now(UTC).isoformat(timespec="seconds"),
@@ -95,6 +96,7 @@ def run(
             **{k: (list(v) if isinstance(v, tuple) else v) for k, v in vars(cfg).items()},
             "mode": "pac",
             "torch_threads": 1,
+            "blas_threads": "1 (threadpoolctl), except the path engine_arrays_blas_default_threads",
             "quad_cache": str(CACHE.relative_to(ROOT)) if CACHE.is_relative_to(ROOT) else str(CACHE),
         },
         "tightness": {},

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from benchmarks.common import machine_info
+from benchmarks.common import blas_single_thread, machine_info
 from benchmarks.datasets import DATASETS, load_splits
 from ipcverify.calibration import calibrate
 from ipcverify.model import ModelConfig
@@ -38,6 +38,9 @@ CANDIDATES: dict[str, dict[str, Any]] = {
     "alpha=1, lam=0.03": {"alpha": 1.0, "lam": 0.03},
     "alpha=1, lam=0.08": {"alpha": 1.0, "lam": 0.08},
     "alpha=1, 40 ep": {"alpha": 1.0, "lam": 0.01, "epochs": 40},
+    "alpha=1, batch 32": {"alpha": 1.0, "lam": 0.01, "batch_size": 32},
+    "alpha=1, lr 3e-3": {"alpha": 1.0, "lam": 0.01, "lr": 3e-3},
+    "alpha=1, lam=0.5": {"alpha": 1.0, "lam": 0.5},
     "alpha=0.1, 100 ep": {"alpha": 0.1, "lam": 0.01, "epochs": 100},
     "lam=0.1": {"alpha": 0.1, "lam": 0.1},
     "centre raw": {"alpha": 0.1, "lam": 0.01, "center": "raw"},
@@ -75,6 +78,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     parser.add_argument("--only", nargs="*", default=None, help="candidate names to run")
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
+    blas_single_thread()
     results: dict[str, Any] = {
         "machine": machine_info(),
         "epsilon": EPSILON,
