@@ -1,6 +1,6 @@
 """The benchmark suite in one command: speed and tightness of ipcverify against its peers.
 
-Run from the repository root (about 8-10 minutes on 2 shared cores; the first run also
+Run from the repository root (about 5 minutes on 2 shared cores; the first run also
 flies the quad-landing data, about 1 minute, cached in ``benchmarks/.cache/``)::
 
     pip install -e ".[bench,onnx]"

@@ -187,11 +187,11 @@ class IPCQuery:
         if self._full:  # type: ignore[attr-defined]
             L = out[n:].reshape(n, n)
         else:
-            L = np.zeros(n * n)
-            L[self._flat_tril] = out[n:]  # type: ignore[attr-defined]
+            flat = np.zeros(n * n)
+            flat[self._flat_tril] = out[n:]  # type: ignore[attr-defined]
             diag = out[n:][eng.diag_pos]
-            L[self._flat_diag] = np.exp(np.minimum(np.maximum(diag, -LOGDIAG_CLAMP), LOGDIAG_CLAMP))  # type: ignore[attr-defined]
-            L = L.reshape(n, n)
+            flat[self._flat_diag] = np.exp(np.minimum(np.maximum(diag, -LOGDIAG_CLAMP), LOGDIAG_CLAMP))  # type: ignore[attr-defined]
+            L = flat.reshape(n, n)
         shape = L * eng.inv_sigma
         scale: float | None = self._scale  # type: ignore[attr-defined]
         if scale is not None:
