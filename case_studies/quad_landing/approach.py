@@ -1,0 +1,225 @@
+"""Approach flights: data whose states look like those of a landing run.
+
+The exploration paths of :mod:`.paths` never stop (0.08 % of their samples are slower than
+0.1 m/s), but a landing run measures at two kinds of moments: in transit, when the pad
+first comes into view, and hovering at a waypoint above the pad. An IPC learned only on
+the paths has never seen a hovering camera; it extrapolates there, and its calibration
+says nothing about those queries. An approach flight flies what a landing run flies:
+
+1. a transit at constant speed and height toward a prior guess of the pad, from a random
+   start (:func:`.scenario.draw_scenario`, wider ranges, pad edges kept off the image axes), on past the first
+   detection for a random extra time, then a smooth stop (``deceleration``);
+2. ``hover_points`` legs to random points above the pad (camera 0.6–1.2 m up, up to
+   0.1 m off-centre), each flown until settled and then held for a random dwell.
+
+A measurement is taken every ``sample_every`` camera frames throughout (30 Hz), as in
+:func:`.collect.fly_path`, and the rows have the same columns (:data:`.collect.DATASET_COLUMNS`).
+Flight ``i`` of a collection seeded ``s`` depends only on ``(s, i)``: the same flight,
+sampling instants and noise for every buffer size.
+
+Examples
+--------
+>>> from case_studies.quad_landing import Flight
+>>> from case_studies.quad_landing.reproduce_config import ApproachParams
+>>> rec = fly_approach(Flight(buffer_size=1), 0, seed=0, params=ApproachParams(hover_points=1))
+>>> rec.rows.shape[1], bool(len(rec.rows) > 20)
+(36, True)
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+
+import numpy as np
+import pandas as pd
+
+from case_studies.quad_landing.collect import DATASET_COLUMNS, CollectStats, PathRecord
+from case_studies.quad_landing.config import SimConfig, load_config
+from case_studies.quad_landing.legs import fly_leg
+from case_studies.quad_landing.reproduce_config import ApproachParams
+from case_studies.quad_landing.scenario import (
+    camera_offset_z,
+    draw_scenario,
+    scenario_rng,
+    stopping_reference,
+)
+from case_studies.quad_landing.sim import Flight
+from ipcverify.errors import InvalidInputError
+
+__all__ = ["APPROACH_STREAM", "fly_approach", "collect_approach"]
+
+#: Random stream of approach flights (scenario draw; ``+ 1`` for the hover points).
+APPROACH_STREAM = 71
+_N_FLOAT = len(DATASET_COLUMNS) - 2
+
+
+class _Recorder:
+    """Measures every ``every`` frames and keeps the rows with a detection."""
+
+    def __init__(self, flight: Flight, every: int) -> None:
+        self.flight, self.every, self.frame = flight, every, 0
+        self.rows: list[np.ndarray] = []
+        self.times: list[float] = []
+        self.outcomes: list[int] = []
+        self.detected_once = False
+
+    def __call__(self) -> None:
+        self.frame += 1
+        if self.frame % self.every:
+            return
+        m = self.flight.measure()
+        if m.yhat_c is None:
+            self.outcomes.append(2 if m.pad_in_view else 1)
+            return
+        self.detected_once = True
+        self.outcomes.append(0)
+        T = m.world_from_camera
+        self.rows.append(np.concatenate([m.x_c, m.y_c, m.yhat_c, m.state, T.apply(m.y_c), T.apply(m.yhat_c)]))
+        self.times.append(m.time)
+
+
+def fly_approach(flight: Flight, index: int, *, seed: int, params: ApproachParams) -> PathRecord:
+    """Fly approach flight ``index`` and record a measurement every ``params.sample_every`` frames.
+
+    Parameters
+    ----------
+    flight : Flight
+        The simulator (its buffer size is used; its pad is replaced by the flight's).
+    index, seed : int
+        Which flight; it depends on nothing else.
+    params : ApproachParams
+        Ranges of the transit and the hover points.
+
+    Returns
+    -------
+    PathRecord
+        Rows in the float columns of :data:`.collect.DATASET_COLUMNS`, their times, the
+        outcome code of every measurement (0 detected, 1 marker outside the lagged image,
+        2 missed in view) and the time flown.
+    """
+    cfg = flight.config
+    sc = draw_scenario(index, seed=seed, params=params.scenario(), config=cfg, stream=APPROACH_STREAM)
+    rng = scenario_rng(seed, index, APPROACH_STREAM + 1)
+    flight.reset(sc.start, sc.pad, seed=sc.noise_seed)
+    rec = _Recorder(flight, params.sample_every)
+    extra = float(rng.uniform(*params.extra_transit))
+    stop_at: float | None = None
+    while flight.time < sc.transit_time + params.leg_timeout:
+        flight.step(sc.reference)
+        rec()
+        if stop_at is None and rec.detected_once:
+            stop_at = flight.time + extra
+        if stop_at is not None and flight.time >= stop_at - 1e-9:
+            break
+    braking = stopping_reference(sc.reference(flight.time), flight.time, params.deceleration)
+    t_end = flight.time + np.pi * float(np.linalg.norm(sc.start[3:6])) / (2 * params.deceleration) + 0.5
+    while flight.time < t_end:
+        flight.step(braking)
+        rec()
+    pad = sc.pad.position
+    for _ in range(params.hover_points):
+        angle = rng.uniform(0, 2 * np.pi)
+        radius = params.hover_offset * np.sqrt(rng.random())
+        height = float(rng.uniform(*params.hover_height))
+        target = pad + np.array(
+            [radius * np.cos(angle), radius * np.sin(angle), height + camera_offset_z(cfg)]
+        )
+        fly_leg(
+            flight,
+            target,
+            yaw=sc.yaw,
+            timeout=params.leg_timeout,
+            dwell=float(rng.uniform(*params.dwell)),
+            on_frame=rec,
+        )
+    return PathRecord(
+        index=int(index),
+        rows=np.array(rec.rows).reshape(-1, _N_FLOAT),
+        times=np.array(rec.times),
+        outcomes=np.array(rec.outcomes, dtype=np.int8),
+        flight_time=flight.time,
+    )
+
+
+def collect_approach(
+    n: int,
+    *,
+    buffer_size: int,
+    seed: int,
+    params: ApproachParams,
+    config: SimConfig | None = None,
+    progress: Callable[[int], None] | None = None,
+) -> tuple[pd.DataFrame, CollectStats]:
+    """Fly approach flights in index order until ``n`` measurements with a detection are recorded.
+
+    Parameters
+    ----------
+    n : int
+        Samples to collect.
+    buffer_size : int
+        Camera buffer size ``k``.
+    seed : int
+        Seeds the flights and their sensor noise.
+    params : ApproachParams
+        The flights' ranges.
+    config : SimConfig, optional
+        The simulator (defaults if None).
+    progress : callable, optional
+        Called with the number of new samples as they are added.
+
+    Returns
+    -------
+    data : pandas.DataFrame
+        ``n`` rows with the columns :data:`.collect.DATASET_COLUMNS` (``path`` is the flight index).
+    stats : CollectStats
+        Detection counts and timing, as for :func:`.collect.collect`.
+
+    Examples
+    --------
+    >>> data, stats = collect_approach(30, buffer_size=2, seed=0, params=ApproachParams(hover_points=1))
+    >>> len(data), stats.buffer_size
+    (30, 2)
+    """
+    if isinstance(n, bool) or int(n) != n or n < 1:
+        raise InvalidInputError(f"n must be a positive integer, got {n!r}")
+    if isinstance(seed, bool) or int(seed) != seed or seed < 0:
+        raise InvalidInputError(f"seed must be a non-negative integer, got {seed!r}")
+    cfg = load_config() if config is None else config
+    flight = Flight(cfg, buffer_size=buffer_size)
+    t0 = time.perf_counter()
+    parts: list[PathRecord] = []
+    outcomes: list[np.ndarray] = []
+    done, index = 0, 0
+    while done < n:
+        rec = fly_approach(flight, index, seed=int(seed), params=params)
+        take = min(len(rec.rows), n - done)
+        out = rec.outcomes
+        if take < len(rec.rows):
+            out = out[: int(np.flatnonzero(out == 0)[take - 1]) + 1]
+        parts.append(PathRecord(rec.index, rec.rows[:take], rec.times[:take], out, rec.flight_time))
+        outcomes.append(out)
+        done += take
+        index += 1
+        if progress is not None and take:
+            progress(take)
+        if index > 50 + 10 * n:
+            raise InvalidInputError(
+                "approach flights produce no detections; check the camera and pad settings"
+            )
+    data = pd.DataFrame(np.vstack([r.rows for r in parts]), columns=list(DATASET_COLUMNS[:-2]))
+    data["path"] = np.concatenate([np.full(len(r.rows), r.index, np.int64) for r in parts])
+    data["t"] = np.concatenate([r.times for r in parts])
+    codes = np.concatenate(outcomes)
+    stats = CollectStats(
+        buffer_size=int(buffer_size),
+        seed=int(seed),
+        samples=done,
+        measurements=len(codes),
+        missed_out_of_view=int(np.sum(codes == 1)),
+        missed_in_view=int(np.sum(codes == 2)),
+        paths=len(parts),
+        flight_time=float(sum(r.flight_time for r in parts)),
+        wall_time=time.perf_counter() - t0,
+    )
+    return data, stats
