@@ -7,13 +7,15 @@ the paths has never seen a hovering camera; it extrapolates there, and its calib
 says nothing about those queries. An approach flight flies what a landing run flies:
 
 1. a transit at constant speed and height toward a prior guess of the pad, from a random
-   start (:func:`.scenario.draw_scenario`, wider ranges, pad edges kept off the image axes), on past the first
-   detection for a random extra time, then a smooth stop (``deceleration``);
+   start (:func:`.scenario.draw_scenario`, wider ranges, pad edges kept off the image
+   axes), on past the moment the whole pad comes into view (a geometric test, so that the
+   flight does not depend on the camera lag) for a random extra time, then a smooth stop
+   (``deceleration``);
 2. ``hover_points`` legs to random points above the pad (camera 0.6–1.2 m up, up to
    0.1 m off-centre), each flown until settled and then held for a random dwell.
 
-A measurement is taken every ``sample_every`` camera frames throughout (30 Hz), as in
-:func:`.collect.fly_path`, and the rows have the same columns (:data:`.collect.DATASET_COLUMNS`).
+A measurement is taken every ``sample_every`` camera frames throughout (default 6: 10 Hz),
+as in :func:`.collect.fly_path`, and the rows have the same columns (:data:`.collect.DATASET_COLUMNS`).
 Flight ``i`` of a collection seeded ``s`` depends only on ``(s, i)``: the same flight,
 sampling instants and noise for every buffer size.
 
@@ -62,7 +64,6 @@ class _Recorder:
         self.rows: list[np.ndarray] = []
         self.times: list[float] = []
         self.outcomes: list[int] = []
-        self.detected_once = False
 
     def __call__(self) -> None:
         self.frame += 1
@@ -72,7 +73,6 @@ class _Recorder:
         if m.yhat_c is None:
             self.outcomes.append(2 if m.pad_in_view else 1)
             return
-        self.detected_once = True
         self.outcomes.append(0)
         T = m.world_from_camera
         self.rows.append(np.concatenate([m.x_c, m.y_c, m.yhat_c, m.state, T.apply(m.y_c), T.apply(m.yhat_c)]))
@@ -108,7 +108,7 @@ def fly_approach(flight: Flight, index: int, *, seed: int, params: ApproachParam
     while flight.time < sc.transit_time + params.leg_timeout:
         flight.step(sc.reference)
         rec()
-        if stop_at is None and rec.detected_once:
+        if stop_at is None and flight.pad_in_view():  # geometric, so the path is the same for every k
             stop_at = flight.time + extra
         if stop_at is not None and flight.time >= stop_at - 1e-9:
             break

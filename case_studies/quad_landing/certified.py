@@ -213,7 +213,9 @@ def coverage_check(
     runs : sequence of LandingRun
         Runs flown with the model; every query with a detection is checked.
     quantile : float
-        The threshold is this quantile of the test samples' distances.
+        The threshold is the ``ceil(quantile (n + 1))``-th smallest of the ``n`` test samples'
+        distances; a fresh calibration-like sample exceeds it with probability at most
+        ``null_rate = 1 - k / (n + 1)``.
     delta : float
         Confidence parameter of the intervals and of the flag.
 
@@ -221,22 +223,27 @@ def coverage_check(
     -------
     dict
         ``threshold``, per group (``all``, ``first``, ``later`` queries) the number of
-        queries, the exceedances and their rate with a Clopper--Pearson interval, the
-        test samples' rate, ``shift_detected`` (the one-sided lower bound of some group's
-        rate exceeds ``1 - quantile``), and per-feature range checks.
+        queries, the exceedances and their rate with a Clopper--Pearson interval,
+        ``null_rate``, ``shift_detected`` (the one-sided lower bound of some group's rate
+        exceeds ``null_rate``), and per-feature range checks.
     """
     if not 0 < quantile < 1:
         raise InvalidInputError(f"quantile must lie in (0, 1), got {quantile!r}")
     ref = query_features(model, calibration_data.x, calibration_data.yhat)
     tree = cKDTree(ref)
-    test_d = tree.query(query_features(model, test_data.x, test_data.yhat), k=1)[0]
-    threshold = float(np.quantile(test_d, quantile))
+    test_d = np.sort(tree.query(query_features(model, test_data.x, test_data.yhat), k=1)[0])
+    n_test = int(test_d.size)
+    k_thr = min(n_test, math.ceil(quantile * (n_test + 1)))
+    threshold = float(test_d[k_thr - 1])
+    # a fresh sample drawn like the test samples exceeds the k-th smallest of n with probability
+    # at most 1 - k / (n + 1) (exchangeability; averaged over the test draw)
+    null_rate = 1.0 - k_thr / (n_test + 1)
     qs = [(i, q) for r in runs for i, q in enumerate(r.queries) if q.detected and q.x_c is not None]
     out: dict[str, Any] = {
         "quantile": quantile,
         "threshold": threshold,
-        "test": {"n": int(test_d.size), "median_distance": float(np.median(test_d))},
-        "null_rate": 1 - quantile,
+        "test": {"n": n_test, "median_distance": float(np.median(test_d))},
+        "null_rate": null_rate,
         "confidence": 1 - delta,
     }
     if not qs:
@@ -275,7 +282,7 @@ def coverage_check(
     }
     out.update(
         groups=groups,
-        shift_detected=bool(any(g["lower"] > 1 - quantile for g in groups.values())),
+        shift_detected=bool(any(g["lower"] > null_rate for g in groups.values())),
         distances={"queries": d.tolist(), "test": test_d.tolist()},
         feature_range={
             "range": "0.5-99.5 % of the calibration data, per feature",

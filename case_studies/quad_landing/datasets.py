@@ -14,6 +14,12 @@ exploration paths' rows there (about 3 % of them, the headings spin) are dropped
 (:func:`alignment_deg`). The landing runs never measure there either, so calibration and
 deployment agree on this.
 
+Both parts take a measurement every ``sample_every`` camera frames (default 6, i.e. 10 Hz,
+sparser than :func:`.collect.collect`'s 30 Hz): perception errors come in bursts of 0.1–0.25 s
+(rotation transients), and sparser samples spread a dataset over more paths and flights,
+so its samples are closer to the independent draws the calibration and the
+Clopper–Pearson bounds assume.
+
 :func:`cached_mixed` writes ``NAME.parquet`` with a ``NAME.key.json`` sidecar recording
 every setting that went into it, and reuses the file when the settings match.
 
@@ -127,6 +133,7 @@ def collect_mixed(
         :data:`.collect.DATASET_COLUMNS` plus ``source``.
     """
     cfg = load_config() if config is None else config
+    cfg = cfg.replace(collect={"sample_every": approach.sample_every})
     n_app = int(round(approach.fraction * n))
     parts = []
     if n - n_app:

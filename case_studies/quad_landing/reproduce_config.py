@@ -141,7 +141,7 @@ class ApproachParams:
     leg_timeout : float
         Seconds per leg.
     sample_every : int
-        Camera frames between measurements.
+        Camera frames between measurements, in approach flights and exploration paths alike.
 
     Examples
     --------
@@ -162,7 +162,7 @@ class ApproachParams:
     hover_height: Range = (0.6, 1.2)
     dwell: Range = (0.2, 0.8)
     leg_timeout: float = 8.0
-    sample_every: int = 2
+    sample_every: int = 6
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.fraction <= 1.0:

@@ -57,6 +57,7 @@ from case_studies.quad_landing.reproduce_config import LandingParams
 from case_studies.quad_landing.scenario import Scenario, camera_offset_z
 from case_studies.quad_landing.sim import Flight, Measurement
 from ipcverify.containment import Box, Status
+from ipcverify.errors import InvalidInputError
 from ipcverify.exact import ExactVector, exact_vector
 from ipcverify.landing import LANDING_TARGET, check_landing, landing_decision
 from ipcverify.sets import Ellipsoid
@@ -247,6 +248,11 @@ def decision_target(tau: float, target: Box = LANDING_TARGET) -> Box:
     >>> decision_target(0.005).upper.round(6).tolist()
     [0.045, 0.045, 0.04]
     """
+    width = target.upper - target.lower
+    if not (np.isfinite(tau) and 0.0 < tau and 2.0 * tau < width[:2].min() and 2.0 * tau < width[2]):
+        raise InvalidInputError(
+            f"tau must be > 0 and leave G_tau non-empty (tau < {width[2] / 2:g} m for this G); got {tau!r}"
+        )
     shift = np.array([tau, tau, 0.0])
     return Box(target.lower + shift, target.upper - np.array([tau, tau, 2.0 * tau]))
 
