@@ -82,6 +82,7 @@ def test_summarize_counts_outcomes(sequential):
     assert summarize([])["runs"] == 0
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(
     importlib.util.find_spec("ray") is None, reason="Ray is an optional extra: pip install 'ipcverify[ray]'"
 )

@@ -169,9 +169,11 @@ def run_campaign(
     else:
         if backend == "ray":
             _ray_backend()
+        # joblib's Ray backend cannot stream results: progress then arrives at the end
+        return_as = "list" if backend == "ray" else "generator_unordered"
         with joblib.parallel_backend(backend, n_jobs=jobs):
-            parallel = joblib.Parallel(return_as="generator_unordered")
-            consume(parallel(joblib.delayed(_fly_chunk)(c, *args) for c in chunks))
+            parallel = joblib.Parallel(return_as=return_as)
+            consume(iter(parallel(joblib.delayed(_fly_chunk)(c, *args) for c in chunks)))
     results.sort(key=lambda r: r.scenario.index)
     return results
 

@@ -283,7 +283,7 @@ class IpcParams:
     """
 
     hidden: tuple[int, ...] = (64, 128)
-    epochs: int = 20
+    epochs: int = 40
     lr: float = 1e-3
     batch_size: int = 64
     alpha: float = 0.1
