@@ -14,11 +14,18 @@ Public API
 * :class:`Measurement` — ``x_c``, ``y_c``, ``yhat_c`` and the camera pose ``T_WC``.
 * :func:`transform_ellipsoid` — move an ellipsoid from the camera to the world frame.
 * :func:`collect`, :class:`CollectStats`, :func:`write_dataset` — exploration data.
+* The paper reproduction (``docs/reproduce.md``), imported on first use (they pull in
+  torch and matplotlib): :func:`run_landing`, :class:`LandingRun`, :class:`Outcome`,
+  :class:`LearnedContract`, :class:`TrivialContract`, :func:`draw_scenario`,
+  :func:`run_campaign`, :func:`reproduce`, :func:`load_reproduce_config`.
 
 Run ``python -m case_studies.quad_landing --help`` for the command line.
 """
 
 from __future__ import annotations
+
+import importlib
+from typing import Any
 
 from case_studies.quad_landing.collect import (
     DATASET_COLUMNS,
@@ -52,4 +59,33 @@ __all__ = [
     "load_config",
     "transform_ellipsoid",
     "write_dataset",
+    # the reproduction, loaded lazily (see __getattr__)
+    "LandingRun",
+    "LearnedContract",
+    "Outcome",
+    "TrivialContract",
+    "draw_scenario",
+    "load_reproduce_config",
+    "reproduce",
+    "run_campaign",
+    "run_landing",
 ]
+
+_LAZY = {
+    "LandingRun": "state_machine",
+    "Outcome": "state_machine",
+    "run_landing": "state_machine",
+    "LearnedContract": "contracts",
+    "TrivialContract": "contracts",
+    "draw_scenario": "scenario",
+    "load_reproduce_config": "reproduce_config",
+    "reproduce": "reproduce",
+    "run_campaign": "campaign",
+}
+
+
+def __getattr__(name: str) -> Any:
+    """Import the reproduction's names on first use (PEP 562)."""
+    if name in _LAZY:
+        return getattr(importlib.import_module(f"{__name__}.{_LAZY[name]}"), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -44,7 +44,7 @@ from case_studies.quad_landing.reproduce_config import LandingParams, ScenarioPa
 from case_studies.quad_landing.scenario import draw_scenario
 from case_studies.quad_landing.sim import Flight
 from case_studies.quad_landing.state_machine import LandingRun, Outcome, run_landing
-from ipcverify.bounds import clopper_pearson_interval, clopper_pearson_upper
+from ipcverify.bounds import clopper_pearson_interval, clopper_pearson_lower, clopper_pearson_upper
 from ipcverify.errors import InvalidInputError
 
 __all__ = ["BACKENDS", "run_campaign", "summarize", "default_jobs"]
@@ -181,9 +181,10 @@ def run_campaign(
 def summarize(runs: Sequence[LandingRun], delta: float = 0.05) -> dict[str, Any]:
     """Counts and exact binomial intervals of a set of runs.
 
-    Returns ``runs``, ``safe``, ``unsafe``, ``aborted``, their rates, the two-sided
-    Clopper--Pearson interval (confidence ``1 - delta``) and one-sided upper bound of the
-    unsafe rate, the mean number of queries and the wall time per run.
+    Returns ``runs``, ``safe``, ``unsafe``, ``aborted``, their rates, two-sided
+    Clopper--Pearson intervals (confidence ``1 - delta``) of the unsafe and safe rates,
+    one-sided bounds (``unsafe_upper``, ``unsafe_lower``, ``safe_lower``, each at
+    confidence ``1 - delta``), the mean number of queries and the wall time per run.
 
     Examples
     --------
@@ -207,7 +208,9 @@ def summarize(runs: Sequence[LandingRun], delta: float = 0.05) -> dict[str, Any]
             aborted_rate=counts[Outcome.ABORTED] / n,
             unsafe_interval=list(clopper_pearson_interval(u, n, delta)),
             unsafe_upper=clopper_pearson_upper(u, n, delta),
+            unsafe_lower=clopper_pearson_lower(u, n, delta),
             safe_interval=list(clopper_pearson_interval(s, n, delta)),
+            safe_lower=clopper_pearson_lower(s, n, delta),
             mean_queries=float(np.mean([r.n_queries for r in runs])),
             max_queries=int(max(r.n_queries for r in runs)),
             wall_time_per_run=float(np.mean([r.wall_time for r in runs])),

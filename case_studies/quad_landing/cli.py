@@ -126,7 +126,7 @@ def bias_command(poses: int, seed: int, config_path: str | None) -> None:
               show_default=True,
               help="joblib backend of the campaigns; 'ray' needs pip install 'ipcverify[ray]'.")
 @click.option("--mc-runs", type=click.IntRange(min=1), default=None,
-              help="Monte Carlo runs per contract [default: from reproduce.toml, 200].")
+              help="Monte Carlo runs per contract [default: from reproduce.toml, 300].")
 @click.option("--config", "config_path", type=click.Path(dir_okay=False), default=None,
               help="TOML file overriding defaults.toml (the simulator).")
 @click.option("--settings", "settings_path", type=click.Path(dir_okay=False), default=None,

@@ -52,7 +52,15 @@ from case_studies.quad_landing.features import X_COLUMNS
 from case_studies.quad_landing.reproduce_config import ApproachParams
 from ipcverify.data import PerceptionDataset, atomic_write
 
-__all__ = ["collect_mixed", "as_dataset", "cached_mixed", "alignment_deg", "SOURCE_PATHS", "SOURCE_APPROACH"]
+__all__ = [
+    "collect_mixed",
+    "as_dataset",
+    "cached_mixed",
+    "is_cached",
+    "alignment_deg",
+    "SOURCE_PATHS",
+    "SOURCE_APPROACH",
+]
 
 #: Values of the ``source`` column.
 SOURCE_PATHS, SOURCE_APPROACH = 0, 1
@@ -189,6 +197,22 @@ def _normalise(obj: Any) -> Any:
     return json.loads(json.dumps(obj, default=list))
 
 
+def is_cached(
+    path: str | Path, n: int, *, buffer_size: int, seed: int, approach: ApproachParams, config: SimConfig
+) -> bool:
+    """Whether ``path`` holds the dataset these settings would collect (see :func:`cached_mixed`)."""
+    p = Path(path)
+    key_path = p.with_suffix(".key.json")
+    if not (p.exists() and key_path.exists()):
+        return False
+    try:
+        return bool(
+            json.loads(key_path.read_text()) == _normalise(_key(n, buffer_size, seed, approach, config))
+        )
+    except (json.JSONDecodeError, OSError):
+        return False
+
+
 def cached_mixed(
     path: str | Path,
     n: int,
@@ -208,18 +232,12 @@ def cached_mixed(
         True if the file was reused.
     """
     p = Path(path)
-    key_path = p.with_suffix(".key.json")
-    key = _normalise(_key(n, buffer_size, seed, approach, config))
-    if p.exists() and key_path.exists():
-        try:
-            if json.loads(key_path.read_text()) == key:
-                return pd.read_parquet(p), True
-        except (json.JSONDecodeError, OSError):
-            pass
+    if is_cached(p, n, buffer_size=buffer_size, seed=seed, approach=approach, config=config):
+        return pd.read_parquet(p), True
     data = collect_mixed(
         n, buffer_size=buffer_size, seed=seed, approach=approach, config=config, progress=progress
     )
     atomic_write(p, lambda fh: data.to_parquet(fh, index=False))
-    text = json.dumps(key, indent=1) + "\n"
-    atomic_write(key_path, lambda fh: fh.write(text), "w")
+    text = json.dumps(_normalise(_key(n, buffer_size, seed, approach, config)), indent=1) + "\n"
+    atomic_write(p.with_suffix(".key.json"), lambda fh: fh.write(text), "w")
     return data, False

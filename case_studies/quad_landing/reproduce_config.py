@@ -333,7 +333,7 @@ class Sizes:
     n_test: int = 2000
     buffers: tuple[int, ...] = (1, 2, 3, 4, 5)
     paper_runs: int = 10
-    mc_runs: int = 200
+    mc_runs: int = 300
     buffer1_runs: int = 100
 
     def __post_init__(self) -> None:
