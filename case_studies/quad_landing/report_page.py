@@ -114,7 +114,7 @@ def _table1(summary: Mapping[str, Any], figs: Mapping[str, bytes]) -> str:
         "and upper "
         f"bounds are exact (Clopper–Pearson), simultaneous over the rows at {100 * conf:.0f} %. They "
         "treat the "
-        "30 Hz samples as independent; neighbouring samples on a path are correlated, so the intervals are "
+        "10 Hz samples as independent; neighbouring samples on a path are correlated, so the intervals are "
         "somewhat optimistic (the last column shows over how many paths/flights the violations spread).</p>"
         + _table(
             [

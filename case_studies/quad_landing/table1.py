@@ -7,7 +7,7 @@ interval. The intervals are simultaneous over the rows (Bonferroni: each row at
 ``delta / rows``), so "the rate rises with the buffer size" can be read off them.
 
 The bounds treat the test samples as independent draws. They are not quite: they are
-30 Hz samples along a few dozen continuous paths and flights, so neighbouring samples are
+10 Hz samples along a few dozen continuous paths and flights, so neighbouring samples are
 correlated and the intervals are somewhat too narrow. ``paths_with_violations`` counts
 the distinct paths/flights a row's violations fall on, to show whether they cluster.
 
