@@ -1,5 +1,179 @@
-"""CLI commands (certify); registered on the shared app."""
+"""CLI commands ``calibrate`` and ``certify``; registered on the shared app.
+
+Both are thin wrappers: parse, call :func:`ipcverify.calibration.calibrate` or
+:func:`ipcverify.certify.certify_files`, print a short summary.
+"""
 
 from __future__ import annotations
 
-from ipcverify.cli.app import app  # noqa: F401
+import sys
+from pathlib import Path
+
+import click
+from rich.table import Table
+
+from ipcverify.calibration import GlobalCalibration, MondrianCalibration, calibrate, describe_groups
+from ipcverify.certify import CertificateStatus, certify_files, load_data_for_model
+from ipcverify.cli.app import app, console
+from ipcverify.lipschitz import DEFAULT_RADIUS
+from ipcverify.modelio import load_model, save_model
+
+__all__: list[str] = []
+
+_EXISTING = click.Path(exists=True, dir_okay=False, path_type=Path)
+_STYLE = {
+    CertificateStatus.CERTIFIED: "bold green",
+    CertificateStatus.UNCHECKED: "bold cyan",
+    CertificateStatus.NOT_CALIBRATED: "bold yellow",
+    CertificateStatus.CONTRADICTED: "bold red",
+}
+
+
+@app.command("calibrate")
+@click.argument("model", type=_EXISTING)
+@click.argument("data", type=_EXISTING)
+@click.option("--epsilon", type=float, required=True, help="Target violation probability, e.g. 0.01.")
+@click.option("--delta", type=float, required=True, help="Confidence parameter, e.g. 0.001.")
+@click.option(
+    "--mode",
+    type=click.Choice(["pac", "marginal"]),
+    default="pac",
+    show_default=True,
+    help="pac: holds w.p. 1-delta over the calibration draw; marginal: on average (split conformal).",
+)
+@click.option("--group-column", default=None, help="Mondrian: one scale per group of this x or yhat column.")
+@click.option(
+    "--bins", default=None, type=int, help="With --group-column: quantile bins of a continuous column."
+)
+@click.option(
+    "--recalibrate", is_flag=True, help="Replace an existing calibration (calibrates the raw network)."
+)
+@click.option(
+    "--seed", default=0, show_default=True, type=int, help="Seed for choosing the bin-edge samples."
+)
+@click.option(
+    "--out", type=click.Path(dir_okay=False, path_type=Path), required=True, help="Calibrated model."
+)
+def calibrate_cmd(
+    model: Path,
+    data: Path,
+    epsilon: float,
+    delta: float,
+    mode: str,
+    group_column: str | None,
+    bins: int | None,
+    recalibrate: bool,
+    seed: int,
+    out: Path,
+) -> None:
+    """Calibrate MODEL on DATA and write the calibrated model to --out.
+
+    DATA must be held-out data that was NOT used for training (nor for choosing the
+    model), drawn like the data the contract will meet in deployment.
+    """
+    m = load_model(model)
+    ds = load_data_for_model(data, m)
+    cal_model = calibrate(
+        m,
+        ds,
+        epsilon,
+        delta,
+        mode,  # type: ignore[arg-type]
+        group_column=group_column,
+        bins=bins,
+        recalibrate=recalibrate,
+        seed=seed,
+    )
+    save_model(cal_model, out)
+    cal = cal_model.calibration
+    assert isinstance(cal, (GlobalCalibration, MondrianCalibration))
+    table = Table(title=f"calibration of {model.name} on {data.name} ({mode})")
+    table.add_column("group")
+    table.add_column("n", justify="right")
+    table.add_column("k", justify="right")
+    table.add_column("scale s", justify="right")
+    for row in describe_groups(cal):
+        table.add_row(str(row["label"]), str(row["n"]), str(row["k"]), f"{row['scale']:.5g}")
+    console.print(table)
+    console.print(cal.guarantee(), soft_wrap=True, markup=False)
+    console.print(f"calibrated model -> {out}", markup=False)
+
+
+@app.command("certify")
+@click.argument("model", type=_EXISTING)
+@click.option("--data", "test", type=_EXISTING, required=True, help="Fresh test data (not used so far).")
+@click.option("--train-data", type=_EXISTING, default=None, help="The training data (for Theorem 1).")
+@click.option(
+    "--out",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=Path("certificate"),
+    show_default=True,
+    help="Directory for certificate.json and report.html.",
+)
+@click.option("--delta", type=float, default=None, help="Confidence (default: the calibration's; 0.001).")
+@click.option("--bin-column", default=None, help="Column for conditional coverage (default: first x column).")
+@click.option("--bins", default=10, show_default=True, type=int)
+@click.option(
+    "--lipschitz-radius",
+    default=DEFAULT_RADIUS,
+    show_default=True,
+    type=float,
+    help="Parameter-ball radius of the sound Lipschitz bound (Theorem 1). Fix it before seeing data.",
+)
+def certify_cmd(
+    model: Path,
+    test: Path,
+    train_data: Path | None,
+    out: Path,
+    delta: float | None,
+    bin_column: str | None,
+    bins: int,
+    lipschitz_radius: float,
+) -> None:
+    """Certify MODEL on fresh test data: write DIR/certificate.json and DIR/report.html.
+
+    Exits with status 1 if the test data contradicts the calibration's claim.
+    """
+    res = certify_files(
+        model,
+        test,
+        out,
+        train_path=train_data,
+        delta=delta,
+        bin_column=bin_column,
+        bins=bins,
+        lipschitz_radius=lipschitz_radius,
+    )
+    cert = res.certificate
+    console.print(f"[{_STYLE[cert.status]}]{cert.status.name}[/]: {cert.status.value}", soft_wrap=True)
+    console.print(cert.statement, soft_wrap=True, markup=False)
+    table = Table(show_header=False)
+    t = cert.test
+    table.add_row("parameters p", f"{cert.model['n_parameters']:,}")
+    if cert.calibration is not None:
+        c = cert.calibration
+        table.add_row(
+            "calibration", f"{c['mode']}, epsilon={c['epsilon']:g}, delta={c['delta']:g}, n={c['n']}"
+        )
+    else:
+        table.add_row("calibration", "ABSENT (no calibration certificate)")
+    table.add_row(
+        "test violations",
+        f"{t.violations}/{t.n} = {t.empirical_rate:.4%}; "
+        f"upper bound {t.upper_bound:.4%} (confidence {1 - t.delta:g})",
+    )
+    table.add_row("mean log-volume", f"{cert.volume['mean_log']:.4g}")
+    if cert.theorem1 is None:
+        table.add_row("Theorem 1", cert.theorem1_reason)
+    else:
+        t1 = cert.theorem1
+        verdict = "VACUOUS" if t1.sound.vacuous else "usable"
+        table.add_row(
+            "Theorem 1",
+            f"{verdict}: bound {t1.sound.bound:.3g} (sound L_g {t1.sound.lipschitz:.3g}); "
+            f"{t1.optimistic.bound:.3g} with empirical L_g {t1.optimistic.lipschitz:.3g} (not a guarantee)",
+        )
+    console.print(table)
+    console.print(f"wrote {out / 'certificate.json'} and {out / 'report.html'}", markup=False)
+    if cert.status is CertificateStatus.CONTRADICTED:
+        sys.exit(1)

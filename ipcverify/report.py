@@ -1,0 +1,375 @@
+"""The certificate as one self-contained HTML page (plots embedded as base64 PNG).
+
+The page references no external resource (no scripts, styles, fonts or images
+from the network), so it can be archived and opened offline. Plots are drawn with
+matplotlib's Agg canvas on private :class:`~matplotlib.figure.Figure` objects
+(no global pyplot state):
+
+* the distribution of the test scores ``g / s`` with the calibrated boundary at 1;
+* the violation rate per bin of a column (conditional coverage) with per-bin
+  Clopper--Pearson intervals;
+* 2-D projections of a few calibrated ellipsoids with their ground truths.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+import math
+from typing import Any
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from ipcverify.bounds import clopper_pearson_interval
+from ipcverify.certify import CertificateStatus, CertifyEvidence, CertifyResult
+from ipcverify.evaluation import BinCoverage
+
+__all__ = [
+    "figure_to_png",
+    "plot_scores",
+    "plot_coverage",
+    "plot_projections",
+    "render_report",
+]
+
+_COLORS = {
+    CertificateStatus.CERTIFIED: "#1b7f3b",
+    CertificateStatus.UNCHECKED: "#1b5e7f",
+    CertificateStatus.NOT_CALIBRATED: "#9a6700",
+    CertificateStatus.CONTRADICTED: "#b42318",
+}
+
+
+def figure_to_png(fig: Figure, dpi: int = 100) -> bytes:
+    """Render a figure with the Agg canvas to PNG bytes.
+
+    Examples
+    --------
+    >>> fig = Figure(figsize=(2, 1)); _ = fig.add_subplot().plot([0, 1])
+    >>> figure_to_png(fig)[:8] == b"\\x89PNG\\r\\n\\x1a\\n"
+    True
+    """
+    FigureCanvasAgg(fig)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
+    return buf.getvalue()
+
+
+def plot_scores(evidence: CertifyEvidence, calibrated: bool) -> Figure:
+    """Histogram of the test scores ``g / s`` with the set boundary (1) marked."""
+    s = evidence.normalized_scores
+    fig = Figure(figsize=(7.0, 3.2))
+    ax = fig.add_subplot()
+    hi = max(1.5, float(np.quantile(s, 0.995)) * 1.05)
+    over = int((s > hi).sum())
+    ax.hist(np.minimum(s, hi), bins=80, range=(0.0, hi), color="#4c72b0", alpha=0.85)
+    ax.axvline(1.0, color="#b42318", lw=2, label="set boundary (g / s = 1)" if calibrated else "g = 1")
+    ax.set_xlabel("normalised score g / s  (> 1: truth outside its set)" if calibrated else "raw score g")
+    ax.set_ylabel("test samples")
+    n_viol = int(evidence.violated.sum())
+    title = f"Test scores: {n_viol} of {len(s)} outside"
+    if over:
+        title += f" ({over} beyond {hi:.3g}, drawn in the last bin)"
+    ax.set_title(title, fontsize=10)
+    ax.legend(loc="upper right", fontsize=8)
+    return fig
+
+
+def plot_coverage(coverage: BinCoverage, delta: float, epsilon: float | None) -> Figure:
+    """Violation rate per bin of a column, with two-sided Clopper--Pearson intervals at ``delta`` per bin."""
+    fig = Figure(figsize=(7.0, 3.2))
+    ax = fig.add_subplot()
+    counts = np.asarray(coverage.counts)
+    viol = np.asarray(coverage.violations)
+    pos = np.arange(len(counts))
+    rates = np.array([v / c if c else np.nan for v, c in zip(viol, counts, strict=True)])
+    lo = np.array(
+        [
+            clopper_pearson_interval(int(v), int(c), delta)[0] if c else np.nan
+            for v, c in zip(viol, counts, strict=True)
+        ]
+    )
+    hi = np.array(
+        [
+            clopper_pearson_interval(int(v), int(c), delta)[1] if c else np.nan
+            for v, c in zip(viol, counts, strict=True)
+        ]
+    )
+    ok = counts > 0
+    ax.errorbar(
+        pos[ok],
+        rates[ok],
+        yerr=np.vstack([rates[ok] - lo[ok], hi[ok] - rates[ok]]),
+        fmt="o",
+        color="#4c72b0",
+        capsize=3,
+        label=f"violation rate, {1 - delta:.4g} interval per bin",
+    )
+    if epsilon is not None:
+        ax.axhline(epsilon, color="#b42318", ls="--", label=f"epsilon = {epsilon:g}")
+    edges = coverage.edges
+    labels = [f"{edges[i]:.3g}..{edges[i + 1]:.3g}" for i in range(len(counts))]
+    ax.set_xticks(pos, labels, rotation=35, ha="right", fontsize=7)
+    ax.set_xlabel(f"bin of {coverage.column}")
+    ax.set_ylabel("violation rate")
+    ax.set_ylim(bottom=0.0)
+    ax.set_title(f"Conditional coverage by {coverage.column}", fontsize=10)
+    ax.legend(fontsize=8, loc="upper right")
+    return fig
+
+
+def _ellipse_outline(center: np.ndarray, shape: np.ndarray, i: int, j: int) -> np.ndarray:
+    """Boundary of the projection of E(c, C) on coordinates (i, j), as (2, 200) points."""
+    cinv = np.linalg.inv(shape)
+    P = cinv @ cinv.T
+    sub = P[np.ix_([i, j], [i, j])]
+    L = np.linalg.cholesky(sub + 1e-300 * np.eye(2))
+    t = np.linspace(0.0, 2.0 * np.pi, 200)
+    return center[[i, j], None] + L @ np.vstack([np.cos(t), np.sin(t)])
+
+
+def plot_projections(evidence: CertifyEvidence) -> Figure:
+    """2-D projections of the example ellipsoids with their truths (x) and estimates (+)."""
+    k = len(evidence.example_index)
+    n = evidence.example_centers.shape[1]
+    names = evidence.y_columns or tuple(f"y_{i}" for i in range(n))
+    pairs = [(0, 1), (0, 2), (1, 2)] if n >= 3 else ([(0, 1)] if n == 2 else [(0, 0)])
+    fig = Figure(figsize=(3.0 * len(pairs), 2.6 * k))
+    for r in range(k):
+        c, C = evidence.example_centers[r], evidence.example_shapes[r]
+        y, yh = evidence.example_truths[r], evidence.example_estimates[r]
+        inside = np.linalg.norm(C @ (y - c)) <= 1.0
+        for col, (i, j) in enumerate(pairs):
+            ax = fig.add_subplot(k, len(pairs), r * len(pairs) + col + 1)
+            if n == 1:
+                h = 1.0 / abs(C[0, 0])
+                ax.plot([c[0] - h, c[0] + h], [0, 0], color="#4c72b0", lw=3)
+                ax.plot([y[0]], [0], "x", color="#b42318" if not inside else "#1b7f3b", ms=9)
+                ax.plot([yh[0]], [0], "+", color="k", ms=9)
+                ax.set_yticks([])
+                ax.set_xlabel(names[0], fontsize=8)
+            else:
+                pts = _ellipse_outline(c, C, i, j)
+                ax.fill(pts[0], pts[1], color="#4c72b0", alpha=0.25)
+                ax.plot(pts[0], pts[1], color="#4c72b0", lw=1)
+                ax.plot([y[i]], [y[j]], "x", color="#1b7f3b" if inside else "#b42318", ms=9, mew=2)
+                ax.plot([yh[i]], [yh[j]], "+", color="k", ms=9)
+                ax.set_xlabel(names[i], fontsize=8)
+                ax.set_ylabel(names[j], fontsize=8)
+                ax.set_aspect("equal", adjustable="datalim")
+            ax.tick_params(labelsize=7)
+            if col == 0:
+                ax.set_title(
+                    f"test sample {int(evidence.example_index[r])} ({'inside' if inside else 'OUTSIDE'})",
+                    fontsize=8,
+                    loc="left",
+                )
+    fig.suptitle("Calibrated sets (projections); x = ground truth, + = perceived value", fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def _img(fig: Figure, alt: str) -> str:
+    data = base64.b64encode(figure_to_png(fig)).decode("ascii")
+    return f'<img alt="{html.escape(alt)}" src="data:image/png;base64,{data}">'
+
+
+def _fmt(v: Any) -> str:
+    if v is None:
+        return "&mdash;"
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    if isinstance(v, int):
+        return f"{v:,}"
+    if isinstance(v, float):
+        if not math.isfinite(v):
+            return html.escape(str(v))
+        return f"{v:.4g}"
+    return html.escape(str(v))
+
+
+def _table(rows: list[tuple[str, Any]]) -> str:
+    body = "".join(f"<tr><th>{html.escape(k)}</th><td>{_fmt(v)}</td></tr>" for k, v in rows)
+    return f"<table>{body}</table>"
+
+
+_CSS = """
+body{font-family:-apple-system,"Segoe UI",Helvetica,Arial,sans-serif;max-width:980px;margin:2em auto;
+padding:0 1em;color:#1f2328;line-height:1.45}
+h1{font-size:1.6em;margin-bottom:.2em}h2{font-size:1.2em;border-bottom:1px solid #d0d7de;padding-bottom:.2em;
+margin-top:1.6em}
+.status{color:#fff;padding:.5em .8em;border-radius:6px;font-weight:600}
+.statement{font-size:1.08em;background:#f6f8fa;border-left:4px solid #4c72b0;padding:.7em 1em;margin:1em 0}
+table{border-collapse:collapse;margin:.5em 0}
+th,td{border:1px solid #d0d7de;padding:.25em .6em;text-align:left;font-size:.92em}
+th{background:#f6f8fa;font-weight:600}
+.vacuous{color:#b42318;font-weight:600}.ok{color:#1b7f3b;font-weight:600}
+img{max-width:100%;display:block;margin:.6em 0}.small{font-size:.85em;color:#57606a}
+code{background:#f6f8fa;padding:0 .25em;border-radius:3px}
+"""
+
+
+def render_report(result: CertifyResult) -> str:
+    """The full HTML page for a certification result (a string; no external resources).
+
+    Examples
+    --------
+    >>> from ipcverify.synthetic import make_lagged_perception
+    >>> from ipcverify.model import IPCModel, IPCNetwork, ModelConfig
+    >>> from ipcverify.certify import certify
+    >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(8,))))
+    >>> page = render_report(certify(m, make_lagged_perception(500, seed=2)))
+    >>> page.startswith("<!DOCTYPE html>") and "http" not in page
+    True
+    """
+    cert, ev = result.certificate, result.evidence
+    cal = cert.calibration
+    t = cert.test
+    color = _COLORS[cert.status]
+    parts = [
+        "<!DOCTYPE html>",
+        '<html lang="en"><head><meta charset="utf-8">',
+        "<title>ipcverify certificate</title>",
+        f"<style>{_CSS}</style></head><body>",
+        "<h1>Inverse perception contract: certificate</h1>",
+        f'<p class="status" style="background:{color}">{html.escape(cert.status.value)}</p>',
+        "<h2>What is guaranteed</h2>",
+        f'<p class="statement">{html.escape(cert.statement)}</p>',
+        '<p class="small">Assumption behind every statement on this page: the calibration samples, the '
+        "test samples and the samples met in deployment are exchangeable (for example, drawn i.i.d. from "
+        "the same distribution), and none of them was used for training. Nothing here holds under "
+        "distribution shift.</p>",
+    ]
+
+    parts.append("<h2>Calibration</h2>")
+    if cal is None:
+        parts.append(
+            "<p><b>Absent.</b> This model carries no calibration, so the calibration certificate is "
+            "missing. Run <code>ipcverify calibrate MODEL CALIBRATION_DATA --epsilon E --delta D --out "
+            "calibrated.pt</code> on held-out data.</p>"
+        )
+    else:
+        rows: list[tuple[str, Any]] = [
+            (
+                "mode",
+                cal["mode"] + (" (training-conditional)" if cal["mode"] == "pac" else " (split conformal)"),
+            ),
+            ("epsilon (target violation rate)", cal["epsilon"]),
+            ("delta", cal["delta"]),
+            ("calibration samples n", cal["n"]),
+        ]
+        if cal["kind"] == "global":
+            rows += [
+                ("order statistic k", cal["k"]),
+                ("scale factor s", cal["scale"]),
+                ("certified violation rate", cal["certified_epsilon"]),
+            ]
+        else:
+            rows += [("Mondrian column", cal["column"]), ("groups", len(cal["groups"]))]
+        parts.append(_table(rows))
+        if cal["kind"] == "mondrian":
+            grows = "".join(
+                f"<tr><td>{html.escape(g['label'])}</td><td>{_fmt(g['n'])}</td><td>{_fmt(g['k'])}</td>"
+                f"<td>{_fmt(g['scale'])}</td></tr>"
+                for g in cal["groups"]
+            )
+            parts.append(f"<table><tr><th>group</th><th>n</th><th>k</th><th>scale</th></tr>{grows}</table>")
+
+    parts.append("<h2>Test set</h2>")
+    parts.append(
+        _table(
+            [
+                ("test samples", t.n),
+                ("violations", t.violations),
+                ("empirical violation rate", t.empirical_rate),
+                (f"upper bound (Clopper-Pearson, confidence {1 - t.delta:.6g})", t.upper_bound),
+                (f"two-sided interval ({1 - t.delta:.6g})", f"[{t.interval[0]:.4g}, {t.interval[1]:.4g}]"),
+                ("mean log-volume of the sets", cert.volume["mean_log"]),
+                ("median log-volume", cert.volume["median_log"]),
+            ]
+        )
+    )
+    cons = cert.consistency
+    if cons.get("checked"):
+        verdict = "consistent" if cons["consistent"] else "CONTRADICTS the calibration"
+        parts.append(
+            f"<p>Consistency check: test lower bound {cons['test_lower_bound']:.4g} vs. allowed rate "
+            f"{cons['allowed_rate']:.4g}: <b>{verdict}</b>. <span class='small'>{html.escape(cons['rule'])}"
+            "</span></p>"
+        )
+    parts.append(_img(plot_scores(ev, cal is not None), "histogram of normalised test scores"))
+
+    parts.append("<h2>Conditional coverage</h2>")
+    parts.append(
+        "<p>The guarantee above is marginal (averaged over all inputs), not per region of the state "
+        "space. This plot shows how the violation rate varies across bins of "
+        f"<code>{html.escape(cert.coverage.column)}</code>.</p>"
+    )
+    parts.append(
+        _img(
+            plot_coverage(cert.coverage, t.delta, None if cal is None else cal["epsilon"]),
+            "violation rate per bin",
+        )
+    )
+
+    parts.append("<h2>Example sets</h2>")
+    parts.append(_img(plot_projections(ev), "projections of example ellipsoids"))
+
+    parts.append("<h2>Theorem 1 of the paper</h2>")
+    t1 = cert.theorem1
+    if t1 is None:
+        parts.append(f"<p><b>{html.escape(cert.theorem1_reason.capitalize())}.</b> Nothing is claimed.</p>")
+    else:
+        cls = "ok" if t1.usable else "vacuous"
+        parts.append(f'<p class="{cls}">{html.escape(t1.explanation())}</p>')
+
+        def nneed(v: int | None) -> str:
+            return "no N" if v is None else f"{v:.3g}"
+
+        rows2 = "".join(
+            f"<tr><th>{label}</th><td>{b.lipschitz:.4g}</td><td>{t1.empirical_term:.4g}</td>"
+            f"<td>{b.complexity:.4g}</td><td>{t1.confidence_term:.4g}</td><td>{b.bound:.4g}</td>"
+            f"<td>{'yes' if b.vacuous else 'no'}</td><td>{nneed(b.n_needed)}</td></tr>"
+            for label, b in (
+                ("sound L_g (upper bound; valid)", t1.sound),
+                ("empirical L_g (lower estimate; NOT a guarantee)", t1.optimistic),
+            )
+        )
+        parts.append(
+            "<table><tr><th></th><th>L_g</th><th>empirical truncated hinge</th>"
+            "<th>(12/&alpha;) L_g &radic;(p/N)</th><th>&radic;(ln(2/&delta;)/2N)</th><th>bound</th>"
+            f"<th>vacuous</th><th>N for bound &lt; 1</th></tr>{rows2}</table>"
+        )
+        parts.append(
+            f"<p class='small'>p = {t1.n_parameters:,} parameters, N = {t1.n_train:,} training samples, "
+            f"&alpha; = {t1.alpha:g}, &delta; = {t1.delta:g}. The sound L_g bounds the Lipschitz constant "
+            f"over the parameter ball of radius {t1.radius:g} around the trained weights and the bounding "
+            "box of the training data. The empirical L_g is the largest per-sample gradient norm at the "
+            "trained weights: a lower estimate, so its bound is optimistic and proves nothing. A bound "
+            "&ge; 1 says nothing about a probability.</p>"
+        )
+
+    m = cert.model
+    parts.append("<h2>Identity</h2>")
+    rows3: list[tuple[str, Any]] = [
+        ("model file", m["path"]),
+        ("model file SHA-256", m["file_sha256"]),
+        ("network SHA-256", m["network_sha256"]),
+        ("architecture", ", ".join(f"{k}={v}" for k, v in m["architecture"].items())),
+        ("parameters p", m["n_parameters"]),
+        ("test data", cert.data["test"]["source"]),
+        ("test data SHA-256 (content)", cert.data["test"]["content_sha256"]),
+    ]
+    if cal is not None:
+        rows3.append(("calibration data SHA-256 (content)", cal["data_sha256"]))
+    if cert.data.get("train"):
+        rows3.append(("training data SHA-256 (content)", cert.data["train"]["content_sha256"]))
+    parts.append(_table(rows3))
+    parts.append(
+        "<p class='small'>Generated by ipcverify. The machine-readable record is "
+        "<code>certificate.json</code> beside this file.</p></body></html>"
+    )
+    return "\n".join(parts)
