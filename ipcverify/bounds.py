@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 from fractions import Fraction
+from functools import lru_cache
 from typing import Literal
 
 from scipy import stats
@@ -143,6 +144,7 @@ def _binom_cdf(m: int, n: int, p: float) -> float:
     return float(stats.binom.cdf(m, n, p))
 
 
+@lru_cache(maxsize=256)
 def _pac_min_n(epsilon: float, delta: float) -> int:
     """Smallest n with (1 - epsilon)^n <= delta (with the rounding margin)."""
     guess = max(1, math.ceil(math.log(delta) / math.log1p(-epsilon)))
@@ -186,7 +188,11 @@ def pac_calibration_index(n: int, epsilon: float, delta: float) -> int:
     delta = _check_probability("delta", delta)
     if int(n) != n or n < 1:
         raise InvalidInputError(f"n must be a positive integer; got {n!r}")
-    n = int(n)
+    return _pac_index(int(n), epsilon, delta)
+
+
+@lru_cache(maxsize=4096)
+def _pac_index(n: int, epsilon: float, delta: float) -> int:
     threshold = delta * (1.0 - TAIL_MARGIN)
     if _binom_cdf(0, n, epsilon) > threshold:
         need = _pac_min_n(epsilon, delta)

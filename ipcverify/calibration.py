@@ -447,9 +447,9 @@ class MondrianCalibration:
         idx = order[pos]
         unseen = values[idx] != v
         if unseen.any():
-            bad = v[np.flatnonzero(unseen)[0]]
+            bad = float(v[np.flatnonzero(unseen)[0]])
             raise InvalidInputError(
-                f"column {self.column!r} has value {bad!r}, a group never seen in calibration "
+                f"column {self.column!r} has value {bad:g}, a group never seen in calibration "
                 f"(known groups: {', '.join(f'{x:g}' for x in np.sort(values))}); the contract "
                 "certifies nothing for it -- recalibrate with data that covers this group"
             )

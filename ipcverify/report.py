@@ -54,7 +54,7 @@ def figure_to_png(fig: Figure, dpi: int = 100) -> bytes:
     """
     FigureCanvasAgg(fig)
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
+    fig.savefig(buf, format="png", dpi=dpi)
     return buf.getvalue()
 
 
@@ -75,6 +75,7 @@ def plot_scores(evidence: CertifyEvidence, calibrated: bool) -> Figure:
         title += f" ({over} beyond {hi:.3g}, drawn in the last bin)"
     ax.set_title(title, fontsize=10)
     ax.legend(loc="upper right", fontsize=8)
+    fig.subplots_adjust(left=0.1, right=0.97, bottom=0.16, top=0.9)
     return fig
 
 
@@ -118,6 +119,7 @@ def plot_coverage(coverage: BinCoverage, delta: float, epsilon: float | None) ->
     ax.set_ylim(bottom=0.0)
     ax.set_title(f"Conditional coverage by {coverage.column}", fontsize=10)
     ax.legend(fontsize=8, loc="upper right")
+    fig.subplots_adjust(left=0.1, right=0.97, bottom=0.3, top=0.9)
     return fig
 
 
@@ -168,7 +170,7 @@ def plot_projections(evidence: CertifyEvidence) -> Figure:
                     loc="left",
                 )
     fig.suptitle("Calibrated sets (projections); x = ground truth, + = perceived value", fontsize=10)
-    fig.tight_layout()
+    fig.subplots_adjust(left=0.08, right=0.98, bottom=0.06, top=0.93, wspace=0.45, hspace=0.5)
     return fig
 
 
