@@ -204,8 +204,10 @@ class Theorem1Result:
         """Plain-language verdict on the bound."""
         if self.usable:
             return (
-                f"Theorem 1 with the sound L_g gives {self.sound.bound:.4g} < 1, valid with probability "
-                f"{1 - self.delta:.6g} for parameters within radius {self.radius:g} of the trained ones."
+                f"Theorem 1 with the sound L_g gives {self.sound.bound:.4g} < 1 (confidence "
+                f"{1 - self.delta:.6g}), valid only under the assumptions of proofs/theorem1.md: the data's "
+                f"support lies in the training data's box, and the parameter ball of radius {self.radius:g} "
+                "around the trained weights is taken as the hypothesis class. It is not a certificate."
             )
         why = (
             f"the complexity term (12/alpha) L_g sqrt(p/N) alone is {self.sound.complexity:.3g} with the "
@@ -244,11 +246,13 @@ class Theorem1Result:
             "bound_with_empirical_lipschitz": self.optimistic.bound,
             "vacuous_with_empirical_lipschitz": self.optimistic.vacuous,
             "n_needed_with_empirical_lipschitz": self.optimistic.n_needed,
-            "guarantee": self.usable,
+            "guarantee": self.usable,  # non-vacuous with the sound L_g (see "note" for its assumptions)
             "note": (
                 "Only the sound L_g (an upper bound over the parameter ball and the training data's "
                 "box) can make Theorem 1 valid; the empirical L_g is a lower estimate and its bound is "
-                "optimistic, not a guarantee. A bound >= 1 is vacuous."
+                "optimistic, not a guarantee. A bound >= 1 is vacuous. Even a sound bound < 1 rests on the "
+                "assumptions listed in proofs/theorem1.md (support inside the box, the parameter ball as "
+                "the hypothesis class)."
             ),
             "explanation": self.explanation(),
         }
