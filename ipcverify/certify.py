@@ -419,7 +419,8 @@ def certify(
     coverage = coverage_by_bin(np.asarray(test_data.column(column), dtype=float), violated, column, bins)
 
     test_sentence = (
-        f"Independently, {test.violations} of {test.n} fresh test samples were violated, so with "
+        f"Independently, the ground truth fell outside its set for {test.violations} of {test.n} fresh "
+        f"test samples, so with "
         f"confidence {1 - delta:.6g} the violation rate of this contract is at most {test.upper_bound:.4g} "
         "(Clopper-Pearson; valid if the test samples are i.i.d. from deployment and unused in training "
         "and calibration)."

@@ -318,6 +318,11 @@ def render_report(result: CertifyResult) -> str:
     )
 
     parts.append("<h2>Example sets</h2>")
+    parts.append(
+        "<p class='small'>The smallest, median and largest set of the test data, and one violated sample "
+        "(if any), projected on pairs of coordinates of y. A truth outside the n-dimensional set can "
+        "still lie inside some, or even all, of its 2-D shadows.</p>"
+    )
     parts.append(_img(plot_projections(ev), "projections of example ellipsoids"))
 
     parts.append("<h2>Theorem 1 of the paper</h2>")
