@@ -57,6 +57,7 @@ __all__ = [
     "calibrate",
     "calibration_from_dict",
     "network_fingerprint",
+    "describe_groups",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -761,7 +762,14 @@ def calibrate(
 
 
 def describe_groups(cal: Calibration) -> Sequence[dict[str, Any]]:
-    """Per-group rows (label, n, k, scale) for reports; one row for a global calibration."""
+    """Per-group rows (label, n, k, scale) for reports; one row for a global calibration.
+
+    Examples
+    --------
+    >>> t = threshold_scores(np.linspace(0.1, 2.0, 200), epsilon=0.1, delta=0.1, mode="marginal")
+    >>> describe_groups(GlobalCalibration(threshold=t, data_hash="d", network_hash="h"))[0]["k"]
+    181
+    """
     if isinstance(cal, GlobalCalibration):
         t = cal.threshold
         return [{"label": "all", "n": t.n, "k": t.k, "scale": t.scale}]
