@@ -52,7 +52,8 @@ def main(repeats: int = 3) -> dict[str, object]:
             "all_losses_finite": finite,
             "meets_target": statistics.median(times) <= 10.0,
         }
-        print(f"{param:9s} median {statistics.median(times):.2f} s (min {min(times):.2f}, max {max(times):.2f}), finite={finite}")
+        med = statistics.median(times)
+        print(f"{param:9s} median {med:.2f} s (min {min(times):.2f}, max {max(times):.2f}), finite={finite}")
     OUT.write_text(json.dumps(results, indent=2) + "\n")
     return results
 

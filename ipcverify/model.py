@@ -207,6 +207,10 @@ class SetCalibration(Protocol):
         """Plain-data form stored in the model file."""
         ...
 
+    def guarantee(self) -> str:
+        """The guarantee in one plain sentence."""
+        ...
+
 
 @dataclass(frozen=True, eq=False)
 class IPCModel:

@@ -75,14 +75,36 @@ def test_predict_npz(run_cli, files, model_path, tmp_path):
 def test_demo(run_cli, tmp_path):
     res = run_cli("demo", "--out", tmp_path / "demo", "--n", "400")
     assert res.code == 0, res.stderr
-    assert "IPC on fresh test data" in res.stdout
-    assert (tmp_path / "demo" / "model.pt").is_file()
+    assert "IPC calibrated (PAC)" in res.stdout and "guarantee:" in res.stdout
+    for name in ("train.csv", "calibration.csv", "test.csv", "model.pt"):
+        assert (tmp_path / "demo" / name).is_file()
+    cal = load_model(tmp_path / "demo" / "calibrated.pt")
+    assert cal.calibration is not None and cal.calibration.n == 5000
+
+
+def test_demo_calibrated_sets_keep_their_guarantee(tmp_path):
+    """PAC at epsilon = 0.01, delta = 0.001: with probability >= 0.999 the true violation rate
+    is <= 1 %, and then 20,000 test samples show more than the binomial 1 - 1e-6 quantile of
+    violations with probability <= 1e-6.  The global ellipsoid is calibrated the same way."""
+    from scipy.stats import binom
+
+    from ipcverify.demo import run_demo
+
+    s = run_demo(tmp_path, n_train=600, seed=3)
+    limit = binom.ppf(1 - 1e-6, s.calibrated.n, 0.01)
+    assert s.calibrated.violations <= limit
+    assert s.global_violations <= limit
+    # the calibrated IPC is smaller than the global ellipsoid on this input-dependent error
+    assert s.calibrated.log_volume_mean < s.global_log_volume
 
 
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (["train", "{train}", "--out", "{tmp}/m.pt", "--hidden", "64,abc"], "--hidden must be comma-separated"),
+        (
+            ["train", "{train}", "--out", "{tmp}/m.pt", "--hidden", "64,abc"],
+            "--hidden must be comma-separated",
+        ),
         (["train", "{train}", "--out", "{tmp}/m.pt", "--epochs", "0"], "epochs must be >= 1"),
         (["train", "{train}", "--out", "{tmp}/m.pt", "--lr", "-1"], "lr must be > 0"),
         (["train", "{train}", "--out", "{tmp}/m.pt", "--patience", "2"], "needs a validation split"),

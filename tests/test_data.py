@@ -29,7 +29,14 @@ def test_roundtrip_formats(tmp_path, small, suffix):
 
 def test_custom_columns_and_extra(tmp_path):
     df = pd.DataFrame(
-        {"speed": [1.0, 2.0], "px": [0.1, 0.2], "py": [0.3, 0.4], "ex": [0.1, 0.25], "ey": [0.3, 0.4], "grp": ["a", "b"]}
+        {
+            "speed": [1.0, 2.0],
+            "px": [0.1, 0.2],
+            "py": [0.3, 0.4],
+            "ex": [0.1, 0.25],
+            "ey": [0.3, 0.4],
+            "grp": ["a", "b"],
+        }
     )
     p = tmp_path / "c.csv"
     df.to_csv(p, index=False)

@@ -43,7 +43,9 @@ def test_network_logdet_and_sets_are_consistent(param, center):
     net.set_normalisation(x, y, yhat)
     c, C, logdet = net(torch.tensor(x, dtype=torch.float32), torch.tensor(yhat, dtype=torch.float32))
     Cd = C.detach().double()  # reference in float64: C^T C squares the condition number
-    assert torch.allclose(logdet.detach().double(), torch.logdet(Cd.transpose(1, 2) @ Cd), rtol=1e-4, atol=1e-4)
+    assert torch.allclose(
+        logdet.detach().double(), torch.logdet(Cd.transpose(1, 2) @ Cd), rtol=1e-4, atol=1e-4
+    )
     if param == "cholesky":
         assert torch.all(torch.triu(C, diagonal=1) == 0)
         assert torch.all(torch.diagonal(C, dim1=1, dim2=2) > 0)

@@ -28,9 +28,7 @@ def _f(x: np.ndarray, u: np.ndarray) -> np.ndarray:
 
 
 @settings(max_examples=30, deadline=None, derandomize=True)
-@given(
-    px=st.floats(-3, 3), py=st.floats(-3, 3), pz=st.floats(0.2, 3), yaw=st.floats(-np.pi, np.pi)
-)
+@given(px=st.floats(-3, 3), py=st.floats(-3, 3), pz=st.floats(0.2, 3), yaw=st.floats(-np.pi, np.pi))
 def test_hover_is_an_equilibrium_anywhere(px, py, pz, yaw):
     x = hover_state((px, py, pz), yaw)
     u = np.full(4, hover_thrust(QUAD))

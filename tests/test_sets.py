@@ -101,8 +101,16 @@ def test_immutable_and_copied():
     [
         (np.zeros((2, 3)), np.eye(3)[None].repeat(1, 0), r"disagree"),
         (np.array([[0.0, np.nan]]), np.eye(2)[None], r"ellipsoid 0: center has a non-finite"),
-        (np.zeros((2, 2)), np.stack([np.eye(2), [[1.0, np.inf], [0, 1]]]), r"ellipsoid 1: shape matrix has a non-finite"),
-        (np.zeros((2, 2)), np.stack([np.eye(2), [[1.0, 1.0], [1.0, 1.0]]]), r"ellipsoid 1: shape matrix is singular"),
+        (
+            np.zeros((2, 2)),
+            np.stack([np.eye(2), [[1.0, np.inf], [0, 1]]]),
+            r"ellipsoid 1: shape matrix has a non-finite",
+        ),
+        (
+            np.zeros((2, 2)),
+            np.stack([np.eye(2), [[1.0, 1.0], [1.0, 1.0]]]),
+            r"ellipsoid 1: shape matrix is singular",
+        ),
         (np.zeros((1, 2)), np.zeros((1, 2, 3)), r"shapes must have shape \(B, n, n\)"),
     ],
 )

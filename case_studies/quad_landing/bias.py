@@ -101,9 +101,7 @@ def refinement_bias(
                 x = hover_state(pad + np.array([dx, dy, r - p.offset[2]]),
                                 rng.uniform(-np.pi, np.pi))  # fmt: skip
                 x[6:8] = rng.uniform(-0.15, 0.15, 2)
-                outline = flight.renderer.pad_corners_camera(
-                    flight.camera_pose(x).inverse(), flight.pad
-                )
+                outline = flight.renderer.pad_corners_camera(flight.camera_pose(x).inverse(), flight.pad)
                 if flight.camera.in_view(outline, margin_px=3.0):
                     break
             flight.reset(x)
@@ -118,9 +116,7 @@ def refinement_bias(
                     results[m].append((rel, float(np.linalg.norm(yhat - y_c))))
         for m in perceptions:
             res = np.array(results[m]).reshape(-1, 2)
-            q25, q50, q75 = (
-                np.percentile(res[:, 0], [25, 50, 75]) if len(res) else (np.nan,) * 3
-            )
+            q25, q50, q75 = np.percentile(res[:, 0], [25, 50, 75]) if len(res) else (np.nan,) * 3
             rows.append(
                 {
                     "detector": m,

@@ -133,9 +133,7 @@ class Camera:
                 "check visibility with Camera.in_view first"
             )
         p = self.params
-        return np.column_stack(
-            [p.fx * pts[:, 0] / pts[:, 2] + p.cx, p.fy * pts[:, 1] / pts[:, 2] + p.cy]
-        )
+        return np.column_stack([p.fx * pts[:, 0] / pts[:, 2] + p.cx, p.fy * pts[:, 1] / pts[:, 2] + p.cy])
 
     def in_view(self, points_c: ArrayLike, margin_px: float = 0.0, near: float = 0.05) -> bool:
         """True if every point is at least ``near`` m in front and ``margin_px`` inside the image."""

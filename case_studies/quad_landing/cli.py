@@ -38,18 +38,42 @@ def quad() -> None:
 
 
 @quad.command("collect")
-@click.option("--buffer-size", "-k", type=click.IntRange(0, MAX_BUFFER_SIZE), default=None,
-              help="Camera buffer size k (frames of lag) [default: from the config, 1].")
-@click.option("--n", "n", type=click.IntRange(min=1), default=None,
-              help="Samples with a detection to collect [default: from the config, 5000].")
-@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
-              help="Random seed.")
-@click.option("--out", type=click.Path(dir_okay=False), required=True,
-              help="Output dataset, .parquet or .csv; a <stem>.stats.json is written beside.")
-@click.option("--config", "config_path", type=click.Path(dir_okay=False), default=None,
-              help="TOML file overriding defaults.toml.")
-@click.option("--jobs", "-j", type=click.IntRange(1, 64), default=1, show_default=True,
-              help="Worker processes (the data do not depend on it).")
+@click.option(
+    "--buffer-size",
+    "-k",
+    type=click.IntRange(0, MAX_BUFFER_SIZE),
+    default=None,
+    help="Camera buffer size k (frames of lag) [default: from the config, 1].",
+)
+@click.option(
+    "--n",
+    "n",
+    type=click.IntRange(min=1),
+    default=None,
+    help="Samples with a detection to collect [default: from the config, 5000].",
+)
+@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True, help="Random seed.")
+@click.option(
+    "--out",
+    type=click.Path(dir_okay=False),
+    required=True,
+    help="Output dataset, .parquet or .csv; a <stem>.stats.json is written beside.",
+)
+@click.option(
+    "--config",
+    "config_path",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="TOML file overriding defaults.toml.",
+)
+@click.option(
+    "--jobs",
+    "-j",
+    type=click.IntRange(1, 64),
+    default=1,
+    show_default=True,
+    help="Worker processes (the data do not depend on it).",
+)
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 def collect_command(buffer_size: int | None, n: int | None, seed: int, out: str,
                     config_path: str | None, jobs: int, quiet: bool) -> None:  # fmt: skip
@@ -82,12 +106,21 @@ def collect_command(buffer_size: int | None, n: int | None, seed: int, out: str,
 
 
 @quad.command("pictures")
-@click.option("--out", type=click.Path(file_okay=False), default="docs/img", show_default=True,
-              help="Directory for quad_camera_frame.png, quad_paths.png, quad_lag_error.png.")
-@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
-              help="Random seed.")
-@click.option("--config", "config_path", type=click.Path(dir_okay=False), default=None,
-              help="TOML file overriding defaults.toml.")
+@click.option(
+    "--out",
+    type=click.Path(file_okay=False),
+    default="docs/img",
+    show_default=True,
+    help="Directory for quad_camera_frame.png, quad_paths.png, quad_lag_error.png.",
+)
+@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True, help="Random seed.")
+@click.option(
+    "--config",
+    "config_path",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="TOML file overriding defaults.toml.",
+)
 def pictures_command(out: str, seed: int, config_path: str | None) -> None:
     """Write the documentation pictures (a camera frame, the paths, lag error per k)."""
     from case_studies.quad_landing.pictures import write_pictures
@@ -104,10 +137,14 @@ def pictures_command(out: str, seed: int, config_path: str | None) -> None:
 
 @quad.command("bias")
 @click.option("--poses", type=click.IntRange(min=1), default=100, show_default=True, help="Poses per range.")
-@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
-              help="Random seed.")
-@click.option("--config", "config_path", type=click.Path(dir_okay=False), default=None,
-              help="TOML file overriding defaults.toml.")
+@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True, help="Random seed.")
+@click.option(
+    "--config",
+    "config_path",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="TOML file overriding defaults.toml.",
+)
 def bias_command(poses: int, seed: int, config_path: str | None) -> None:
     """Measure the range bias and speed of each ArUco corner refinement (no lag)."""
     from case_studies.quad_landing.bias import refinement_bias
@@ -117,20 +154,47 @@ def bias_command(poses: int, seed: int, config_path: str | None) -> None:
 
 
 @quad.command("reproduce")
-@click.option("--out", type=click.Path(file_okay=False), required=True,
-              help="Output directory: report.html, summary.json, figures/, cached data/ and models/.")
+@click.option(
+    "--out",
+    type=click.Path(file_okay=False),
+    required=True,
+    help="Output directory: report.html, summary.json, figures/, cached data/ and models/.",
+)
 @click.option("--quick", is_flag=True, help="Smaller sizes, same pipeline (about 2-3 minutes).")
-@click.option("--jobs", "-j", type=click.IntRange(1, 1024), default=None,
-              help="Parallel workers for the landing campaigns [default: all cores].")
-@click.option("--backend", type=click.Choice(["loky", "sequential", "ray"]), default="loky",
-              show_default=True,
-              help="joblib backend of the campaigns; 'ray' needs pip install 'ipcverify[ray]'.")
-@click.option("--mc-runs", type=click.IntRange(min=1), default=None,
-              help="Monte Carlo runs per contract [default: from reproduce.toml, 300].")
-@click.option("--config", "config_path", type=click.Path(dir_okay=False), default=None,
-              help="TOML file overriding defaults.toml (the simulator).")
-@click.option("--settings", "settings_path", type=click.Path(dir_okay=False), default=None,
-              help="TOML file overriding reproduce.toml (sizes, landing, IPC recipe).")
+@click.option(
+    "--jobs",
+    "-j",
+    type=click.IntRange(1, 1024),
+    default=None,
+    help="Parallel workers for the landing campaigns [default: all cores].",
+)
+@click.option(
+    "--backend",
+    type=click.Choice(["loky", "sequential", "ray"]),
+    default="loky",
+    show_default=True,
+    help="joblib backend of the campaigns; 'ray' needs pip install 'ipcverify[ray]'.",
+)
+@click.option(
+    "--mc-runs",
+    type=click.IntRange(min=1),
+    default=None,
+    help="Monte Carlo runs per contract [default: from reproduce.toml, 300].",
+)
+@click.option(
+    "--config",
+    "config_path",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="TOML file overriding defaults.toml (the simulator).",
+)
+@click.option(
+    "--settings",
+    "settings_path",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="TOML file overriding reproduce.toml (sizes, landing, IPC recipe).",
+)
 @click.option("--quiet", is_flag=True, help="No progress bars.")
 def reproduce_command(out: str, quick: bool, jobs: int | None, backend: str, mc_runs: int | None,
                       config_path: str | None, settings_path: str | None, quiet: bool) -> None:  # fmt: skip

@@ -378,9 +378,7 @@ def write_dataset(data: pd.DataFrame, out: str | Path, stats: CollectStats | Non
     path = Path(out)
     suffix = path.suffix.lower()
     if suffix not in (".parquet", ".csv"):
-        raise InvalidInputError(
-            f"output file must end in .parquet or .csv, got {path.name!r}"
-        )
+        raise InvalidInputError(f"output file must end in .parquet or .csv, got {path.name!r}")
     if not path.parent.exists():
         raise InvalidInputError(f"output directory {path.parent} does not exist; create it first")
 
@@ -392,4 +390,3 @@ def write_dataset(data: pd.DataFrame, out: str | Path, stats: CollectStats | Non
         text = json.dumps(stats.as_dict(), indent=2) + "\n"
         atomic_write(path.with_name(path.stem + ".stats.json"), lambda fh: fh.write(text), "w")
     return path
-

@@ -169,8 +169,7 @@ class SimConfig:
                 out[f.name] = {"position": part.position.tolist(), "yaw": part.yaw}
             else:
                 out[f.name] = {
-                    k: list(v) if isinstance(v, tuple) else v
-                    for k, v in dataclasses.asdict(part).items()
+                    k: list(v) if isinstance(v, tuple) else v for k, v in dataclasses.asdict(part).items()
                 }
         return out
 
@@ -200,9 +199,7 @@ def _merge(
     out = {name: dict(section) for name, section in base.items()}
     for name, section in over.items():
         if name not in _SECTIONS:
-            raise ConfigError(
-                f"{source}: unknown section [{name}]; valid sections: {', '.join(_SECTIONS)}"
-            )
+            raise ConfigError(f"{source}: unknown section [{name}]; valid sections: {', '.join(_SECTIONS)}")
         if not isinstance(section, Mapping):
             raise ConfigError(f"{source}: [{name}] must be a table of keys, got {section!r}")
         valid = {f.name for f in dataclasses.fields(_SECTIONS[name]) if f.init}

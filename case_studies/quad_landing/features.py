@@ -64,9 +64,7 @@ def camera_velocity_world(state: ArrayLike, camera: Camera) -> FloatArray:
     return x[3:6] + R_WQ @ np.cross(x[9:12], np.asarray(camera.params.offset))
 
 
-def camera_frame_state(
-    state: ArrayLike, camera: Camera, ground_z: float = 0.0
-) -> tuple[FloatArray, Pose]:
+def camera_frame_state(state: ArrayLike, camera: Camera, ground_z: float = 0.0) -> tuple[FloatArray, Pose]:
     """``x_C`` (12,) for a world-frame state, and the camera pose ``T_WC`` used.
 
     Parameters

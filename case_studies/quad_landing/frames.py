@@ -156,10 +156,7 @@ def mount_rotation(tilt_deg: float) -> FloatArray:
 def _check_rotation(R: FloatArray, name: str) -> None:
     if R.shape != (3, 3) or not np.all(np.isfinite(R)):
         raise InvalidInputError(f"{name} must be a finite 3x3 matrix, got shape {R.shape}")
-    if (
-        np.linalg.norm(R.T @ R - np.eye(3)) > ROTATION_TOL
-        or abs(np.linalg.det(R) - 1.0) > ROTATION_TOL
-    ):
+    if np.linalg.norm(R.T @ R - np.eye(3)) > ROTATION_TOL or abs(np.linalg.det(R) - 1.0) > ROTATION_TOL:
         raise InvalidInputError(
             f"{name} is not a rotation (R^T R != I or det R != 1); "
             "orthonormalise it (e.g. with scipy.spatial.transform.Rotation) first"
@@ -252,9 +249,7 @@ def world_from_quad(state: ArrayLike) -> Pose:
     return Pose._trusted(euler_to_matrix(x[6], x[7], x[8]), x[0:3])
 
 
-def transform_ellipsoid(
-    center: ArrayLike, shape: ArrayLike, pose: Pose
-) -> tuple[FloatArray, FloatArray]:
+def transform_ellipsoid(center: ArrayLike, shape: ArrayLike, pose: Pose) -> tuple[FloatArray, FloatArray]:
     """Move the ellipsoid ``{y : ||C (y - c)|| <= 1}`` through ``p_A = R p_B + t``.
 
     The image is ``{y : ||C R^T (y - (R c + t))|| <= 1}``: centre ``R c + t`` and shape

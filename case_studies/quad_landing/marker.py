@@ -96,8 +96,7 @@ class MarkerParams:
         n = d.bytesList.shape[0]
         if int(self.marker_id) != self.marker_id or not 0 <= self.marker_id < n:
             raise InvalidInputError(
-                f"marker.marker_id must be an integer in [0, {n}) for {self.dictionary}, "
-                f"got {self.marker_id}"
+                f"marker.marker_id must be an integer in [0, {n}) for {self.dictionary}, got {self.marker_id}"
             )
         if not (np.isfinite(self.side) and 0 < self.side <= 2.0):
             raise InvalidInputError(f"marker.side must be in (0, 2] m, got {self.side}")
@@ -203,8 +202,8 @@ def _pad_textures(marker: MarkerParams) -> dict[int, UInt8Image]:
     while cell <= MAX_CELL_PX:
         m = int(marker.margin_cells) * cell
         tex = np.full((marker.cells * cell, marker.cells * cell), 255, np.uint8)
-        tex[m : m + MARKER_CELLS * cell, m : m + MARKER_CELLS * cell] = (
-            cv2.aruco.generateImageMarker(d, int(marker.marker_id), MARKER_CELLS * cell, None, 1)
+        tex[m : m + MARKER_CELLS * cell, m : m + MARKER_CELLS * cell] = cv2.aruco.generateImageMarker(
+            d, int(marker.marker_id), MARKER_CELLS * cell, None, 1
         )
         out[tex.shape[0]] = tex
         cell *= 2
@@ -268,15 +267,11 @@ class Renderer:
 
     def pad_corners_camera(self, camera_from_world: Pose, pad: Pad) -> FloatArray:
         """Outer corners of the white pad square in C, shape (4, 3), texture order."""
-        return camera_from_world.compose(pad.world_from_marker()).apply(
-            self.marker.pad_outline()
-        )
+        return camera_from_world.compose(pad.world_from_marker()).apply(self.marker.pad_outline())
 
     def marker_corners_camera(self, camera_from_world: Pose, pad: Pad) -> FloatArray:
         """Marker corners in C, shape (4, 3), in ArUco order."""
-        return camera_from_world.compose(pad.world_from_marker()).apply(
-            self.marker.object_points()
-        )
+        return camera_from_world.compose(pad.world_from_marker()).apply(self.marker.object_points())
 
     def _draw_floor(self, img: UInt8Image, camera_from_world: Pose) -> None:
         if self._floor is None:
@@ -336,9 +331,7 @@ class Renderer:
         i, oy, ox = key % NOISE_BANK, (key // NOISE_BANK) % 64, (key // (64 * NOISE_BANK)) % 64
         return self._noise[i, oy : oy + p.height, ox : ox + p.width]
 
-    def render(
-        self, camera_from_world: Pose, pad: Pad, noise: np.random.Generator | int
-    ) -> UInt8Image:
+    def render(self, camera_from_world: Pose, pad: Pad, noise: np.random.Generator | int) -> UInt8Image:
         """Draw one frame seen from ``camera_from_world`` (``T_CW``).
 
         Parameters
@@ -370,4 +363,3 @@ class Renderer:
             noisy = img.astype(np.int16) + self._noise_field(key)
             img = np.clip(noisy, 0, 255).astype(np.uint8)
         return img
-

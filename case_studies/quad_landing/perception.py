@@ -84,14 +84,10 @@ class DetectorParams:
             )
         shift = self.april_tag_corner_shift_px
         if not (np.isfinite(shift) and abs(shift) <= 1.0):
-            raise InvalidInputError(
-                f"detector.april_tag_corner_shift_px must be in [-1, 1] px, got {shift}"
-            )
+            raise InvalidInputError(f"detector.april_tag_corner_shift_px must be in [-1, 1] px, got {shift}")
         rate = self.min_marker_perimeter_rate
         if not (np.isfinite(rate) and 0 < rate < 4):
-            raise InvalidInputError(
-                f"detector.min_marker_perimeter_rate must be in (0, 4), got {rate}"
-            )
+            raise InvalidInputError(f"detector.min_marker_perimeter_rate must be in (0, 4), got {rate}")
 
 
 @dataclass(eq=False)

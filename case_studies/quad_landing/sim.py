@@ -243,9 +243,7 @@ class Flight:
         camera_from_world = self.camera_pose(x).inverse()
         pad = self.pad
         key = int(self._rng.integers(2**31))  # this frame's noise, fixed at capture
-        return Frame(
-            self._time, x, render=lambda: self.renderer.render(camera_from_world, pad, key)
-        )
+        return Frame(self._time, x, render=lambda: self.renderer.render(camera_from_world, pad, key))
 
     def pad_in_view(self, state: ArrayLike | None = None, margin_px: float = 0.0) -> bool:
         """True if the whole white pad would be inside the image at ``state`` (default: now).
@@ -262,9 +260,7 @@ class Flight:
         return self.buffer.newest().image
 
     # ------------------------------------------------------------------ motion
-    def _advance(
-        self, p_ref: FloatArray, v_ref: FloatArray, ff: FloatArray, yaw_ref: FloatArray
-    ) -> None:
+    def _advance(self, p_ref: FloatArray, v_ref: FloatArray, ff: FloatArray, yaw_ref: FloatArray) -> None:
         """One camera frame: ``substeps`` physics steps with per-step references, then capture.
 
         Row ``i`` of each array is the reference of physics step ``i``; ``ff`` rows are
