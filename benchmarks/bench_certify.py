@@ -1,6 +1,6 @@
 """Benchmark: ``ipcverify certify`` on 10,000 test samples, plus the synthetic acceptance numbers.
 
-Run ``python benchmarks/bench_certify.py``. Target (issue 3): certify on 10,000 test
+Run ``python -m benchmarks.bench_certify``. Target (issue 3): certify on 10,000 test
 samples, Lipschitz computations included, in <= 10 s on 2 CPU cores. Two timings are
 recorded: the library call :func:`ipcverify.certify.certify_files` in a warm process
 (load files, certify with Theorem 1 and both Lipschitz constants, write JSON and HTML)
@@ -16,8 +16,6 @@ Theorem 1 numbers. Writes ``benchmarks/certify_results.json``.
 from __future__ import annotations
 
 import json
-import os
-import platform
 import statistics
 import subprocess
 import sys
@@ -26,8 +24,8 @@ import time
 from pathlib import Path
 
 import numpy as np
-import torch
 
+from benchmarks.common import machine_info
 from ipcverify.baselines import fit_bonferroni_box, fit_global_mahalanobis
 from ipcverify.bounds import clopper_pearson_upper
 from ipcverify.calibration import calibrate
@@ -55,13 +53,7 @@ def main(repeats: int = 3) -> dict[str, object]:
     save_model(cal_model, work / "calibrated.pt")
 
     results: dict[str, object] = {
-        "machine": {
-            "cpu_count": os.cpu_count(),
-            "torch_threads": torch.get_num_threads(),
-            "platform": platform.platform(),
-            "python": platform.python_version(),
-            "torch": torch.__version__,
-        },
+        "machine": machine_info(),
         "target_seconds": TARGET,
         "n_test": len(test_data),
         "n_train": len(train_data),

@@ -10,7 +10,7 @@ Measures, for n = 3:
 * how often each prover answers UNKNOWN over a sweep of conditioning (1 to 1e6) and
   relative margins (1e-1 to 1e-12, contained and not).
 
-Run ``python benchmarks/bench_containment.py``; results are printed and written to
+Run ``python -m benchmarks.bench_containment``; results are printed and written to
 ``benchmarks/containment_results.json``.
 """
 
@@ -18,10 +18,7 @@ from __future__ import annotations
 
 import itertools
 import json
-import os
-import platform
 import statistics
-import sys
 import time
 from collections import Counter
 from fractions import Fraction
@@ -31,6 +28,7 @@ import clarabel
 import cvxpy as cp
 import numpy as np
 
+from benchmarks.common import machine_info
 from ipcverify.containment import (
     Box,
     Polytope,
@@ -216,14 +214,7 @@ def unknown_rates(rng, per_cell=8):
 def main() -> None:
     rng = np.random.default_rng(20240601)
     results = {
-        "machine": {
-            "python": sys.version.split()[0],
-            "platform": platform.platform(),
-            "cpus": os.cpu_count(),
-            "numpy": np.__version__,
-            "cvxpy": cp.__version__,
-            "clarabel": clarabel.__version__,
-        },
+        "machine": {**machine_info(), "cvxpy": cp.__version__, "clarabel": clarabel.__version__},
         "closed_form_batch_n3": bench_closed_form_batch(rng),
         "sdp_per_problem_n3": bench_sdp(rng),
         "exact_recheck_n3": bench_exact(rng),

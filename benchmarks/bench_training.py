@@ -1,6 +1,6 @@
 """Benchmark: training in the paper's configuration (N = 5000, 20 epochs, (64, 128), Adam 1e-3).
 
-Run ``python benchmarks/bench_training.py``. Target (issue 2): <= 10 s on 2 CPU cores;
+Run ``python -m benchmarks.bench_training``. Target (issue 2): <= 10 s on 2 CPU cores;
 the ``cholesky`` parameterisation never gives a non-finite loss. Writes
 ``benchmarks/training_results.json``.
 """
@@ -8,15 +8,13 @@ the ``cholesky`` parameterisation never gives a non-finite loss. Writes
 from __future__ import annotations
 
 import json
-import os
-import platform
 import statistics
 import time
 from pathlib import Path
 
 import numpy as np
-import torch
 
+from benchmarks.common import machine_info
 from ipcverify.model import ModelConfig
 from ipcverify.synthetic import make_lagged_perception
 from ipcverify.training import TrainConfig, train
@@ -27,13 +25,7 @@ OUT = Path(__file__).with_name("training_results.json")
 def main(repeats: int = 3) -> dict[str, object]:
     data = make_lagged_perception(5000, seed=0)
     results: dict[str, object] = {
-        "machine": {
-            "cpu_count": os.cpu_count(),
-            "torch_threads": torch.get_num_threads(),
-            "platform": platform.platform(),
-            "python": platform.python_version(),
-            "torch": torch.__version__,
-        },
+        "machine": machine_info(),
         "target_seconds": 10.0,
     }
     for param in ("cholesky", "full"):

@@ -8,7 +8,6 @@ value, a bad config file, an output path that cannot be written) prints one
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 import click
@@ -17,6 +16,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 
 from case_studies.quad_landing.config import SimConfig, load_config
 from case_studies.quad_landing.framebuffer import MAX_BUFFER_SIZE
+from ipcverify.cli.app import run_group
 from ipcverify.errors import InvalidInputError
 
 __all__ = ["quad", "main"]
@@ -226,20 +226,4 @@ def reproduce_command(out: str, quick: bool, jobs: int | None, backend: str, mc_
 
 def main(argv: list[str] | None = None) -> None:
     """Run the CLI; bad input exits with status 2 and a single ``error:`` line on stderr."""
-    try:
-        rc = quad.main(args=argv, prog_name="python -m case_studies.quad_landing",
-                       standalone_mode=False)  # fmt: skip
-    except InvalidInputError as exc:
-        err_console.print(f"error: {exc}", markup=False, highlight=False, soft_wrap=True)
-        sys.exit(2)
-    except click.UsageError as exc:
-        err_console.print(f"error: {exc.format_message()}", markup=False, highlight=False,
-                          soft_wrap=True)  # fmt: skip
-        sys.exit(2)
-    except click.ClickException as exc:
-        exc.show()
-        sys.exit(exc.exit_code)
-    except click.exceptions.Abort:
-        err_console.print("aborted", markup=False)
-        sys.exit(1)
-    sys.exit(rc if isinstance(rc, int) else 0)
+    run_group(quad, argv, "python -m case_studies.quad_landing")

@@ -31,6 +31,8 @@ __all__ = [
     "CollectParams",
     "SimConfig",
     "load_config",
+    "merge_sections",
+    "read_toml",
     "DEFAULTS_PATH",
 ]
 
@@ -175,7 +177,7 @@ class SimConfig:
 
     def replace(self, **sections: Mapping[str, Any]) -> SimConfig:
         """A copy with some keys of some sections replaced, e.g. ``replace(camera={"fx": 250})``."""
-        return _build(_merge(self.as_dict(), sections, "override"))
+        return _build(merge_sections(self.as_dict(), sections, "override"))
 
 
 _SECTIONS: dict[str, type] = {
@@ -193,16 +195,25 @@ _SECTIONS: dict[str, type] = {
 }
 
 
-def _merge(
-    base: Mapping[str, Mapping[str, Any]], over: Mapping[str, Any], source: str
+def merge_sections(
+    base: Mapping[str, Mapping[str, Any]],
+    over: Mapping[str, Any],
+    source: str,
+    sections: Mapping[str, type] | None = None,
 ) -> dict[str, dict[str, Any]]:
+    """``base`` with the ``{section: {key: value}}`` tables of ``over`` merged on top.
+
+    Every section must be one of ``sections`` (default: the simulator's) and every key a
+    field of that section's dataclass; errors name ``source``, the section and the key.
+    """
+    known = _SECTIONS if sections is None else sections
     out = {name: dict(section) for name, section in base.items()}
     for name, section in over.items():
-        if name not in _SECTIONS:
-            raise ConfigError(f"{source}: unknown section [{name}]; valid sections: {', '.join(_SECTIONS)}")
+        if name not in known:
+            raise ConfigError(f"{source}: unknown section [{name}]; valid sections: {', '.join(known)}")
         if not isinstance(section, Mapping):
             raise ConfigError(f"{source}: [{name}] must be a table of keys, got {section!r}")
-        valid = {f.name for f in dataclasses.fields(_SECTIONS[name]) if f.init}
+        valid = {f.name for f in dataclasses.fields(known[name]) if f.init}
         for key, value in section.items():
             if key not in valid:
                 raise ConfigError(
@@ -223,7 +234,8 @@ def _build(tree: Mapping[str, Mapping[str, Any]]) -> SimConfig:
     return SimConfig(**parts)
 
 
-def _read_toml(path: Path) -> dict[str, Any]:
+def read_toml(path: Path) -> dict[str, Any]:
+    """Parse a TOML file; a missing or malformed file is a :class:`ConfigError`."""
     try:
         with open(path, "rb") as fh:
             return tomllib.load(fh)
@@ -255,9 +267,9 @@ def load_config(
     >>> load_config(overrides={"collect": {"buffer_size": 5}}).collect.buffer_size
     5
     """
-    tree = _merge({}, _read_toml(DEFAULTS_PATH), str(DEFAULTS_PATH))
+    tree = merge_sections({}, read_toml(DEFAULTS_PATH), str(DEFAULTS_PATH))
     if path is not None:
-        tree = _merge(tree, _read_toml(Path(path)), str(path))
+        tree = merge_sections(tree, read_toml(Path(path)), str(path))
     if overrides:
-        tree = _merge(tree, overrides, "override")
+        tree = merge_sections(tree, overrides, "override")
     return _build(tree)

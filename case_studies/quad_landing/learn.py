@@ -83,16 +83,7 @@ def calibration_summary(model: IPCModel) -> dict[str, Any]:
     if not isinstance(cal, GlobalCalibration):
         raise ModelFileError("expected a model with a global calibration")
     t = cal.threshold
-    return {
-        "mode": t.mode,
-        "epsilon": t.epsilon,
-        "delta": t.delta,
-        "n": t.n,
-        "k": t.k,
-        "scale": t.scale,
-        "certified_epsilon": t.certified_epsilon,
-        "guarantee": cal.guarantee(),
-    }
+    return {**t.to_dict(), "certified_epsilon": t.certified_epsilon, "guarantee": cal.guarantee()}
 
 
 def _key(

@@ -21,13 +21,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from case_studies.quad_landing.config import ConfigError
+from case_studies.quad_landing.config import ConfigError, merge_sections, read_toml
 from case_studies.quad_landing.framebuffer import MAX_BUFFER_SIZE
 
 __all__ = [
@@ -388,31 +387,6 @@ _SECTIONS: dict[str, type] = {
 }
 
 
-def _merge(base: dict[str, dict[str, Any]], over: Mapping[str, Any], source: str) -> None:
-    for name, section in over.items():
-        if name not in _SECTIONS:
-            raise ConfigError(f"{source}: unknown section [{name}]; valid sections: {', '.join(_SECTIONS)}")
-        if not isinstance(section, Mapping):
-            raise ConfigError(f"{source}: [{name}] must be a table of keys, got {section!r}")
-        valid = {f.name for f in dataclasses.fields(_SECTIONS[name])}
-        for key, value in section.items():
-            if key not in valid:
-                raise ConfigError(
-                    f"{source}: unknown key {name}.{key}; valid keys: {', '.join(sorted(valid))}"
-                )
-            base.setdefault(name, {})[key] = value
-
-
-def _read(path: Path) -> dict[str, Any]:
-    try:
-        with open(path, "rb") as fh:
-            return tomllib.load(fh)
-    except FileNotFoundError:
-        raise ConfigError(f"config file {path} does not exist") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"config file {path} is not valid TOML: {exc}") from None
-
-
 def load_reproduce_config(
     path: str | Path | None = None,
     overrides: Mapping[str, Mapping[str, Any]] | None = None,
@@ -437,19 +411,19 @@ def load_reproduce_config(
         If a file is missing or malformed, or a section, key or value is invalid.
     """
     tree: dict[str, dict[str, Any]] = {}
-    sources = [(REPRODUCE_PATH, _read(REPRODUCE_PATH))]
+    sources = [(REPRODUCE_PATH, read_toml(REPRODUCE_PATH))]
     if path is not None:
-        sources.append((Path(path), _read(Path(path))))
+        sources.append((Path(path), read_toml(Path(path))))
     for src, data in sources:
         data = dict(data)
         overlay = data.pop("quick", {})
-        _merge(tree, data, str(src))
+        tree = merge_sections(tree, data, str(src), _SECTIONS)
         if quick:
             if not isinstance(overlay, Mapping):
                 raise ConfigError(f"{src}: [quick] must be a table of sections")
-            _merge(tree, overlay, f"{src} [quick]")
+            tree = merge_sections(tree, overlay, f"{src} [quick]", _SECTIONS)
     if overrides:
-        _merge(tree, overrides, "override")
+        tree = merge_sections(tree, overrides, "override", _SECTIONS)
     parts: dict[str, Any] = {}
     for name, cls in _SECTIONS.items():
         values = {k: tuple(v) if isinstance(v, list) else v for k, v in tree.get(name, {}).items()}
