@@ -114,6 +114,9 @@ def test_demo_calibrated_sets_keep_their_guarantee(tmp_path):
         (["predict", "{model}", "{test}", "--out", "{tmp}/sets.csv"], "--out must end in .npz"),
         (["evaluate", "{model}", "{test}", "--bin-column", "speed"], "no column 'speed'"),
         (["train", "{train}", "--out", "{tmp}/m.pt", "--param", "diag"], "Invalid value for '--param'"),
+        (["train", "{train}", "--out", "{tmp}/m.pt", "--epochs", "abc"], "is not a valid integer"),
+        (["train"], "Missing argument 'DATA'"),
+        (["no-such-command"], "No such command"),
     ],
 )
 def test_user_errors_exit_2_with_one_line(run_cli, files, model_path, tmp_path, args, message):
@@ -135,6 +138,5 @@ def test_user_errors_exit_2_with_one_line(run_cli, files, model_path, tmp_path, 
     assert res.code == 2
     assert message in res.stderr
     assert "Traceback" not in res.stderr
-    if not message.startswith("Invalid value") and message != "does not exist":
-        assert len(res.stderr.strip().splitlines()) == 1
+    assert len(res.stderr.strip().splitlines()) == 1 and res.stderr.startswith("error: ")
     assert not (tmp_path / "m.pt").exists()
