@@ -7,16 +7,19 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from matplotlib.figure import Figure
 
 from ipcverify.baselines import fit_global_mahalanobis
 from ipcverify.calibration import calibrate
-from ipcverify.data import save_dataset
+from ipcverify.data import PerceptionDataset, atomic_write, save_dataset
 from ipcverify.evaluation import Evaluation, evaluate
 from ipcverify.modelio import save_model
+from ipcverify.report import ellipse_outline, figure_to_png
+from ipcverify.sets import Ellipsoid
 from ipcverify.synthetic import make_lagged_perception
 from ipcverify.training import TrainConfig, train
 
-__all__ = ["DemoSummary", "run_demo"]
+__all__ = ["DemoSummary", "run_demo", "plot_demo_sets"]
 
 #: Calibration target of the demo: PAC, at most 1 % violations with confidence 99.9 %.
 DEMO_EPSILON = 0.01
@@ -30,8 +33,8 @@ class DemoSummary:
     Attributes
     ----------
     out_dir : Path
-        Directory holding ``train.csv``, ``calibration.csv``, ``test.csv``, ``model.pt``
-        and ``calibrated.pt``.
+        Directory holding ``train.csv``, ``calibration.csv``, ``test.csv``, ``model.pt``,
+        ``calibrated.pt`` and the picture ``sets.png``.
     raw : Evaluation
         The trained (uncalibrated) IPC on the test data.
     calibrated : Evaluation
@@ -95,6 +98,9 @@ def run_demo(
     save_model(calibrated, out / "calibrated.pt")
     base = fit_global_mahalanobis(train_data).calibrate(cal_data, DEMO_EPSILON, DEMO_DELTA, mode="pac")
     base_sets = base.predict(test_data.x, test_data.yhat)
+    ipc_sets = calibrated.predict(test_data.x, test_data.yhat)
+    png = figure_to_png(plot_demo_sets(test_data, ipc_sets, base_sets), dpi=110)
+    atomic_write(out / "sets.png", lambda f: f.write(png))
     assert calibrated.calibration is not None
     return DemoSummary(
         out_dir=out,
@@ -104,3 +110,44 @@ def run_demo(
         global_log_volume=float(np.median(base_sets.log_volume())),
         global_violations=int((~base_sets.contains(test_data.y)).sum()),
     )
+
+
+def plot_demo_sets(data: PerceptionDataset, ipc: Ellipsoid, base: Ellipsoid) -> Figure:
+    """The calibrated IPC's set beside the global ellipsoid for a slow, a medium and a fast sample.
+
+    Each panel shows the (y_0, y_1) projection of both sets around the perceived value,
+    in centimetres, with the truth marked: the IPC's set follows the state (small when
+    the observer hovers, stretched along the velocity when it moves), the global one
+    cannot.
+
+    Examples
+    --------
+    >>> from ipcverify.synthetic import make_lagged_perception
+    >>> d = make_lagged_perception(50, seed=0)
+    >>> e = Ellipsoid(d.yhat, np.broadcast_to(np.eye(3) * 20.0, (50, 3, 3)))
+    >>> len(plot_demo_sets(d, e, e).axes)
+    3
+    """
+    speed = np.linalg.norm(data.x[:, 3:6], axis=1) if data.x.shape[1] >= 6 else np.arange(len(data))
+    picks = [int(np.argmin(np.abs(speed - np.quantile(speed, q)))) for q in (0.2, 0.7, 0.97)]
+    fig = Figure(figsize=(9.0, 3.3))
+    for col, i in enumerate(picks):
+        ax = fig.add_subplot(1, 3, col + 1)
+        origin = data.yhat[i]
+        for sets, color, label in ((base, "#8a8a8a", "global ellipsoid"), (ipc, "#4c72b0", "IPC")):
+            pts = (ellipse_outline(sets.centers[i] - origin, sets.shapes[i], 0, 1)) * 100.0
+            ax.fill(pts[0], pts[1], color=color, alpha=0.2)
+            ax.plot(pts[0], pts[1], color=color, lw=1.2, label=label)
+        truth = (data.y[i] - origin) * 100.0
+        ax.plot([truth[0]], [truth[1]], "x", color="#1b7f3b", ms=9, mew=2, label="truth y")
+        ax.plot([0.0], [0.0], "+", color="k", ms=9, label="estimate ŷ")
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.set_title(f"speed {speed[i]:.2f} m/s", fontsize=9)
+        ax.set_xlabel("y_0 − ŷ_0 (cm)", fontsize=8)
+        ax.set_ylabel("y_1 − ŷ_1 (cm)", fontsize=8)
+        ax.tick_params(labelsize=7)
+        if col == 0:
+            ax.legend(fontsize=7, loc="upper left")
+    fig.suptitle("Calibrated sets at the same certified level (projection on y_0, y_1)", fontsize=10)
+    fig.subplots_adjust(left=0.07, right=0.98, bottom=0.15, top=0.85, wspace=0.35)
+    return fig

@@ -29,6 +29,7 @@ from ipcverify.evaluation import BinCoverage
 
 __all__ = [
     "figure_to_png",
+    "ellipse_outline",
     "plot_scores",
     "plot_coverage",
     "plot_projections",
@@ -123,7 +124,7 @@ def plot_coverage(coverage: BinCoverage, delta: float, epsilon: float | None) ->
     return fig
 
 
-def _ellipse_outline(center: np.ndarray, shape: np.ndarray, i: int, j: int) -> np.ndarray:
+def ellipse_outline(center: np.ndarray, shape: np.ndarray, i: int, j: int) -> np.ndarray:
     """Boundary of the projection of E(c, C) on coordinates (i, j), as (2, 200) points."""
     cinv = np.linalg.inv(shape)
     P = cinv @ cinv.T
@@ -154,7 +155,7 @@ def plot_projections(evidence: CertifyEvidence) -> Figure:
                 ax.set_yticks([])
                 ax.set_xlabel(names[0], fontsize=8)
             else:
-                pts = _ellipse_outline(c, C, i, j)
+                pts = ellipse_outline(c, C, i, j)
                 ax.fill(pts[0], pts[1], color="#4c72b0", alpha=0.25)
                 ax.plot(pts[0], pts[1], color="#4c72b0", lw=1)
                 ax.plot([y[i]], [y[j]], "x", color="#1b7f3b" if inside else "#b42318", ms=9, mew=2)

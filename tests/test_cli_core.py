@@ -76,6 +76,7 @@ def test_demo(run_cli, tmp_path):
     res = run_cli("demo", "--out", tmp_path / "demo", "--n", "400")
     assert res.code == 0, res.stderr
     assert "IPC calibrated (PAC)" in res.stdout and "guarantee:" in res.stdout
+    assert (tmp_path / "demo" / "sets.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     for name in ("train.csv", "calibration.csv", "test.csv", "model.pt"):
         assert (tmp_path / "demo" / name).is_file()
     cal = load_model(tmp_path / "demo" / "calibrated.pt")

@@ -206,4 +206,4 @@ def demo_cmd(out: Path, n_samples: int, seed: int) -> None:
         f"the calibrated IPC's sets are {np.exp(s.global_log_volume - s.calibrated.log_volume_mean):.1f}x "
         "smaller than the global ellipsoid's (geometric mean of volumes), at the same certified level"
     )
-    console.print(f"files in {out}/: train.csv, calibration.csv, test.csv, model.pt, calibrated.pt")
+    console.print(f"files in {out}/: train.csv, calibration.csv, test.csv, model.pt, calibrated.pt, sets.png")
