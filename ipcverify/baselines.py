@@ -75,7 +75,7 @@ class Boxes:
     def contains(self, y: ArrayLike) -> NDArray[np.bool_]:
         """``y_b`` lies in box ``b`` (boundary included)."""
         p = np.asarray(y, dtype=np.float64)
-        return ((p >= self.lower) & (p <= self.upper)).all(axis=1)
+        return np.asarray(((p >= self.lower) & (p <= self.upper)).all(axis=1), dtype=np.bool_)
 
     def log_volume(self) -> FloatArray:
         """Natural log of each box's volume (``-inf`` for a flat box)."""

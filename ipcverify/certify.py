@@ -26,7 +26,7 @@ import os
 from dataclasses import dataclass, field
 from enum import Enum
 from pathlib import Path
-from typing import Any
+from typing import Any, TypedDict
 
 import numpy as np
 from numpy.typing import NDArray
@@ -48,6 +48,7 @@ __all__ = [
     "CertificateStatus",
     "TestBound",
     "Certificate",
+    "VolumeSummary",
     "CertifyEvidence",
     "CertifyResult",
     "certify",
@@ -150,6 +151,14 @@ class TestBound:
         }
 
 
+class VolumeSummary(TypedDict):
+    """The ``volume`` block of ``certificate.json``: log-volumes of the test-set sets."""
+
+    mean_log: float
+    median_log: float
+    unit: str
+
+
 @dataclass(frozen=True, kw_only=True)
 class Certificate:
     """Everything :func:`certify` established, in JSON-ready parts.
@@ -166,7 +175,7 @@ class Certificate:
     consistency: dict[str, Any]
     theorem1: Theorem1Result | None
     theorem1_reason: str
-    volume: dict[str, float]
+    volume: VolumeSummary
     coverage: BinCoverage
     data: dict[str, Any]
 

@@ -332,11 +332,11 @@ def set_from_dict(d: Any, where: str = "") -> OuterSet:
         if kind == "box":
             lo = _json_vector(_field(d, "lower", where), f"{where}lower")
             up = _json_vector(_field(d, "upper", where), f"{where}upper", len(lo))
-            return Box(lo, up)
+            return Box(np.asarray(lo, dtype=np.float64), np.asarray(up, dtype=np.float64))
         if kind == "polytope":
             a = _json_matrix(_field(d, "A", where), f"{where}A")
             b = _json_vector(_field(d, "b", where), f"{where}b", len(a))
-            return Polytope(a, b)
+            return Polytope(np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64))
         if kind == "ellipsoid":
             c = _json_vector(_field(d, "center", where), f"{where}center")
             s = _json_matrix(_field(d, "shape", where), f"{where}shape", len(c))
@@ -446,7 +446,7 @@ def contained_float(inner: Ellipsoid, outer: Box | Polytope) -> NDArray[np.bool_
     >>> contained_float(e, Box([-1.0], [1.0])).tolist()
     [True, False]
     """
-    return (support_slack(inner, outer) >= 0.0).all(axis=1)
+    return np.asarray((support_slack(inner, outer) >= 0.0).all(axis=1), dtype=np.bool_)
 
 
 # ---------------------------------------------------------------- exact helpers
@@ -952,10 +952,13 @@ def _prove_socp(ex: _Exact, inner: Ellipsoid, outer: Box | Polytope) -> Containm
         status = prob.status
     except cp.error.SolverError as exc:
         status = f"solver error ({exc})"
-    base = dict(inner=inner, outer=outer, method=Method.SOCP)
     if status != cp.OPTIMAL or w.value is None:
         return ContainmentCertificate(
-            **base, status=Status.UNKNOWN, detail=f"Clarabel status '{status}' is not 'optimal'"
+            inner=inner,
+            outer=outer,
+            method=Method.SOCP,
+            status=Status.UNKNOWN,
+            detail=f"Clarabel status '{status}' is not 'optimal'",
         )
     wv = np.asarray(w.value) / scale
     support = np.einsum("ji,ji->j", a / anorm[:, None], wv) * anorm
@@ -966,7 +969,9 @@ def _prove_socp(ex: _Exact, inner: Ellipsoid, outer: Box | Polytope) -> Containm
     ok_exact, why = _check_faces(ex, outer)
     if (slack >= -tol).all() and ok_exact:
         return ContainmentCertificate(
-            **base,
+            inner=inner,
+            outer=outer,
+            method=Method.SOCP,
             status=Status.PROVEN,
             multipliers=mult,
             margin=margin,
@@ -981,7 +986,9 @@ def _prove_socp(ex: _Exact, inner: Ellipsoid, outer: Box | Polytope) -> Containm
             y = _witness_from_direction(ex, outer, u)
             if y is not None:
                 return ContainmentCertificate(
-                    **base,
+                    inner=inner,
+                    outer=outer,
+                    method=Method.SOCP,
                     status=Status.REFUTED,
                     multipliers=mult,
                     margin=margin,
@@ -989,7 +996,9 @@ def _prove_socp(ex: _Exact, inner: Ellipsoid, outer: Box | Polytope) -> Containm
                     detail=f"Clarabel optimal; maximiser on face {j} checked exactly",
                 )
     return ContainmentCertificate(
-        **base,
+        inner=inner,
+        outer=outer,
+        method=Method.SOCP,
         status=Status.UNKNOWN,
         multipliers=mult,
         margin=margin,
@@ -1129,7 +1138,6 @@ def _prove_sdp(ex: _Exact, inner: Ellipsoid, outer: Ellipsoid) -> ContainmentCer
     import cvxpy as cp
 
     n = inner.dim
-    base = dict(inner=inner, outer=outer, method=Method.SDP)
     d_mat, d = _normalised(inner, outer)
     q2n = _q2n(d_mat, d)
     scale = max(1.0, float(np.abs(q2n).max()))
@@ -1158,7 +1166,9 @@ def _prove_sdp(ex: _Exact, inner: Ellipsoid, outer: Ellipsoid) -> ContainmentCer
                 ok, how = _check_lmi(q1, q2, lq, tq)
                 if ok:
                     return ContainmentCertificate(
-                        **base,
+                        inner=inner,
+                        outer=outer,
+                        method=Method.SDP,
                         status=Status.PROVEN,
                         multipliers={"lambda": (lq,), "tau": (tq,)},
                         margin=1.0 - tau,
@@ -1176,7 +1186,9 @@ def _prove_sdp(ex: _Exact, inner: Ellipsoid, outer: Ellipsoid) -> ContainmentCer
             y = _witness_from_direction(ex, outer, exact_vector(cand))
             if y is not None:
                 return ContainmentCertificate(
-                    **base,
+                    inner=inner,
+                    outer=outer,
+                    method=Method.SDP,
                     status=Status.REFUTED,
                     multipliers=mult,
                     margin=margin,
@@ -1197,7 +1209,9 @@ def _prove_sdp(ex: _Exact, inner: Ellipsoid, outer: Ellipsoid) -> ContainmentCer
             ok, how = _check_lmi(q1, q2, lq, Fraction(1))
             if ok:
                 return ContainmentCertificate(
-                    **base,
+                    inner=inner,
+                    outer=outer,
+                    method=Method.SDP,
                     status=Status.PROVEN,
                     multipliers={"lambda": (lq,), "tau": (Fraction(1),)},
                     margin=margin,
@@ -1208,7 +1222,13 @@ def _prove_sdp(ex: _Exact, inner: Ellipsoid, outer: Ellipsoid) -> ContainmentCer
         return cert
     notes.append("no exact witness found")
     return ContainmentCertificate(
-        **base, status=Status.UNKNOWN, multipliers=mult, margin=margin, detail="; ".join(notes)
+        inner=inner,
+        outer=outer,
+        method=Method.SDP,
+        status=Status.UNKNOWN,
+        multipliers=mult,
+        margin=margin,
+        detail="; ".join(notes),
     )
 
 

@@ -352,8 +352,11 @@ def load_dataset(
                 raise DataError(f"{p}: row {r}, column {c!r}: not a number ({block[c].iloc[r]!r})")
         blocks.append(block.to_numpy(dtype=np.float64))
     extra = {c: df[c].to_numpy() for c in cols if c not in used}
+    x, y, yhat = blocks
     return PerceptionDataset(
-        *blocks,
+        x,
+        y,
+        yhat,
         source=str(p),
         x_columns=tuple(xs),
         y_columns=tuple(ys),

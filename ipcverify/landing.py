@@ -62,7 +62,7 @@ __all__ = [
 FloatArray = NDArray[np.float64]
 
 #: The paper's target region ``G = [-0.05, 0.05] x [-0.05, 0.05] x [0, 0.05]`` (metres).
-LANDING_TARGET = Box([-0.05, -0.05, 0.0], [0.05, 0.05, 0.05])
+LANDING_TARGET = Box(np.array([-0.05, -0.05, 0.0]), np.array([0.05, 0.05, 0.05]))
 
 
 def _check_inputs(ellipsoid: Ellipsoid, target: Box) -> None:
@@ -110,7 +110,7 @@ def _offset_box(p: FloatArray, target: Box) -> Box:
             "the box {P} + (-G) is narrower than one float spacing at the turn-off point; "
             "G is too small for coordinates of this magnitude"
         )
-    return Box(lower, upper)
+    return Box(np.asarray(lower, dtype=np.float64), np.asarray(upper, dtype=np.float64))
 
 
 @dataclass(frozen=True, eq=False)
@@ -233,4 +233,4 @@ def landing_accept_float(ellipsoids: Ellipsoid, target: Box = LANDING_TARGET) ->
     p[:, 2] += h[:, 2]
     upper_slack = (p - target.lower) - (c + h)  # box upper face P - G.lower
     lower_slack = (c - h) - (p - target.upper)  # box lower face P - G.upper
-    return ((upper_slack >= 0) & (lower_slack >= 0)).all(axis=1)
+    return np.asarray(((upper_slack >= 0) & (lower_slack >= 0)).all(axis=1), dtype=np.bool_)

@@ -109,7 +109,9 @@ class ModelConfig:
         unknown = set(data) - known
         if unknown:
             raise InvalidInputError(f"unknown model config key(s): {', '.join(sorted(unknown))}")
-        return cls(**{k: (tuple(v) if k == "hidden" else v) for k, v in data.items()})
+        # values are validated by __post_init__; a missing x_dim / y_dim raises TypeError as before
+        kwargs: dict[str, Any] = {k: (tuple(v) if k == "hidden" else v) for k, v in data.items()}
+        return cls(**kwargs)
 
 
 class IPCNetwork(nn.Module):
@@ -125,6 +127,16 @@ class IPCNetwork(nn.Module):
     >>> tuple(C.shape), tuple(logdet.shape)
     ((5, 3, 3), (5,))
     """
+
+    # buffers registered in __init__ (declared so type checkers see Tensors, not Tensor | Module)
+    in_mean: torch.Tensor
+    in_std: torch.Tensor
+    y_mean: torch.Tensor
+    sigma: torch.Tensor
+    _tril_rows: torch.Tensor
+    _tril_cols: torch.Tensor
+    _diag_mask: torch.Tensor
+    _tril_embed: torch.Tensor
 
     def __init__(self, config: ModelConfig) -> None:
         super().__init__()
