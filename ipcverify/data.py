@@ -365,15 +365,25 @@ def load_dataset(
     )
 
 
+def _umask() -> int:
+    """The process umask (read by setting and restoring it)."""
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
 def atomic_write(path: str | os.PathLike[str], write: Any, mode: str = "wb") -> None:
     """Write a file atomically: ``write(fileobj)`` to a temp file, then rename over ``path``.
 
-    A crash or error leaves any existing file at ``path`` untouched.
+    A crash or error leaves any existing file at ``path`` untouched. The new file gets
+    the permissions an ordinary ``open(path, "w")`` would give (``0o666`` minus the
+    umask), not the private ``0o600`` of the temporary file.
     """
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
     try:
+        os.fchmod(fd, 0o666 & ~_umask())
         with os.fdopen(fd, mode) as f:
             write(f)
             f.flush()

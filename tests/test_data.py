@@ -166,3 +166,14 @@ def test_save_is_atomic_on_failure(tmp_path, small, monkeypatch):
         save_dataset(make_lagged_perception(5, seed=1), p)
     assert p.read_bytes() == before
     assert [f.name for f in tmp_path.iterdir()] == ["keep.csv"]
+
+
+def test_saved_files_get_ordinary_permissions(tmp_path, small):
+    import os
+
+    old = os.umask(0o027)
+    try:
+        save_dataset(small, tmp_path / "d.csv")
+    finally:
+        os.umask(old)
+    assert (tmp_path / "d.csv").stat().st_mode & 0o777 == 0o640

@@ -1,0 +1,28 @@
+"""The project's own rules that tools check: ruff clean and fully typed (mypy)."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.mark.slow
+def test_ruff_is_clean():
+    if shutil.which("ruff") is None:
+        pytest.fail("ruff is missing: pip install -e '.[dev]'")
+    res = subprocess.run(["ruff", "check", "."], cwd=ROOT, capture_output=True, text=True)
+    assert res.returncode == 0, res.stdout + res.stderr
+
+
+@pytest.mark.slow
+def test_mypy_is_clean():
+    res = subprocess.run(
+        [sys.executable, "-m", "mypy", "ipcverify"], cwd=ROOT, capture_output=True, text=True
+    )
+    assert res.returncode == 0, res.stdout + res.stderr
