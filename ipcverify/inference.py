@@ -92,7 +92,8 @@ class InferenceEngine:
             return np.tanh(h, out=h)
         return np.where(h > 0, h, np.expm1(np.minimum(h, 0.0)))  # elu, alpha = 1
 
-    def _mlp(self, z: FloatArray) -> FloatArray:
+    def mlp(self, z: FloatArray) -> FloatArray:
+        """The network's raw outputs for standardised inputs ``z`` ((B, d + n) or one (d + n,) row)."""
         last = len(self.weights) - 1
         for i, (w, b) in enumerate(zip(self.weights, self.biases, strict=True)):
             z = z @ w
@@ -107,7 +108,7 @@ class InferenceEngine:
         z = np.concatenate([x, yhat], axis=1)
         z -= self.in_mean
         z *= self.in_scale
-        out = self._mlp(z)
+        out = self.mlp(z)
         o, s = out[:, :n], out[:, n:]
         base = yhat if self.config.center == "offset" else self.y_mean
         center = base + self.sigma * o

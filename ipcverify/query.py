@@ -182,7 +182,7 @@ class IPCQuery:
             raise InvalidInputError("x and yhat must be finite")
         z -= eng.in_mean
         z *= eng.in_scale
-        out = eng._mlp(z)  # the engine's own MLP evaluation (1-D input: one query)
+        out = eng.mlp(z)  # the engine's own MLP evaluation (1-D input: one query)
         center = (ya if self._offset else eng.y_mean) + eng.sigma * out[:n]  # type: ignore[attr-defined]
         if self._full:  # type: ignore[attr-defined]
             L = out[n:].reshape(n, n)
