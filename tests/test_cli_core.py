@@ -37,6 +37,23 @@ def test_train_writes_a_loadable_model(model_path):
     assert m.metadata["train_config"]["epochs"] == 3
 
 
+def test_train_loss_and_center_warm_start_flags(files, tmp_path):
+    from ipcverify.cli import main
+
+    p = tmp_path / "lik.pt"
+    argv = ["train", str(files / "train.parquet"), "--out", str(p), "--epochs", "2", "--hidden", "8"]
+    with pytest.raises(SystemExit) as exc:
+        main([*argv, "--loss", "likelihood", "--center-warm-start"])
+    assert exc.value.code == 0
+    tc = load_model(p).metadata["train_config"]
+    assert (tc["loss"], tc["center_warm_start"]) == ("likelihood", True)
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code == 0
+    tc = load_model(p).metadata["train_config"]
+    assert (tc["loss"], tc["center_warm_start"]) == ("hinge", False)
+
+
 def test_evaluate_json(run_cli, files, model_path):
     res = run_cli("evaluate", model_path, files / "test.csv", "--json")
     assert res.code == 0, res.stderr
@@ -115,6 +132,7 @@ def test_demo_calibrated_sets_keep_their_guarantee(tmp_path):
         (["predict", "{model}", "{test}", "--out", "{tmp}/sets.csv"], "--out must end in .npz"),
         (["evaluate", "{model}", "{test}", "--bin-column", "speed"], "no column 'speed'"),
         (["train", "{train}", "--out", "{tmp}/m.pt", "--param", "diag"], "Invalid value for '--param'"),
+        (["train", "{train}", "--out", "{tmp}/m.pt", "--loss", "nll"], "Invalid value for '--loss'"),
         (["train", "{train}", "--out", "{tmp}/m.pt", "--epochs", "abc"], "is not a valid integer"),
         (["train"], "Missing argument 'DATA'"),
         (["no-such-command"], "No such command"),

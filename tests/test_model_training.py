@@ -10,7 +10,15 @@ from scipy import integrate, optimize, stats
 from ipcverify.data import PerceptionDataset
 from ipcverify.errors import InvalidInputError
 from ipcverify.model import IPCModel, IPCNetwork, ModelConfig
-from ipcverify.training import NonFiniteLossError, TrainConfig, hinge, ipc_loss, train
+from ipcverify.training import (
+    NonFiniteLossError,
+    TrainConfig,
+    hinge,
+    ipc_loss,
+    likelihood_loss,
+    train,
+    warm_start_center,
+)
 
 
 def test_loss_matches_hand_computation():
@@ -31,6 +39,77 @@ def test_loss_matches_hand_computation():
     assert float(reg) == pytest.approx(hand_reg, rel=1e-6)
     assert float(loss) == pytest.approx(hand_h + 0.1 * hand_reg, rel=1e-6)
     assert float(hinge(torch.tensor(-0.6), 0.5)) == 0.0
+
+
+def test_likelihood_loss_matches_hand_computation():
+    # the same batch: C_1 = diag(2, 1), C_2 = I; y_1 = (0.3, 0.4), y_2 = (1.2, 0.5), c = 0
+    C = torch.tensor([[[2.0, 0.0], [0.0, 1.0]], [[1.0, 0.0], [0.0, 1.0]]])
+    y = torch.tensor([[0.3, 0.4], [1.2, 0.5]])
+    g = torch.linalg.vector_norm(torch.einsum("bij,bj->bi", C, y), dim=1)
+    logdet = torch.logdet(C.transpose(1, 2) @ C)
+    loss, sq, reg = likelihood_loss(g, logdet)
+    # by hand: g1^2 = 0.6^2 + 0.4^2 = 0.52, g2^2 = 1.2^2 + 0.5^2 = 1.69; log det C = (log 2, 0)
+    hand_sq = (0.52 + 1.69) / 2 / 2
+    hand = hand_sq - (np.log(2.0) + 0.0) / 2
+    assert float(sq) == pytest.approx(hand_sq, rel=1e-6)
+    assert float(reg) == pytest.approx(-np.log(4.0) / 2, rel=1e-6)
+    assert float(loss) == pytest.approx(hand, rel=1e-6)
+    # and it is the Gaussian NLL of y under N(0, (C^T C)^{-1}) up to the constant (n/2) log(2 pi)
+    nll = 0.0
+    for Ci, yi in zip(C.double(), y.double(), strict=True):
+        cov = torch.linalg.inv(Ci.T @ Ci)
+        dist = torch.distributions.MultivariateNormal(torch.zeros(2, dtype=torch.float64), cov)
+        nll -= float(dist.log_prob(yi)) / 2
+    assert float(loss) == pytest.approx(nll - np.log(2 * np.pi), rel=1e-6)
+
+
+def test_training_uses_the_configured_loss():
+    data, _ = _heteroscedastic(300, 5)
+    hist = train(data, train_config=TrainConfig(epochs=1, loss="likelihood")).history[-1]
+    assert "fit_half_sq_score" in hist and "fit_hinge" not in hist
+    # the recorded loss is the likelihood of the trained model
+    m = train(data, train_config=TrainConfig(epochs=1, loss="likelihood")).model
+    g = torch.tensor(m.raw_scores(data.x, data.y, data.yhat))
+    _, C = m.raw_arrays(data.x, data.yhat)
+    logdet = torch.tensor(np.linalg.slogdet(np.transpose(C, (0, 2, 1)) @ C)[1])
+    assert hist["fit_loss"] == pytest.approx(float(likelihood_loss(g, logdet)[0]), rel=1e-4, abs=1e-4)
+    # a warm-up of likelihood epochs changes the result of hinge training
+    a = train(data, train_config=TrainConfig(epochs=2)).model
+    b = train(data, train_config=TrainConfig(epochs=2, warmup_epochs=1)).model
+    assert not np.allclose(a.raw_scores(data.x, data.y, data.yhat), b.raw_scores(data.x, data.y, data.yhat))
+
+
+def _linear_bias(n: int, seed: int) -> PerceptionDataset:
+    rng = np.random.default_rng(seed)
+    x = rng.uniform(-1, 1, (n, 2))
+    yhat = rng.uniform(-1, 1, (n, 3))
+    bias = x @ np.array([[0.3, -0.2, 0.1], [0.1, 0.2, -0.3]]) + 0.2 * yhat + 0.05
+    return PerceptionDataset(x, yhat + bias + 0.02 * rng.standard_normal((n, 3)), yhat)
+
+
+def _centre_sq_error(model: IPCModel, data: PerceptionDataset) -> float:
+    centers, _ = model.raw_arrays(data.x, data.yhat)
+    return float(np.mean(np.sum((data.y - centers) ** 2, axis=1)))
+
+
+@pytest.mark.parametrize("center", ["offset", "raw"])
+def test_center_warm_start_reduces_the_centre_error(center):
+    train_data, test_data = _linear_bias(2000, 0), _linear_bias(2000, 1)
+    mc = ModelConfig(x_dim=2, y_dim=3, hidden=(32, 32), center=center)
+    # directly: the least-squares head fits the bias the initial network does not
+    torch.manual_seed(0)
+    net = IPCNetwork(mc)
+    net.set_normalisation(train_data.x, train_data.y, train_data.yhat)
+    before = _centre_sq_error(IPCModel(net), test_data)
+    t = [torch.tensor(a, dtype=torch.float32) for a in (train_data.x, train_data.y, train_data.yhat)]
+    warm_start_center(net, *t)
+    after = _centre_sq_error(IPCModel(net), test_data)
+    assert after < 0.2 * before
+    # through train(): after one epoch the warm-started centre is still much closer
+    cold = train(train_data, mc, TrainConfig(epochs=1)).model
+    warm = train(train_data, mc, TrainConfig(epochs=1, center_warm_start=True)).model
+    assert _centre_sq_error(warm, test_data) < 0.5 * _centre_sq_error(cold, test_data)
+    assert warm.metadata["train_config"]["center_warm_start"] is True
 
 
 @pytest.mark.parametrize("param", ["cholesky", "full"])
@@ -145,6 +224,11 @@ def test_early_stopping_and_history():
         ({"lam": -0.1}, "lam must be >= 0"),
         ({"batch_size": 0}, "batch size must be >= 1"),
         ({"patience": 3}, "needs a validation split"),
+        ({"loss": "nll"}, "loss must be 'hinge' or 'likelihood'; got 'nll'"),
+        ({"center_warm_start": "yes"}, "center_warm_start must be True or False"),
+        ({"warmup_epochs": -1}, r"warmup_epochs must be in \[0, epochs=20\)"),
+        ({"epochs": 5, "warmup_epochs": 5}, r"warmup_epochs must be in \[0, epochs=5\)"),
+        ({"loss": "likelihood", "warmup_epochs": 2}, "only applies to loss='hinge'"),
     ],
 )
 def test_bad_train_config(kwargs, match):

@@ -81,6 +81,19 @@ def _print_evaluation(ev: Evaluation, title: str) -> None:
 @click.option("--alpha", default=TrainConfig.alpha, show_default=True, type=float, help="Hinge margin.")
 @click.option("--lam", default=TrainConfig.lam, show_default=True, type=float, help="Volume penalty weight.")
 @click.option("--batch-size", default=TrainConfig.batch_size, show_default=True, type=int)
+@click.option(
+    "--loss",
+    type=click.Choice(["hinge", "likelihood"]),
+    default=TrainConfig.loss,
+    show_default=True,
+    help="Training objective: the paper's hinge + volume loss, or Gaussian likelihood.",
+)
+@click.option(
+    "--center-warm-start/--no-center-warm-start",
+    default=TrainConfig.center_warm_start,
+    show_default=True,
+    help="Initialise the centre head by least squares before training.",
+)
 @click.option("--param", type=click.Choice(["cholesky", "full"]), default="cholesky", show_default=True)
 @click.option("--center", type=click.Choice(["offset", "raw"]), default="offset", show_default=True)
 @click.option("--seed", default=0, show_default=True, type=int)
@@ -98,6 +111,8 @@ def train_cmd(
     alpha: float,
     lam: float,
     batch_size: int,
+    loss: str,
+    center_warm_start: bool,
     param: str,
     center: str,
     seed: int,
@@ -119,6 +134,8 @@ def train_cmd(
         seed=seed,
         val_fraction=val_fraction,
         patience=patience,
+        loss=loss,  # type: ignore[arg-type]
+        center_warm_start=center_warm_start,
     )
     result = train(ds, mc, tc, progress=True)
     save_model(result.model, out)
