@@ -1,6 +1,6 @@
 """Which training defaults give the tightest calibrated IPC? (evidence for the defaults).
 
-Run ``python -m benchmarks.tune_defaults`` from the repository root (about 5 minutes on
+Run ``python -m benchmarks.tune_defaults`` from the repository root (about 9 minutes on
 2 cores). For each candidate setting and each of three training seeds it trains an IPC on
 the train split of both benchmark datasets, calibrates it (PAC, epsilon = 0.01,
 delta = 0.001) on the calibration split and measures the mean and median set volume and
@@ -45,6 +45,15 @@ CANDIDATES: dict[str, dict[str, Any]] = {
     "lam=0.1": {"alpha": 0.1, "lam": 0.1},
     "centre raw": {"alpha": 0.1, "lam": 0.01, "center": "raw"},
     "param full": {"alpha": 0.1, "lam": 0.01, "param": "full"},
+    # training-objective options (TrainConfig.loss / center_warm_start / warmup_epochs)
+    "default (hinge, alpha=1)": {},
+    "+ centre warm start": {"center_warm_start": True},
+    "likelihood": {"loss": "likelihood"},
+    "likelihood + centre warm start": {"loss": "likelihood", "center_warm_start": True},
+    "likelihood, 40 ep": {"loss": "likelihood", "epochs": 40},
+    "likelihood 10 ep, then hinge 10 ep": {"warmup_epochs": 10},
+    "likelihood, lr 3e-3": {"loss": "likelihood", "lr": 3e-3},
+    "likelihood, 60 ep, batch 32": {"loss": "likelihood", "epochs": 60, "batch_size": 32},
 }
 _MODEL_KEYS = {"hidden", "param", "center", "activation"}
 
