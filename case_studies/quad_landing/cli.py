@@ -29,6 +29,20 @@ def _config(path: str | None) -> SimConfig:
     return load_config(path)
 
 
+#: ``--config``, shared by every command that runs the simulator.
+_config_option = click.option(
+    "--config",
+    "config_path",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="TOML file overriding defaults.toml (the simulator).",
+)
+#: ``--seed``, shared by the commands that draw random paths or poses.
+_seed_option = click.option(
+    "--seed", type=click.IntRange(min=0), default=0, show_default=True, help="Random seed."
+)
+
+
 @click.group(
     name="quad_landing",
     context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100},
@@ -52,20 +66,14 @@ def quad() -> None:
     default=None,
     help="Samples with a detection to collect [default: from the config, 5000].",
 )
-@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True, help="Random seed.")
+@_seed_option
 @click.option(
     "--out",
     type=click.Path(dir_okay=False),
     required=True,
     help="Output dataset, .parquet or .csv; a <stem>.stats.json is written beside.",
 )
-@click.option(
-    "--config",
-    "config_path",
-    type=click.Path(dir_okay=False),
-    default=None,
-    help="TOML file overriding defaults.toml.",
-)
+@_config_option
 @click.option(
     "--jobs",
     "-j",
@@ -113,14 +121,8 @@ def collect_command(buffer_size: int | None, n: int | None, seed: int, out: str,
     show_default=True,
     help="Directory for quad_camera_frame.png, quad_paths.png, quad_lag_error.png.",
 )
-@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True, help="Random seed.")
-@click.option(
-    "--config",
-    "config_path",
-    type=click.Path(dir_okay=False),
-    default=None,
-    help="TOML file overriding defaults.toml.",
-)
+@_seed_option
+@_config_option
 def pictures_command(out: str, seed: int, config_path: str | None) -> None:
     """Write the documentation pictures (a camera frame, the paths, lag error per k)."""
     from case_studies.quad_landing.pictures import write_pictures
@@ -137,14 +139,8 @@ def pictures_command(out: str, seed: int, config_path: str | None) -> None:
 
 @quad.command("bias")
 @click.option("--poses", type=click.IntRange(min=1), default=100, show_default=True, help="Poses per range.")
-@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True, help="Random seed.")
-@click.option(
-    "--config",
-    "config_path",
-    type=click.Path(dir_okay=False),
-    default=None,
-    help="TOML file overriding defaults.toml.",
-)
+@_seed_option
+@_config_option
 def bias_command(poses: int, seed: int, config_path: str | None) -> None:
     """Measure the range bias and speed of each ArUco corner refinement (no lag)."""
     from case_studies.quad_landing.bias import refinement_bias
@@ -181,13 +177,7 @@ def bias_command(poses: int, seed: int, config_path: str | None) -> None:
     default=None,
     help="Monte Carlo runs per contract [default: from reproduce.toml, 300].",
 )
-@click.option(
-    "--config",
-    "config_path",
-    type=click.Path(dir_okay=False),
-    default=None,
-    help="TOML file overriding defaults.toml (the simulator).",
-)
+@_config_option
 @click.option(
     "--settings",
     "settings_path",
