@@ -93,7 +93,7 @@ def time_calls(fn: Callable[[], Any], repeats: int, warmup: int = 10) -> np.ndar
 
 def write_json(path: Path, data: Any) -> None:
     """Write ``data`` as indented JSON (atomically)."""
-    from ipcverify.data import atomic_write
+    from ipcverify.files import atomic_write
 
     text = json.dumps(data, indent=2, allow_nan=False) + "\n"
     atomic_write(path, lambda f: f.write(text.encode()))

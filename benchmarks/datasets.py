@@ -16,8 +16,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from ipcverify.data import PerceptionDataset, atomic_write, load_dataset
+from ipcverify.data import PerceptionDataset, load_dataset
 from ipcverify.errors import InvalidInputError
+from ipcverify.files import atomic_write
 from ipcverify.synthetic import make_lagged_perception
 
 __all__ = ["CACHE", "DATASETS", "SPLIT_SEEDS", "Splits", "load_splits", "quad_split", "synthetic_split"]

@@ -20,8 +20,6 @@ self-contained ``report.html`` (:mod:`ipcverify.report`).
 
 from __future__ import annotations
 
-import json
-import math
 import os
 from dataclasses import dataclass, field
 from enum import Enum
@@ -35,12 +33,13 @@ from scipy import stats
 import ipcverify
 from ipcverify.bounds import clopper_pearson_interval, clopper_pearson_lower, clopper_pearson_upper
 from ipcverify.calibration import GlobalCalibration, MondrianCalibration, network_fingerprint
-from ipcverify.data import PerceptionDataset, atomic_write, load_dataset
+from ipcverify.data import PerceptionDataset, load_dataset
 from ipcverify.errors import InvalidInputError
 from ipcverify.evaluation import BinCoverage, coverage_by_bin
+from ipcverify.files import atomic_write, file_sha256, write_json
 from ipcverify.lipschitz import DEFAULT_RADIUS
 from ipcverify.model import IPCModel
-from ipcverify.modelio import file_sha256, load_model
+from ipcverify.modelio import load_model
 from ipcverify.theorem1 import Theorem1Result, theorem1
 
 __all__ = [
@@ -524,27 +523,14 @@ def _calibration_summary(cal: GlobalCalibration | MondrianCalibration) -> dict[s
     }
 
 
-def _json_safe(obj: Any) -> Any:
-    if isinstance(obj, dict):
-        return {k: _json_safe(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_json_safe(v) for v in obj]
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None if math.isnan(obj) else ("inf" if obj > 0 else "-inf")
-    if isinstance(obj, (np.floating, np.integer, np.bool_)):
-        return _json_safe(obj.item())
-    return obj
-
-
 def write_certificate(result: CertifyResult, out_dir: str | os.PathLike[str]) -> tuple[Path, Path]:
     """Write ``certificate.json`` and ``report.html`` into ``out_dir`` (atomically); return their paths."""
     from ipcverify.report import render_report
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    text = json.dumps(_json_safe(result.certificate.to_dict()), indent=2, allow_nan=False)
     cert_path, report_path = out / "certificate.json", out / "report.html"
-    atomic_write(cert_path, lambda f: f.write(text + "\n"), mode="w")
+    write_json(cert_path, result.certificate)
     html = render_report(result)
     atomic_write(report_path, lambda f: f.write(html), mode="w")
     return cert_path, report_path

@@ -14,7 +14,6 @@ from __future__ import annotations
 import hashlib
 import os
 import re
-import tempfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -25,8 +24,9 @@ import pandas as pd
 from numpy.typing import NDArray
 
 from ipcverify.errors import DataError
+from ipcverify.files import atomic_write
 
-__all__ = ["PerceptionDataset", "DatasetSplits", "load_dataset", "save_dataset", "atomic_write"]
+__all__ = ["PerceptionDataset", "DatasetSplits", "load_dataset", "save_dataset"]
 
 FloatArray = NDArray[np.float64]
 SUFFIXES = (".csv", ".parquet", ".pq", ".npz")
@@ -363,36 +363,6 @@ def load_dataset(
         yhat_columns=tuple(yhs),
         extra=extra,
     )
-
-
-def _umask() -> int:
-    """The process umask (read by setting and restoring it)."""
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
-
-
-def atomic_write(path: str | os.PathLike[str], write: Any, mode: str = "wb") -> None:
-    """Write a file atomically: ``write(fileobj)`` to a temp file, then rename over ``path``.
-
-    A crash or error leaves any existing file at ``path`` untouched. The new file gets
-    the permissions an ordinary ``open(path, "w")`` would give (``0o666`` minus the
-    umask), not the private ``0o600`` of the temporary file.
-    """
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
-    try:
-        os.fchmod(fd, 0o666 & ~_umask())
-        with os.fdopen(fd, mode) as f:
-            write(f)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, p)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
 
 
 def save_dataset(dataset: PerceptionDataset, path: str | os.PathLike[str]) -> None:

@@ -11,8 +11,9 @@ from matplotlib.figure import Figure
 
 from ipcverify.baselines import fit_global_mahalanobis
 from ipcverify.calibration import calibrate
-from ipcverify.data import PerceptionDataset, atomic_write, save_dataset
+from ipcverify.data import PerceptionDataset, save_dataset
 from ipcverify.evaluation import Evaluation, evaluate
+from ipcverify.files import atomic_write
 from ipcverify.modelio import save_model
 from ipcverify.report import ellipse_outline, figure_to_png
 from ipcverify.sets import Ellipsoid

@@ -43,8 +43,8 @@ from numpy.typing import NDArray
 
 import ipcverify
 from ipcverify.calibration import GlobalCalibration, network_fingerprint
-from ipcverify.data import atomic_write
 from ipcverify.errors import InvalidInputError
+from ipcverify.files import atomic_write
 from ipcverify.inference import LOGDIAG_CLAMP
 from ipcverify.model import IPCModel
 

@@ -13,7 +13,6 @@ code when unpickled) is refused before anything in it executes.
 
 from __future__ import annotations
 
-import hashlib
 import os
 import pickle
 from collections.abc import Mapping
@@ -22,11 +21,11 @@ from typing import Any
 
 import torch
 
-from ipcverify.data import atomic_write
 from ipcverify.errors import InvalidInputError, ModelFileError
+from ipcverify.files import atomic_write
 from ipcverify.model import IPCModel, IPCNetwork, ModelConfig
 
-__all__ = ["FORMAT", "FORMAT_VERSION", "save_model", "load_model", "file_sha256"]
+__all__ = ["FORMAT", "FORMAT_VERSION", "save_model", "load_model"]
 
 FORMAT = "ipcverify-model"
 FORMAT_VERSION = 1
@@ -143,12 +142,3 @@ def load_model(path: str | os.PathLike[str]) -> IPCModel:
         except (KeyError, TypeError, ValueError) as exc:
             raise ModelFileError(f"{p}: damaged calibration record ({exc})") from None
     return IPCModel(net, calibration, payload.get("metadata") or {})
-
-
-def file_sha256(path: str | os.PathLike[str]) -> str:
-    """SHA-256 hex digest of a file's bytes."""
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()

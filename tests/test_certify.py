@@ -13,8 +13,9 @@ from ipcverify.certify import DEFAULT_DELTA, CertificateStatus, certify
 from ipcverify.data import PerceptionDataset, save_dataset
 from ipcverify.errors import InvalidInputError
 from ipcverify.evaluation import evaluate
+from ipcverify.files import file_sha256
 from ipcverify.model import IPCModel, IPCNetwork, ModelConfig
-from ipcverify.modelio import file_sha256, load_model, save_model
+from ipcverify.modelio import load_model, save_model
 from ipcverify.synthetic import make_lagged_perception
 from ipcverify.training import TrainConfig, train
 

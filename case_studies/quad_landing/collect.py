@@ -37,8 +37,8 @@ from case_studies.quad_landing.config import SimConfig, load_config
 from case_studies.quad_landing.features import X_COLUMNS
 from case_studies.quad_landing.paths import TEMPLATES, ExplorationPath, fit_to_view, make_path
 from case_studies.quad_landing.sim import Flight
-from ipcverify.data import atomic_write
 from ipcverify.errors import InvalidInputError
+from ipcverify.files import atomic_write
 
 __all__ = [
     "CollectStats",

@@ -50,7 +50,8 @@ from case_studies.quad_landing.collect import Y_COLUMNS, YHAT_COLUMNS, collect
 from case_studies.quad_landing.config import SimConfig, load_config
 from case_studies.quad_landing.features import X_COLUMNS
 from case_studies.quad_landing.reproduce_config import ApproachParams
-from ipcverify.data import PerceptionDataset, atomic_write
+from ipcverify.data import PerceptionDataset
+from ipcverify.files import atomic_write
 
 __all__ = [
     "collect_mixed",

@@ -31,8 +31,9 @@ import torch
 
 from case_studies.quad_landing.reproduce_config import IpcParams
 from ipcverify.calibration import GlobalCalibration, calibrate
-from ipcverify.data import PerceptionDataset, atomic_write
+from ipcverify.data import PerceptionDataset
 from ipcverify.errors import ModelFileError
+from ipcverify.files import atomic_write
 from ipcverify.model import IPCModel, ModelConfig
 from ipcverify.modelio import load_model, save_model
 from ipcverify.training import TrainConfig, train

@@ -26,7 +26,6 @@ that support them (or do not).
 from __future__ import annotations
 
 import dataclasses
-import json
 import os
 import platform
 import time
@@ -36,7 +35,6 @@ from pathlib import Path
 from typing import Any
 
 import joblib
-import numpy as np
 import torch
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
@@ -64,8 +62,9 @@ from case_studies.quad_landing.report_page import render_report
 from case_studies.quad_landing.reproduce_config import ReproduceConfig, load_reproduce_config
 from case_studies.quad_landing.state_machine import LandingRun
 from case_studies.quad_landing.table1 import PAPER_TABLE1, rates_rising, table1
-from ipcverify.data import PerceptionDataset, atomic_write
+from ipcverify.data import PerceptionDataset
 from ipcverify.errors import InvalidInputError
+from ipcverify.files import atomic_write, json_data, write_json
 from ipcverify.model import IPCModel
 
 __all__ = ["SEEDS", "PAPER_LANDING", "ReproduceResult", "reproduce", "evaluate_claims", "table1_text"]
@@ -121,20 +120,6 @@ def _machine() -> dict[str, Any]:
         "python": platform.python_version(),
         "torch": torch.__version__,
     }
-
-
-def _json_safe(obj: Any) -> Any:
-    if isinstance(obj, dict):
-        return {str(k): _json_safe(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_json_safe(v) for v in obj]
-    if isinstance(obj, (np.floating, float)):
-        return None if not np.isfinite(obj) else float(obj)
-    if isinstance(obj, np.integer):
-        return int(obj)
-    if isinstance(obj, np.bool_):
-        return bool(obj)
-    return obj
 
 
 def _collect_one(path: Path, n: int, k: int, seed: int, approach: Any, sim: SimConfig) -> int:
@@ -441,10 +426,9 @@ def reproduce(
                 atomic_write(out_dir / "figures" / f"{name}.png", lambda fh, b=png: fh.write(b))
     summary["stage_seconds"] = stages.seconds
     summary["runtime_seconds"] = round(time.perf_counter() - t_start, 1)
-    summary = _json_safe(summary)
+    summary = json_data(summary)
     summary_path, report_path = out_dir / "summary.json", out_dir / "report.html"
-    text = json.dumps(summary, indent=1) + "\n"
-    atomic_write(summary_path, lambda fh: fh.write(text), "w")
+    write_json(summary_path, summary, indent=1)
     page = render_report(summary, figs)
     atomic_write(report_path, lambda fh: fh.write(page), "w")
     return ReproduceResult(summary, report_path, summary_path)

@@ -20,8 +20,8 @@ from ipcverify.containment import (
     prove_containment,
     verify,
 )
-from ipcverify.data import atomic_write
 from ipcverify.errors import InvalidInputError
+from ipcverify.files import atomic_write
 
 __all__ = ["load_json_items"]
 

@@ -14,10 +14,11 @@ import numpy as np
 from rich.table import Table
 
 from ipcverify.cli.app import app, console
-from ipcverify.data import PerceptionDataset, atomic_write, load_dataset
+from ipcverify.data import PerceptionDataset, load_dataset
 from ipcverify.demo import run_demo
 from ipcverify.errors import InvalidInputError
 from ipcverify.evaluation import Evaluation, evaluate
+from ipcverify.files import atomic_write
 from ipcverify.model import ModelConfig
 from ipcverify.modelio import load_model, save_model
 from ipcverify.training import TrainConfig, train
