@@ -28,7 +28,7 @@ import numpy as np
 from benchmarks.common import machine_info
 from ipcverify.baselines import fit_bonferroni_box, fit_global_mahalanobis
 from ipcverify.bounds import clopper_pearson_upper
-from ipcverify.calibration import calibrate
+from ipcverify.calibrate import calibrate
 from ipcverify.certify import certify_files
 from ipcverify.data import save_dataset
 from ipcverify.modelio import save_model

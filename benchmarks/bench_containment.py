@@ -4,7 +4,7 @@ Measures, for n = 3:
 
 * the vectorised closed form over a batch of 10^5 ellipsoids (float slack + mask);
 * the compiled S-lemma SDP per problem (cvxpy + Clarabel solve only, and the full
-  ``prove_containment`` including the exact certificate);
+  ``prove`` including the exact certificate);
 * the exact re-check ``verify`` of closed-form and SDP certificates;
 * ``landing_decision`` per measurement (what the landing state machine calls);
 * how often each prover answers UNKNOWN over a sweep of conditioning (1 to 1e6) and
@@ -29,18 +29,11 @@ import cvxpy as cp
 import numpy as np
 
 from benchmarks.common import machine_info
-from ipcverify.containment import (
-    Box,
-    Polytope,
-    Status,
-    _sdp_problem,
-    contained_float,
-    prove_containment,
-    support_slack,
-    verify,
-)
+from case_studies.quad_landing.state_machine import LANDING_TARGET
+from ipcverify.containment import Status, contained_float, prove, support_slack, verify
+from ipcverify.containment.sdp import sdp_problem
 from ipcverify.landing import landing_decision
-from ipcverify.sets import Ellipsoid
+from ipcverify.sets import Box, Ellipsoid, Polytope
 
 OUT = Path(__file__).with_name("containment_results.json")
 
@@ -100,31 +93,35 @@ def _contained_pair(rng, n=3):
 
 
 def bench_sdp(rng, count=200):
-    prob, lam, tau, q2 = _sdp_problem(3)
-    solve, prove, statuses = [], [], Counter()
+    prob, lam, tau, q2 = sdp_problem(3)
+    solve, end_to_end, statuses = [], [], Counter()
     pairs = [
         _contained_pair(rng) if i % 2 else (_ellipsoid(rng, 3, 1.0), _ellipsoid(rng, 3, 1.0))
         for i in range(count)
     ]
-    prove_containment(*pairs[0])  # compile once (DPP), not timed
+    prove(*pairs[0])  # compile once (DPP), not timed
     for e1, e2 in pairs:
         t = time.perf_counter()
-        cert = prove_containment(e1, e2)
-        prove.append(time.perf_counter() - t)
+        cert = prove(e1, e2)
+        end_to_end.append(time.perf_counter() - t)
         statuses[cert.status.value] += 1
         t = time.perf_counter()
         prob.solve(solver=cp.CLARABEL)  # parameters of the last problem: the bare solve
         solve.append(time.perf_counter() - t)
-    return {"solve_only": _ms(solve), "prove_containment_end_to_end": _ms(prove), "statuses": dict(statuses)}
+    return {
+        "solve_only": _ms(solve),
+        "prove_containment_end_to_end": _ms(end_to_end),
+        "statuses": dict(statuses),
+    }
 
 
 def bench_exact(rng, count=200):
     box_certs, sdp_certs, landing = [], [], []
     for _ in range(count):
         e = Ellipsoid(rng.normal(size=3), rng.standard_normal((3, 3)) + 4 * np.eye(3))
-        box_certs.append(prove_containment(e, Box(-np.ones(3) * 2, np.ones(3) * 2)))
+        box_certs.append(prove(e, Box(-np.ones(3) * 2, np.ones(3) * 2)))
     for _ in range(count // 2):
-        sdp_certs.append(prove_containment(*_contained_pair(rng)))
+        sdp_certs.append(prove(*_contained_pair(rng)))
     out = {}
     for name, certs in (("closed_form_box", box_certs), ("sdp", sdp_certs)):
         ts = []
@@ -137,7 +134,7 @@ def bench_exact(rng, count=200):
         q = _orth(rng, 3)
         e = Ellipsoid(rng.uniform(-5, 5, 3), q @ np.diag(1 / rng.uniform(0.01, 0.05, 3)) @ q.T)
         t = time.perf_counter()
-        landing_decision(e)
+        landing_decision(e, LANDING_TARGET)
         landing.append(time.perf_counter() - t)
     out["landing_decision"] = _ms(landing)
     return out
@@ -164,10 +161,10 @@ def _general(rng, n, log_cond, margin, sign):
         e1.centers[0] + rng.normal(size=n) / np.linalg.norm(e1.shapes[0], 2),
         _shape(rng, n, min(log_cond, 3.0)),
     )
-    from ipcverify.containment import _normalised, _trs_maximiser
+    from ipcverify.containment.sdp import normalised, trust_region_maximiser
 
-    d_mat, d = _normalised(e1, e2)
-    u, _ = _trs_maximiser(d_mat, d)
+    d_mat, d = normalised(e1, e2)
+    u, _ = trust_region_maximiser(d_mat, d)
     tau = float(np.sum((d_mat @ (u - d)) ** 2))
     return e1, Ellipsoid(e2.centers[0], e2.shapes[0] * np.sqrt((1.0 - sign * margin) / tau)), None
 
@@ -196,7 +193,7 @@ def unknown_rates(rng, per_cell=8):
         for log_cond, margin, sign in itertools.product(conds, margins, [-1.0, 1.0]):
             for _ in range(per_cell):
                 inner, outer, truth = make(rng, 3, log_cond, margin, sign)
-                cert = prove_containment(inner, outer, method=method)
+                cert = prove(inner, outer, method=method)
                 total[margin] += 1
                 unknown[margin] += cert.status is Status.UNKNOWN
                 if truth is not None and cert.status is not Status.UNKNOWN:

@@ -34,6 +34,7 @@ import numpy as np
 import torch
 
 from benchmarks.common import spread, time_calls
+from case_studies.quad_landing.state_machine import LANDING_TARGET
 from ipcverify.data import PerceptionDataset
 from ipcverify.model import IPCModel
 from ipcverify.query import IPCQuery
@@ -70,7 +71,7 @@ def single_query(
     onnx: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Per-call latency (microseconds) of the single-query paths; see the module docstring."""
-    q = IPCQuery(model)
+    q = IPCQuery(model, LANDING_TARGET)
     body = model.network.body
     eng = model.engine
     xs, ys = np.ascontiguousarray(queries.x), np.ascontiguousarray(queries.yhat)
@@ -167,7 +168,7 @@ def batch_throughput(
         def engine_arrays(xs: np.ndarray = xs, ys: np.ndarray = ys) -> None:
             c, C = model.raw_arrays(xs, ys)
             if scale is None:
-                C / model.calibration.scale_factors(xs, ys)[:, None, None]  # type: ignore[union-attr]
+                C / model.calibration.scale_for(xs, ys)[:, None, None]  # type: ignore[union-attr]
 
         def bare(z: torch.Tensor = z) -> None:
             with torch.inference_mode():

@@ -34,10 +34,11 @@ import numpy as np
 from benchmarks.common import spread
 from benchmarks.datasets import Splits
 from benchmarks.peers import MAPIE_VERSION, fit_mapie_multivariate, mapie_available
+from ipcverify.architecture import ModelConfig
 from ipcverify.baselines import fit_bonferroni_box, fit_global_mahalanobis
 from ipcverify.bounds import CalibrationMode
-from ipcverify.calibration import calibrate
-from ipcverify.model import IPCModel, ModelConfig
+from ipcverify.calibrate import calibrate
+from ipcverify.model import IPCModel
 from ipcverify.training import TrainConfig, train
 
 __all__ = ["METHODS", "PAPER_TRAIN", "measure", "bench_tightness"]

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.common import machine_info
-from ipcverify.model import ModelConfig
+from ipcverify.architecture import ModelConfig
 from ipcverify.synthetic import make_lagged_perception
 from ipcverify.training import TrainConfig, train
 

@@ -22,8 +22,8 @@ import torch
 
 from benchmarks.common import blas_single_thread, machine_info
 from benchmarks.datasets import DATASETS, load_splits
-from ipcverify.calibration import calibrate
-from ipcverify.model import ModelConfig
+from ipcverify.architecture import ModelConfig
+from ipcverify.calibrate import calibrate
 from ipcverify.training import TrainConfig, train
 
 OUT = Path(__file__).with_name("tuning_results.json")

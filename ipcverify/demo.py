@@ -10,7 +10,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from ipcverify.baselines import fit_global_mahalanobis
-from ipcverify.calibration import calibrate
+from ipcverify.calibrate import calibrate
 from ipcverify.data import PerceptionDataset, save_dataset
 from ipcverify.evaluation import Evaluation, evaluate
 from ipcverify.files import atomic_write

@@ -23,7 +23,8 @@ the float64 engine.
 Examples
 --------
 >>> import os, tempfile
->>> from ipcverify.model import IPCModel, IPCNetwork, ModelConfig
+>>> from ipcverify.model import IPCModel, IPCNetwork
+>>> from ipcverify.architecture import ModelConfig
 >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(8,))))
 >>> info = export_onnx(m, os.path.join(tempfile.mkdtemp(), "ipc.onnx"))  # doctest: +SKIP
 >>> info.calibrated  # doctest: +SKIP
@@ -42,11 +43,10 @@ import torch
 from numpy.typing import NDArray
 
 import ipcverify
-from ipcverify.calibration import GlobalCalibration, network_fingerprint
+from ipcverify.architecture import LOGDIAG_CLAMP
 from ipcverify.errors import InvalidInputError
 from ipcverify.files import atomic_write
-from ipcverify.inference import LOGDIAG_CLAMP
-from ipcverify.model import IPCModel
+from ipcverify.model import IPCModel, network_fingerprint
 
 __all__ = ["OPSET", "ExportInfo", "OnnxCheck", "build_onnx", "export_onnx", "check_onnx", "onnx_session"]
 
@@ -68,12 +68,13 @@ def _scale(model: IPCModel) -> float | None:
     cal = model.calibration
     if cal is None:
         return None
-    if isinstance(cal, GlobalCalibration):
-        return float(cal.threshold.scale)
+    groups = cal.groups()
+    if len(groups) == 1:
+        return float(groups[0].scale)
     raise InvalidInputError(
-        f"cannot export a model with a {type(cal).__name__}: its scale depends on a group looked up per "
-        "query, which the ONNX graph does not do; calibrate it globally (without --group-column) to "
-        "export it, or export the uncalibrated network and apply the group scales yourself"
+        f"cannot export a model calibrated per group ({cal.summary().grouping}): its scale depends on a "
+        "group looked up per query, which the ONNX graph does not do; calibrate it globally (without "
+        "--group-column) to export it, or export the uncalibrated network and apply the group scales yourself"
     )
 
 
@@ -117,7 +118,7 @@ def build_onnx(model: IPCModel, dtype: Dtype = "float64") -> Any:
     Parameters
     ----------
     model : IPCModel
-        Uncalibrated, or with a :class:`~ipcverify.calibration.GlobalCalibration`.
+        Uncalibrated, or with a calibration of one group (a single scale).
     dtype : {"float64", "float32"}
         Precision of inputs, weights and outputs.
 
@@ -217,9 +218,9 @@ def build_onnx(model: IPCModel, dtype: Dtype = "float64") -> Any:
         "calibrated": "true" if scale is not None else "false",
         "sets": "E(c, C) = {y : ||C (y - c)|| <= 1}; outputs center (B, n) and C = shape (B, n, n)",
     }
-    if scale is not None:
-        t = model.calibration.threshold  # type: ignore[union-attr]
-        meta.update(scale=repr(scale), mode=t.mode, epsilon=repr(t.epsilon), delta=repr(t.delta), n=str(t.n))
+    if scale is not None and model.calibration is not None:
+        c = model.calibration
+        meta.update(scale=repr(scale), mode=c.mode, epsilon=repr(c.epsilon), delta=repr(c.delta), n=str(c.n))
     helper.set_model_props(proto, meta)
     onnx.checker.check_model(proto)
     return proto

@@ -11,19 +11,14 @@ single queries of a control loop.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
 from numpy.typing import NDArray
 
-if TYPE_CHECKING:
-    from ipcverify.model import ModelConfig
+from ipcverify.architecture import LOGDIAG_CLAMP, ModelConfig
 
-__all__ = ["InferenceEngine", "LOGDIAG_CLAMP"]
-
-#: Bound on the log of the Cholesky diagonal (keeps exp finite in float32).
-LOGDIAG_CLAMP = 12.0
+__all__ = ["InferenceEngine"]
 
 FloatArray = NDArray[np.float64]
 
@@ -42,7 +37,8 @@ class InferenceEngine:
     Examples
     --------
     >>> import numpy as np
-    >>> from ipcverify.model import IPCNetwork, ModelConfig
+    >>> from ipcverify.model import IPCNetwork
+    >>> from ipcverify.architecture import ModelConfig
     >>> net = IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(8,)))
     >>> eng = InferenceEngine.from_network(net)
     >>> c, C = eng.batch(np.zeros((4, 2)), np.zeros((4, 3)))

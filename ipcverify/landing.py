@@ -2,9 +2,18 @@
 
 The IPC returns an ellipsoid ``E`` that contains the landing pad's true position
 ``y`` with high probability. The landing state machine accepts the measurement
-only if ``E`` fits the target box ``G = [-0.05, 0.05]^2 x [0, 0.05]``; it then flies
-to the turn-off point ``P = [mid_x, mid_y, z_max]`` of ``E``'s bounding box, and
-Proposition 1 says ``P in {y} + G`` for every ``y in E``.
+only if ``E`` fits the target box ``G`` (the paper's is ``[-0.05, 0.05]^2 x [0, 0.05]``;
+the caller passes its own, e.g. the case study's); it then flies to the turn-off point
+``P = [mid_x, mid_y, z_max]`` of ``E``'s bounding box, and Proposition 1 says
+``P in {y} + G`` for every ``y in E``.
+
+One decision rule, two precisions:
+
+* :func:`landing_slack` is the float rule -- the relative slack of every face of the test,
+  for one ellipsoid or a whole batch; :func:`landing_accept_float` applies it to batches.
+* :class:`LandingRule` is the decision of record for one ellipsoid: the float rule rejects
+  clear misses at once (rejecting is always safe: the controller measures again); anything
+  else is decided by the exact :func:`landing_decision`, so every accept carries a proof.
 
 :func:`landing_decision` proves exactly the statement the controller relies on,
 ``P - y in G`` for all ``y in E``, i.e. ``E`` is inside the box ``{P} + (-G) =
@@ -22,62 +31,72 @@ Examples
 --------
 >>> import numpy as np
 >>> from ipcverify.sets import Ellipsoid
+>>> from ipcverify.sets import Box, Ellipsoid
+>>> G = Box([-0.05, -0.05, 0.0], [0.05, 0.05, 0.05])
 >>> e = Ellipsoid([1.0, 2.0, 0.3], np.diag([40.0, 40.0, 80.0]))  # semi-axes .025,.025,.0125
->>> d = landing_decision(e)
+>>> d = landing_decision(e, G)
 >>> d.accept, d.turnoff.tolist(), d.certificate.status.name
 (True, [1.0, 2.0, 0.3125], 'PROVEN')
->>> landing_decision(e.scaled(3.0)).accept   # 0.15 wide: too uncertain, take another look
+>>> landing_decision(e.scaled(3.0), G).accept   # 0.15 wide: too uncertain, take another look
 False
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ipcverify.containment import (
-    Box,
     ContainmentCertificate,
+    ExactEllipsoid,
     Status,
     Verification,
-    _Exact,
-    _prove_closed_form,
+    prove_closed_form,
     verify,
 )
 from ipcverify.errors import SetError
 from ipcverify.exact import exact_vector, float_down, float_up, sqnorm, sqrt_upper
-from ipcverify.sets import Ellipsoid
+from ipcverify.sets import Box, Ellipsoid
 
 __all__ = [
-    "LANDING_TARGET",
+    "PRECHECK_MARGIN",
     "LandingDecision",
+    "LandingRule",
+    "QueryDecision",
     "check_landing",
     "landing_accept_float",
     "landing_decision",
+    "landing_slack",
     "turnoff_point",
 ]
 
 FloatArray = NDArray[np.float64]
 
-#: The paper's target region ``G = [-0.05, 0.05] x [-0.05, 0.05] x [0, 0.05]`` (metres).
-LANDING_TARGET = Box(np.array([-0.05, -0.05, 0.0]), np.array([0.05, 0.05, 0.05]))
+#: Relative margin by which the float rule must fail before a query is rejected without the
+#: exact proof (anything closer goes to :func:`landing_decision`); also the float rule's
+#: tolerance, so that the z face, which touches ``P`` by construction, is not lost to rounding.
+PRECHECK_MARGIN = 1e-9
 
 
-def _check_inputs(ellipsoid: Ellipsoid, target: Box) -> None:
+def _check_ellipsoid(ellipsoid: Ellipsoid) -> None:
     if not isinstance(ellipsoid, Ellipsoid) or ellipsoid.batch_size != 1 or ellipsoid.dim != 3:
         raise SetError(
             "landing needs a single 3-D ellipsoid (batch of 1, n = 3); for batches use "
             "landing_accept_float or call landing_decision per ellipsoid"
         )
+
+
+def _check_target(target: Box) -> None:
     if not isinstance(target, Box) or target.dim != 3:
         raise SetError("the target G must be a 3-D Box")
     if not (target.lower < target.upper).all():
         raise SetError("the target G must have positive width in every coordinate")
 
 
-def _turnoff(ex: _Exact) -> FloatArray:
+def _turnoff(ex: ExactEllipsoid) -> FloatArray:
     """``[c_x, c_y, z_max rounded up]`` with ``(P_z - c_z)^2 >= ||row z of C^{-1}||^2`` exactly."""
     hz2 = sqnorm(ex.cinv[2])  # squared half-height P_zz
     pz = float_up(ex.c[2] + sqrt_upper(hz2, 64))
@@ -96,8 +115,8 @@ def turnoff_point(ellipsoid: Ellipsoid) -> FloatArray:
     >>> turnoff_point(Ellipsoid(np.zeros(3), np.diag([1.0, 1.0, 4.0]))).tolist()
     [0.0, 0.0, 0.25]
     """
-    _check_inputs(ellipsoid, LANDING_TARGET)
-    return _turnoff(_Exact.of(ellipsoid))
+    _check_ellipsoid(ellipsoid)
+    return _turnoff(ExactEllipsoid.of(ellipsoid))
 
 
 def _offset_box(p: FloatArray, target: Box) -> Box:
@@ -147,7 +166,7 @@ class LandingDecision:
         object.__setattr__(self, "accept", bool(self.accept))
 
 
-def landing_decision(ellipsoid: Ellipsoid, target: Box = LANDING_TARGET) -> LandingDecision:
+def landing_decision(ellipsoid: Ellipsoid, target: Box) -> LandingDecision:
     """Decide, with an exact certificate, whether to land on this measurement.
 
     Call once per measurement with the IPC's ellipsoid (about a millisecond for
@@ -158,7 +177,7 @@ def landing_decision(ellipsoid: Ellipsoid, target: Box = LANDING_TARGET) -> Land
     ellipsoid : Ellipsoid
         One 3-D ellipsoid ``E(c, C)`` from the IPC.
     target : Box
-        The target region ``G`` (default: the paper's :data:`LANDING_TARGET`).
+        The target region ``G`` (3-D, positive width in every coordinate).
 
     Returns
     -------
@@ -168,14 +187,16 @@ def landing_decision(ellipsoid: Ellipsoid, target: Box = LANDING_TARGET) -> Land
     Examples
     --------
     >>> import numpy as np
-    >>> d = landing_decision(Ellipsoid(np.zeros(3), np.diag([20.0, 20.0, 40.0])))
+    >>> G = Box([-0.05, -0.05, 0.0], [0.05, 0.05, 0.05])
+    >>> d = landing_decision(Ellipsoid(np.zeros(3), np.diag([20.0, 20.0, 40.0])), G)
     >>> d.accept, d.certificate.margin >= 0
     (True, True)
     """
-    _check_inputs(ellipsoid, target)
-    ex = _Exact.of(ellipsoid)
+    _check_ellipsoid(ellipsoid)
+    _check_target(target)
+    ex = ExactEllipsoid.of(ellipsoid)
     p = _turnoff(ex)
-    cert = _prove_closed_form(ex, ellipsoid, _offset_box(p, target))
+    cert = prove_closed_form(ellipsoid, _offset_box(p, target), ex)
     return LandingDecision(cert.status is Status.PROVEN, p, cert, target)
 
 
@@ -189,7 +210,8 @@ def check_landing(decision: LandingDecision) -> Verification:
     Examples
     --------
     >>> import numpy as np
-    >>> d = landing_decision(Ellipsoid(np.zeros(3), np.diag([20.0, 20.0, 40.0])))
+    >>> G = Box([-0.05, -0.05, 0.0], [0.05, 0.05, 0.05])
+    >>> d = landing_decision(Ellipsoid(np.zeros(3), np.diag([20.0, 20.0, 40.0])), G)
     >>> check_landing(d).status.name
     'PROVEN'
     """
@@ -211,26 +233,161 @@ def check_landing(decision: LandingDecision) -> Verification:
     return Verification(cert.status, Status.PROVEN, v.reason + "; box inside {P} + (-G) exactly")
 
 
-def landing_accept_float(ellipsoids: Ellipsoid, target: Box = LANDING_TARGET) -> NDArray[np.bool_]:
-    """Float-decided acceptance for a whole batch (simulation and plotting).
+def landing_slack(centers: FloatArray, half_widths: FloatArray, target: Box) -> FloatArray:
+    """The float landing rule: relative slack of every face of the test (negative: does not fit).
 
-    Uses the float turn-off point ``[c_x, c_y, c_z + h_z]`` and the float slack of
-    :func:`~ipcverify.containment.support_slack`. Not a proof: near-threshold
-    ellipsoids may differ from :func:`landing_decision`, which is exact and is what
-    the controller should call.
+    For an ellipsoid with centre ``c`` and axis half-widths ``h`` (``sqrt(P_ii)``), the float
+    turn-off point is ``P = [c_x, c_y, c_z + h_z]`` and the test is ``c - h >= P - G.upper``
+    and ``c + h <= P - G.lower``; each face's slack is divided by the size of the numbers
+    involved, so that it can be compared with a relative tolerance. Elementwise: ``centers``
+    and ``half_widths`` may be one ellipsoid's ``(3,)`` arrays or a batch's ``(B, 3)``.
+
+    Returns
+    -------
+    ndarray, shape (..., 6)
+        The upper-face slacks of the three axes, then the lower-face ones.
+
+    Examples
+    --------
+    >>> G = Box([-0.05, -0.05, 0.0], [0.05, 0.05, 0.05])
+    >>> s = landing_slack(np.zeros(3), np.array([0.025, 0.025, 0.0125]), G)
+    >>> bool(s.min() >= 0), bool(landing_slack(np.zeros(3), np.full(3, 0.06), G).min() >= 0)
+    (True, False)
+    """
+    c = np.asarray(centers, dtype=np.float64)
+    h = np.asarray(half_widths, dtype=np.float64)
+    p = c.copy()
+    lo, up = target.lower, target.upper
+    with np.errstate(invalid="ignore", over="ignore"):  # an infinite half-width gives NaN: no fit
+        p[..., 2] += h[..., 2]
+        upper_slack = (p - lo) - (c + h)  # box face P - G.lower
+        lower_slack = (c - h) - (p - up)  # box face P - G.upper
+        size = 1.0 + np.abs(p) + np.abs(c) + h + np.abs(lo) + np.abs(up)
+        out = np.concatenate([upper_slack / size, lower_slack / size], axis=-1)
+    return np.where(np.isnan(out), -np.inf, out)
+
+
+def landing_accept_float(ellipsoids: Ellipsoid, target: Box) -> NDArray[np.bool_]:
+    """Float-decided acceptance for a whole batch (simulation and plotting): :func:`landing_slack`.
+
+    Not a proof: near-threshold ellipsoids may differ from :func:`landing_decision`, which
+    is exact and is what the controller's decision of record (:class:`LandingRule`) uses.
 
     Examples
     --------
     >>> import numpy as np
+    >>> G = Box([-0.05, -0.05, 0.0], [0.05, 0.05, 0.05])
     >>> e = Ellipsoid(np.zeros((2, 3)), np.stack([np.eye(3) * 40, np.eye(3) * 10]))
-    >>> landing_accept_float(e).tolist()
+    >>> landing_accept_float(e, G).tolist()
     [True, False]
     """
     if not isinstance(ellipsoids, Ellipsoid) or ellipsoids.dim != 3:
         raise SetError("landing_accept_float needs a batch of 3-D ellipsoids")
-    c, h = ellipsoids.centers, ellipsoids.half_widths()
-    p = c.copy()
-    p[:, 2] += h[:, 2]
-    upper_slack = (p - target.lower) - (c + h)  # box upper face P - G.lower
-    lower_slack = (c - h) - (p - target.upper)  # box lower face P - G.upper
-    return np.asarray(((upper_slack >= 0) & (lower_slack >= 0)).all(axis=1), dtype=np.bool_)
+    _check_target(target)
+    slack = landing_slack(ellipsoids.centers, ellipsoids.half_widths(), target)
+    return np.asarray(slack.min(axis=-1) >= -PRECHECK_MARGIN, dtype=np.bool_)
+
+
+def _half_widths_3(C: FloatArray) -> FloatArray:
+    """``sqrt(((C^T C)^{-1})_ii)`` = norms of the rows of ``C^{-1}`` for a 3x3 ``C`` (float, fast)."""
+    (a, b, c), (d, e, f), (g, h, i) = C.tolist()
+    A, B, Cc = e * i - f * h, -(d * i - f * g), d * h - e * g
+    det = a * A + b * B + c * Cc
+    if not (math.isfinite(det) and det != 0.0):
+        return np.full(3, math.inf)
+    # rows of adj(C) (= columns of the cofactor matrix), i.e. rows of C^{-1} times det
+    r0 = (A, -(b * i - c * h), b * f - c * e)
+    r1 = (B, a * i - c * g, -(a * f - c * d))
+    r2 = (Cc, -(a * h - b * g), a * e - b * d)
+    ad = abs(det)
+    return np.array([math.sqrt(u * u + v * v + w * w) / ad for u, v, w in (r0, r1, r2)])
+
+
+@dataclass(frozen=True, eq=False, slots=True)
+class QueryDecision:
+    """The landing answer for one ellipsoid.
+
+    Attributes
+    ----------
+    center : ndarray, shape (3,)
+        Centre of the ellipsoid decided on.
+    shape : ndarray, shape (3, 3)
+        Its shape matrix ``C`` (``E = {y : ||C (y - c)|| <= 1}``).
+    accept : bool
+        Land on this measurement. From :meth:`LandingRule.decide` it is True only if
+        ``proof`` is an exact PROVEN landing decision.
+    turnoff : ndarray, shape (3,)
+        Turn-off point ``P``: the exact one (``P_z`` rounded up) when ``proof`` is
+        given, else the float ``[c_x, c_y, c_z + h_z]``.
+    proof : LandingDecision or None
+        The exact decision, when it was computed (the float rule did not reject clearly).
+    proven : bool
+        ``accept`` is backed by an exact proof.
+    """
+
+    center: FloatArray
+    shape: FloatArray
+    accept: bool
+    turnoff: FloatArray
+    proof: LandingDecision | None = None
+    proven: bool = field(init=False)
+
+    def __post_init__(self) -> None:
+        if self.proof is not None and self.accept != self.proof.accept:
+            raise SetError("a decision with a proof must accept exactly when the proof does")
+        object.__setattr__(self, "proven", bool(self.accept and self.proof is not None))
+
+
+@dataclass(frozen=True, eq=False)
+class LandingRule:
+    """The landing decision of record for one ellipsoid, against the caller's target ``G``.
+
+    :meth:`decide` applies the float rule (:func:`landing_slack`) and rejects when the
+    ellipsoid misses the target by more than :data:`PRECHECK_MARGIN` (relative); otherwise
+    the exact :func:`landing_decision` decides, so every accept is exactly proven.
+    :meth:`decide_float` is the float rule alone (fast, **not a proof**).
+
+    Parameters
+    ----------
+    target : Box
+        The target region ``G`` (3-D, positive width in every coordinate).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> rule = LandingRule(Box([-0.05, -0.05, 0.0], [0.05, 0.05, 0.05]))
+    >>> d = rule.decide(np.zeros(3), np.diag([40.0, 40.0, 80.0]))
+    >>> d.accept, d.proven, d.turnoff.tolist()
+    (True, True, [0.0, 0.0, 0.0125])
+    >>> rule.decide(np.zeros(3), np.diag([10.0, 40.0, 80.0])).proof is None  # clear reject
+    True
+    """
+
+    target: Box
+
+    def __post_init__(self) -> None:
+        _check_target(self.target)
+
+    def _float(self, center: FloatArray, shape: FloatArray) -> tuple[FloatArray, float]:
+        c = np.asarray(center, dtype=np.float64)
+        C = np.asarray(shape, dtype=np.float64)
+        if c.shape != (3,) or C.shape != (3, 3):
+            raise SetError(f"the landing decision needs a 3-D ellipsoid; got {c.shape} and {C.shape}")
+        h = _half_widths_3(C)
+        worst = float(landing_slack(c, h, self.target).min())
+        p = c.copy()
+        p[2] += h[2]
+        return p, (worst if math.isfinite(worst) else -math.inf)
+
+    def decide(self, center: FloatArray, shape: FloatArray) -> QueryDecision:
+        """Float rule, then the exact proof unless the float rule rejects clearly."""
+        p, worst = self._float(center, shape)
+        if worst < -PRECHECK_MARGIN:
+            return QueryDecision(center, shape, False, p)
+        proof = landing_decision(Ellipsoid(center, shape), self.target)
+        return QueryDecision(center, shape, proof.accept, proof.turnoff.copy(), proof)
+
+    def decide_float(self, center: FloatArray, shape: FloatArray) -> QueryDecision:
+        """The float rule alone: accept iff every relative slack is ``>= -PRECHECK_MARGIN``."""
+        p, worst = self._float(center, shape)
+        return QueryDecision(center, shape, worst >= -PRECHECK_MARGIN, p)

@@ -31,9 +31,10 @@ from numpy.typing import NDArray
 from torch import nn
 from torch.func import functional_call, grad, vmap
 
+from ipcverify.architecture import LOGDIAG_CLAMP
 from ipcverify.data import PerceptionDataset
 from ipcverify.errors import InvalidInputError
-from ipcverify.model import LOGDIAG_CLAMP, IPCModel, IPCNetwork
+from ipcverify.model import IPCModel, IPCNetwork
 
 __all__ = [
     "DEFAULT_RADIUS",
@@ -193,7 +194,7 @@ def per_sample_gradient_norms(
 
     Examples
     --------
-    >>> from ipcverify.model import ModelConfig
+    >>> from ipcverify.architecture import ModelConfig
     >>> net = IPCNetwork(ModelConfig(x_dim=2, y_dim=2, hidden=(4,)))
     >>> per_sample_gradient_norms(net, np.ones((3, 2)), np.ones((3, 2)), np.zeros((3, 2))).shape
     (3,)
@@ -226,7 +227,8 @@ def empirical_lipschitz(
     Examples
     --------
     >>> from ipcverify.synthetic import make_lagged_perception
-    >>> from ipcverify.model import IPCNetwork, ModelConfig
+    >>> from ipcverify.model import IPCNetwork
+    >>> from ipcverify.architecture import ModelConfig
     >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(8,))))
     >>> est = empirical_lipschitz(m, make_lagged_perception(100, seed=0))
     >>> est.value > 0, est.n_samples
@@ -280,7 +282,8 @@ def sound_lipschitz(
     Examples
     --------
     >>> from ipcverify.synthetic import make_lagged_perception
-    >>> from ipcverify.model import IPCNetwork, ModelConfig
+    >>> from ipcverify.model import IPCNetwork
+    >>> from ipcverify.architecture import ModelConfig
     >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(8,))))
     >>> ds = make_lagged_perception(100, seed=0)
     >>> sound_lipschitz(m, ds).value >= empirical_lipschitz(m, ds).value

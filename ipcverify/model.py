@@ -15,103 +15,26 @@ model. The raw output is split into a centre head and a shape head:
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Mapping
-from dataclasses import asdict, dataclass, field
-from typing import Any, Literal, Protocol
+from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import torch
 from numpy.typing import NDArray
 from torch import nn
 
+from ipcverify.architecture import LOGDIAG_CLAMP, ModelConfig
+from ipcverify.calibration.protocol import Calibration
 from ipcverify.errors import InvalidInputError
-from ipcverify.inference import LOGDIAG_CLAMP, InferenceEngine
+from ipcverify.inference import InferenceEngine
 from ipcverify.sets import Ellipsoid
 
-__all__ = ["ModelConfig", "IPCNetwork", "IPCModel", "SetCalibration", "LOGDIAG_CLAMP"]
+__all__ = ["IPCNetwork", "IPCModel", "network_fingerprint"]
 
 FloatArray = NDArray[np.float64]
-Param = Literal["cholesky", "full"]
-Center = Literal["offset", "raw"]
 _ACTIVATIONS: dict[str, type[nn.Module]] = {"relu": nn.ReLU, "tanh": nn.Tanh, "elu": nn.ELU}
-
-
-@dataclass(frozen=True, kw_only=True)
-class ModelConfig:
-    """Architecture of an IPC network.
-
-    Parameters
-    ----------
-    x_dim, y_dim : int
-        State dimension ``d`` and dimension ``n`` of the perceived quantity.
-    hidden : tuple of int
-        Hidden layer widths (paper: (64, 128)).
-    param : {"cholesky", "full"}
-        Parameterisation of the shape matrix.
-    center : {"offset", "raw"}
-        Centre as ``yhat`` plus a learned offset, or predicted directly.
-    activation : {"relu", "tanh", "elu"}
-        Hidden-layer non-linearity.
-
-    Examples
-    --------
-    >>> ModelConfig(x_dim=6, y_dim=3).n_outputs
-    9
-    >>> ModelConfig(x_dim=6, y_dim=3, param="full").n_outputs
-    12
-    """
-
-    x_dim: int
-    y_dim: int
-    hidden: tuple[int, ...] = (64, 128)
-    param: Param = "cholesky"
-    center: Center = "offset"
-    activation: str = "relu"
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "hidden", tuple(int(h) for h in self.hidden))
-        if self.x_dim < 0 or self.y_dim < 1:
-            raise InvalidInputError(
-                f"need x_dim >= 0 and y_dim >= 1; got x_dim={self.x_dim}, y_dim={self.y_dim}"
-            )
-        if not self.hidden or any(h < 1 for h in self.hidden):
-            raise InvalidInputError(f"hidden sizes must be positive integers, e.g. 64,128; got {self.hidden}")
-        if self.param not in ("cholesky", "full"):
-            raise InvalidInputError(f"param must be 'cholesky' or 'full'; got {self.param!r}")
-        if self.center not in ("offset", "raw"):
-            raise InvalidInputError(f"center must be 'offset' or 'raw'; got {self.center!r}")
-        if self.activation not in _ACTIVATIONS:
-            raise InvalidInputError(
-                f"activation must be one of {', '.join(_ACTIVATIONS)}; got {self.activation!r}"
-            )
-
-    @property
-    def n_shape_outputs(self) -> int:
-        """Number of network outputs used for the shape matrix."""
-        n = self.y_dim
-        return n * n if self.param == "full" else n * (n + 1) // 2
-
-    @property
-    def n_outputs(self) -> int:
-        """Total network output size (centre + shape)."""
-        return self.y_dim + self.n_shape_outputs
-
-    def to_dict(self) -> dict[str, Any]:
-        """Plain-data form (for model files)."""
-        d = asdict(self)
-        d["hidden"] = list(self.hidden)
-        return d
-
-    @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> ModelConfig:
-        """Inverse of :meth:`to_dict`; unknown keys are refused."""
-        known = {"x_dim", "y_dim", "hidden", "param", "center", "activation"}
-        unknown = set(data) - known
-        if unknown:
-            raise InvalidInputError(f"unknown model config key(s): {', '.join(sorted(unknown))}")
-        # values are validated by __post_init__; a missing x_dim / y_dim raises TypeError as before
-        kwargs: dict[str, Any] = {k: (tuple(v) if k == "hidden" else v) for k, v in data.items()}
-        return cls(**kwargs)
 
 
 class IPCNetwork(nn.Module):
@@ -208,22 +131,6 @@ class IPCNetwork(nn.Module):
         return g, logdet
 
 
-class SetCalibration(Protocol):
-    """What a calibration must provide to rescale an IPC's sets."""
-
-    def scale_factors(self, x: FloatArray, yhat: FloatArray) -> FloatArray:
-        """Per-sample scale factors ``s`` (B,): the calibrated set is ``E(c, C / s)``."""
-        ...
-
-    def to_dict(self) -> dict[str, Any]:
-        """Plain-data form stored in the model file."""
-        ...
-
-    def guarantee(self) -> str:
-        """The guarantee in one plain sentence."""
-        ...
-
-
 @dataclass(frozen=True, eq=False)
 class IPCModel:
     """A trained inverse perception contract, optionally calibrated.
@@ -232,7 +139,7 @@ class IPCModel:
     ----------
     network : IPCNetwork
         The trained network (put in eval mode).
-    calibration : SetCalibration, optional
+    calibration : Calibration, optional
         Scale factors applied to the raw sets; see :mod:`ipcverify.calibration`.
     metadata : mapping
         Plain data recorded with the model (training settings, data hash, history).
@@ -246,7 +153,7 @@ class IPCModel:
     """
 
     network: IPCNetwork
-    calibration: SetCalibration | None = None
+    calibration: Calibration | None = None
     metadata: Mapping[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -319,7 +226,7 @@ class IPCModel:
         xa, ya = self._check(x, yhat)
         sets = Ellipsoid(*self.raw_arrays(xa, ya))
         if self.calibration is not None:
-            sets = sets.scaled(self.calibration.scale_factors(xa, ya))
+            sets = sets.scaled(self.calibration.scale_for(xa, ya))
         return sets
 
     def raw_scores(self, x: Any, y: Any, yhat: Any) -> FloatArray:
@@ -328,6 +235,24 @@ class IPCModel:
         ya = np.asarray(y, dtype=np.float64).reshape(centers.shape)
         return np.linalg.norm(np.einsum("bij,bj->bi", shapes, ya - centers), axis=1)
 
-    def with_calibration(self, calibration: SetCalibration | None) -> IPCModel:
+    def with_calibration(self, calibration: Calibration | None) -> IPCModel:
         """A copy of this model carrying ``calibration`` (the network is shared)."""
         return IPCModel(self.network, calibration, self.metadata)
+
+
+def network_fingerprint(network: IPCNetwork) -> str:
+    """SHA-256 of a network's configuration and state dict (ties a calibration to its network).
+
+    Examples
+    --------
+    >>> from ipcverify.architecture import ModelConfig
+    >>> len(network_fingerprint(IPCNetwork(ModelConfig(x_dim=1, y_dim=1, hidden=(2,)))))
+    64
+    """
+    h = hashlib.sha256(repr(sorted(network.config.to_dict().items())).encode())
+    for name, t in sorted(network.state_dict().items()):
+        h.update(name.encode())
+        arr = t.detach().cpu().contiguous().numpy()
+        h.update(str(arr.dtype).encode() + str(arr.shape).encode())
+        h.update(arr.tobytes())
+    return h.hexdigest()

@@ -21,11 +21,14 @@ from typing import Any
 
 import torch
 
+from ipcverify.architecture import ModelConfig
+from ipcverify.calibration.kinds import calibration_from_dict
+from ipcverify.data import PerceptionDataset, load_dataset
 from ipcverify.errors import InvalidInputError, ModelFileError
 from ipcverify.files import atomic_write
-from ipcverify.model import IPCModel, IPCNetwork, ModelConfig
+from ipcverify.model import IPCModel, IPCNetwork
 
-__all__ = ["FORMAT", "FORMAT_VERSION", "save_model", "load_model"]
+__all__ = ["FORMAT", "FORMAT_VERSION", "save_model", "load_model", "load_data_for_model"]
 
 FORMAT = "ipcverify-model"
 FORMAT_VERSION = 1
@@ -135,10 +138,30 @@ def load_model(path: str | os.PathLike[str]) -> IPCModel:
             raise ModelFileError(f"{p}: parameter {name!r} holds non-finite values")
     calibration = None
     if payload.get("calibration") is not None:
-        from ipcverify.calibration import calibration_from_dict
-
         try:
             calibration = calibration_from_dict(payload["calibration"])
         except (KeyError, TypeError, ValueError) as exc:
             raise ModelFileError(f"{p}: damaged calibration record ({exc})") from None
     return IPCModel(net, calibration, payload.get("metadata") or {})
+
+
+def load_data_for_model(path: str | os.PathLike[str], model: IPCModel) -> PerceptionDataset:
+    """Load a data file with the column names the model was trained on (tables; NPZ has no names).
+
+    Examples
+    --------
+    >>> import tempfile, os
+    >>> from ipcverify.synthetic import make_lagged_perception
+    >>> from ipcverify.data import save_dataset
+    >>> from ipcverify.architecture import ModelConfig
+    >>> p = os.path.join(tempfile.mkdtemp(), "d.csv")
+    >>> save_dataset(make_lagged_perception(5, seed=0), p)
+    >>> len(load_data_for_model(p, IPCModel(IPCNetwork(ModelConfig(x_dim=6, y_dim=3)))))
+    5
+    """
+    if Path(path).suffix.lower() == ".npz":
+        return load_dataset(path)
+    meta = model.metadata
+    return load_dataset(
+        path, meta.get("x_columns") or None, meta.get("y_columns") or None, meta.get("yhat_columns") or None
+    )

@@ -24,7 +24,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from ipcverify.bounds import clopper_pearson_interval
-from ipcverify.certify import CertificateStatus, CertifyEvidence, CertifyResult
+from ipcverify.certificate import CertificateStatus, CertifyEvidence, CertifyResult
 from ipcverify.evaluation import BinCoverage
 
 __all__ = [
@@ -221,8 +221,9 @@ def render_report(result: CertifyResult) -> str:
     Examples
     --------
     >>> from ipcverify.synthetic import make_lagged_perception
-    >>> from ipcverify.model import IPCModel, IPCNetwork, ModelConfig
-    >>> from ipcverify.certify import certify
+    >>> from ipcverify.model import IPCModel, IPCNetwork
+    >>> from ipcverify.architecture import ModelConfig
+    >>> from ipcverify.certify import certify  # certify imports this module, not the other way round
     >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(8,))))
     >>> page = render_report(certify(m, make_lagged_perception(500, seed=2)))
     >>> page.startswith("<!DOCTYPE html>") and "http" not in page
@@ -256,28 +257,21 @@ def render_report(result: CertifyResult) -> str:
         )
     else:
         rows: list[tuple[str, Any]] = [
-            (
-                "mode",
-                cal["mode"] + (" (training-conditional)" if cal["mode"] == "pac" else " (split conformal)"),
-            ),
-            ("epsilon (target violation rate)", cal["epsilon"]),
-            ("delta", cal["delta"]),
-            ("calibration samples n", cal["n"]),
+            ("mode", cal.mode + (" (training-conditional)" if cal.mode == "pac" else " (split conformal)")),
+            ("epsilon (target violation rate)", cal.epsilon),
+            ("delta", cal.delta),
+            ("calibration samples n", cal.n),
+            ("calibrated per", cal.grouping),
+            ("certified violation rate", cal.certified_epsilon),
         ]
-        if cal["kind"] == "global":
-            rows += [
-                ("order statistic k", cal["k"]),
-                ("scale factor s", cal["scale"]),
-                ("certified violation rate", cal["certified_epsilon"]),
-            ]
-        else:
-            rows += [("Mondrian column", cal["column"]), ("groups", len(cal["groups"]))]
+        if len(cal.groups) == 1:
+            rows += [("order statistic k", cal.groups[0].k), ("scale factor s", cal.groups[0].scale)]
         parts.append(_table(rows))
-        if cal["kind"] == "mondrian":
+        if len(cal.groups) > 1:
             grows = "".join(
-                f"<tr><td>{html.escape(g['label'])}</td><td>{_fmt(g['n'])}</td><td>{_fmt(g['k'])}</td>"
-                f"<td>{_fmt(g['scale'])}</td></tr>"
-                for g in cal["groups"]
+                f"<tr><td>{html.escape(g.label)}</td><td>{_fmt(g.n)}</td><td>{_fmt(g.k)}</td>"
+                f"<td>{_fmt(g.scale)}</td></tr>"
+                for g in cal.groups
             )
             parts.append(f"<table><tr><th>group</th><th>n</th><th>k</th><th>scale</th></tr>{grows}</table>")
 
@@ -290,17 +284,17 @@ def render_report(result: CertifyResult) -> str:
                 ("empirical violation rate", t.empirical_rate),
                 (f"upper bound (Clopper-Pearson, confidence {1 - t.delta:.6g})", t.upper_bound),
                 (f"two-sided interval ({1 - t.delta:.6g})", f"[{t.interval[0]:.4g}, {t.interval[1]:.4g}]"),
-                ("mean log-volume of the sets", cert.volume["mean_log"]),
-                ("median log-volume", cert.volume["median_log"]),
+                ("mean log-volume of the sets", cert.volume.mean_log),
+                ("median log-volume", cert.volume.median_log),
             ]
         )
     )
     cons = cert.consistency
-    if cons.get("checked"):
-        verdict = "consistent" if cons["consistent"] else "CONTRADICTS the calibration"
+    if cons.checked:
+        verdict = "consistent" if cons.consistent else "CONTRADICTS the calibration"
         parts.append(
-            f"<p>Consistency check: test lower bound {cons['test_lower_bound']:.4g} vs. allowed rate "
-            f"{cons['allowed_rate']:.4g}: <b>{verdict}</b>. <span class='small'>{html.escape(cons['rule'])}"
+            f"<p>Consistency check: test lower bound {cons.test_lower_bound:.4g} vs. allowed rate "
+            f"{cons.allowed_rate:.4g}: <b>{verdict}</b>. <span class='small'>{html.escape(cons.rule)}"
             "</span></p>"
         )
     parts.append(_img(plot_scores(ev, cal is not None), "histogram of normalised test scores"))
@@ -313,7 +307,7 @@ def render_report(result: CertifyResult) -> str:
     )
     parts.append(
         _img(
-            plot_coverage(cert.coverage, t.delta, None if cal is None else cal["epsilon"]),
+            plot_coverage(cert.coverage, t.delta, None if cal is None else cal.epsilon),
             "violation rate per bin",
         )
     )
@@ -363,18 +357,18 @@ def render_report(result: CertifyResult) -> str:
     m = cert.model
     parts.append("<h2>Identity</h2>")
     rows3: list[tuple[str, Any]] = [
-        ("model file", m["path"]),
-        ("model file SHA-256", m["file_sha256"]),
-        ("network SHA-256", m["network_sha256"]),
-        ("architecture", ", ".join(f"{k}={v}" for k, v in m["architecture"].items())),
-        ("parameters p", m["n_parameters"]),
-        ("test data", cert.data["test"]["source"]),
-        ("test data SHA-256 (content)", cert.data["test"]["content_sha256"]),
+        ("model file", m.path),
+        ("model file SHA-256", m.file_sha256),
+        ("network SHA-256", m.network_sha256),
+        ("architecture", ", ".join(f"{k}={v}" for k, v in m.architecture.items())),
+        ("parameters p", m.n_parameters),
+        ("test data", cert.test_data.source),
+        ("test data SHA-256 (content)", cert.test_data.content_sha256),
     ]
     if cal is not None:
-        rows3.append(("calibration data SHA-256 (content)", cal["data_sha256"]))
-    if cert.data.get("train"):
-        rows3.append(("training data SHA-256 (content)", cert.data["train"]["content_sha256"]))
+        rows3.append(("calibration data SHA-256 (content)", cal.data_sha256))
+    if cert.train_data is not None:
+        rows3.append(("training data SHA-256 (content)", cert.train_data.content_sha256))
     parts.append(_table(rows3))
     parts.append(
         "<p class='small'>Generated by ipcverify. The machine-readable record is "

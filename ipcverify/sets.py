@@ -1,4 +1,11 @@
-"""Batched ellipsoids, the sets an inverse perception contract outputs.
+"""The sets ipcverify works with: ellipsoids (what an IPC outputs), boxes and polytopes.
+
+* :class:`Ellipsoid` -- an immutable *batch* of ellipsoids, the contract's output.
+* :class:`Box` and :class:`Polytope` -- outer sets that decisions are checked against
+  (for example "the ellipsoid fits in the landing box").
+* :data:`OuterSet` -- any of the three, as accepted by :mod:`ipcverify.containment`.
+
+Each type validates itself on construction and is read-only afterwards.
 
 An ellipsoid is ``E(c, C) = {y : ||C (y - c)||_2 <= 1}`` with centre ``c`` and a
 non-singular shape matrix ``C`` (the paper's convention). With ``P = (C^T C)^{-1}``
@@ -18,7 +25,7 @@ from scipy.special import gammaln
 
 from ipcverify.errors import SetError
 
-__all__ = ["Ellipsoid", "unit_ball_log_volume"]
+__all__ = ["Box", "Ellipsoid", "OuterSet", "Polytope", "single_ellipsoid", "unit_ball_log_volume"]
 
 FloatArray = NDArray[np.float64]
 
@@ -239,3 +246,119 @@ class Ellipsoid:
             return cls(np.asarray(data["centers"]), np.asarray(data["shapes"]))
         except KeyError as exc:
             raise SetError(f"ellipsoid data lacks the key {exc}") from None
+
+
+def _float_array(values: ArrayLike, ndim: int, what: str) -> FloatArray:
+    try:
+        a = np.array(values, dtype=np.float64, copy=True)
+    except (TypeError, ValueError) as exc:
+        raise SetError(f"{what} must be an array of numbers ({exc})") from None
+    if a.ndim != ndim:
+        raise SetError(f"{what} must be {ndim}-D; got shape {a.shape}")
+    if not np.isfinite(a).all():
+        raise SetError(f"{what} has a non-finite entry; use finite numbers")
+    a.setflags(write=False)
+    return a
+
+
+@dataclass(frozen=True, eq=False)
+class Box:
+    """The axis-aligned box ``{y : lower <= y <= upper}`` (closed).
+
+    Parameters
+    ----------
+    lower, upper : array_like, shape (n,)
+        Finite bounds with ``lower <= upper``.
+
+    Examples
+    --------
+    >>> Box([-1.0, 0.0], [1.0, 2.0]).dim
+    2
+    """
+
+    lower: FloatArray
+    upper: FloatArray
+
+    def __post_init__(self) -> None:
+        lo = _float_array(self.lower, 1, "box lower")
+        up = _float_array(self.upper, 1, "box upper")
+        if lo.shape != up.shape or lo.size == 0:
+            raise SetError(f"box lower {lo.shape} and upper {up.shape} must both have shape (n,), n >= 1")
+        if not (lo <= up).all():
+            i = int(np.flatnonzero(~(lo <= up))[0])
+            raise SetError(
+                f"box coordinate {i}: lower {lo[i]!r} > upper {up[i]!r}; swap them or widen the box"
+            )
+        object.__setattr__(self, "lower", lo)
+        object.__setattr__(self, "upper", up)
+
+    @property
+    def dim(self) -> int:
+        """Ambient dimension ``n``."""
+        return int(self.lower.shape[0])
+
+    def faces(self) -> tuple[FloatArray, FloatArray]:
+        """``(A, b)`` with the box ``= {y : A y <= b}``: rows ``e_i`` then ``-e_i``."""
+        eye = np.eye(self.dim)
+        return np.vstack([eye, -eye]), np.concatenate([self.upper, -self.lower])
+
+
+@dataclass(frozen=True, eq=False)
+class Polytope:
+    """The polyhedron ``{y : A y <= b}`` (``m >= 1`` closed halfspaces).
+
+    Parameters
+    ----------
+    A : array_like, shape (m, n)
+        Face normals (need not be normalised; a zero row means ``0 <= b_j``).
+    b : array_like, shape (m,)
+        Offsets.
+
+    Examples
+    --------
+    >>> Polytope([[1.0, 1.0]], [1.0]).faces()[1]
+    array([1.])
+    """
+
+    A: FloatArray
+    b: FloatArray
+
+    def __post_init__(self) -> None:
+        a = _float_array(self.A, 2, "polytope A")
+        b = _float_array(self.b, 1, "polytope b")
+        if a.shape[0] == 0 or a.shape[1] == 0:
+            raise SetError(f"polytope A must have shape (m, n) with m, n >= 1; got {a.shape}")
+        if b.shape != (a.shape[0],):
+            raise SetError(f"polytope b must have shape ({a.shape[0]},) to match A; got {b.shape}")
+        object.__setattr__(self, "A", a)
+        object.__setattr__(self, "b", b)
+
+    @property
+    def dim(self) -> int:
+        """Ambient dimension ``n``."""
+        return int(self.A.shape[1])
+
+    def faces(self) -> tuple[FloatArray, FloatArray]:
+        """``(A, b)``."""
+        return self.A, self.b
+
+
+OuterSet = Box | Polytope | Ellipsoid
+
+
+def single_ellipsoid(e: Ellipsoid, what: str) -> Ellipsoid:
+    """``e`` itself if it is an :class:`Ellipsoid` batch of one; else a :class:`SetError` naming ``what``.
+
+    Examples
+    --------
+    >>> single_ellipsoid(Ellipsoid(np.zeros(2), np.eye(2)), "inner").batch_size
+    1
+    """
+    if not isinstance(e, Ellipsoid):
+        raise SetError(f"{what} must be an Ellipsoid; got {type(e).__name__}")
+    if e.batch_size != 1:
+        raise SetError(
+            f"{what} must be a single ellipsoid (batch of 1); got a batch of {e.batch_size}: "
+            "use ipcverify.containment.prove_batch for batches"
+        )
+    return e

@@ -19,9 +19,10 @@ import numpy as np
 import torch
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
+from ipcverify.architecture import ModelConfig
 from ipcverify.data import PerceptionDataset
 from ipcverify.errors import InvalidInputError
-from ipcverify.model import IPCModel, IPCNetwork, ModelConfig
+from ipcverify.model import IPCModel, IPCNetwork
 
 __all__ = [
     "TrainConfig",

@@ -9,19 +9,19 @@ import pytest
 import torch
 from scipy import stats
 
+from ipcverify.architecture import ModelConfig
 from ipcverify.bounds import marginal_conformal_index, pac_calibration_index
+from ipcverify.calibrate import calibrate
 from ipcverify.calibration import (
     SCALE_MARGIN,
     GlobalCalibration,
     MondrianCalibration,
-    calibrate,
     calibration_from_dict,
-    network_fingerprint,
     threshold_scores,
 )
 from ipcverify.data import PerceptionDataset
 from ipcverify.errors import DataError, InvalidInputError, ModelFileError, SampleSizeError
-from ipcverify.model import ModelConfig
+from ipcverify.model import network_fingerprint
 from ipcverify.modelio import load_model, save_model
 from ipcverify.synthetic import make_lagged_perception
 from ipcverify.training import TrainConfig, train
@@ -152,15 +152,15 @@ def test_mondrian_discrete_groups(model):
     cm = calibrate(model, data, 0.05, 0.03, group_column="x_2")
     cal = cm.calibration
     assert isinstance(cal, MondrianCalibration)
-    assert [g.value for g in cal.groups] == [0.0, 1.0, 2.0]
+    assert [g.value for g in cal.group_scales] == [0.0, 1.0, 2.0]
     assert cal.group_delta == pytest.approx(0.01)  # Bonferroni over 3 groups
     scores = model.raw_scores(data.x, data.y, data.yhat)
-    for g in cal.groups:
+    for g in cal.group_scales:
         mask = data.x[:, 2] == g.value
         t = threshold_scores(scores[mask], 0.05, 0.01, "pac")
         assert g.threshold == t
-    f = cm.calibration.scale_factors(data.x, data.yhat)
-    expected = np.array([cal.groups[int(v)].threshold.scale for v in data.x[:, 2]])
+    f = cm.calibration.scale_for(data.x, data.yhat)
+    expected = np.array([cal.group_scales[int(v)].threshold.scale for v in data.x[:, 2]])
     np.testing.assert_array_equal(f, expected)
     assert calibration_from_dict(cal.to_dict()) == cal
     unseen = data.x[:5].copy()
@@ -178,7 +178,7 @@ def test_mondrian_too_small_group_is_refused(model):
 def test_mondrian_continuous_bins(model, cal_data):
     cm = calibrate(model, cal_data, 0.1, 0.05, mode="marginal", group_column="x_3", bins=4, edge_fraction=0.2)
     cal = cm.calibration
-    assert cal.binning == "bins" and len(cal.groups) == 4 and len(cal.edges) == 3
+    assert cal.binning == "bins" and len(cal.group_scales) == 4 and len(cal.edges) == 3
     assert cal.n_edge == 600 and cal.n == len(cal_data) - 600
     idx = cal.group_index(cal_data.x, cal_data.yhat)
     v = cal_data.x[:, 3]

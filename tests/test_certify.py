@@ -7,14 +7,15 @@ import json
 import numpy as np
 import pytest
 
+from ipcverify.architecture import ModelConfig
 from ipcverify.bounds import clopper_pearson_upper
-from ipcverify.calibration import calibrate
+from ipcverify.calibrate import calibrate
 from ipcverify.certify import DEFAULT_DELTA, CertificateStatus, certify
 from ipcverify.data import PerceptionDataset, save_dataset
 from ipcverify.errors import InvalidInputError
 from ipcverify.evaluation import evaluate
 from ipcverify.files import file_sha256
-from ipcverify.model import IPCModel, IPCNetwork, ModelConfig
+from ipcverify.model import IPCModel, IPCNetwork
 from ipcverify.modelio import load_model, save_model
 from ipcverify.synthetic import make_lagged_perception
 from ipcverify.training import TrainConfig, train
@@ -94,14 +95,14 @@ def test_contradicting_test_data_is_flagged(setup):
     shifted = make_lagged_perception(3000, seed=53, lag_frames=4.0, noise=0.02)
     cert = certify(setup["cal_model"], shifted).certificate
     assert cert.status is CertificateStatus.CONTRADICTED
-    assert cert.consistency["consistent"] is False
+    assert cert.consistency.consistent is False
     assert cert.statement.startswith("WARNING: the test data contradicts the calibration")
 
 
 def test_marginal_and_mondrian_certificates(setup):
     marg = calibrate(setup["model"], setup["cal"], 0.1, 0.01, mode="marginal")
     cert = certify(marg, setup["test"]).certificate
-    assert cert.consistency["checked"] and cert.status is CertificateStatus.CERTIFIED
+    assert cert.consistency.checked and cert.status is CertificateStatus.CERTIFIED
     mond = calibrate(setup["model"], setup["cal"], 0.1, 0.05, group_column="x_2", bins=2)
     d = certify(mond, setup["test"]).certificate.to_dict()
     assert d["calibration"]["kind"] == "mondrian" and len(d["calibration"]["k"]) == 2

@@ -15,7 +15,7 @@ import torch
 
 from ipcverify.baselines import fit_bonferroni_box, fit_global_mahalanobis
 from ipcverify.bounds import clopper_pearson_upper
-from ipcverify.calibration import calibrate
+from ipcverify.calibrate import calibrate
 from ipcverify.synthetic import make_lagged_perception
 from ipcverify.training import TrainConfig, train
 

@@ -9,8 +9,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from ipcverify.architecture import ModelConfig
 from ipcverify.errors import InvalidInputError
-from ipcverify.model import ModelConfig
 from ipcverify.synthetic import make_lagged_perception
 from ipcverify.theorem1 import n_needed, theorem1, theorem1_terms, truncated_hinge_mean
 from ipcverify.training import TrainConfig, train

@@ -9,24 +9,23 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-import ipcverify.containment as cm
+import ipcverify.containment.sdp as sdp_module
+import ipcverify.containment.socp as socp_module
 from ipcverify.containment import (
-    Box,
     ContainmentCertificate,
     Method,
-    Polytope,
     Status,
     certificate_from_dict,
     contained_float,
     problem_from_dict,
-    prove_containment,
-    prove_containment_batch,
+    prove,
+    prove_batch,
     set_from_dict,
     support_slack,
     verify,
 )
 from ipcverify.errors import InvalidInputError, SetError
-from ipcverify.sets import Ellipsoid
+from ipcverify.sets import Box, Ellipsoid, Polytope
 
 F = Fraction
 
@@ -43,7 +42,7 @@ def test_axis_aligned_ellipsoid_touching_box_is_proven_with_zero_margin():
     c = np.array([1.0, -2.0, 0.5])
     e = Ellipsoid(c, np.diag([2.0, 4.0, 8.0]))  # semi-axes 0.5, 0.25, 0.125 exactly
     h = np.array([0.5, 0.25, 0.125])
-    cert = prove_containment(e, Box(c - h, c + h))
+    cert = prove(e, Box(c - h, c + h))
     assert cert.status is Status.PROVEN
     assert cert.margin == 0.0
     assert verify(cert).status is Status.PROVEN
@@ -60,7 +59,7 @@ def test_box_one_ulp_too_small_is_refuted_with_exact_touching_witness(coord, sid
         up[coord] = math.nextafter(up[coord], -math.inf)
     else:
         lo[coord] = math.nextafter(lo[coord], math.inf)
-    cert = prove_containment(e, Box(lo, up))
+    cert = prove(e, Box(lo, up))
     assert cert.status is Status.REFUTED
     expected = c.copy()
     expected[coord] += h[coord] if side == "upper" else -h[coord]
@@ -73,8 +72,8 @@ def test_halfspace_at_rounded_sqrt2():
     disc = Ellipsoid(np.zeros(2), np.eye(2))
     s = math.sqrt(2.0)
     assert F(s) ** 2 > 2
-    assert prove_containment(disc, Polytope([[1.0, 1.0]], [s])).status is Status.PROVEN
-    cert = prove_containment(disc, Polytope([[1.0, 1.0]], [math.nextafter(s, 0.0)]))
+    assert prove(disc, Polytope([[1.0, 1.0]], [s])).status is Status.PROVEN
+    cert = prove(disc, Polytope([[1.0, 1.0]], [math.nextafter(s, 0.0)]))
     assert cert.status is Status.REFUTED
     assert verify(cert).status is Status.REFUTED
     assert _inside_exact(disc, cert.witness)
@@ -95,7 +94,7 @@ def test_concentric_balls(r_in, r_out, expected):
     c = np.array([0.3, -1.0, 2.0])
     inner = Ellipsoid(c, np.eye(3) / r_in)
     outer = Ellipsoid(c, np.eye(3) / r_out)
-    cert = prove_containment(inner, outer)
+    cert = prove(inner, outer)
     assert cert.status is expected
     v = verify(cert)
     assert v.ok and v.status is expected
@@ -103,22 +102,22 @@ def test_concentric_balls(r_in, r_out, expected):
 
 def test_identical_shapes_three_is_tight_and_proven():
     e = Ellipsoid(np.zeros(3), 3.0 * np.eye(3))
-    assert prove_containment(e, e).status is Status.PROVEN
+    assert prove(e, e).status is Status.PROVEN
     smaller = Ellipsoid(np.zeros(3), math.nextafter(3.0, 4.0) * np.eye(3))
-    assert prove_containment(e, smaller).status is Status.REFUTED
+    assert prove(e, smaller).status is Status.REFUTED
 
 
 def test_internally_tangent_balls_are_proven():
     inner = Ellipsoid([0.5, 0.0], 2.0 * np.eye(2))  # radius 1/2 at (1/2, 0)
     outer = Ellipsoid([0.0, 0.0], np.eye(2))
-    cert = prove_containment(inner, outer)
+    cert = prove(inner, outer)
     assert cert.status is Status.PROVEN
     assert verify(cert).status is Status.PROVEN
 
 
 def test_sdp_multipliers_for_concentric_balls_are_the_known_optimum():
     # max_{|y| <= 1/2} |y|^2 = 1/4: tau* = lambda* = 1/4
-    cert = prove_containment(Ellipsoid(np.zeros(2), 2 * np.eye(2)), Ellipsoid(np.zeros(2), np.eye(2)))
+    cert = prove(Ellipsoid(np.zeros(2), 2 * np.eye(2)), Ellipsoid(np.zeros(2), np.eye(2)))
     assert cert.method is Method.SDP
     assert abs(cert.margin - 0.75) < 1e-7
     assert cert.multipliers["tau"][0] <= 1
@@ -129,10 +128,10 @@ def test_socp_agrees_on_reference_problems():
     c = np.array([1.0, -2.0, 0.5])
     e = Ellipsoid(c, np.diag([2.0, 4.0, 8.0]))
     h = np.array([0.5, 0.25, 0.125])
-    cert = prove_containment(e, Box(c - 1.01 * h, c + 1.01 * h), method="socp")
+    cert = prove(e, Box(c - 1.01 * h, c + 1.01 * h), method="socp")
     assert cert.status is Status.PROVEN and cert.method is Method.SOCP
     assert verify(cert).status is Status.PROVEN
-    cert = prove_containment(e, Box(c - 0.9 * h, c + 0.9 * h), method=Method.SOCP)
+    cert = prove(e, Box(c - 0.9 * h, c + 0.9 * h), method=Method.SOCP)
     assert cert.status is Status.REFUTED
     assert verify(cert).status is Status.REFUTED
 
@@ -147,7 +146,7 @@ def test_batch_float_slack_matches_exact_certificates():
     slack = support_slack(e, box)
     a, bb = box.faces()
     np.testing.assert_allclose(slack, support_slack(e, Polytope(a, bb)), atol=1e-12)
-    certs = prove_containment_batch(e, box)
+    certs = prove_batch(e, box)
     exact = np.array([c.status is Status.PROVEN for c in certs])
     assert not any(c.status is Status.UNKNOWN for c in certs)
     decisive = np.abs(slack).min(axis=1) > 1e-9
@@ -173,7 +172,7 @@ def test_certificate_round_trips_exactly(method):
     rng = np.random.default_rng(5)
     e = Ellipsoid(rng.normal(size=3), rng.normal(size=(3, 3)) + 4 * np.eye(3))
     for outer in (Box(-np.ones(3), np.ones(3)), Polytope(rng.normal(size=(5, 3)), np.ones(5))):
-        cert = prove_containment(e, outer, method=method)
+        cert = prove(e, outer, method=method)
         back = _json_round_trip(cert)
         assert back.to_dict() == cert.to_dict()
         np.testing.assert_array_equal(back.inner.shapes, cert.inner.shapes)
@@ -182,7 +181,7 @@ def test_certificate_round_trips_exactly(method):
 
 def test_rational_witness_round_trips():
     disc = Ellipsoid(np.zeros(2), np.eye(2))
-    cert = prove_containment(disc, Polytope([[1.0, 1.0]], [math.nextafter(math.sqrt(2), 0.0)]))
+    cert = prove(disc, Polytope([[1.0, 1.0]], [math.nextafter(math.sqrt(2), 0.0)]))
     d = cert.to_dict()
     assert all(isinstance(v, str) and "/" in v for v in d["witness"])
     back = _json_round_trip(cert)
@@ -191,7 +190,7 @@ def test_rational_witness_round_trips():
 
 
 def test_sdp_certificate_round_trips():
-    cert = prove_containment(Ellipsoid(np.zeros(3), 2 * np.eye(3)), Ellipsoid(np.ones(3) * 0.1, np.eye(3)))
+    cert = prove(Ellipsoid(np.zeros(3), 2 * np.eye(3)), Ellipsoid(np.ones(3) * 0.1, np.eye(3)))
     back = _json_round_trip(cert)
     assert back.multipliers == cert.multipliers
     assert verify(back).status is Status.PROVEN
@@ -206,7 +205,7 @@ def test_status_text_says_what_to_do():
 # ------------------------------------------------------------------- tampering
 def _proven_box_cert() -> ContainmentCertificate:
     c = np.zeros(2)
-    return prove_containment(Ellipsoid(c, np.diag([2.0, 4.0])), Box([-0.5, -0.25], [0.5, 0.25]))
+    return prove(Ellipsoid(c, np.diag([2.0, 4.0])), Box([-0.5, -0.25], [0.5, 0.25]))
 
 
 def test_tampered_closed_form_certificate_fails_verification():
@@ -218,7 +217,7 @@ def test_tampered_closed_form_certificate_fails_verification():
 
 
 def test_tampered_sdp_certificate_fails_verification():
-    cert = prove_containment(Ellipsoid(np.zeros(2), 2 * np.eye(2)), Ellipsoid(np.zeros(2), np.eye(2)))
+    cert = prove(Ellipsoid(np.zeros(2), 2 * np.eye(2)), Ellipsoid(np.zeros(2), np.eye(2)))
     d = cert.to_dict()
     d["multipliers"]["tau"] = [0.2]  # below the true optimum 1/4
     assert not verify(certificate_from_dict(d)).ok
@@ -229,7 +228,7 @@ def test_tampered_sdp_certificate_fails_verification():
 
 
 def test_tampered_witness_fails_verification():
-    cert = prove_containment(Ellipsoid(np.zeros(2), np.eye(2)), Box([-0.5, -0.5], [0.5, 0.5]))
+    cert = prove(Ellipsoid(np.zeros(2), np.eye(2)), Box([-0.5, -0.5], [0.5, 0.5]))
     assert cert.status is Status.REFUTED
     d = cert.to_dict()
     d["witness"] = [0.0, 0.0]  # inside both sets
@@ -272,8 +271,8 @@ def test_sdp_not_optimal_is_never_proven(monkeypatch):
             _FakeValue(None),
         )
 
-    monkeypatch.setattr(cm, "_sdp_problem", fake)
-    cert = prove_containment(Ellipsoid(np.zeros(2), 2 * np.eye(2)), Ellipsoid(np.zeros(2), np.eye(2)))
+    monkeypatch.setattr(sdp_module, "sdp_problem", fake)
+    cert = prove(Ellipsoid(np.zeros(2), 2 * np.eye(2)), Ellipsoid(np.zeros(2), np.eye(2)))
     assert cert.status is Status.UNKNOWN
     assert "optimal_inaccurate" in cert.detail
 
@@ -282,8 +281,8 @@ def test_sdp_not_optimal_may_still_refute_with_exact_witness(monkeypatch):
     def fake(n):
         return _FakeProblem("infeasible"), _FakeValue(None), _FakeValue(None), _FakeValue(None)
 
-    monkeypatch.setattr(cm, "_sdp_problem", fake)
-    cert = prove_containment(Ellipsoid(np.zeros(2), np.eye(2)), Ellipsoid(np.zeros(2), 2 * np.eye(2)))
+    monkeypatch.setattr(sdp_module, "sdp_problem", fake)
+    cert = prove(Ellipsoid(np.zeros(2), np.eye(2)), Ellipsoid(np.zeros(2), 2 * np.eye(2)))
     assert cert.status is Status.REFUTED
     assert verify(cert).status is Status.REFUTED
 
@@ -298,9 +297,9 @@ def test_socp_not_optimal_is_unknown(monkeypatch):
             _FakeValue(None),
         )
 
-    monkeypatch.setattr(cm, "_socp_problem", fake)
+    monkeypatch.setattr(socp_module, "socp_problem", fake)
     box = Box([-2.0, -2.0], [2.0, 2.0])
-    cert = prove_containment(Ellipsoid(np.zeros(2), np.eye(2)), box, method="socp")
+    cert = prove(Ellipsoid(np.zeros(2), np.eye(2)), box, method="socp")
     assert cert.status is Status.UNKNOWN
     assert "optimal_inaccurate" in cert.detail
 
@@ -332,15 +331,15 @@ def test_set_validation():
 
 def test_prove_rejects_batches_and_mismatches():
     e2 = Ellipsoid(np.zeros((2, 2)), np.stack([np.eye(2)] * 2))
-    with pytest.raises(SetError, match="prove_containment_batch"):
-        prove_containment(e2, Box([-1.0, -1.0], [1.0, 1.0]))
+    with pytest.raises(SetError, match="prove_batch"):
+        prove(e2, Box([-1.0, -1.0], [1.0, 1.0]))
     e = e2[0]
     with pytest.raises(SetError, match="dimension"):
-        prove_containment(e, Box([-1.0], [1.0]))
+        prove(e, Box([-1.0], [1.0]))
     with pytest.raises(InvalidInputError, match="sdp"):
-        prove_containment(e, Box([-1.0, -1.0], [1.0, 1.0]), method="sdp")
+        prove(e, Box([-1.0, -1.0], [1.0, 1.0]), method="sdp")
     with pytest.raises(InvalidInputError, match="not one of"):
-        prove_containment(e, Box([-1.0, -1.0], [1.0, 1.0]), method="magic")
+        prove(e, Box([-1.0, -1.0], [1.0, 1.0]), method="magic")
 
 
 @pytest.mark.parametrize(

@@ -26,15 +26,8 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from ipcverify.containment import (
-    Box,
-    ContainmentCertificate,
-    Polytope,
-    Status,
-    prove_containment,
-    verify,
-)
-from ipcverify.sets import Ellipsoid
+from ipcverify.containment import ContainmentCertificate, Status, prove, verify
+from ipcverify.sets import Box, Ellipsoid, Polytope
 
 F = Fraction
 PROPS = settings(derandomize=True, max_examples=60, deadline=None)
@@ -161,7 +154,7 @@ def _near_tight_polytope(seed, n, log_cond, margin, sign):
 def test_closed_form_box_is_exact(seed, n, log_cond, margin, sign):
     e, box = _near_tight_box(seed, n, log_cond, margin, sign)
     truth = _faces_hold_oracle(e, *box.faces())
-    cert = prove_containment(e, box)
+    cert = prove(e, box)
     assert cert.status is not Status.UNKNOWN  # the closed form always decides
     assert (cert.status is Status.PROVEN) == truth
     _check_against_truth(cert, truth)
@@ -172,7 +165,7 @@ def test_closed_form_box_is_exact(seed, n, log_cond, margin, sign):
 def test_closed_form_polytope_is_exact(seed, n, log_cond, margin, sign):
     e, poly = _near_tight_polytope(seed, n, log_cond, margin, sign)
     truth = _faces_hold_oracle(e, poly.A, poly.b)
-    cert = prove_containment(e, poly)
+    cert = prove(e, poly)
     assert cert.status is not Status.UNKNOWN
     assert (cert.status is Status.PROVEN) == truth
     _check_against_truth(cert, truth)
@@ -184,8 +177,8 @@ def test_socp_agrees_with_closed_form_when_decisive(seed, n, log_cond, margin, s
     make = _near_tight_box if box else _near_tight_polytope
     e, outer = make(seed, n, log_cond, margin, sign)
     truth = _faces_hold_oracle(e, *outer.faces())
-    socp = prove_containment(e, outer, method="socp")
-    closed = prove_containment(e, outer)
+    socp = prove(e, outer, method="socp")
+    closed = prove(e, outer)
     _check_against_truth(socp, truth)
     if socp.status is not Status.UNKNOWN:
         assert socp.status is closed.status
@@ -236,14 +229,14 @@ def _concentric(seed, n, log_cond, margin, sign):
 @given(seed=seeds, n=dims, log_cond=log_conds, margin=margins, sign=signs)
 def test_sdp_homothetic_pairs_are_sound(seed, n, log_cond, margin, sign):
     e1, e2, truth = _homothetic(seed, n, log_cond, margin, sign)
-    _check_against_truth(prove_containment(e1, e2), truth)
+    _check_against_truth(prove(e1, e2), truth)
 
 
 @PROPS
 @given(seed=seeds, n=dims, log_cond=log_conds, margin=margins, sign=signs)
 def test_sdp_concentric_pairs_are_sound(seed, n, log_cond, margin, sign):
     e1, e2, truth = _concentric(seed, n, log_cond, margin, sign)
-    _check_against_truth(prove_containment(e1, e2), truth)
+    _check_against_truth(prove(e1, e2), truth)
 
 
 def _tau_star_mp(e1: Ellipsoid, e2: Ellipsoid) -> float:
@@ -288,7 +281,7 @@ def test_sdp_general_pairs_are_sound(seed, n, log_cond, margin, sign):
     e2 = Ellipsoid(e2.centers[0], e2.shapes[0] * np.sqrt((1.0 - sign * margin) / tau))
     tau = _tau_star_mp(e1, e2)
     assume(abs(tau - 1) > 1e-30)
-    cert = prove_containment(e1, e2)
+    cert = prove(e1, e2)
     _check_against_truth(cert, bool(tau < 1))
     # the SDP value agrees with the trust-region closed form (margin = 1 - tau_solver)
     assert cert.margin is not None
@@ -299,7 +292,7 @@ def test_sdp_general_pairs_are_sound(seed, n, log_cond, margin, sign):
 @given(seed=seeds, n=dims, log_cond=log_conds, margin=margins, push=st.sampled_from([1e-9, 1e-3, 1.0]))
 def test_verify_rejects_multipliers_reused_for_a_non_contained_pair(seed, n, log_cond, margin, push):
     e1, e2, truth = _homothetic(seed, n, log_cond, margin, 1.0)
-    cert = prove_containment(e1, e2)
+    cert = prove(e1, e2)
     assume(cert.status is Status.PROVEN)
     # push the outer centre along the offset so the inner set sticks out; keep the multipliers
     f = float(e1.shapes[0][0, 0] / e2.shapes[0][0, 0])
@@ -325,11 +318,11 @@ def test_unknown_is_rare_for_sdp_and_absent_for_closed_forms():
             seed = 1000 * i + j
             for make in (_homothetic, _concentric):
                 e1, e2, truth = make(seed, 3, log_cond, margin, sign)
-                cert = prove_containment(e1, e2)
+                cert = prove(e1, e2)
                 _check_against_truth(cert, truth)
                 total_sdp += 1
                 unknown_sdp += cert.status is Status.UNKNOWN
             e, box = _near_tight_box(seed, 3, log_cond, margin, sign)
-            unknown_closed += prove_containment(e, box).status is Status.UNKNOWN
+            unknown_closed += prove(e, box).status is Status.UNKNOWN
     assert unknown_closed == 0
     assert unknown_sdp <= 0.1 * total_sdp, f"{unknown_sdp} of {total_sdp} SDP problems UNKNOWN"

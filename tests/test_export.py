@@ -8,10 +8,10 @@ import pytest
 pytest.importorskip("onnx")
 pytest.importorskip("onnxruntime")
 
-from ipcverify.calibration import calibrate  # noqa: E402
+from ipcverify.architecture import ModelConfig  # noqa: E402
+from ipcverify.calibrate import calibrate  # noqa: E402
 from ipcverify.errors import InvalidInputError  # noqa: E402
 from ipcverify.export import build_onnx, check_onnx, export_onnx, onnx_session  # noqa: E402
-from ipcverify.model import ModelConfig  # noqa: E402
 from ipcverify.modelio import save_model  # noqa: E402
 from ipcverify.synthetic import make_lagged_perception  # noqa: E402
 from ipcverify.training import TrainConfig, train  # noqa: E402
@@ -58,7 +58,9 @@ def test_the_calibration_is_in_the_graph(data, tmp_path):
 
 def test_mondrian_models_are_refused(data, tmp_path):
     m = calibrate(_model(data), make_lagged_perception(3000, seed=4), 0.1, 0.05, group_column="x_5", bins=2)
-    with pytest.raises(InvalidInputError, match="MondrianCalibration.*calibrate it globally"):
+    with pytest.raises(
+        InvalidInputError, match=r"calibrated per group \(2 quantile bins of x_5\).*calibrate it globally"
+    ):
         export_onnx(m, tmp_path / "m.onnx")
     assert not (tmp_path / "m.onnx").exists()
 
@@ -88,5 +90,5 @@ def test_cli_export_refuses_mondrian_with_exit_2(run_cli, data, tmp_path):
     save_model(m, tmp_path / "mondrian.pt")
     res = run_cli("export", tmp_path / "mondrian.pt", "--onnx", tmp_path / "m.onnx")
     assert res.code == 2
-    assert res.stderr.startswith("error: cannot export a model with a MondrianCalibration")
+    assert res.stderr.startswith("error: cannot export a model calibrated per group")
     assert len(res.stderr.strip().splitlines()) == 1

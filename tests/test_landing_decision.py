@@ -10,17 +10,19 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from ipcverify.containment import Box, Status, verify
+from ipcverify.containment import Status, verify
 from ipcverify.errors import SetError
 from ipcverify.landing import (
-    LANDING_TARGET,
     LandingDecision,
     check_landing,
     landing_accept_float,
     landing_decision,
     turnoff_point,
 )
-from ipcverify.sets import Ellipsoid
+from ipcverify.sets import Box, Ellipsoid
+
+#: The paper's target box G (the library takes it from the caller).
+G = Box([-0.05, -0.05, 0.0], [0.05, 0.05, 0.05])
 
 F = Fraction
 
@@ -49,7 +51,7 @@ def _inverse3(m):
     return [[cof(j, i) / det for j in range(3)] for i in range(3)]
 
 
-def _in_target_exact(p, y, target: Box = LANDING_TARGET) -> bool:
+def _in_target_exact(p, y, target: Box = G) -> bool:
     """P - y in G, exactly."""
     lo, up = _q([target.lower])[0], _q([target.upper])[0]
     return all(lo[i] <= F(float(p[i])) - y[i] <= up[i] for i in range(3))
@@ -71,7 +73,7 @@ def _sphere_point(s: Fraction, t: Fraction) -> list[Fraction]:
 # ------------------------------------------------------------------- examples
 def test_small_ellipsoid_is_accepted_with_exact_certificate():
     e = Ellipsoid([1.0, 2.0, 0.3], np.diag([25.0, 25.0, 50.0]))  # semi-axes .04, .04, .02
-    d = landing_decision(e)
+    d = landing_decision(e, G)
     assert d.accept and d.certificate.status is Status.PROVEN
     assert d.turnoff[0] == 1.0 and d.turnoff[1] == 2.0
     assert F(float(d.turnoff[2])) >= F(0.3) + F(1, 50)
@@ -89,7 +91,7 @@ def test_small_ellipsoid_is_accepted_with_exact_certificate():
     ],
 )
 def test_too_wide_ellipsoid_is_rejected(diag):
-    d = landing_decision(Ellipsoid([0.0, 0.0, 1.0], np.diag(diag)))
+    d = landing_decision(Ellipsoid([0.0, 0.0, 1.0], np.diag(diag)), G)
     assert not d.accept
     assert d.certificate.status is Status.REFUTED
     assert verify(d.certificate).status is Status.REFUTED
@@ -106,8 +108,8 @@ def test_paper_threshold_is_matched_away_from_the_boundary():
         if gap < 1e-9:
             continue
         paper = bool((w <= np.array([0.1, 0.1, 0.05])).all())
-        assert landing_decision(e).accept == paper
-        assert bool(landing_accept_float(e)[0]) == paper
+        assert landing_decision(e, G).accept == paper
+        assert bool(landing_accept_float(e, G)[0]) == paper
         agree += 1
     assert agree > 250
 
@@ -127,14 +129,14 @@ def test_turnoff_point_is_z_max_rounded_up_by_at_most_one_float():
 
 
 def test_check_landing_detects_a_moved_turnoff_point():
-    d = landing_decision(Ellipsoid([0.0, 0.0, 0.0], np.diag([25.0, 25.0, 50.0])))
+    d = landing_decision(Ellipsoid([0.0, 0.0, 0.0], np.diag([25.0, 25.0, 50.0])), G)
     moved = LandingDecision(True, d.turnoff + np.array([0.01, 0.0, 0.0]), d.certificate, d.target)
     v = check_landing(moved)
     assert v.status is Status.UNKNOWN and "coordinate 0" in v.reason
 
 
 def test_decision_must_match_its_certificate():
-    d = landing_decision(Ellipsoid([0.0, 0.0, 0.0], np.diag([5.0, 5.0, 5.0])))
+    d = landing_decision(Ellipsoid([0.0, 0.0, 0.0], np.diag([5.0, 5.0, 5.0])), G)
     assert not d.accept
     with pytest.raises(SetError, match="PROVEN"):
         LandingDecision(True, d.turnoff, d.certificate, d.target)
@@ -145,9 +147,9 @@ def test_custom_target_and_bad_inputs():
     assert not landing_decision(e, Box([-0.01, -0.01, 0.0], [0.01, 0.01, 0.01])).accept
     assert landing_decision(e, Box([-1.0, -1.0, 0.0], [1.0, 1.0, 1.0])).accept
     with pytest.raises(SetError, match="3-D"):
-        landing_decision(Ellipsoid(np.zeros(2), np.eye(2)))
+        landing_decision(Ellipsoid(np.zeros(2), np.eye(2)), G)
     with pytest.raises(SetError, match="batch"):
-        landing_decision(Ellipsoid(np.zeros((2, 3)), np.stack([np.eye(3)] * 2)))
+        landing_decision(Ellipsoid(np.zeros((2, 3)), np.stack([np.eye(3)] * 2)), G)
     with pytest.raises(SetError, match="positive width"):
         landing_decision(e, Box([0.0, 0.0, 0.0], [0.0, 1.0, 1.0]))
 
@@ -155,7 +157,7 @@ def test_custom_target_and_bad_inputs():
 def test_batch_float_acceptance_shape():
     rng = np.random.default_rng(13)
     es = Ellipsoid(rng.normal(size=(50, 3)), np.tile(np.diag([25.0, 25.0, 50.0]), (50, 1, 1)))
-    assert landing_accept_float(es).all()
+    assert landing_accept_float(es, G).all()
 
 
 # ------------------------------------------------------- Proposition 1, property
@@ -174,7 +176,7 @@ def test_proposition1_turnoff_minus_y_in_target(seed, log_cond, s, t, radius):
     """For accepted ellipsoids and any y in E (boundary included): P - y in G, exactly."""
     rng = np.random.default_rng(seed)
     e = _random_ellipsoid(rng, 0.055, log_cond)
-    d = landing_decision(e)
+    d = landing_decision(e, G)
     assume(d.accept)
     assert check_landing(d).status is Status.PROVEN
     # y = c + C^{-1} u with ||u|| = radius <= 1 exactly: y is in E exactly

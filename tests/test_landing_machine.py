@@ -33,6 +33,7 @@ from case_studies.quad_landing.reproduce_config import (
 )
 from case_studies.quad_landing.scenario import draw_scenario, stopping_reference
 from case_studies.quad_landing.state_machine import (
+    LANDING_TARGET,
     Outcome,
     cut_allowed,
     cut_box,
@@ -42,11 +43,12 @@ from case_studies.quad_landing.state_machine import (
     run_landing,
 )
 from case_studies.quad_landing.table1 import rates_rising, table1
+from ipcverify.architecture import ModelConfig
 from ipcverify.containment import Status
 from ipcverify.errors import InvalidInputError
 from ipcverify.exact import exact_vector
-from ipcverify.landing import LANDING_TARGET, landing_decision
-from ipcverify.model import IPCModel, IPCNetwork, ModelConfig
+from ipcverify.landing import landing_decision
+from ipcverify.model import IPCModel, IPCNetwork
 from ipcverify.sets import Ellipsoid
 
 CFG = load_config()
@@ -195,7 +197,8 @@ def _model(calibrated: bool) -> IPCModel:
     m = IPCModel(IPCNetwork(ModelConfig(x_dim=12, y_dim=3, hidden=(4,))))
     if not calibrated:
         return m
-    from ipcverify.calibration import GlobalCalibration, network_fingerprint, threshold_scores
+    from ipcverify.calibration import GlobalCalibration, threshold_scores
+    from ipcverify.model import network_fingerprint
 
     t = threshold_scores(np.linspace(0.1, 1.0, 200), 0.1, 0.1, "marginal")
     return m.with_calibration(

@@ -8,6 +8,7 @@ import torch
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from ipcverify.architecture import ModelConfig
 from ipcverify.errors import InvalidInputError
 from ipcverify.lipschitz import (
     DataBox,
@@ -15,7 +16,7 @@ from ipcverify.lipschitz import (
     per_sample_gradient_norms,
     sound_lipschitz,
 )
-from ipcverify.model import IPCModel, IPCNetwork, ModelConfig
+from ipcverify.model import IPCModel, IPCNetwork
 from ipcverify.synthetic import make_lagged_perception
 from ipcverify.training import TrainConfig, train
 

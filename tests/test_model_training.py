@@ -7,9 +7,10 @@ import pytest
 import torch
 from scipy import integrate, optimize, stats
 
+from ipcverify.architecture import ModelConfig
 from ipcverify.data import PerceptionDataset
 from ipcverify.errors import InvalidInputError
-from ipcverify.model import IPCModel, IPCNetwork, ModelConfig
+from ipcverify.model import IPCModel, IPCNetwork
 from ipcverify.training import (
     NonFiniteLossError,
     TrainConfig,

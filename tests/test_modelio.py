@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 import torch
 
+from ipcverify.architecture import ModelConfig
 from ipcverify.errors import ModelFileError
-from ipcverify.model import IPCModel, IPCNetwork, ModelConfig
+from ipcverify.model import IPCModel, IPCNetwork
 from ipcverify.modelio import load_model, save_model
 from ipcverify.synthetic import make_lagged_perception
 from ipcverify.training import TrainConfig, train

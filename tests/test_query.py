@@ -5,14 +5,18 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ipcverify.calibration import calibrate
+from ipcverify.architecture import ModelConfig
+from ipcverify.calibrate import calibrate
 from ipcverify.errors import InvalidInputError, SetError
 from ipcverify.landing import check_landing, landing_accept_float, landing_decision
-from ipcverify.model import IPCModel, IPCNetwork, ModelConfig
-from ipcverify.query import PRECHECK_MARGIN, IPCQuery
-from ipcverify.sets import Ellipsoid
+from ipcverify.model import IPCModel, IPCNetwork
+from ipcverify.query import IPCQuery
+from ipcverify.sets import Box, Ellipsoid
 from ipcverify.synthetic import make_lagged_perception
 from ipcverify.training import TrainConfig, train
+
+#: The paper's target box G (the library takes it from the caller).
+G = Box([-0.05, -0.05, 0.0], [0.05, 0.05, 0.05])
 
 
 @pytest.fixture(scope="module")
@@ -30,7 +34,7 @@ def trained(request, data):
 @pytest.mark.parametrize("calibrated", [False, True])
 def test_query_sets_are_the_models_sets(trained, data, calibrated):
     model = calibrate(trained, data[1], 0.05, 0.01) if calibrated else trained
-    q = IPCQuery(model)
+    q = IPCQuery(model, G)
     test = make_lagged_perception(50, seed=2)
     ref = model.predict(test.x, test.yhat)
     for i in range(len(test)):
@@ -44,7 +48,7 @@ def test_mondrian_calibration_is_applied_per_query(data):
     cal = calibrate(model, make_lagged_perception(3000, seed=5), 0.1, 0.05, group_column="x_5", bins=2)
     test = make_lagged_perception(20, seed=3)
     ref = cal.predict(test.x, test.yhat)
-    q = IPCQuery(cal)
+    q = IPCQuery(cal, G)
     for i in range(len(test)):
         np.testing.assert_allclose(q.ellipsoid(test.x[i], test.yhat[i])[1], ref.shapes[i], rtol=1e-12)
 
@@ -66,14 +70,14 @@ def _near_threshold_ellipsoids(rng, count):
 
 
 def test_decide_agrees_with_the_exact_decision_near_the_threshold(trained):
-    q = IPCQuery(trained)
+    q = IPCQuery(trained, G)
     rng = np.random.default_rng(11)
     cases = _near_threshold_ellipsoids(rng, 150)
     cases += [Ellipsoid(rng.normal(size=3), np.diag(1.0 / rng.uniform(0.005, 0.1, 3))) for _ in range(150)]
     accepted = 0
     for e in cases:
-        d = q.decide_ellipsoid(e.centers[0], e.shapes[0])
-        exact = landing_decision(e)
+        d = q.rule.decide(e.centers[0], e.shapes[0])
+        exact = landing_decision(e, G)
         assert d.accept == exact.accept
         if d.accept:
             accepted += 1
@@ -82,23 +86,22 @@ def test_decide_agrees_with_the_exact_decision_near_the_threshold(trained):
     assert 0 < accepted < len(cases)
 
 
-def test_decide_float_matches_landing_accept_float_away_from_the_threshold(trained):
-    q = IPCQuery(trained)
+def test_single_float_rule_matches_the_batch_rule_away_from_the_threshold(trained):
+    """One rule, two half-width computations (3x3 adjugate vs batched inverse): same answers."""
+    q = IPCQuery(trained, G)
     rng = np.random.default_rng(3)
     es = [Ellipsoid(rng.normal(size=3), np.diag(1.0 / rng.uniform(0.005, 0.1, 3))) for _ in range(200)]
     batch = Ellipsoid(np.stack([e.centers[0] for e in es]), np.stack([e.shapes[0] for e in es]))
-    expected = landing_accept_float(batch)
+    expected = landing_accept_float(batch, G)
     for e, exp in zip(es, expected, strict=True):
         h = e.half_widths()[0]
         if abs(max(h[0], h[1], 2 * h[2]) / 0.05 - 1.0) < 1e-6:
             continue
-        c, C = e.centers[0], e.shapes[0]
-        p, worst = q._float_turnoff_and_fit(c, C)
-        assert (worst >= -PRECHECK_MARGIN) == bool(exp)
+        assert q.rule.decide_float(e.centers[0], e.shapes[0]).accept == bool(exp)
 
 
 def test_decide_end_to_end_runs_and_reports_a_proof_only_for_accepts(trained, data):
-    q = IPCQuery(calibrate(trained, data[1], 0.05, 0.01))
+    q = IPCQuery(calibrate(trained, data[1], 0.05, 0.01), G)
     test = make_lagged_perception(30, seed=4)
     for i in range(len(test)):
         d = q.decide(test.x[i], test.yhat[i])
@@ -117,11 +120,11 @@ def test_decide_end_to_end_runs_and_reports_a_proof_only_for_accepts(trained, da
 )
 def test_bad_queries_are_refused_with_a_message(trained, x, yhat, match):
     with pytest.raises(InvalidInputError, match=match):
-        IPCQuery(trained).decide(x, yhat)
+        IPCQuery(trained, G).decide(x, yhat)
 
 
 def test_landing_needs_three_dimensions():
-    q = IPCQuery(IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=2, hidden=(4,)))))
+    q = IPCQuery(IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=2, hidden=(4,)))), G)
     assert q.ellipsoid(np.zeros(2), np.zeros(2))[1].shape == (2, 2)
     with pytest.raises(SetError, match="needs a 3-D ellipsoid"):
         q.decide(np.zeros(2), np.zeros(2))
@@ -129,4 +132,4 @@ def test_landing_needs_three_dimensions():
 
 def test_query_needs_a_model():
     with pytest.raises(InvalidInputError, match="needs an IPCModel"):
-        IPCQuery("model.pt")  # type: ignore[arg-type]
+        IPCQuery("model.pt", G)  # type: ignore[arg-type]

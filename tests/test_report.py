@@ -13,9 +13,10 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from ipcverify.calibration import calibrate
+from ipcverify.architecture import ModelConfig
+from ipcverify.calibrate import calibrate
 from ipcverify.certify import certify, write_certificate
-from ipcverify.model import IPCModel, IPCNetwork, ModelConfig
+from ipcverify.model import IPCModel, IPCNetwork
 from ipcverify.synthetic import make_lagged_perception
 from ipcverify.training import TrainConfig, train
 

@@ -90,7 +90,7 @@ class LearnedContract:
         """Calibrated centre and shape in C for one query (float64 engine, then ``C / s``)."""
         c, C = self.model.engine.single(np.asarray(x_c, np.float64), np.asarray(yhat_c, np.float64))
         assert self.model.calibration is not None
-        s = float(self.model.calibration.scale_factors(x_c[None, :], yhat_c[None, :])[0])
+        s = float(self.model.calibration.scale_for(x_c[None, :], yhat_c[None, :])[0])
         return c, C / s
 
     def world_ellipsoid(self, measurement: Measurement) -> Ellipsoid:

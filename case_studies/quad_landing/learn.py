@@ -30,11 +30,12 @@ from typing import Any
 import torch
 
 from case_studies.quad_landing.reproduce_config import IpcParams
-from ipcverify.calibration import GlobalCalibration, calibrate
+from ipcverify.architecture import ModelConfig
+from ipcverify.calibrate import calibrate
 from ipcverify.data import PerceptionDataset
 from ipcverify.errors import ModelFileError
 from ipcverify.files import atomic_write
-from ipcverify.model import IPCModel, ModelConfig
+from ipcverify.model import IPCModel
 from ipcverify.modelio import load_model, save_model
 from ipcverify.training import TrainConfig, train
 
@@ -81,10 +82,9 @@ def learn_ipc(
 def calibration_summary(model: IPCModel) -> dict[str, Any]:
     """The calibration of a model as plain data, with its certified epsilon and guarantee."""
     cal = model.calibration
-    if not isinstance(cal, GlobalCalibration):
-        raise ModelFileError("expected a model with a global calibration")
-    t = cal.threshold
-    return {**t.to_dict(), "certified_epsilon": t.certified_epsilon, "guarantee": cal.guarantee()}
+    if cal is None:
+        raise ModelFileError("expected a calibrated model")
+    return cal.summary().to_dict()
 
 
 def _key(

@@ -56,11 +56,11 @@ from case_studies.quad_landing.lqr import SettleParams
 from case_studies.quad_landing.reproduce_config import LandingParams
 from case_studies.quad_landing.scenario import Scenario, camera_offset_z
 from case_studies.quad_landing.sim import Flight, Measurement
-from ipcverify.containment import Box, Status
+from ipcverify.containment import Status
 from ipcverify.errors import InvalidInputError
 from ipcverify.exact import ExactVector, exact_vector
-from ipcverify.landing import LANDING_TARGET, check_landing, landing_decision
-from ipcverify.sets import Ellipsoid
+from ipcverify.landing import check_landing, landing_decision
+from ipcverify.sets import Box, Ellipsoid
 
 __all__ = [
     "Outcome",
@@ -75,6 +75,9 @@ __all__ = [
 ]
 
 FloatArray = NDArray[np.float64]
+
+#: The paper's target region ``G = [-0.05, 0.05] x [-0.05, 0.05] x [0, 0.05]`` (metres).
+LANDING_TARGET = Box(np.array([-0.05, -0.05, 0.0]), np.array([0.05, 0.05, 0.05]))
 
 #: The final settle asks for this share of ``tau`` (Euclidean), so the exact cut test passes.
 SETTLE_SHARE = 0.9

@@ -58,7 +58,8 @@ def table1(
 
     Examples
     --------
-    >>> from ipcverify.model import IPCNetwork, ModelConfig
+    >>> from ipcverify.model import IPCNetwork
+    >>> from ipcverify.architecture import ModelConfig
     >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(4,))))
     >>> ds = PerceptionDataset(np.zeros((10, 2)), np.ones((10, 3)) * 100, np.zeros((10, 3)))
     >>> table1(m, {1: ds})[1]["violations"]

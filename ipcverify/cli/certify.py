@@ -12,11 +12,13 @@ from pathlib import Path
 import click
 from rich.table import Table
 
-from ipcverify.calibration import GlobalCalibration, MondrianCalibration, calibrate, describe_groups
-from ipcverify.certify import CertificateStatus, certify_files, load_data_for_model
+from ipcverify.calibrate import calibrate
+from ipcverify.certificate import CertificateStatus
+from ipcverify.certify import certify_files
 from ipcverify.cli.app import app, console
+from ipcverify.errors import InvalidInputError
 from ipcverify.lipschitz import DEFAULT_RADIUS
-from ipcverify.modelio import load_model, save_model
+from ipcverify.modelio import load_data_for_model, load_model, save_model
 
 __all__: list[str] = []
 
@@ -86,14 +88,15 @@ def calibrate_cmd(
     )
     save_model(cal_model, out)
     cal = cal_model.calibration
-    assert isinstance(cal, (GlobalCalibration, MondrianCalibration))
+    if cal is None:  # calibrate() always attaches one; guard the contract anyway
+        raise InvalidInputError("calibration produced no calibration record; please report this")
     table = Table(title=f"calibration of {model.name} on {data.name} ({mode})")
     table.add_column("group")
     table.add_column("n", justify="right")
     table.add_column("k", justify="right")
     table.add_column("scale s", justify="right")
-    for row in describe_groups(cal):
-        table.add_row(str(row["label"]), str(row["n"]), str(row["k"]), f"{row['scale']:.5g}")
+    for g in cal.groups():
+        table.add_row(g.label, str(g.n), str(g.k), f"{g.scale:.5g}")
     console.print(table)
     console.print(cal.guarantee(), soft_wrap=True, markup=False)
     console.print(f"calibrated model -> {out}", markup=False)
@@ -149,12 +152,10 @@ def certify_cmd(
     console.print(cert.statement, soft_wrap=True, markup=False)
     table = Table(show_header=False)
     t = cert.test
-    table.add_row("parameters p", f"{cert.model['n_parameters']:,}")
+    table.add_row("parameters p", f"{cert.model.n_parameters:,}")
     if cert.calibration is not None:
         c = cert.calibration
-        table.add_row(
-            "calibration", f"{c['mode']}, epsilon={c['epsilon']:g}, delta={c['delta']:g}, n={c['n']}"
-        )
+        table.add_row("calibration", f"{c.mode}, epsilon={c.epsilon:g}, delta={c.delta:g}, n={c.n}")
     else:
         table.add_row("calibration", "ABSENT (no calibration certificate)")
     table.add_row(
@@ -162,7 +163,7 @@ def certify_cmd(
         f"{t.violations}/{t.n} = {t.empirical_rate:.4%}; "
         f"upper bound {t.upper_bound:.4%} (confidence {1 - t.delta:g})",
     )
-    table.add_row("mean log-volume", f"{cert.volume['mean_log']:.4g}")
+    table.add_row("mean log-volume", f"{cert.volume.mean_log:.4g}")
     if cert.theorem1 is None:
         table.add_row("Theorem 1", cert.theorem1_reason)
     else:

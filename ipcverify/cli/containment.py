@@ -17,7 +17,7 @@ from ipcverify.containment import (
     ContainmentCertificate,
     certificate_from_dict,
     problem_from_dict,
-    prove_containment,
+    prove,
     verify,
 )
 from ipcverify.errors import InvalidInputError
@@ -81,7 +81,7 @@ def prove_containment_cmd(problems: Path, out: Path) -> None:
             raise InvalidInputError(f"{problems}: problem {i}: {exc}") from None
     certs: list[ContainmentCertificate] = []
     for inner, outer, method in parsed:
-        certs.append(prove_containment(inner, outer, method=method))
+        certs.append(prove(inner, outer, method=method))
     # one certificate per line: readable, and floats round-trip exactly (json uses repr)
     lines = [json.dumps(c.to_dict(), allow_nan=False) for c in certs]
     payload = "[\n" + ",\n".join(lines) + "\n]\n" if lines else "[]\n"

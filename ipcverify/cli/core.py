@@ -13,14 +13,14 @@ import click
 import numpy as np
 from rich.table import Table
 
+from ipcverify.architecture import ModelConfig
 from ipcverify.cli.app import app, console
-from ipcverify.data import PerceptionDataset, load_dataset
+from ipcverify.data import load_dataset
 from ipcverify.demo import run_demo
 from ipcverify.errors import InvalidInputError
 from ipcverify.evaluation import Evaluation, evaluate
 from ipcverify.files import atomic_write
-from ipcverify.model import ModelConfig
-from ipcverify.modelio import load_model, save_model
+from ipcverify.modelio import load_data_for_model, load_model, save_model
 from ipcverify.training import TrainConfig, train
 
 __all__ = ["parse_hidden"]
@@ -156,23 +156,12 @@ def train_cmd(
 def evaluate_cmd(model: Path, data: Path, as_json: bool, bin_column: str | None, bins: int) -> None:
     """Empirical violation rate and set sizes of MODEL on labelled DATA."""
     m = load_model(model)
-    ds = _load_for_model(data, m.metadata)
+    ds = load_data_for_model(data, m)
     ev = evaluate(m, ds, bin_column=bin_column, bins=bins)
     if as_json:
         click.echo(json.dumps(ev.to_dict()))
     else:
         _print_evaluation(ev, f"{model.name} on {data.name}")
-
-
-def _load_for_model(data: Path, metadata: object) -> PerceptionDataset:
-    """Load DATA with the column names the model was trained on."""
-    meta = metadata if isinstance(metadata, dict) else {}
-    suffix = data.suffix.lower()
-    if suffix == ".npz":
-        return load_dataset(data)
-    return load_dataset(
-        data, meta.get("x_columns") or None, meta.get("y_columns") or None, meta.get("yhat_columns") or None
-    )
 
 
 @app.command("predict")
@@ -188,7 +177,7 @@ def predict_cmd(model: Path, data: Path, out: Path) -> None:
     if out.suffix.lower() != ".npz":
         raise InvalidInputError(f"--out must end in .npz; got {out.name}")
     m = load_model(model)
-    ds = _load_for_model(data, m.metadata)
+    ds = load_data_for_model(data, m)
     sets = m.predict(ds.x, ds.yhat)
     atomic_write(out, lambda f: np.savez(f, center=sets.centers, shape=sets.shapes))
     console.print(f"wrote {sets.batch_size} {'calibrated' if m.calibration else 'raw'} ellipsoids to {out}")

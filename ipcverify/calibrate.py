@@ -1,0 +1,148 @@
+"""The calibrate step of the pipeline: :func:`calibrate` a trained IPC on held-out data.
+
+The network's score ``g = ||C (y - c)||`` is computed on calibration samples that were
+*not* used for training; the kind of calibration (:mod:`ipcverify.calibration`: global, or
+Mondrian per group of a column) is chosen by the arguments, and the result is attached to
+the model. The guarantees are proved in ``proofs/pac_calibration.md``.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+
+from ipcverify.bounds import CalibrationMode
+from ipcverify.calibration.global_scale import GlobalCalibration
+from ipcverify.calibration.mondrian import MondrianCalibration
+from ipcverify.calibration.protocol import Calibration
+from ipcverify.calibration.threshold import check_eps_delta, check_mode
+from ipcverify.data import PerceptionDataset
+from ipcverify.errors import InvalidInputError
+from ipcverify.model import IPCModel, network_fingerprint
+
+__all__ = ["calibrate"]
+
+
+def _locate_column(data: PerceptionDataset, name: str) -> tuple[Literal["x", "yhat"], int]:
+    if name in data.x_columns:
+        return "x", data.x_columns.index(name)
+    if name in data.yhat_columns:
+        return "yhat", data.yhat_columns.index(name)
+    if name in data.y_columns:
+        raise InvalidInputError(
+            f"group column {name!r} is part of the ground truth y, which is unknown at predict time; "
+            "group by an x or yhat column"
+        )
+    data.column(name)  # raises DataError listing the available columns if unknown
+    raise InvalidInputError(
+        f"group column {name!r} is an extra column of {data.source}, which the contract cannot see at "
+        f"predict time; group by an x column ({', '.join(data.x_columns)}) or a yhat column"
+    )
+
+
+def calibrate(
+    model: IPCModel,
+    calibration_data: PerceptionDataset,
+    epsilon: float,
+    delta: float,
+    mode: CalibrationMode = "pac",
+    *,
+    group_column: str | None = None,
+    bins: int | None = None,
+    recalibrate: bool = False,
+    edge_fraction: float = 0.2,
+    seed: int = 0,
+) -> IPCModel:
+    """Calibrate an IPC on held-out data; returns the model with the calibration attached.
+
+    Parameters
+    ----------
+    model : IPCModel
+        A trained model. If it already carries a calibration, ``recalibrate=True``
+        is required (the raw network is then calibrated afresh).
+    calibration_data : PerceptionDataset
+        Samples **not used for training** (nor for choosing the model), exchangeable
+        with deployment data.
+    epsilon : float
+        Target violation probability, e.g. 0.01.
+    delta : float
+        Confidence parameter of the PAC guarantee, e.g. 0.001 (recorded in marginal mode).
+    mode : {"pac", "marginal"}
+        Training-conditional (PAC) or marginal (split conformal) guarantee.
+    group_column : str, optional
+        An ``x`` or ``yhat`` column for Mondrian (per-group) calibration.
+    bins : int, optional
+        With ``group_column``: calibrate per quantile bin of a continuous column.
+        Without it, the column's distinct values are the groups.
+    recalibrate : bool
+        Allow replacing an existing calibration.
+    edge_fraction : float
+        Share of the calibration data used only to place the bin edges.
+    seed : int
+        Seeds the choice of that share.
+
+    Raises
+    ------
+    SampleSizeError
+        If there are too few samples (overall or in a group) for ``(epsilon, delta)``.
+    InvalidInputError
+        If the model is already calibrated, the dimensions disagree, the data is the
+        training data, or the group column cannot be seen at predict time.
+
+    Examples
+    --------
+    >>> from ipcverify.synthetic import make_lagged_perception
+    >>> from ipcverify.model import IPCNetwork
+    >>> from ipcverify.architecture import ModelConfig
+    >>> net = IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(8,)))
+    >>> cal = calibrate(IPCModel(net), make_lagged_perception(1000, seed=1), 0.05, 0.01)
+    >>> cal.calibration.threshold.k
+    966
+    """
+    check_mode(mode)
+    check_eps_delta(epsilon, delta)
+    if model.calibration is not None and not recalibrate:
+        raise InvalidInputError(
+            "the model is already calibrated; calibrating it again on top would compound the scale "
+            "factors and void the guarantee -- pass recalibrate=True (CLI: --recalibrate) to "
+            "calibrate the raw network afresh"
+        )
+    cfg = model.config
+    if (calibration_data.x_dim, calibration_data.y_dim) != (cfg.x_dim, cfg.y_dim):
+        raise InvalidInputError(
+            f"{calibration_data.source}: calibration data has x_dim={calibration_data.x_dim}, "
+            f"y_dim={calibration_data.y_dim} but the model expects x_dim={cfg.x_dim}, y_dim={cfg.y_dim}"
+        )
+    data_hash = calibration_data.content_hash()
+    if data_hash == model.metadata.get("train_data_hash"):
+        raise InvalidInputError(
+            f"{calibration_data.source}: this is the model's training data; calibration needs held-out "
+            "samples that were not used for training (e.g. the calibration part of a split)"
+        )
+    if bins is not None and group_column is None:
+        raise InvalidInputError("bins needs a group column (CLI: --group-column COL --bins K)")
+    scores = model.raw_scores(calibration_data.x, calibration_data.y, calibration_data.yhat)
+    net_hash = network_fingerprint(model.network)
+    cal: Calibration
+    if group_column is None:
+        cal = GlobalCalibration.fit(scores, epsilon, delta, mode, data_hash=data_hash, network_hash=net_hash)
+    else:
+        source, index = _locate_column(calibration_data, group_column)
+        values = (calibration_data.x if source == "x" else calibration_data.yhat)[:, index]
+        cal = MondrianCalibration.fit(
+            scores,
+            np.asarray(values, dtype=np.float64),
+            column=group_column,
+            source=source,
+            index=index,
+            bins=bins,
+            epsilon=epsilon,
+            delta=delta,
+            mode=mode,
+            edge_fraction=edge_fraction,
+            seed=seed,
+            data_hash=data_hash,
+            network_hash=net_hash,
+        )
+    return model.with_calibration(cal)

@@ -1,0 +1,234 @@
+"""What every calibration kind provides, so that no caller asks which kind it holds.
+
+A calibration rescales an IPC's raw sets: the calibrated set of a query is
+``E(c, C / s)`` with ``s = scale_for(x, yhat)``. Certificates, single queries, the
+ONNX export, reports and the case study use only the :class:`Calibration` protocol:
+
+* :meth:`~Calibration.scale_for` -- the scale of each query;
+* :meth:`~Calibration.groups` / :meth:`~Calibration.group_index` -- the groups that were
+  calibrated separately (one group for a global calibration), as :class:`GroupInfo`;
+* :meth:`~Calibration.allowed_violation_rate` -- the violation rate the calibration allows
+  with probability ``1 - delta`` (what test data may be checked against), as
+  :class:`AllowedRate`;
+* :meth:`~Calibration.summary` -- one typed record (:class:`CalibrationSummary`), the
+  ``calibration`` block of ``certificate.json``;
+* :meth:`~Calibration.guarantee`, :meth:`~Calibration.to_dict`.
+
+A new kind is one module that implements this protocol and registers its ``kind`` in
+:mod:`ipcverify.calibration.kinds`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ipcverify.bounds import CalibrationMode
+from ipcverify.errors import InvalidInputError
+
+__all__ = ["Calibration", "GroupInfo", "AllowedRate", "CalibrationSummary"]
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True, kw_only=True)
+class GroupInfo:
+    """One separately calibrated group: its label, calibration samples ``n``, order statistic ``k``, scale.
+
+    Examples
+    --------
+    >>> GroupInfo(label="all", n=100, k=96, scale=1.5).scale
+    1.5
+    """
+
+    label: str
+    n: int
+    k: int
+    scale: float
+
+    def __post_init__(self) -> None:
+        if not (1 <= self.k <= self.n) or not (math.isfinite(self.scale) and self.scale > 0):
+            raise InvalidInputError(
+                f"group {self.label!r}: need 1 <= k <= n and a finite scale > 0; "
+                f"got n={self.n}, k={self.k}, scale={self.scale!r}"
+            )
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data ``{label, n, k, scale}``."""
+        return {"label": self.label, "n": self.n, "k": self.k, "scale": self.scale}
+
+
+@dataclass(frozen=True, kw_only=True)
+class AllowedRate:
+    """The violation rate a calibration allows, if it makes a per-draw claim.
+
+    Attributes
+    ----------
+    rate : float or None
+        With probability at least ``1 - delta`` over the calibration draw, the violation
+        rate is at most ``rate``; None if the calibration makes no such claim.
+    reason : str
+        Why this is the allowed rate (or why there is none).
+
+    Examples
+    --------
+    >>> AllowedRate(rate=None, reason="marginal").checkable
+    False
+    """
+
+    rate: float | None
+    reason: str
+
+    def __post_init__(self) -> None:
+        if self.rate is not None and not (0.0 <= self.rate <= 1.0):
+            raise InvalidInputError(f"an allowed violation rate lies in [0, 1]; got {self.rate!r}")
+
+    @property
+    def checkable(self) -> bool:
+        """Whether test data can be checked against a rate."""
+        return self.rate is not None
+
+
+@dataclass(frozen=True, kw_only=True)
+class CalibrationSummary:
+    """The ``calibration`` block of ``certificate.json``, one typed record for every kind.
+
+    Attributes
+    ----------
+    kind : str
+        ``"global"``, ``"mondrian"``, ...
+    mode : {"pac", "marginal"}
+    epsilon, delta : float
+        Target violation rate and confidence parameter.
+    n : int
+        Calibration samples whose scores were used.
+    certified_epsilon : float
+        The violation rate actually certified (at most ``epsilon``).
+    guarantee : str
+        The guarantee in one plain sentence.
+    data_sha256 : str
+        Content hash of the calibration data.
+    groups : tuple of GroupInfo
+        The separately calibrated groups (one for a global calibration).
+    grouping : str
+        What the groups are, in words ("all samples", "5 bins of x_0", ...).
+    details : mapping
+        Kind-specific fields (``k``, ``scale`` ...), written beside the common ones; a
+        ``groups`` entry replaces the plain group records in :meth:`to_dict`.
+
+    Examples
+    --------
+    >>> g = (GroupInfo(label="all", n=10, k=10, scale=2.0),)
+    >>> s = CalibrationSummary(kind="global", mode="pac", epsilon=0.1, delta=0.1, n=10,
+    ...     certified_epsilon=0.1, guarantee="...", data_sha256="d", groups=g, grouping="all samples",
+    ...     details={"k": 10})
+    >>> s.to_dict()["k"], s.to_dict()["groups"][0]["scale"]
+    (10, 2.0)
+    """
+
+    kind: str
+    mode: CalibrationMode
+    epsilon: float
+    delta: float
+    n: int
+    certified_epsilon: float
+    guarantee: str
+    data_sha256: str
+    groups: tuple[GroupInfo, ...]
+    grouping: str
+    details: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        clash = set(self.details) & {f for f in self.__dataclass_fields__ if f not in ("details", "groups")}
+        if clash:
+            raise InvalidInputError(f"calibration details may not redefine {sorted(clash)}")
+        if not self.groups or sum(g.n for g in self.groups) != self.n:
+            raise InvalidInputError("a calibration summary needs its groups, whose sizes add up to n")
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data: the common fields and the kind's details."""
+        return {
+            "kind": self.kind,
+            "mode": self.mode,
+            "epsilon": self.epsilon,
+            "delta": self.delta,
+            "n": self.n,
+            "grouping": self.grouping,
+            "groups": [g.to_dict() for g in self.groups],
+            **self.details,
+            "certified_epsilon": self.certified_epsilon,
+            "data_sha256": self.data_sha256,
+            "guarantee": self.guarantee,
+        }
+
+
+class Calibration(Protocol):
+    """What a calibration provides to the rest of ipcverify (see the module docstring)."""
+
+    @property
+    def kind(self) -> str:
+        """The kind's name, stored in model files (``"global"``, ``"mondrian"``, ...)."""
+        ...
+
+    @property
+    def mode(self) -> CalibrationMode:
+        """``"pac"`` or ``"marginal"``."""
+        ...
+
+    @property
+    def epsilon(self) -> float:
+        """Target violation rate."""
+        ...
+
+    @property
+    def delta(self) -> float:
+        """Confidence parameter."""
+        ...
+
+    @property
+    def n(self) -> int:
+        """Calibration samples whose scores were used."""
+        ...
+
+    @property
+    def data_hash(self) -> str:
+        """Content hash of the calibration data."""
+        ...
+
+    @property
+    def network_hash(self) -> str:
+        """Fingerprint of the calibrated network."""
+        ...
+
+    def scale_for(self, x: FloatArray, yhat: FloatArray) -> FloatArray:
+        """Per-query scale factors ``s`` (B,): the calibrated set is ``E(c, C / s)``."""
+        ...
+
+    def group_index(self, x: FloatArray, yhat: FloatArray) -> NDArray[np.intp]:
+        """Index into :meth:`groups` of every query (B,)."""
+        ...
+
+    def groups(self) -> tuple[GroupInfo, ...]:
+        """The separately calibrated groups (one for a global calibration)."""
+        ...
+
+    def allowed_violation_rate(self) -> AllowedRate:
+        """The rate test data may be checked against (w.p. ``1 - delta``), if any."""
+        ...
+
+    def summary(self) -> CalibrationSummary:
+        """One typed record of the calibration."""
+        ...
+
+    def guarantee(self) -> str:
+        """The guarantee in one plain sentence."""
+        ...
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-data form stored in the model file (``kind`` included)."""
+        ...

@@ -1,0 +1,355 @@
+"""The certificate of a contract: typed records of what :func:`ipcverify.certify.certify` established.
+
+Every part is a frozen dataclass with a ``to_dict()``; :meth:`Certificate.to_dict` is the
+layout of ``certificate.json`` (written with the one JSON encoder of
+:mod:`ipcverify.files`). :mod:`ipcverify.report` renders the same records as HTML.
+
+* :class:`CertificateStatus` -- the verdict, whose text says what to do next;
+* :class:`TestResult` -- violations on fresh test data and exact binomial bounds;
+* :class:`Consistency` -- does the test data contradict the calibration's claim?
+* :class:`ModelIdentity`, :class:`DataIdentity`, :class:`VolumeSummary` -- provenance and size;
+* :class:`Certificate` -- all of the above plus the calibration summary and Theorem 1;
+* :class:`CertifyEvidence`, :class:`CertifyResult` -- the per-sample arrays behind it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from enum import Enum
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+import ipcverify
+from ipcverify.bounds import clopper_pearson_interval, clopper_pearson_lower, clopper_pearson_upper
+from ipcverify.calibration.protocol import AllowedRate, CalibrationSummary
+from ipcverify.errors import InvalidInputError
+from ipcverify.evaluation import BinCoverage
+from ipcverify.theorem1 import Theorem1Result
+
+__all__ = [
+    "ASSUMPTION",
+    "CertificateStatus",
+    "TestResult",
+    "GroupTestResult",
+    "Consistency",
+    "ModelIdentity",
+    "DataIdentity",
+    "VolumeSummary",
+    "Certificate",
+    "CertifyEvidence",
+    "CertifyResult",
+]
+
+FloatArray = NDArray[np.float64]
+
+#: What every statement of a certificate assumes.
+ASSUMPTION = (
+    "calibration, test and deployment samples are exchangeable (e.g. i.i.d. from the deployment "
+    "distribution) and were not used for training"
+)
+
+
+class CertificateStatus(Enum):
+    """Outcome of :func:`~ipcverify.certify.certify`; the value is the text shown to the user."""
+
+    CERTIFIED = "certified: calibrated contract, test data consistent with the calibration"
+    CONTRADICTED = (
+        "contradicted: the test data violates the calibration's claim -- check that calibration and "
+        "test data come from the deployment distribution; recalibrate on representative data"
+    )
+    NOT_CALIBRATED = (
+        "no calibration certificate: only the test-set bound holds -- run `ipcverify calibrate` on "
+        "held-out data to obtain one"
+    )
+    UNCHECKED = "certified by calibration; consistency with the test data not checkable in this mode"
+
+
+@dataclass(frozen=True, kw_only=True)
+class TestResult:
+    """Violations of the contract on a test set and their exact binomial bounds.
+
+    Attributes
+    ----------
+    n, violations : int
+        Test samples and samples whose truth lies outside its set.
+    delta : float
+        Confidence parameter of the bounds.
+    upper_bound : float
+        One-sided Clopper--Pearson upper bound at ``1 - delta``.
+    lower_bound : float
+        One-sided lower bound at ``1 - delta`` (used for the consistency check).
+    interval : tuple of float
+        Two-sided interval at ``1 - delta``.
+
+    Examples
+    --------
+    >>> t = TestResult.from_counts(3, 1000, 0.001)
+    >>> round(t.upper_bound, 4)
+    0.013
+    """
+
+    __test__ = False  # not a pytest test class
+
+    n: int
+    violations: int
+    delta: float
+    upper_bound: float
+    lower_bound: float
+    interval: tuple[float, float]
+
+    def __post_init__(self) -> None:
+        if not (0 <= self.violations <= self.n and self.n >= 1):
+            raise InvalidInputError(f"need 0 <= violations <= n, n >= 1; got {self.violations}, {self.n}")
+        if not (self.lower_bound <= self.violations / self.n <= self.upper_bound):
+            raise InvalidInputError("test bounds must bracket the empirical rate")
+
+    @classmethod
+    def from_counts(cls, violations: int, n: int, delta: float) -> TestResult:
+        """Compute the bounds from counts."""
+        return cls(
+            n=int(n),
+            violations=int(violations),
+            delta=float(delta),
+            upper_bound=clopper_pearson_upper(violations, n, delta),
+            lower_bound=clopper_pearson_lower(violations, n, delta),
+            interval=clopper_pearson_interval(violations, n, delta),
+        )
+
+    @property
+    def empirical_rate(self) -> float:
+        """``violations / n``."""
+        return self.violations / self.n
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-data form."""
+        return {
+            "n": self.n,
+            "violations": self.violations,
+            "empirical_rate": self.empirical_rate,
+            "upper_bound": self.upper_bound,
+            "lower_bound": self.lower_bound,
+            "interval": list(self.interval),
+            "delta": self.delta,
+            "bound": "one-sided Clopper-Pearson upper bound at confidence 1 - delta",
+        }
+
+
+@dataclass(frozen=True, kw_only=True)
+class GroupTestResult:
+    """The test result of one calibration group (``result`` is None if no test sample fell in it).
+
+    Examples
+    --------
+    >>> GroupTestResult(label="x_0=1", result=None).to_dict()["n"]
+    0
+    """
+
+    label: str
+    result: TestResult | None
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{label, **result}``, or ``{label, n: 0, violations: 0, upper_bound: None}``."""
+        if self.result is None:
+            return {"label": self.label, "n": 0, "violations": 0, "upper_bound": None}
+        return {"label": self.label, **self.result.to_dict()}
+
+
+@dataclass(frozen=True, kw_only=True)
+class Consistency:
+    """Does the test data contradict the calibration's claim? (false-alarm probability <= 2 delta).
+
+    Built by :meth:`check`: the claim is contradicted when the test set's one-sided lower
+    bound exceeds the rate the calibration allows.
+
+    Examples
+    --------
+    >>> t = TestResult.from_counts(50, 1000, 0.001)
+    >>> Consistency.check(AllowedRate(rate=0.01, reason="pac"), t).consistent
+    False
+    """
+
+    checked: bool
+    consistent: bool | None = None
+    allowed_rate: float | None = None
+    test_lower_bound: float | None = None
+    rule: str = ""
+    reason: str = ""
+
+    @classmethod
+    def check(cls, allowed: AllowedRate | None, test: TestResult) -> Consistency:
+        """Compare the test lower bound with the allowed rate (if the calibration claims one)."""
+        if allowed is None:
+            return cls(checked=False, reason="no calibration")
+        if allowed.rate is None:
+            return cls(checked=False, reason=allowed.reason)
+        return cls(
+            checked=True,
+            consistent=bool(test.lower_bound <= allowed.rate),
+            allowed_rate=allowed.rate,
+            test_lower_bound=test.lower_bound,
+            rule=f"contradiction if the test lower bound exceeds the allowed rate ({allowed.reason})",
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{checked, reason}`` or ``{checked, consistent, allowed_rate, test_lower_bound, rule}``."""
+        if not self.checked:
+            return {"checked": False, "reason": self.reason}
+        return {
+            "checked": True,
+            "consistent": self.consistent,
+            "allowed_rate": self.allowed_rate,
+            "test_lower_bound": self.test_lower_bound,
+            "rule": self.rule,
+        }
+
+
+@dataclass(frozen=True, kw_only=True)
+class ModelIdentity:
+    """Which model was certified: file, fingerprints, architecture, parameter count."""
+
+    path: str | None
+    file_sha256: str | None
+    network_sha256: str
+    architecture: Mapping[str, Any]
+    n_parameters: int
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-data form."""
+        return {
+            "path": self.path,
+            "file_sha256": self.file_sha256,
+            "network_sha256": self.network_sha256,
+            "architecture": dict(self.architecture),
+            "n_parameters": self.n_parameters,
+        }
+
+
+@dataclass(frozen=True, kw_only=True)
+class DataIdentity:
+    """Which data was used: source, size, content and file hashes.
+
+    ``matches_model_metadata`` (training data only) says whether the content hash is the
+    one recorded in the model file at training time (None: nothing recorded).
+    """
+
+    source: str
+    n: int
+    content_sha256: str
+    file_sha256: str | None
+    matches_model_metadata: bool | None = None
+    is_training_data: bool = False
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-data form."""
+        out: dict[str, Any] = {
+            "source": self.source,
+            "n": self.n,
+            "content_sha256": self.content_sha256,
+            "file_sha256": self.file_sha256,
+        }
+        if self.is_training_data:
+            out["matches_model_metadata"] = self.matches_model_metadata
+        return out
+
+
+@dataclass(frozen=True, kw_only=True)
+class VolumeSummary:
+    """The ``volume`` block of ``certificate.json``: log-volumes of the test-set sets."""
+
+    mean_log: float
+    median_log: float
+    unit: str
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-data form."""
+        return {"mean_log": self.mean_log, "median_log": self.median_log, "unit": self.unit}
+
+
+@dataclass(frozen=True, kw_only=True)
+class Certificate:
+    """Everything :func:`~ipcverify.certify.certify` established; :meth:`to_dict` is ``certificate.json``."""
+
+    status: CertificateStatus
+    statement: str
+    model: ModelIdentity
+    calibration: CalibrationSummary | None
+    test: TestResult
+    test_groups: tuple[GroupTestResult, ...]
+    consistency: Consistency
+    theorem1: Theorem1Result | None
+    theorem1_reason: str
+    volume: VolumeSummary
+    coverage: BinCoverage
+    test_data: DataIdentity
+    train_data: DataIdentity | None
+
+    def to_dict(self) -> dict[str, Any]:
+        """The content of ``certificate.json``."""
+        if self.theorem1 is None:
+            t1: dict[str, Any] = {
+                "computed": False,
+                "reason": self.theorem1_reason,
+                "bound": None,
+                "vacuous": None,
+                "lipschitz_empirical": None,
+                "lipschitz_sound": None,
+                "n_needed": None,
+            }
+        else:
+            t1 = self.theorem1.to_dict()
+        test = self.test.to_dict()
+        if self.test_groups:
+            test["groups"] = [g.to_dict() for g in self.test_groups]
+        return {
+            "format": "ipcverify-certificate",
+            "format_version": 1,
+            "ipcverify_version": ipcverify.__version__,
+            "status": self.status.name,
+            "status_text": self.status.value,
+            "statement": self.statement,
+            "assumption": ASSUMPTION,
+            "n_parameters": self.model.n_parameters,
+            "model": self.model.to_dict(),
+            "calibration": None if self.calibration is None else self.calibration.to_dict(),
+            "test": test,
+            "consistency": self.consistency.to_dict(),
+            "theorem1": t1,
+            "volume": self.volume.to_dict(),
+            "coverage_by_bin": self.coverage.to_dict(),
+            "data": {
+                "test": self.test_data.to_dict(),
+                "train": None if self.train_data is None else self.train_data.to_dict(),
+            },
+        }
+
+
+@dataclass(frozen=True, eq=False)
+class CertifyEvidence:
+    """Per-sample arrays behind a certificate (for the report's plots).
+
+    ``normalized_scores`` is ``g / s`` (a violation iff ``> 1``); ``examples`` holds a
+    few test samples' centres, shapes (calibrated) and truths.
+    """
+
+    normalized_scores: FloatArray
+    raw_scores: FloatArray
+    scales: FloatArray
+    log_volumes: FloatArray
+    violated: NDArray[np.bool_]
+    example_index: NDArray[np.intp]
+    example_centers: FloatArray
+    example_shapes: FloatArray
+    example_truths: FloatArray
+    example_estimates: FloatArray
+    y_columns: tuple[str, ...] = field(default=())
+
+
+@dataclass(frozen=True, eq=False)
+class CertifyResult:
+    """A :class:`Certificate` and the :class:`CertifyEvidence` it rests on."""
+
+    certificate: Certificate
+    evidence: CertifyEvidence

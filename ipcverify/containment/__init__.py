@@ -1,0 +1,78 @@
+"""Proofs that an ellipsoid lies inside a box, a polytope or another ellipsoid.
+
+Three provers behind one function, one certificate type, one exact checker; one module
+per job:
+
+* :mod:`~ipcverify.containment.status` -- :class:`Status` and :class:`Method`;
+* :mod:`~ipcverify.containment.certificate` -- :class:`ContainmentCertificate` and its exact
+  re-check :func:`verify`;
+* :mod:`~ipcverify.containment.geometry` -- exact rational geometry and witnesses;
+* :mod:`~ipcverify.containment.io` -- the JSON formats of sets and problems;
+* :mod:`~ipcverify.containment.margin` -- float slacks for whole batches (not proofs);
+* :mod:`~ipcverify.containment.closed_form`, :mod:`~ipcverify.containment.socp`,
+  :mod:`~ipcverify.containment.sdp` -- the provers, behind :func:`prove`.
+
+The set types themselves live in :mod:`ipcverify.sets`.
+
+* **closed form** (box, polytope): ``max_{y in E(c, C)} a^T y = a^T c + ||C^{-T} a||``,
+  so ``E`` is inside ``{y : A y <= b}`` iff ``a_j^T c + ||C^{-T} a_j|| <= b_j`` for every
+  face ``j``. :func:`support_slack` evaluates this in float for whole batches; the
+  certificate's status comes from the same inequality re-derived in exact rational
+  arithmetic (``b - a^T c >= 0`` and ``(b - a^T c)^2 >= ||C^{-T} a||^2``).
+* **SOCP** (box, polytope): the support values ``max a_j^T y`` computed by Clarabel,
+  as a cross-check of the closed form (a PROVEN status still needs the exact check).
+* **SDP** (ellipsoid): the S-lemma LMI ``lam Q1 - Q2 + tau e e^T >= 0``; minimising
+  ``tau`` gives ``tau* = max_{y in E1} ||C2 (y - c2)||^2``, so ``E1`` is inside ``E2``
+  iff ``tau* <= 1`` (derivation in ``proofs/containment.md``). Clarabel proposes
+  ``(lam, tau)``; the certificate holds multipliers that pass an exact PSD test.
+
+:func:`verify` re-checks any certificate in exact arithmetic, independently of the
+float code and of the solver. A certificate is PROVEN only if that check passes;
+REFUTED carries a witness point (exact rationals) that is inside the inner set and
+outside the outer one; anything else is UNKNOWN.
+
+Examples
+--------
+>>> import numpy as np
+>>> from ipcverify.sets import Box, Ellipsoid
+>>> inner = Ellipsoid(np.zeros(2), np.diag([2.0, 4.0]))     # semi-axes 0.5, 0.25
+>>> cert = prove(inner, Box([-0.5, -0.25], [0.5, 0.25]))
+>>> cert.status.name, verify(cert).status.name
+('PROVEN', 'PROVEN')
+>>> cert = prove(inner, Box([-0.4, -1.0], [0.4, 1.0]))
+>>> cert.status.name, cert.witness_floats()
+('REFUTED', (0.5, 0.0))
+"""
+
+from __future__ import annotations
+
+from ipcverify.containment.certificate import (
+    ContainmentCertificate,
+    Verification,
+    certificate_from_dict,
+    verify,
+)
+from ipcverify.containment.closed_form import prove_closed_form
+from ipcverify.containment.geometry import ExactEllipsoid
+from ipcverify.containment.io import problem_from_dict, set_from_dict, set_to_dict
+from ipcverify.containment.margin import contained_float, support_slack
+from ipcverify.containment.prove import prove, prove_batch
+from ipcverify.containment.status import Method, Status
+
+__all__ = [
+    "ContainmentCertificate",
+    "ExactEllipsoid",
+    "Method",
+    "Status",
+    "Verification",
+    "certificate_from_dict",
+    "contained_float",
+    "problem_from_dict",
+    "prove",
+    "prove_batch",
+    "prove_closed_form",
+    "set_from_dict",
+    "set_to_dict",
+    "support_slack",
+    "verify",
+]
