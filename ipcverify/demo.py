@@ -102,12 +102,11 @@ def run_demo(
     ipc_sets = calibrated.predict(test_data.x, test_data.yhat)
     png = figure_to_png(plot_demo_sets(test_data, ipc_sets, base_sets), dpi=110)
     atomic_write(out / "sets.png", lambda f: f.write(png))
-    assert calibrated.calibration is not None
     return DemoSummary(
         out_dir=out,
         raw=evaluate(model, test_data),
         calibrated=evaluate(calibrated, test_data),
-        guarantee=calibrated.calibration.guarantee(),
+        guarantee=calibrated.require_calibration().guarantee(),
         global_log_volume=float(np.median(base_sets.log_volume())),
         global_violations=int((~base_sets.contains(test_data.y)).sum()),
     )

@@ -86,6 +86,16 @@ class IPCNetwork(nn.Module):
         # maps the packed lower triangle to a flat n*n matrix without in-place ops
         self.register_buffer("_tril_embed", embed, persistent=False)
 
+    @property
+    def output_layer(self) -> nn.Linear:
+        """The last linear layer (centre rows first, then the shape rows)."""
+        last = self.body[-1]
+        if not isinstance(last, nn.Linear):
+            raise InvalidInputError(
+                f"the network's last layer is a {type(last).__name__}, not a Linear layer"
+            )
+        return last
+
     def set_normalisation(self, x: FloatArray, y: FloatArray, yhat: FloatArray) -> None:
         """Set input standardisation and output scale from training data."""
         inp = np.concatenate([x, yhat], axis=1)
@@ -234,6 +244,24 @@ class IPCModel:
         centers, shapes = self.raw_arrays(x, yhat)
         ya = np.asarray(y, dtype=np.float64).reshape(centers.shape)
         return np.linalg.norm(np.einsum("bij,bj->bi", shapes, ya - centers), axis=1)
+
+    def require_calibration(self) -> Calibration:
+        """The calibration, or an :class:`InvalidInputError` saying how to get one.
+
+        Examples
+        --------
+        >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=1, y_dim=1, hidden=(2,))))
+        >>> m.require_calibration()  # doctest: +ELLIPSIS
+        Traceback (most recent call last):
+        ...
+        ipcverify.errors.InvalidInputError: the model is not calibrated: ...
+        """
+        if self.calibration is None:
+            raise InvalidInputError(
+                "the model is not calibrated: its raw sets carry no guarantee -- calibrate it on held-out "
+                "data first (ipcverify calibrate, or ipcverify.calibrate.calibrate)"
+            )
+        return self.calibration
 
     def with_calibration(self, calibration: Calibration | None) -> IPCModel:
         """A copy of this model carrying ``calibration`` (the network is shared)."""

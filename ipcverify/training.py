@@ -15,7 +15,6 @@ import math
 from dataclasses import asdict, dataclass
 from typing import Any, Literal
 
-import numpy as np
 import torch
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
@@ -277,8 +276,7 @@ def warm_start_center(
         pen = torch.zeros(k + 1, dtype=torch.float64)
         pen[:k] = ridge * max(float(torch.diagonal(gram)[:k].mean()), 1e-12)
         sol = torch.linalg.solve(gram + torch.diag(pen), feats.T @ target)  # (k + 1, n)
-        last = net.body[-1]
-        assert isinstance(last, torch.nn.Linear)
+        last = net.output_layer
         last.weight[:n] = sol[:k].T.to(last.weight.dtype)
         last.bias[:n] = sol[k].to(last.bias.dtype)
 
@@ -428,15 +426,3 @@ def train(
         "history": history,
     }
     return TrainResult(IPCModel(net, None, metadata), history)
-
-
-def set_threads(n: int | None) -> None:
-    """Limit torch's intra-op threads (``None`` leaves the default)."""
-    if n is not None:
-        torch.set_num_threads(max(1, int(n)))
-
-
-def as_numpy_history(history: list[dict[str, float]]) -> dict[str, np.ndarray]:
-    """History as column arrays, e.g. for plotting."""
-    keys = sorted({k for rec in history for k in rec})
-    return {k: np.array([rec.get(k, np.nan) for rec in history]) for k in keys}

@@ -1,14 +1,10 @@
-"""Shared test fixtures and helpers."""
+"""Shared test fixtures and helpers (strict numerics for every test: ../conftest.py)."""
 
 from __future__ import annotations
 
 import dataclasses
-import os
 
-import numpy as np
 import pytest
-
-os.environ.setdefault("MPLBACKEND", "Agg")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -36,10 +32,3 @@ def run_cli(capsys: pytest.CaptureFixture[str]):
         return CliResult(code, out.out, out.err)
 
     return _run
-
-
-@pytest.fixture(autouse=True)
-def _strict_numpy():
-    """Turn silent floating-point trouble into errors inside tests."""
-    with np.errstate(invalid="raise", divide="raise", over="raise"):
-        yield

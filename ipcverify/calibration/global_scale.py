@@ -44,8 +44,10 @@ class GlobalCalibration:
     >>> cal = GlobalCalibration(threshold=t, data_hash="d", network_hash="h")
     >>> cal.scale_for(np.zeros((2, 1)), np.zeros((2, 3))).shape
     (2,)
-    >>> cal.groups()[0].label, cal.allowed_violation_rate().rate
-    ('all', 0.1)
+    >>> cal.groups()[0].label, cal.groups()[0].k
+    ('all', 181)
+    >>> round(cal.allowed_violation_rate().rate, 3)  # marginal: a Beta(20, 181) quantile
+    0.127
     """
 
     threshold: ScoreThreshold

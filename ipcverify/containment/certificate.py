@@ -77,6 +77,7 @@ class ContainmentCertificate:
     Examples
     --------
     >>> import numpy as np
+    >>> from ipcverify.containment import prove
     >>> inner = Ellipsoid(np.zeros(1), np.eye(1))
     >>> cert = prove(inner, Box([-1.0], [1.0]))
     >>> str(cert.status).split(":")[0], cert.margin
@@ -258,6 +259,7 @@ def verify(certificate: ContainmentCertificate) -> Verification:
     Examples
     --------
     >>> import numpy as np
+    >>> from ipcverify.containment import prove
     >>> ball = Ellipsoid(np.zeros(2), np.eye(2))
     >>> cert = prove(ball, ball.scaled(2.0))
     >>> v = verify(cert)
