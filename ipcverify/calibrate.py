@@ -48,7 +48,7 @@ def calibrate(
     delta: float,
     mode: CalibrationMode = "pac",
     *,
-    group_column: str | None = None,
+    mondrian_column: str | None = None,
     bins: int | None = None,
     recalibrate: bool = False,
     edge_fraction: float = 0.2,
@@ -70,10 +70,10 @@ def calibrate(
         Confidence parameter of the PAC guarantee, e.g. 0.001 (recorded in marginal mode).
     mode : {"pac", "marginal"}
         Training-conditional (PAC) or marginal (split conformal) guarantee.
-    group_column : str, optional
+    mondrian_column : str, optional
         An ``x`` or ``yhat`` column for Mondrian (per-group) calibration.
     bins : int, optional
-        With ``group_column``: calibrate per quantile bin of a continuous column.
+        With ``mondrian_column``: calibrate per quantile bin of a continuous column.
         Without it, the column's distinct values are the groups.
     recalibrate : bool
         Allow replacing an existing calibration.
@@ -120,20 +120,20 @@ def calibrate(
             f"{calibration_data.source}: this is the model's training data; calibration needs held-out "
             "samples that were not used for training (e.g. the calibration part of a split)"
         )
-    if bins is not None and group_column is None:
-        raise InvalidInputError("bins needs a group column (CLI: --group-column COL --bins K)")
+    if bins is not None and mondrian_column is None:
+        raise InvalidInputError("bins needs a group column (CLI: --mondrian-column COL --bins K)")
     scores = model.raw_scores(calibration_data.x, calibration_data.y, calibration_data.yhat)
     net_hash = network_fingerprint(model.network)
     cal: Calibration
-    if group_column is None:
+    if mondrian_column is None:
         cal = GlobalCalibration.fit(scores, epsilon, delta, mode, data_hash=data_hash, network_hash=net_hash)
     else:
-        source, index = _locate_column(calibration_data, group_column)
+        source, index = _locate_column(calibration_data, mondrian_column)
         values = (calibration_data.x if source == "x" else calibration_data.yhat)[:, index]
         cal = MondrianCalibration.fit(
             scores,
             np.asarray(values, dtype=np.float64),
-            column=group_column,
+            column=mondrian_column,
             source=source,
             index=index,
             bins=bins,

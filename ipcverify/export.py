@@ -74,7 +74,8 @@ def _scale(model: IPCModel) -> float | None:
     raise InvalidInputError(
         f"cannot export a model calibrated per group ({cal.summary().grouping}): its scale depends on a "
         "group looked up per query, which the ONNX graph does not do; calibrate it globally (without "
-        "--group-column) to export it, or export the uncalibrated network and apply the group scales yourself"
+        "--mondrian-column) to export it, or export the uncalibrated network and apply the group scales "
+        "yourself"
     )
 
 

@@ -43,9 +43,11 @@ _STYLE = {
     show_default=True,
     help="pac: holds w.p. 1-delta over the calibration draw; marginal: on average (split conformal).",
 )
-@click.option("--group-column", default=None, help="Mondrian: one scale per group of this x or yhat column.")
 @click.option(
-    "--bins", default=None, type=int, help="With --group-column: quantile bins of a continuous column."
+    "--mondrian-column", default=None, help="Mondrian: one scale per group of this x or yhat column."
+)
+@click.option(
+    "--bins", default=None, type=int, help="With --mondrian-column: quantile bins of a continuous column."
 )
 @click.option(
     "--recalibrate", is_flag=True, help="Replace an existing calibration (calibrates the raw network)."
@@ -62,7 +64,7 @@ def calibrate_cmd(
     epsilon: float,
     delta: float,
     mode: str,
-    group_column: str | None,
+    mondrian_column: str | None,
     bins: int | None,
     recalibrate: bool,
     seed: int,
@@ -81,7 +83,7 @@ def calibrate_cmd(
         epsilon,
         delta,
         mode,  # type: ignore[arg-type]
-        group_column=group_column,
+        mondrian_column=mondrian_column,
         bins=bins,
         recalibrate=recalibrate,
         seed=seed,

@@ -103,7 +103,7 @@ def test_marginal_and_mondrian_certificates(setup):
     marg = calibrate(setup["model"], setup["cal"], 0.1, 0.01, mode="marginal")
     cert = certify(marg, setup["test"]).certificate
     assert cert.consistency.checked and cert.status is CertificateStatus.CERTIFIED
-    mond = calibrate(setup["model"], setup["cal"], 0.1, 0.05, group_column="x_2", bins=2)
+    mond = calibrate(setup["model"], setup["cal"], 0.1, 0.05, mondrian_column="x_2", bins=2)
     d = certify(mond, setup["test"]).certificate.to_dict()
     assert d["calibration"]["kind"] == "mondrian" and len(d["calibration"]["k"]) == 2
     assert sum(g["n"] for g in d["test"]["groups"]) == 3000
@@ -210,6 +210,6 @@ def test_cli_errors(setup, run_cli, tmp_path):
     assert res.code == 2 and "the test data is the calibration data" in res.stderr
     res = run_cli(
         "calibrate", d / "model.pt", d / "cal.csv", "--epsilon", "0.05", "--delta", "0.01",
-        "--recalibrate", "--group-column", "x_0", "--bins", "3", "--out", tmp_path / "m.pt",
+        "--recalibrate", "--mondrian-column", "x_0", "--bins", "3", "--out", tmp_path / "m.pt",
     )  # fmt: skip
     assert res.code == 0 and "x_0 <" in res.stdout

@@ -57,7 +57,9 @@ def test_the_calibration_is_in_the_graph(data, tmp_path):
 
 
 def test_mondrian_models_are_refused(data, tmp_path):
-    m = calibrate(_model(data), make_lagged_perception(3000, seed=4), 0.1, 0.05, group_column="x_5", bins=2)
+    m = calibrate(
+        _model(data), make_lagged_perception(3000, seed=4), 0.1, 0.05, mondrian_column="x_5", bins=2
+    )
     with pytest.raises(
         InvalidInputError, match=r"calibrated per group \(2 quantile bins of x_5\).*calibrate it globally"
     ):
@@ -86,7 +88,9 @@ def test_cli_export_writes_and_checks(run_cli, data, tmp_path):
 
 
 def test_cli_export_refuses_mondrian_with_exit_2(run_cli, data, tmp_path):
-    m = calibrate(_model(data), make_lagged_perception(3000, seed=4), 0.1, 0.05, group_column="x_5", bins=2)
+    m = calibrate(
+        _model(data), make_lagged_perception(3000, seed=4), 0.1, 0.05, mondrian_column="x_5", bins=2
+    )
     save_model(m, tmp_path / "mondrian.pt")
     res = run_cli("export", tmp_path / "mondrian.pt", "--onnx", tmp_path / "m.onnx")
     assert res.code == 2

@@ -45,7 +45,7 @@ def test_query_sets_are_the_models_sets(trained, data, calibrated):
 
 def test_mondrian_calibration_is_applied_per_query(data):
     model = train(data[0], ModelConfig(x_dim=6, y_dim=3, hidden=(8,)), TrainConfig(epochs=1)).model
-    cal = calibrate(model, make_lagged_perception(3000, seed=5), 0.1, 0.05, group_column="x_5", bins=2)
+    cal = calibrate(model, make_lagged_perception(3000, seed=5), 0.1, 0.05, mondrian_column="x_5", bins=2)
     test = make_lagged_perception(20, seed=3)
     ref = cal.predict(test.x, test.yhat)
     q = IPCQuery(cal, G)

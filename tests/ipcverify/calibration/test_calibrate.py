@@ -130,14 +130,14 @@ def test_refusals_have_messages(model, cal_data):
     with pytest.raises(InvalidInputError, match=r"bins needs a group column"):
         calibrate(model, cal_data, 0.05, 0.01, bins=3)
     with pytest.raises(InvalidInputError, match=r"part of the ground truth y"):
-        calibrate(model, cal_data, 0.05, 0.01, group_column="y_0")
+        calibrate(model, cal_data, 0.05, 0.01, mondrian_column="y_0")
     with pytest.raises(DataError, match=r"no column 'speed'"):
-        calibrate(model, cal_data, 0.05, 0.01, group_column="speed")
+        calibrate(model, cal_data, 0.05, 0.01, mondrian_column="speed")
     extra = PerceptionDataset(
         cal_data.x, cal_data.y, cal_data.yhat, extra={"weather": np.zeros(len(cal_data))}, source="log.csv"
     )
     with pytest.raises(InvalidInputError, match=r"extra column of log.csv.*cannot see at predict time"):
-        calibrate(model, extra, 0.05, 0.01, group_column="weather")
+        calibrate(model, extra, 0.05, 0.01, mondrian_column="weather")
 
 
 def test_refuses_the_training_data():
@@ -149,7 +149,7 @@ def test_refuses_the_training_data():
 
 def test_mondrian_discrete_groups(model):
     data = _with_discrete_column(make_lagged_perception(4000, seed=21), seed=1)
-    cm = calibrate(model, data, 0.05, 0.03, group_column="x_2")
+    cm = calibrate(model, data, 0.05, 0.03, mondrian_column="x_2")
     cal = cm.calibration
     assert isinstance(cal, MondrianCalibration)
     assert [g.value for g in cal.group_scales] == [0.0, 1.0, 2.0]
@@ -172,11 +172,13 @@ def test_mondrian_discrete_groups(model):
 def test_mondrian_too_small_group_is_refused(model):
     data = _with_discrete_column(make_lagged_perception(1000, seed=22), seed=2)
     with pytest.raises(SampleSizeError, match=r"Mondrian group 'x_2=\d' has \d+ calibration samples"):
-        calibrate(model, data, 0.01, 0.001, group_column="x_2")
+        calibrate(model, data, 0.01, 0.001, mondrian_column="x_2")
 
 
 def test_mondrian_continuous_bins(model, cal_data):
-    cm = calibrate(model, cal_data, 0.1, 0.05, mode="marginal", group_column="x_3", bins=4, edge_fraction=0.2)
+    cm = calibrate(
+        model, cal_data, 0.1, 0.05, mode="marginal", mondrian_column="x_3", bins=4, edge_fraction=0.2
+    )
     cal = cm.calibration
     assert cal.binning == "bins" and len(cal.group_scales) == 4 and len(cal.edges) == 3
     assert cal.n_edge == 600 and cal.n == len(cal_data) - 600
@@ -191,7 +193,7 @@ def test_mondrian_continuous_bins(model, cal_data):
     assert list(cal.group_index(far, cal_data.yhat[:2])) == [0, 3]
     assert calibration_from_dict(cal.to_dict()) == cal
     with pytest.raises(InvalidInputError, match=r"looks continuous.*bins=K"):
-        calibrate(model, cal_data, 0.1, 0.05, group_column="x_3")
+        calibrate(model, cal_data, 0.1, 0.05, mondrian_column="x_3")
 
 
 # ----------------------------------------------------------------------------- end to end
