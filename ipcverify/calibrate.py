@@ -18,6 +18,7 @@ from ipcverify.calibration.mondrian import MondrianCalibration
 from ipcverify.calibration.protocol import Calibration
 from ipcverify.calibration.threshold import check_eps_delta, check_mode
 from ipcverify.data import PerceptionDataset
+from ipcverify.domain import DEFAULT_ALPHA, DomainModel
 from ipcverify.errors import InvalidInputError
 from ipcverify.model import IPCModel, network_fingerprint
 
@@ -53,6 +54,7 @@ def calibrate(
     recalibrate: bool = False,
     edge_fraction: float = 0.2,
     seed: int = 0,
+    domain_alpha: float | None = DEFAULT_ALPHA,
 ) -> IPCModel:
     """Calibrate an IPC on held-out data; returns the model with the calibration attached.
 
@@ -80,7 +82,10 @@ def calibrate(
     edge_fraction : float
         Share of the calibration data used only to place the bin edges.
     seed : int
-        Seeds the choice of that share.
+        Seeds the choice of that share (and of the domain test's reference subset).
+    domain_alpha : float or None
+        False-alarm rate of the domain-of-validity test fitted on the calibration inputs
+        (:class:`~ipcverify.domain.DomainModel`, attached to the model); None fits none.
 
     Raises
     ------
@@ -97,36 +102,17 @@ def calibrate(
     >>> from ipcverify.architecture import ModelConfig
     >>> net = IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(8,)))
     >>> cal = calibrate(IPCModel(net), make_lagged_perception(1000, seed=1), 0.05, 0.01)
-    >>> cal.calibration.threshold.k
-    966
+    >>> cal.calibration.groups()[0].k, cal.domain.alpha
+    (966, 0.01)
     """
-    check_mode(mode)
-    check_eps_delta(epsilon, delta)
-    if model.calibration is not None and not recalibrate:
-        raise InvalidInputError(
-            "the model is already calibrated; calibrating it again on top would compound the scale "
-            "factors and void the guarantee -- pass recalibrate=True (CLI: --recalibrate) to "
-            "calibrate the raw network afresh"
-        )
-    cfg = model.config
-    if (calibration_data.x_dim, calibration_data.y_dim) != (cfg.x_dim, cfg.y_dim):
-        raise InvalidInputError(
-            f"{calibration_data.source}: calibration data has x_dim={calibration_data.x_dim}, "
-            f"y_dim={calibration_data.y_dim} but the model expects x_dim={cfg.x_dim}, y_dim={cfg.y_dim}"
-        )
-    data_hash = calibration_data.content_hash()
-    if data_hash == model.metadata.get("train_data_hash"):
-        raise InvalidInputError(
-            f"{calibration_data.source}: this is the model's training data; calibration needs held-out "
-            "samples that were not used for training (e.g. the calibration part of a split)"
-        )
+    _check_inputs(model, calibration_data, epsilon, delta, mode, recalibrate)
     if bins is not None and mondrian_column is None:
         raise InvalidInputError("bins needs a group column (CLI: --mondrian-column COL --bins K)")
     scores = model.raw_scores(calibration_data.x, calibration_data.y, calibration_data.yhat)
-    net_hash = network_fingerprint(model.network)
+    ids = {"data_hash": calibration_data.content_hash(), "network_hash": network_fingerprint(model.network)}
     cal: Calibration
     if mondrian_column is None:
-        cal = GlobalCalibration.fit(scores, epsilon, delta, mode, data_hash=data_hash, network_hash=net_hash)
+        cal = GlobalCalibration.fit(scores, epsilon, delta, mode, **ids)
     else:
         source, index = _locate_column(calibration_data, mondrian_column)
         values = (calibration_data.x if source == "x" else calibration_data.yhat)[:, index]
@@ -142,7 +128,39 @@ def calibrate(
             mode=mode,
             edge_fraction=edge_fraction,
             seed=seed,
-            data_hash=data_hash,
-            network_hash=net_hash,
+            **ids,
         )
-    return model.with_calibration(cal)
+    domain = None
+    if domain_alpha is not None:
+        domain = DomainModel.fit(calibration_data.x, calibration_data.yhat, alpha=domain_alpha, seed=seed)
+    return model.with_calibration(cal, domain)
+
+
+def _check_inputs(
+    model: IPCModel,
+    calibration_data: PerceptionDataset,
+    epsilon: float,
+    delta: float,
+    mode: str,
+    recalibrate: bool,
+) -> None:
+    """Refuse a calibration that could not carry its guarantee."""
+    check_mode(mode)
+    check_eps_delta(epsilon, delta)
+    if model.calibration is not None and not recalibrate:
+        raise InvalidInputError(
+            "the model is already calibrated; calibrating it again on top would compound the scale "
+            "factors and void the guarantee -- pass recalibrate=True (CLI: --recalibrate) to "
+            "calibrate the raw network afresh"
+        )
+    cfg = model.config
+    if (calibration_data.x_dim, calibration_data.y_dim) != (cfg.x_dim, cfg.y_dim):
+        raise InvalidInputError(
+            f"{calibration_data.source}: calibration data has x_dim={calibration_data.x_dim}, "
+            f"y_dim={calibration_data.y_dim} but the model expects x_dim={cfg.x_dim}, y_dim={cfg.y_dim}"
+        )
+    if calibration_data.content_hash() == model.metadata.get("train_data_hash"):
+        raise InvalidInputError(
+            f"{calibration_data.source}: this is the model's training data; calibration needs held-out "
+            "samples that were not used for training (e.g. the calibration part of a split)"
+        )

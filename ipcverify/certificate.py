@@ -25,6 +25,7 @@ from numpy.typing import NDArray
 import ipcverify
 from ipcverify.bounds import clopper_pearson_interval, clopper_pearson_lower, clopper_pearson_upper
 from ipcverify.calibration.protocol import AllowedRate, CalibrationSummary
+from ipcverify.domain import DomainReport
 from ipcverify.errors import InvalidInputError
 from ipcverify.evaluation import BinCoverage
 from ipcverify.theorem1 import Theorem1Result
@@ -65,6 +66,10 @@ class CertificateStatus(Enum):
         "held-out data to obtain one"
     )
     UNCHECKED = "certified by calibration; consistency with the test data not checkable in this mode"
+    UNTESTED = (
+        "certified by calibration; no test data was given, so nothing checked it independently -- "
+        "pass --data with fresh held-out samples to add the test"
+    )
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -276,15 +281,17 @@ class Certificate:
     statement: str
     model: ModelIdentity
     calibration: CalibrationSummary | None
-    test: TestResult
+    test: TestResult | None
     test_groups: tuple[GroupTestResult, ...]
     consistency: Consistency
     theorem1: Theorem1Result | None
     theorem1_reason: str
-    volume: VolumeSummary
-    coverage: BinCoverage
-    test_data: DataIdentity
+    volume: VolumeSummary | None
+    coverage: BinCoverage | None
+    test_data: DataIdentity | None
     train_data: DataIdentity | None
+    domain: DomainReport | None = None
+    theorem1_source: str = ""
 
     def to_dict(self) -> dict[str, Any]:
         """The content of ``certificate.json``."""
@@ -299,9 +306,9 @@ class Certificate:
                 "n_needed": None,
             }
         else:
-            t1 = self.theorem1.to_dict()
-        test = self.test.to_dict()
-        if self.test_groups:
+            t1 = {**self.theorem1.to_dict(), "source": self.theorem1_source}
+        test = None if self.test is None else self.test.to_dict()
+        if test is not None and self.test_groups:
             test["groups"] = [g.to_dict() for g in self.test_groups]
         return {
             "format": "ipcverify-certificate",
@@ -317,13 +324,28 @@ class Certificate:
             "test": test,
             "consistency": self.consistency.to_dict(),
             "theorem1": t1,
-            "volume": self.volume.to_dict(),
-            "coverage_by_bin": self.coverage.to_dict(),
+            "volume": None if self.volume is None else self.volume.to_dict(),
+            "coverage_by_bin": None if self.coverage is None else self.coverage.to_dict(),
+            "domain": None if self.domain is None else self.domain.to_dict(),
             "data": {
-                "test": self.test_data.to_dict(),
+                "test": None if self.test_data is None else self.test_data.to_dict(),
                 "train": None if self.train_data is None else self.train_data.to_dict(),
             },
         }
+
+    @property
+    def test_bound_note(self) -> str:
+        """One sentence when a certified contract's test upper bound exceeds epsilon (else empty)."""
+        cal, test = self.calibration, self.test
+        if cal is None or test is None or self.status is not CertificateStatus.CERTIFIED:
+            return ""
+        if test.upper_bound <= cal.epsilon:
+            return ""
+        return (
+            f"The test upper bound ({test.upper_bound:.3g}) is above epsilon ({cal.epsilon:g}) only because "
+            f"{test.n} test samples cannot bound so small a rate more tightly; the guarantee comes from the "
+            "calibration, and the test checks that the data do not contradict it (they do not)."
+        )
 
 
 @dataclass(frozen=True, eq=False)
@@ -349,7 +371,7 @@ class CertifyEvidence:
 
 @dataclass(frozen=True, eq=False)
 class CertifyResult:
-    """A :class:`Certificate` and the :class:`CertifyEvidence` it rests on."""
+    """A :class:`Certificate` and the :class:`CertifyEvidence` it rests on (None without test data)."""
 
     certificate: Certificate
-    evidence: CertifyEvidence
+    evidence: CertifyEvidence | None

@@ -43,15 +43,16 @@ from ipcverify.certificate import (
     VolumeSummary,
 )
 from ipcverify.data import PerceptionDataset
+from ipcverify.domain import DomainReport
 from ipcverify.errors import InvalidInputError
-from ipcverify.evaluation import coverage_by_bin
+from ipcverify.evaluation import BinCoverage, coverage_by_bin
 from ipcverify.files import atomic_write, file_sha256, write_json
 from ipcverify.lipschitz import DEFAULT_RADIUS
 from ipcverify.model import IPCModel, network_fingerprint
 from ipcverify.modelio import load_data_for_model, load_model
 from ipcverify.report import render_report
 from ipcverify.sets import Ellipsoid
-from ipcverify.theorem1 import Theorem1Result, theorem1
+from ipcverify.theorem1 import Theorem1Result, TrainingStatistics, theorem1
 
 __all__ = [
     "DEFAULT_DELTA",
@@ -85,7 +86,10 @@ def _check_dims(model: IPCModel, data: PerceptionDataset, role: str) -> None:
 
 
 def check_inputs(
-    model: IPCModel, test_data: PerceptionDataset, train_data: PerceptionDataset | None, delta: float | None
+    model: IPCModel,
+    test_data: PerceptionDataset | None,
+    train_data: PerceptionDataset | None,
+    delta: float | None,
 ) -> float:
     """Step 1: refuse data the certificate could not rest on; return the confidence ``delta``.
 
@@ -95,28 +99,34 @@ def check_inputs(
         If dimensions disagree, the test data is the calibration or training data, the
         calibration belongs to a different network, or ``delta`` is not in ``(0, 1)``.
     """
-    _check_dims(model, test_data, "test")
     if train_data is not None:
         _check_dims(model, train_data, "training")
     cal = model.calibration
+    if cal is not None and cal.network_hash != network_fingerprint(model.network):
+        raise InvalidInputError(
+            "the model's calibration was computed for a different network (fingerprint mismatch); "
+            "recalibrate this network"
+        )
+    if test_data is not None:
+        _check_test_data(model, test_data)
+    if delta is None:
+        delta = cal.delta if cal is not None else DEFAULT_DELTA
+    if not (isinstance(delta, (int, float)) and 0 < delta < 1):
+        raise InvalidInputError(f"delta must lie strictly between 0 and 1; got {delta!r}")
+    return float(delta)
+
+
+def _check_test_data(model: IPCModel, test_data: PerceptionDataset) -> None:
+    _check_dims(model, test_data, "test")
+    cal = model.calibration
     test_hash = test_data.content_hash()
     if cal is not None:
-        if cal.network_hash != network_fingerprint(model.network):
-            raise InvalidInputError(
-                "the model's calibration was computed for a different network (fingerprint mismatch); "
-                "recalibrate this network"
-            )
         if cal.data_hash == test_hash:
             raise InvalidInputError(
                 f"{test_data.source}: the test data is the calibration data; certify on fresh samples"
             )
     if test_hash == model.metadata.get("train_data_hash"):
         raise InvalidInputError(f"{test_data.source}: the test data is the training data; use fresh samples")
-    if delta is None:
-        delta = cal.delta if cal is not None else DEFAULT_DELTA
-    if not (isinstance(delta, (int, float)) and 0 < delta < 1):
-        raise InvalidInputError(f"delta must lie strictly between 0 and 1; got {delta!r}")
-    return float(delta)
 
 
 @dataclass(frozen=True, eq=False)
@@ -166,9 +176,11 @@ def test_results(
     return test, tuple(groups)
 
 
-def _status(cal: Calibration | None, consistency: Consistency) -> CertificateStatus:
+def _status(cal: Calibration | None, consistency: Consistency, tested: bool) -> CertificateStatus:
     if cal is None:
         return CertificateStatus.NOT_CALIBRATED
+    if not tested:
+        return CertificateStatus.UNTESTED
     if not consistency.checked:
         return CertificateStatus.UNCHECKED
     return CertificateStatus.CERTIFIED if consistency.consistent else CertificateStatus.CONTRADICTED
@@ -176,15 +188,27 @@ def _status(cal: Calibration | None, consistency: Consistency) -> CertificateSta
 
 def theorem1_step(
     model: IPCModel, train_data: PerceptionDataset | None, delta: float, radius: float
-) -> tuple[Theorem1Result | None, str]:
-    """Step 4: Theorem 1 from the training data, or the reason it was not computed."""
-    if train_data is None:
-        return None, "not computed: training data not given (pass --train-data)"
-    return theorem1(model, train_data, delta, radius=radius), ""
+) -> tuple[Theorem1Result | None, str, str]:
+    """Step 4: Theorem 1 and where its training terms came from, or the reason it was not computed.
+
+    From the training data if given, else from the statistics :func:`ipcverify.training.train`
+    stored in the model file.
+    """
+    if train_data is not None:
+        return theorem1(model, train_data, delta, radius=radius), "", "training data"
+    stored = model.metadata.get("training_statistics")
+    if stored is None:
+        return None, "not computed: training data not given (pass --train-data)", ""
+    stats = TrainingStatistics.from_dict(stored)
+    return theorem1(model, stats, delta, radius=radius), "", "statistics stored at training time"
 
 
-def statement(cal: Calibration | None, test: TestResult, status: CertificateStatus) -> str:
+def statement(cal: Calibration | None, test: TestResult | None, status: CertificateStatus) -> str:
     """Step 5: the certificate's statement in plain words."""
+    if test is None:
+        if cal is None:
+            return "No calibration certificate and no test data: nothing is guaranteed about this model."
+        return cal.guarantee() + " No test data was given: nothing here checks the calibration independently."
     test_sentence = (
         f"Independently, the ground truth fell outside its set for {test.violations} of {test.n} fresh "
         f"test samples, so with "
@@ -255,7 +279,7 @@ def _evidence(scores: TestScores, test_data: PerceptionDataset) -> CertifyEviden
 
 def certify(
     model: IPCModel,
-    test_data: PerceptionDataset,
+    test_data: PerceptionDataset | None = None,
     *,
     train_data: PerceptionDataset | None = None,
     delta: float | None = None,
@@ -272,11 +296,13 @@ def certify(
     ----------
     model : IPCModel
         The model; its calibration (if any) is what gets certified.
-    test_data : PerceptionDataset
-        Fresh samples, used neither for training nor for calibration.
+    test_data : PerceptionDataset, optional
+        Fresh samples, used neither for training nor for calibration. Without them the
+        certificate holds what the model file holds: the calibration certificate, the
+        domain of validity and Theorem 1 from the statistics stored at training.
     train_data : PerceptionDataset, optional
-        The training set, for Theorem 1 (its empirical term, ``L_g`` and ``N``).
-        Without it Theorem 1 is reported as not computed.
+        The training set, for Theorem 1 (its empirical term, ``L_g`` and ``N``). Without
+        it Theorem 1 uses the statistics stored at training, or is reported as not computed.
     delta : float, optional
         Confidence parameter of the test bound and Theorem 1; default: the
         calibration's ``delta``, or :data:`DEFAULT_DELTA` without calibration.
@@ -309,33 +335,76 @@ def certify(
     """
     delta = check_inputs(model, test_data, train_data, delta)
     cal = model.calibration
-    scores = score_test_set(model, test_data)
-    test, groups = test_results(cal, test_data, scores.violated, delta)
-    consistency = Consistency.check(None if cal is None else cal.allowed_violation_rate(), test)
-    status = _status(cal, consistency)
-    t1, t1_reason = theorem1_step(model, train_data, delta, lipschitz_radius)
-    column = bin_column or test_data.x_columns[0]
-    values = np.asarray(test_data.column(column), dtype=float)
+    tested = _tested(model, test_data, delta, bin_column, bins) if test_data is not None else None
+    test = None if tested is None else tested.test
+    consistency = (
+        Consistency(checked=False, reason="no test data")
+        if test is None
+        else Consistency.check(None if cal is None else cal.allowed_violation_rate(), test)
+    )
+    status = _status(cal, consistency, tested is not None)
+    t1, t1_reason, t1_source = theorem1_step(model, train_data, delta, lipschitz_radius)
     cert = Certificate(
         status=status,
         statement=statement(cal, test, status),
         model=_model_identity(model, model_path),
         calibration=None if cal is None else cal.summary(),
         test=test,
-        test_groups=groups,
+        test_groups=() if tested is None else tested.groups,
         consistency=consistency,
         theorem1=t1,
         theorem1_reason=t1_reason,
+        theorem1_source=t1_source,
+        volume=None if tested is None else tested.volume,
+        coverage=None if tested is None else tested.coverage,
+        domain=_domain(model, test_data, None if tested is None else tested.scores.violated),
+        test_data=None if test_data is None else _identity(test_data, test_path),
+        train_data=None if train_data is None else _identity(train_data, train_path, model),
+    )
+    return CertifyResult(
+        cert, None if tested is None or test_data is None else _evidence(tested.scores, test_data)
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class _Tested:
+    scores: TestScores
+    test: TestResult
+    groups: tuple[GroupTestResult, ...]
+    volume: VolumeSummary
+    coverage: BinCoverage
+
+
+def _tested(
+    model: IPCModel, test_data: PerceptionDataset, delta: float, bin_column: str | None, bins: int
+) -> _Tested:
+    """Steps 2-3 on the test data: scores, test bounds, set volumes, conditional coverage."""
+    scores = score_test_set(model, test_data)
+    test, groups = test_results(model.calibration, test_data, scores.violated, delta)
+    column = bin_column or test_data.x_columns[0]
+    values = np.asarray(test_data.column(column), dtype=float)
+    return _Tested(
+        scores=scores,
+        test=test,
+        groups=groups,
         volume=VolumeSummary(
             mean_log=float(np.mean(scores.log_volume)),
             median_log=float(np.median(scores.log_volume)),
             unit=f"log of volume in the units of y (dimension {model.config.y_dim})",
         ),
         coverage=coverage_by_bin(values, scores.violated, column, bins),
-        test_data=_identity(test_data, test_path),
-        train_data=None if train_data is None else _identity(train_data, train_path, model),
     )
-    return CertifyResult(cert, _evidence(scores, test_data))
+
+
+def _domain(
+    model: IPCModel, test_data: PerceptionDataset | None, violated: NDArray[np.bool_] | None
+) -> DomainReport | None:
+    """The domain-of-validity block: the test's own description, and the test queries outside it."""
+    if model.domain is None:
+        return None
+    if test_data is None:
+        return model.domain.describe()
+    return model.domain.report(test_data.x, test_data.yhat, violated)
 
 
 def write_certificate(result: CertifyResult, out_dir: PathLike) -> tuple[Path, Path]:
@@ -351,7 +420,7 @@ def write_certificate(result: CertifyResult, out_dir: PathLike) -> tuple[Path, P
 
 def certify_files(
     model_path: PathLike,
-    test_path: PathLike,
+    test_path: PathLike | None,
     out_dir: PathLike,
     *,
     train_path: PathLike | None = None,
@@ -362,7 +431,7 @@ def certify_files(
 ) -> CertifyResult:
     """Load a model file and data files, :func:`certify`, and :func:`write_certificate` (the CLI's call)."""
     model = load_model(model_path)
-    test_data = load_data_for_model(test_path, model)
+    test_data = None if test_path is None else load_data_for_model(test_path, model)
     train_data = None if train_path is None else load_data_for_model(train_path, model)
     result = certify(
         model,

@@ -26,7 +26,15 @@ from numpy.typing import NDArray
 from ipcverify.errors import DataError
 from ipcverify.files import atomic_write
 
-__all__ = ["PerceptionDataset", "DatasetSplits", "load_dataset", "save_dataset"]
+__all__ = [
+    "PerceptionDataset",
+    "PerceptionInputs",
+    "DatasetSplits",
+    "load_dataset",
+    "load_inputs",
+    "refuse_unknown_columns",
+    "save_dataset",
+]
 
 FloatArray = NDArray[np.float64]
 SUFFIXES = (".csv", ".parquet", ".pq", ".npz")
@@ -44,6 +52,51 @@ def _numbered(prefix: str, columns: Sequence[str]) -> list[str]:
             + ", ".join(f"{prefix}_{i}" for i in missing)
         )
     return names
+
+
+def _checked_blocks(
+    source: str, blocks: Mapping[str, Any], names: Mapping[str, Sequence[str]]
+) -> tuple[dict[str, FloatArray], dict[str, tuple[str, ...]]]:
+    """Validate 2-D, non-empty, equally long, finite blocks; default their column names ``kind_i``."""
+    arrays: dict[str, FloatArray] = {}
+    for kind, value in blocks.items():
+        a = np.array(value, dtype=np.float64, copy=True)
+        if a.ndim == 1:
+            a = a[:, None]
+        if a.ndim != 2:
+            raise DataError(f"{source}: {kind} must be 2-D (N, dim); got shape {a.shape}")
+        arrays[kind] = a
+    rows = {a.shape[0] for a in arrays.values()}
+    if 0 in rows:
+        raise DataError(f"{source}: the dataset is empty (0 samples); log some data first")
+    if len(rows) > 1:
+        sizes = ", ".join(str(a.shape[0]) for a in arrays.values())
+        raise DataError(f"{source}: {', '.join(arrays)} have different numbers of rows ({sizes})")
+    cols: dict[str, tuple[str, ...]] = {}
+    for kind, a in arrays.items():
+        cols[kind] = tuple(names.get(kind) or ()) or tuple(f"{kind}_{i}" for i in range(a.shape[1]))
+        if len(cols[kind]) != a.shape[1]:
+            raise DataError(f"{source}: {len(cols[kind])} names given for {kind} columns")
+        bad = ~np.isfinite(a)
+        if bad.any():
+            r, c = np.argwhere(bad)[0]
+            raise DataError(
+                f"{source}: row {int(r)}, column {cols[kind][int(c)]!r}: non-finite value "
+                f"{a[r, c]!r}; drop or repair that row"
+            )
+        a.setflags(write=False)
+    return arrays, cols
+
+
+def _checked_extra(source: str, extra: Mapping[str, Any], n: int) -> dict[str, NDArray[Any]]:
+    out = {}
+    for k, v in dict(extra).items():
+        a = np.array(v, copy=True)
+        if a.shape[:1] != (n,):
+            raise DataError(f"{source}: extra column {k!r} has length {a.shape[:1]}")
+        a.setflags(write=False)
+        out[k] = a
+    return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -83,50 +136,18 @@ class PerceptionDataset:
     extra: Mapping[str, NDArray[Any]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        arrays = {}
-        for name in ("x", "y", "yhat"):
-            a = np.array(getattr(self, name), dtype=np.float64, copy=True)
-            if a.ndim == 1:
-                a = a[:, None]
-            if a.ndim != 2:
-                raise DataError(f"{self.source}: {name} must be 2-D (N, dim); got shape {a.shape}")
-            arrays[name] = a
+        arrays, cols = _checked_blocks(
+            self.source,
+            {"x": self.x, "y": self.y, "yhat": self.yhat},
+            {"x": self.x_columns, "y": self.y_columns, "yhat": self.yhat_columns},
+        )
         x, y, yhat = arrays["x"], arrays["y"], arrays["yhat"]
-        if x.shape[0] == 0:
-            raise DataError(f"{self.source}: the dataset is empty (0 samples); log some data first")
-        if not (x.shape[0] == y.shape[0] == yhat.shape[0]):
-            raise DataError(
-                f"{self.source}: x, y and yhat have different numbers of rows "
-                f"({x.shape[0]}, {y.shape[0]}, {yhat.shape[0]})"
-            )
         if y.shape[1] != yhat.shape[1]:
             raise DataError(
                 f"{self.source}: y has dimension {y.shape[1]} but yhat has {yhat.shape[1]}; "
                 "the estimate and the truth must describe the same quantity"
             )
-        cols = {
-            "x": tuple(self.x_columns) or tuple(f"x_{i}" for i in range(x.shape[1])),
-            "y": tuple(self.y_columns) or tuple(f"y_{i}" for i in range(y.shape[1])),
-            "yhat": tuple(self.yhat_columns) or tuple(f"yhat_{i}" for i in range(yhat.shape[1])),
-        }
-        for name, names in cols.items():
-            if len(names) != arrays[name].shape[1]:
-                raise DataError(f"{self.source}: {len(names)} names given for {name} columns")
-            bad = ~np.isfinite(arrays[name])
-            if bad.any():
-                r, c = np.argwhere(bad)[0]
-                raise DataError(
-                    f"{self.source}: row {int(r)}, column {names[int(c)]!r}: non-finite value "
-                    f"{arrays[name][r, c]!r}; drop or repair that row"
-                )
-            arrays[name].setflags(write=False)
-        extra = {}
-        for k, v in dict(self.extra).items():
-            a = np.array(v, copy=True)
-            if a.shape[:1] != (x.shape[0],):
-                raise DataError(f"{self.source}: extra column {k!r} has length {a.shape[:1]}")
-            a.setflags(write=False)
-            extra[k] = a
+        extra = _checked_extra(self.source, self.extra, x.shape[0])
         object.__setattr__(self, "x", x)
         object.__setattr__(self, "y", y)
         object.__setattr__(self, "yhat", yhat)
@@ -296,73 +317,88 @@ def load_dataset(
     >>> load_dataset(p).y_dim
     1
     """
+    p = _existing(path)
+    names = {"x": x_columns, "y": y_columns, "yhat": yhat_columns}
+    arrays, cols, extra = _read_blocks(p, names)
+    return PerceptionDataset(
+        arrays["x"],
+        arrays["y"],
+        arrays["yhat"],
+        source=str(p),
+        x_columns=cols["x"],
+        y_columns=cols["y"],
+        yhat_columns=cols["yhat"],
+        extra=extra,
+    )
+
+
+def _existing(path: str | os.PathLike[str]) -> Path:
     p = Path(path)
     if not p.exists():
         raise FileNotFoundError(2, "No such file", str(p))
-    suffix = p.suffix.lower()
-    if suffix not in SUFFIXES:
-        raise DataError(f"{p}: unknown data format {suffix!r}; use one of {', '.join(SUFFIXES)}")
-    if suffix == ".npz":
-        if x_columns or y_columns or yhat_columns:
-            raise DataError(f"{p}: column names apply to CSV/Parquet, not NPZ (arrays x, y, yhat)")
-        try:
-            with np.load(p, allow_pickle=False) as z:
-                missing = [k for k in ("x", "y", "yhat") if k not in z.files]
-                if missing:
-                    raise DataError(f"{p}: NPZ lacks array(s) {', '.join(missing)}; it needs x, y and yhat")
-                arrs = {k: z[k] for k in ("x", "y", "yhat")}
-        except DataError:
-            raise
-        except (ValueError, OSError) as exc:
-            raise DataError(f"{p}: cannot read as NPZ: {exc}") from None
-        for k, a in arrs.items():
-            if not np.issubdtype(a.dtype, np.number):
-                raise DataError(f"{p}: array {k!r} is not numeric (dtype {a.dtype})")
-        return PerceptionDataset(**arrs, source=str(p))
+    if p.suffix.lower() not in SUFFIXES:
+        raise DataError(f"{p}: unknown data format {p.suffix.lower()!r}; use one of {', '.join(SUFFIXES)}")
+    return p
 
+
+def _read_npz(p: Path, kinds: Sequence[str]) -> dict[str, NDArray[Any]]:
+    try:
+        with np.load(p, allow_pickle=False) as z:
+            missing = [k for k in kinds if k not in z.files]
+            if missing:
+                raise DataError(f"{p}: NPZ lacks array(s) {', '.join(missing)}; it needs {', '.join(kinds)}")
+            arrs = {k: z[k] for k in kinds}
+    except DataError:
+        raise
+    except (ValueError, OSError) as exc:
+        raise DataError(f"{p}: cannot read as NPZ: {exc}") from None
+    for k, a in arrs.items():
+        if not np.issubdtype(a.dtype, np.number):
+            raise DataError(f"{p}: array {k!r} is not numeric (dtype {a.dtype})")
+    return arrs
+
+
+def _read_blocks(
+    p: Path, names: Mapping[str, Sequence[str] | None]
+) -> tuple[dict[str, NDArray[Any]], dict[str, tuple[str, ...]], dict[str, NDArray[Any]]]:
+    """The numeric blocks of the kinds in ``names`` (x, y, yhat ...), their columns, and the rest."""
+    kinds = list(names)
+    if p.suffix.lower() == ".npz":
+        if any(names.values()):
+            raise DataError(f"{p}: column names apply to CSV/Parquet, not NPZ (arrays {', '.join(kinds)})")
+        return _read_npz(p, kinds), {k: () for k in kinds}, {}
     df = _read_table(p)
     if len(df) == 0:
         raise DataError(f"{p}: the file has a header but no samples")
     cols = [str(c) for c in df.columns]
-    xs = list(x_columns) if x_columns else _numbered("x", cols)
-    ys = list(y_columns) if y_columns else _numbered("y", cols)
-    yhs = list(yhat_columns) if yhat_columns else _numbered("yhat", cols)
-    for kind, names in (("x", xs), ("y", ys), ("yhat", yhs)):
-        if not names:
+    chosen = {k: list(v) if v else _numbered(k, cols) for k, v in names.items()}
+    for kind, ks in chosen.items():
+        if not ks:
             raise DataError(
                 f"{p}: no {kind} columns (expected {kind}_0, {kind}_1, ...; "
                 f"found: {', '.join(cols[:12])}{' ...' if len(cols) > 12 else ''})"
             )
-        missing = [c for c in names if c not in cols]
+        missing = [c for c in ks if c not in cols]
         if missing:
             raise DataError(f"{p}: missing column(s) {', '.join(missing)}")
-    if len(ys) != len(yhs):
+    if "y" in chosen and "yhat" in chosen and len(chosen["y"]) != len(chosen["yhat"]):
         raise DataError(
-            f"{p}: y has {len(ys)} columns but yhat has {len(yhs)}; they must describe the same quantity"
+            f"{p}: y has {len(chosen['y'])} columns but yhat has {len(chosen['yhat'])}; they must describe "
+            "the same quantity"
         )
-    used = set(xs) | set(ys) | set(yhs)
-    blocks = []
-    for names in (xs, ys, yhs):
-        block = df[names]
-        for c in names:
+    arrays = {}
+    for kind, ks in chosen.items():
+        block = df[ks]
+        for c in ks:
             if not pd.api.types.is_numeric_dtype(block[c]):
                 conv = pd.to_numeric(block[c], errors="coerce")
                 bad = conv.isna() & block[c].notna()
                 r = int(np.flatnonzero(bad.to_numpy())[0]) if bad.any() else 0
                 raise DataError(f"{p}: row {r}, column {c!r}: not a number ({block[c].iloc[r]!r})")
-        blocks.append(block.to_numpy(dtype=np.float64))
+        arrays[kind] = block.to_numpy(dtype=np.float64)
+    used = {c for ks in chosen.values() for c in ks}
     extra = {c: df[c].to_numpy() for c in cols if c not in used}
-    x, y, yhat = blocks
-    return PerceptionDataset(
-        x,
-        y,
-        yhat,
-        source=str(p),
-        x_columns=tuple(xs),
-        y_columns=tuple(ys),
-        yhat_columns=tuple(yhs),
-        extra=extra,
-    )
+    return arrays, {k: tuple(v) for k, v in chosen.items()}, extra
 
 
 def save_dataset(dataset: PerceptionDataset, path: str | os.PathLike[str]) -> None:
@@ -377,3 +413,91 @@ def save_dataset(dataset: PerceptionDataset, path: str | os.PathLike[str]) -> No
         atomic_write(p, lambda f: dataset.to_frame().to_csv(f, index=False, float_format="%.17g"))
     else:
         atomic_write(p, lambda f: dataset.to_frame().to_parquet(f, index=False))
+
+
+@dataclass(frozen=True, eq=False)
+class PerceptionInputs:
+    """Deployment queries: states ``x`` and estimates ``yhat``, without ground truth.
+
+    What ``predict`` and ``monitor`` read: a deployment log has no ``y``. Validated like
+    :class:`PerceptionDataset` (finite, 2-D, equal numbers of rows).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> q = PerceptionInputs(np.zeros((4, 2)), np.ones((4, 3)))
+    >>> len(q), q.x_columns, q.yhat_columns[0]
+    (4, ('x_0', 'x_1'), 'yhat_0')
+    """
+
+    x: FloatArray
+    yhat: FloatArray
+    source: str = "<memory>"
+    x_columns: tuple[str, ...] = ()
+    yhat_columns: tuple[str, ...] = ()
+    extra: Mapping[str, NDArray[Any]] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        arrays, cols = _checked_blocks(
+            self.source, {"x": self.x, "yhat": self.yhat}, {"x": self.x_columns, "yhat": self.yhat_columns}
+        )
+        object.__setattr__(self, "x", arrays["x"])
+        object.__setattr__(self, "yhat", arrays["yhat"])
+        object.__setattr__(self, "x_columns", cols["x"])
+        object.__setattr__(self, "yhat_columns", cols["yhat"])
+        object.__setattr__(self, "extra", _checked_extra(self.source, self.extra, arrays["x"].shape[0]))
+
+    def __len__(self) -> int:
+        return int(self.x.shape[0])
+
+
+def load_inputs(
+    path: str | os.PathLike[str],
+    x_columns: Sequence[str] | None = None,
+    yhat_columns: Sequence[str] | None = None,
+) -> PerceptionInputs:
+    """Load deployment queries (``x`` and ``yhat``; truth columns, if any, are kept as extras).
+
+    Examples
+    --------
+    >>> import tempfile, os, numpy as np
+    >>> p = os.path.join(tempfile.mkdtemp(), "q.npz")
+    >>> np.savez(p, x=np.zeros((3, 2)), yhat=np.ones((3, 1)))
+    >>> load_inputs(p).yhat.shape
+    (3, 1)
+    """
+    p = _existing(path)
+    arrays, cols, extra = _read_blocks(p, {"x": x_columns, "yhat": yhat_columns})
+    return PerceptionInputs(
+        arrays["x"], arrays["yhat"], str(p), x_columns=cols["x"], yhat_columns=cols["yhat"], extra=extra
+    )
+
+
+def refuse_unknown_columns(source: str, extra: Mapping[str, Any], known: Mapping[str, Sequence[str]]) -> None:
+    """Refuse a table whose extra columns look like ``x_i`` / ``y_i`` / ``yhat_i`` columns the model lacks.
+
+    A file with more state columns than the model was trained on would otherwise be read
+    silently without them.
+
+    Raises
+    ------
+    DataError
+        Naming the columns and the ones the model knows.
+
+    Examples
+    --------
+    >>> refuse_unknown_columns("log.csv", {"x_6": None}, {"x": ["x_0", "x_1"]})  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    ipcverify.errors.DataError: log.csv: column x_6 looks like a x column but the model knows only x_0, ...
+    """
+    for kind, names in known.items():
+        pat = re.compile(rf"^{re.escape(kind)}_(\d+)$")
+        unknown = sorted((str(c) for c in extra if pat.match(str(c))), key=lambda c: (len(c), c))
+        if unknown:
+            raise DataError(
+                f"{source}: column{'s' if len(unknown) > 1 else ''} {', '.join(unknown)} look"
+                f"{'' if len(unknown) > 1 else 's'} like a {kind} column but the model knows only "
+                f"{', '.join(names)} -- drop {'them' if len(unknown) > 1 else 'it'}, or retrain and "
+                "recalibrate with them"
+            )

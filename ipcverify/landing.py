@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from enum import Enum
 
 import numpy as np
 from numpy.typing import NDArray
@@ -66,6 +67,7 @@ __all__ = [
     "LandingDecision",
     "LandingRule",
     "QueryDecision",
+    "Verdict",
     "check_landing",
     "landing_accept_float",
     "landing_decision",
@@ -303,6 +305,17 @@ def _half_widths_3(C: FloatArray) -> FloatArray:
     return np.array([math.sqrt(u * u + v * v + w * w) / ad for u, v, w in (r0, r1, r2)])
 
 
+class Verdict(Enum):
+    """The answer to one query: land, measure again, or the query is outside the contract's domain."""
+
+    ACCEPT = "accept: the set provably fits the target; fly to the turn-off point"
+    REJECT = "reject: the set does not (provably) fit the target; measure again"
+    OUTSIDE_DOMAIN = (
+        "outside the domain of validity: the query is unlike every calibration sample (or its set is "
+        "degenerate), so the contract certifies nothing for it; do not act on it, measure again"
+    )
+
+
 @dataclass(frozen=True, eq=False, slots=True)
 class QueryDecision:
     """The landing answer for one ellipsoid.
@@ -321,6 +334,9 @@ class QueryDecision:
         given, else the float ``[c_x, c_y, c_z + h_z]``.
     proof : LandingDecision or None
         The exact decision, when it was computed (the float rule did not reject clearly).
+    in_domain : bool
+        The query lies inside the contract's domain of validity (and its set is not degenerate).
+        A query outside is never accepted.
     proven : bool
         ``accept`` is backed by an exact proof.
     """
@@ -330,12 +346,22 @@ class QueryDecision:
     accept: bool
     turnoff: FloatArray
     proof: LandingDecision | None = None
+    in_domain: bool = True
     proven: bool = field(init=False)
 
     def __post_init__(self) -> None:
         if self.proof is not None and self.accept != self.proof.accept:
             raise SetError("a decision with a proof must accept exactly when the proof does")
+        if self.accept and not self.in_domain:
+            raise SetError("a query outside the domain of validity is never accepted")
         object.__setattr__(self, "proven", bool(self.accept and self.proof is not None))
+
+    @property
+    def verdict(self) -> Verdict:
+        """ACCEPT, REJECT or OUTSIDE_DOMAIN."""
+        if not self.in_domain:
+            return Verdict.OUTSIDE_DOMAIN
+        return Verdict.ACCEPT if self.accept else Verdict.REJECT
 
 
 @dataclass(frozen=True, eq=False)
@@ -380,8 +406,13 @@ class LandingRule:
         return p, (worst if math.isfinite(worst) else -math.inf)
 
     def decide(self, center: FloatArray, shape: FloatArray) -> QueryDecision:
-        """Float rule, then the exact proof unless the float rule rejects clearly."""
+        """Float rule, then the exact proof unless the float rule rejects clearly.
+
+        A degenerate set (singular or non-finite shape matrix) is answered OUTSIDE_DOMAIN.
+        """
         p, worst = self._float(center, shape)
+        if not np.isfinite(p).all():
+            return QueryDecision(center, shape, False, p, in_domain=False)
         if worst < -PRECHECK_MARGIN:
             return QueryDecision(center, shape, False, p)
         proof = landing_decision(Ellipsoid(center, shape), self.target)
@@ -390,4 +421,11 @@ class LandingRule:
     def decide_float(self, center: FloatArray, shape: FloatArray) -> QueryDecision:
         """The float rule alone: accept iff every relative slack is ``>= -PRECHECK_MARGIN``."""
         p, worst = self._float(center, shape)
+        if not np.isfinite(p).all():
+            return QueryDecision(center, shape, False, p, in_domain=False)
         return QueryDecision(center, shape, worst >= -PRECHECK_MARGIN, p)
+
+    def outside_domain(self, center: FloatArray, shape: FloatArray) -> QueryDecision:
+        """The OUTSIDE_DOMAIN answer for a query the domain test flagged (no proof attempted)."""
+        p, _ = self._float(center, shape)
+        return QueryDecision(center, shape, False, p, in_domain=False)

@@ -27,7 +27,8 @@ from torch import nn
 
 from ipcverify.architecture import LOGDIAG_CLAMP, ModelConfig
 from ipcverify.calibration.protocol import Calibration
-from ipcverify.errors import InvalidInputError
+from ipcverify.domain import DomainModel
+from ipcverify.errors import InvalidInputError, SetError
 from ipcverify.inference import InferenceEngine
 from ipcverify.sets import Ellipsoid
 
@@ -153,6 +154,9 @@ class IPCModel:
         Scale factors applied to the raw sets; see :mod:`ipcverify.calibration`.
     metadata : mapping
         Plain data recorded with the model (training settings, data hash, history).
+    domain : DomainModel, optional
+        The domain of validity fitted at calibration (:mod:`ipcverify.domain`): queries it
+        flags lie outside what the calibration certificate covers.
 
     Examples
     --------
@@ -165,8 +169,14 @@ class IPCModel:
     network: IPCNetwork
     calibration: Calibration | None = None
     metadata: Mapping[str, Any] = field(default_factory=dict)
+    domain: DomainModel | None = None
 
     def __post_init__(self) -> None:
+        if self.domain is not None and len(self.domain.mean) != self.config.x_dim + self.config.y_dim:
+            raise InvalidInputError(
+                f"the domain model covers {len(self.domain.mean)} input columns but the network takes "
+                f"{self.config.x_dim + self.config.y_dim} (x and yhat); refit it with calibrate"
+            )
         self.network.eval()
         object.__setattr__(self, "_engine", InferenceEngine.from_network(self.network))
 
@@ -234,7 +244,11 @@ class IPCModel:
         yhat : array_like, shape (B, n) or (n,)
         """
         xa, ya = self._check(x, yhat)
-        sets = Ellipsoid(*self.raw_arrays(xa, ya))
+        centers, shapes = self.raw_arrays(xa, ya)
+        try:
+            sets = Ellipsoid(centers, shapes)
+        except SetError as exc:
+            raise SetError(_out_of_domain_message(str(exc), self.domain, xa, ya)) from None
         if self.calibration is not None:
             sets = sets.scaled(self.calibration.scale_for(xa, ya))
         return sets
@@ -263,9 +277,30 @@ class IPCModel:
             )
         return self.calibration
 
-    def with_calibration(self, calibration: Calibration | None) -> IPCModel:
-        """A copy of this model carrying ``calibration`` (the network is shared)."""
-        return IPCModel(self.network, calibration, self.metadata)
+    def with_calibration(
+        self, calibration: Calibration | None, domain: DomainModel | None = None
+    ) -> IPCModel:
+        """A copy of this model carrying ``calibration`` and ``domain`` (the network is shared)."""
+        return IPCModel(self.network, calibration, self.metadata, domain)
+
+
+def _out_of_domain_message(error: str, domain: DomainModel | None, x: FloatArray, yhat: FloatArray) -> str:
+    """Blame the input, not the model, when the network's set degenerates far from its data."""
+    where = error.split(":", 1)[0].replace("ellipsoid", "input row")
+    row = int(where.rsplit(" ", 1)[-1]) if where.rsplit(" ", 1)[-1].isdigit() else None
+    far = ""
+    if domain is not None and row is not None:
+        d = float(domain.distance(x[row : row + 1], yhat[row : row + 1])[0])
+        if d > domain.threshold:
+            far = (
+                f" (its distance to the calibration inputs is {d:.3g}, above the domain threshold "
+                f"{domain.threshold:.3g})"
+            )
+    return (
+        f"{where}: the contract's set is degenerate (singular shape matrix) for this input, which lies "
+        f"outside the domain the contract was trained and calibrated on{far}; the contract certifies "
+        "nothing there -- drop such inputs, or retrain and recalibrate on data that covers them"
+    )
 
 
 def network_fingerprint(network: IPCNetwork) -> str:

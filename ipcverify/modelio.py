@@ -19,18 +19,35 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import torch
 
 from ipcverify.architecture import ModelConfig
 from ipcverify.calibration.kinds import calibration_from_dict
-from ipcverify.data import PerceptionDataset, load_dataset
+from ipcverify.data import (
+    PerceptionDataset,
+    PerceptionInputs,
+    load_dataset,
+    load_inputs,
+    refuse_unknown_columns,
+)
+from ipcverify.domain import DomainModel
 from ipcverify.errors import InvalidInputError, ModelFileError
 from ipcverify.files import atomic_write
 from ipcverify.model import IPCModel, IPCNetwork
 
-__all__ = ["FORMAT", "FORMAT_VERSION", "save_model", "load_model", "load_data_for_model"]
+__all__ = [
+    "FORMAT",
+    "FORMAT_VERSION",
+    "save_model",
+    "load_model",
+    "load_data_for_model",
+    "load_inputs_for_model",
+]
 
 FORMAT = "ipcverify-model"
+#: Every torch.save archive starts with a zip local-file header.
+_ZIP_MAGIC = b"PK\x03\x04"
 FORMAT_VERSION = 1
 _PLAIN = (str, int, float, bool, type(None))
 
@@ -79,6 +96,12 @@ def save_model(model: IPCModel, path: str | os.PathLike[str]) -> None:
     calibration = None if model.calibration is None else _plain(model.calibration.to_dict())
     _check_plain(metadata, "metadata")
     _check_plain(calibration, "calibration")
+    domain = None
+    if model.domain is not None:
+        record = model.domain.to_dict()
+        reference = torch.from_numpy(np.array(record.pop("reference"), dtype=np.float64))
+        _check_plain(record, "domain")
+        domain = {**record, "reference": reference}
     payload = {
         "format": FORMAT,
         "format_version": FORMAT_VERSION,
@@ -86,6 +109,7 @@ def save_model(model: IPCModel, path: str | os.PathLike[str]) -> None:
         "state_dict": {k: v.detach().clone() for k, v in model.network.state_dict().items()},
         "metadata": metadata,
         "calibration": calibration,
+        "domain": domain,
     }
     atomic_write(path, lambda f: torch.save(payload, f))
 
@@ -105,19 +129,24 @@ def load_model(path: str | os.PathLike[str]) -> IPCModel:
     p = Path(path)
     if not p.is_file():
         raise FileNotFoundError(2, "No such file", str(p))
+    with open(p, "rb") as fh:
+        head = fh.read(len(_ZIP_MAGIC))
+    if head != _ZIP_MAGIC:
+        raise ModelFileError(
+            f"{p}: not a readable model file: it is not the archive `ipcverify train` or "
+            "`ipcverify calibrate` writes (a text, CSV or other file was given as the model?)"
+        )
     try:
         payload = torch.load(p, map_location="cpu", weights_only=True)
     except pickle.UnpicklingError as exc:
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
         if "Unsupported global" in str(exc):
             raise ModelFileError(
                 f"{p}: refused to load: the file holds objects other than tensors and plain "
                 "data, which could run code; only load model files written by ipcverify"
             ) from None
-        raise ModelFileError(f"{p}: not a readable model file ({first or 'unpickling failed'})") from None
-    except (RuntimeError, EOFError, OSError, ValueError, AttributeError, IndexError) as exc:
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise ModelFileError(f"{p}: not a readable model file ({first[:200]})") from None
+        raise ModelFileError(f"{p}: not a readable model file: its archive is damaged") from None
+    except Exception:  # noqa: BLE001 - torch raises many kinds; none of their internals helps the user
+        raise ModelFileError(f"{p}: not a readable model file: its archive is damaged or truncated") from None
     if not isinstance(payload, dict) or payload.get("format") != FORMAT:
         raise ModelFileError(f"{p}: not an ipcverify model file (no 'format': '{FORMAT}' entry)")
     version = payload.get("format_version")
@@ -142,11 +171,34 @@ def load_model(path: str | os.PathLike[str]) -> IPCModel:
             calibration = calibration_from_dict(payload["calibration"])
         except (KeyError, TypeError, ValueError) as exc:
             raise ModelFileError(f"{p}: damaged calibration record ({exc})") from None
-    return IPCModel(net, calibration, payload.get("metadata") or {})
+    domain = None
+    if payload.get("domain") is not None:
+        try:
+            record = dict(payload["domain"])
+            record["reference"] = record["reference"].numpy()
+            domain = DomainModel.from_dict(record)
+        except (KeyError, TypeError, ValueError, AttributeError) as exc:
+            raise ModelFileError(f"{p}: damaged domain-of-validity record ({exc})") from None
+    try:
+        return IPCModel(net, calibration, payload.get("metadata") or {}, domain)
+    except InvalidInputError as exc:
+        raise ModelFileError(f"{p}: inconsistent model file ({exc})") from None
+
+
+def _columns(model: IPCModel, kind: str) -> list[str]:
+    names = model.metadata.get(f"{kind}_columns") or []
+    if names:
+        return [str(c) for c in names]
+    dim = model.config.x_dim if kind == "x" else model.config.y_dim
+    return [f"{kind}_{i}" for i in range(dim)]
 
 
 def load_data_for_model(path: str | os.PathLike[str], model: IPCModel) -> PerceptionDataset:
-    """Load a data file with the column names the model was trained on (tables; NPZ has no names).
+    """Load labelled data with the model's column names; refuse columns the model does not know.
+
+    Tables are read with the ``x`` / ``y`` / ``yhat`` column names recorded at training
+    (NPZ files have none); a table with extra ``x_i``-like columns is refused rather than
+    read without them (:func:`~ipcverify.data.refuse_unknown_columns`).
 
     Examples
     --------
@@ -161,7 +213,28 @@ def load_data_for_model(path: str | os.PathLike[str], model: IPCModel) -> Percep
     """
     if Path(path).suffix.lower() == ".npz":
         return load_dataset(path)
-    meta = model.metadata
-    return load_dataset(
-        path, meta.get("x_columns") or None, meta.get("y_columns") or None, meta.get("yhat_columns") or None
-    )
+    known = {k: _columns(model, k) for k in ("x", "y", "yhat")}
+    data = load_dataset(path, known["x"], known["y"], known["yhat"])
+    refuse_unknown_columns(data.source, data.extra, known)
+    return data
+
+
+def load_inputs_for_model(path: str | os.PathLike[str], model: IPCModel) -> PerceptionInputs:
+    """Load deployment queries (``x``, ``yhat``; no truth needed) with the model's column names.
+
+    Examples
+    --------
+    >>> import tempfile, os
+    >>> import numpy as np, pandas as pd
+    >>> from ipcverify.architecture import ModelConfig
+    >>> p = os.path.join(tempfile.mkdtemp(), "q.csv")
+    >>> pd.DataFrame({"x_0": [0.0, 1.0], "yhat_0": [0.5, 0.5]}).to_csv(p, index=False)
+    >>> load_inputs_for_model(p, IPCModel(IPCNetwork(ModelConfig(x_dim=1, y_dim=1)))).x.shape
+    (2, 1)
+    """
+    if Path(path).suffix.lower() == ".npz":
+        return load_inputs(path)
+    known = {k: _columns(model, k) for k in ("x", "yhat")}
+    inputs = load_inputs(path, known["x"], known["yhat"])
+    refuse_unknown_columns(inputs.source, inputs.extra, known)
+    return inputs

@@ -164,6 +164,13 @@ class IPCQuery:
         center, shape = self.ellipsoid(x, yhat)
         return (center, shape) if transform is None else transform(center, shape)
 
+    def _in_domain(self, x: ArrayLike, yhat: ArrayLike) -> bool:
+        domain = self.model.domain
+        if domain is None:
+            return True
+        xa, ya = self._inputs(x, yhat)
+        return domain.contains_one(np.concatenate((xa, ya)))
+
     def decide(self, x: ArrayLike, yhat: ArrayLike, transform: Transform | None = None) -> QueryDecision:
         """Query -> ellipsoid (-> ``transform``) -> landing decision; every accept is exactly proven.
 
@@ -179,7 +186,9 @@ class IPCQuery:
         -------
         QueryDecision
             ``accept`` is True only when :func:`~ipcverify.landing.landing_decision`
-            PROVES that the turn-off point is safe for every ``y`` in the ellipsoid.
+            PROVES that the turn-off point is safe for every ``y`` in the ellipsoid. A query
+            the model's domain test flags (or whose set is degenerate) is answered
+            ``verdict = OUTSIDE_DOMAIN``, never accepted.
 
         Raises
         ------
@@ -187,6 +196,8 @@ class IPCQuery:
             If the model's ``n`` is not 3 (the landing target is 3-D).
         """
         center, shape = self._ellipsoid_in_frame(x, yhat, transform)
+        if not self._in_domain(x, yhat):
+            return self.rule.outside_domain(center, shape)
         return self.rule.decide(center, shape)
 
     def decide_float(
@@ -198,6 +209,8 @@ class IPCQuery:
         differ from the exact decision. Use :meth:`decide` when the answer steers the vehicle.
         """
         center, shape = self._ellipsoid_in_frame(x, yhat, transform)
+        if not self._in_domain(x, yhat):
+            return self.rule.outside_domain(center, shape)
         return self.rule.decide_float(center, shape)
 
     def __repr__(self) -> str:

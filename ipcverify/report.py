@@ -24,7 +24,8 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from ipcverify.bounds import clopper_pearson_interval
-from ipcverify.certificate import CertificateStatus, CertifyEvidence, CertifyResult
+from ipcverify.calibration.protocol import CalibrationSummary
+from ipcverify.certificate import Certificate, CertificateStatus, CertifyEvidence, CertifyResult
 from ipcverify.evaluation import BinCoverage
 
 __all__ = [
@@ -38,6 +39,7 @@ __all__ = [
 
 _COLORS = {
     CertificateStatus.CERTIFIED: "#1b7f3b",
+    CertificateStatus.UNTESTED: "#1b5e7f",
     CertificateStatus.UNCHECKED: "#1b5e7f",
     CertificateStatus.NOT_CALIBRATED: "#9a6700",
     CertificateStatus.CONTRADICTED: "#b42318",
@@ -215,6 +217,201 @@ code{background:#f6f8fa;padding:0 .25em;border-radius:3px}
 """
 
 
+def _header(cert: Certificate) -> list[str]:
+    color = _COLORS[cert.status]
+    parts = [
+        "<!DOCTYPE html>",
+        '<html lang="en"><head><meta charset="utf-8">',
+        "<title>ipcverify certificate</title>",
+        f"<style>{_CSS}</style></head><body>",
+        "<h1>Inverse perception contract: certificate</h1>",
+        f'<p class="status" style="background:{color}">{html.escape(cert.status.value)}</p>',
+        "<h2>What is guaranteed</h2>",
+        f'<p class="statement">{html.escape(cert.statement)}</p>',
+    ]
+    if cert.test_bound_note:
+        parts.append(f"<p>{html.escape(cert.test_bound_note)}</p>")
+    parts.append(
+        '<p class="small">Assumption behind every statement on this page: the calibration samples, the '
+        "test samples and the samples met in deployment are exchangeable (for example, drawn i.i.d. from "
+        "the same distribution), and none of them was used for training. Nothing here holds under "
+        "distribution shift; the domain-of-validity test below flags queries unlike the calibration "
+        "data.</p>"
+    )
+    return parts
+
+
+def _calibration_section(cal: CalibrationSummary | None) -> list[str]:
+    parts = ["<h2>Calibration</h2>"]
+    if cal is None:
+        parts.append(
+            "<p><b>Absent.</b> This model carries no calibration, so the calibration certificate is "
+            "missing. Run <code>ipcverify calibrate MODEL CALIBRATION_DATA --epsilon E --delta D --out "
+            "calibrated.pt</code> on held-out data.</p>"
+        )
+        return parts
+    rows: list[tuple[str, Any]] = [
+        ("mode", cal.mode + (" (training-conditional)" if cal.mode == "pac" else " (split conformal)")),
+        ("epsilon (target violation rate)", cal.epsilon),
+        ("delta", cal.delta),
+        ("calibration samples n", cal.n),
+        ("calibrated per", cal.grouping),
+        ("certified violation rate", cal.certified_epsilon),
+    ]
+    if len(cal.groups) == 1:
+        rows += [("order statistic k", cal.groups[0].k), ("scale factor s", cal.groups[0].scale)]
+    parts.append(_table(rows))
+    if len(cal.groups) > 1:
+        grows = "".join(
+            f"<tr><td>{html.escape(g.label)}</td><td>{_fmt(g.n)}</td><td>{_fmt(g.k)}</td>"
+            f"<td>{_fmt(g.scale)}</td></tr>"
+            for g in cal.groups
+        )
+        parts.append(f"<table><tr><th>group</th><th>n</th><th>k</th><th>scale</th></tr>{grows}</table>")
+    return parts
+
+
+def _domain_section(cert: Certificate) -> list[str]:
+    d = cert.domain
+    parts = ["<h2>Domain of validity</h2>"]
+    if d is None:
+        parts.append(
+            "<p><b>Absent.</b> This model carries no domain-of-validity test, so nothing flags queries "
+            "unlike the calibration data. Recalibrate with a current ipcverify to fit one.</p>"
+        )
+        return parts
+    parts.append(f"<p>{html.escape(d.sentence())}</p>")
+    parts.append(
+        _table(
+            [
+                ("method", d.method),
+                ("false-alarm rate alpha", d.alpha),
+                ("threshold (whitened distance)", d.threshold),
+                ("calibration inputs (reference)", d.n_reference),
+                ("queries checked", d.n),
+                ("queries outside", d.outside),
+            ]
+        )
+    )
+    return parts
+
+
+def _test_section(cert: Certificate, ev: CertifyEvidence | None) -> list[str]:
+    t = cert.test
+    parts = ["<h2>Test set</h2>"]
+    if t is None or ev is None or cert.volume is None:
+        parts.append(
+            "<p><b>No test data was given.</b> The calibration certificate above does not need one, but "
+            "nothing on this page checks it independently: run <code>ipcverify certify MODEL --data "
+            "TEST</code> with fresh held-out samples.</p>"
+        )
+        return parts
+    rows: list[tuple[str, Any]] = [
+        ("test samples", t.n),
+        ("violations", t.violations),
+        ("empirical violation rate", t.empirical_rate),
+        (f"upper bound (Clopper-Pearson, confidence {1 - t.delta:.6g})", t.upper_bound),
+        (f"two-sided interval ({1 - t.delta:.6g})", f"[{t.interval[0]:.4g}, {t.interval[1]:.4g}]"),
+        ("mean log-volume of the sets", cert.volume.mean_log),
+        ("median log-volume", cert.volume.median_log),
+    ]
+    parts.append(_table(rows))
+    cons = cert.consistency
+    if cons.checked:
+        verdict = "consistent" if cons.consistent else "CONTRADICTS the calibration"
+        parts.append(
+            f"<p>Consistency check: test lower bound {cons.test_lower_bound:.4g} vs. allowed rate "
+            f"{cons.allowed_rate:.4g}: <b>{verdict}</b>. <span class='small'>{html.escape(cons.rule)}"
+            "</span></p>"
+        )
+    parts.append(_img(plot_scores(ev, cert.calibration is not None), "histogram of normalised test scores"))
+    if cert.coverage is not None:
+        parts.append("<h2>Conditional coverage</h2>")
+        parts.append(
+            "<p>The guarantee above is marginal (averaged over all inputs), not per region of the state "
+            "space. This plot shows how the violation rate varies across bins of "
+            f"<code>{html.escape(cert.coverage.column)}</code>.</p>"
+        )
+        eps = None if cert.calibration is None else cert.calibration.epsilon
+        parts.append(_img(plot_coverage(cert.coverage, t.delta, eps), "violation rate per bin"))
+    parts.append("<h2>Example sets</h2>")
+    parts.append(
+        "<p class='small'>The smallest, median and largest set of the test data, and one violated sample "
+        "(if any), projected on pairs of coordinates of y. A truth outside the n-dimensional set can "
+        "still lie inside some, or even all, of its 2-D shadows.</p>"
+    )
+    parts.append(_img(plot_projections(ev), "projections of example ellipsoids"))
+    return parts
+
+
+def _theorem1_section(cert: Certificate) -> list[str]:
+    parts = ["<h2>Theorem 1 of the paper</h2>"]
+    t1 = cert.theorem1
+    if t1 is None:
+        parts.append(f"<p><b>{html.escape(cert.theorem1_reason.capitalize())}.</b> Nothing is claimed.</p>")
+        return parts
+    cls = "ok" if t1.usable else "vacuous"
+    parts.append(f'<p class="{cls}">{html.escape(t1.explanation())}</p>')
+
+    def nneed(v: int | None) -> str:
+        return "no N" if v is None else f"{v:.3g}"
+
+    rows = "".join(
+        f"<tr><th>{label}</th><td>{b.lipschitz:.4g}</td><td>{t1.empirical_term:.4g}</td>"
+        f"<td>{b.complexity:.4g}</td><td>{t1.confidence_term:.4g}</td><td>{b.bound:.4g}</td>"
+        f"<td>{'yes' if b.vacuous else 'no'}</td><td>{nneed(b.n_needed)}</td></tr>"
+        for label, b in (
+            ("sound L_g (upper bound; valid)", t1.sound),
+            ("empirical L_g (lower estimate; NOT a guarantee)", t1.optimistic),
+        )
+    )
+    parts.append(
+        "<table><tr><th></th><th>L_g</th><th>empirical truncated hinge</th>"
+        "<th>(12/&alpha;) L_g &radic;(p/N)</th><th>&radic;(ln(2/&delta;)/2N)</th><th>bound</th>"
+        f"<th>vacuous</th><th>N for bound &lt; 1</th></tr>{rows}</table>"
+    )
+    source = (
+        f" The training terms come from the {html.escape(cert.theorem1_source)}."
+        if cert.theorem1_source
+        else ""
+    )
+    parts.append(
+        f"<p class='small'>p = {t1.n_parameters:,} parameters, N = {t1.n_train:,} training samples, "
+        f"&alpha; = {t1.alpha:g}, &delta; = {t1.delta:g}.{source} The sound L_g bounds the Lipschitz "
+        f"constant over the parameter ball of radius {t1.radius:g} around the trained weights and the "
+        "bounding box of the training data. The empirical L_g is the largest per-sample gradient norm at "
+        "the trained weights: a lower estimate, so its bound is optimistic and proves nothing. A bound "
+        "&ge; 1 says nothing about a probability.</p>"
+    )
+    return parts
+
+
+def _identity_section(cert: Certificate) -> list[str]:
+    m = cert.model
+    rows: list[tuple[str, Any]] = [
+        ("model file", m.path),
+        ("model file SHA-256", m.file_sha256),
+        ("network SHA-256", m.network_sha256),
+        ("architecture", ", ".join(f"{k}={v}" for k, v in m.architecture.items())),
+        ("parameters p", m.n_parameters),
+    ]
+    if cert.test_data is not None:
+        rows += [
+            ("test data", cert.test_data.source),
+            ("test data SHA-256 (content)", cert.test_data.content_sha256),
+        ]
+    if cert.calibration is not None:
+        rows.append(("calibration data SHA-256 (content)", cert.calibration.data_sha256))
+    if cert.train_data is not None:
+        rows.append(("training data SHA-256 (content)", cert.train_data.content_sha256))
+    return [
+        "<h2>Identity</h2>",
+        _table(rows),
+        "<p class='small'>Generated by ipcverify. The machine-readable record is "
+        "<code>certificate.json</code> beside this file.</p></body></html>",
+    ]
+
+
 def render_report(result: CertifyResult) -> str:
     """The full HTML page for a certification result (a string; no external resources).
 
@@ -229,149 +426,11 @@ def render_report(result: CertifyResult) -> str:
     >>> page.startswith("<!DOCTYPE html>") and "http" not in page
     True
     """
-    cert, ev = result.certificate, result.evidence
-    cal = cert.calibration
-    t = cert.test
-    color = _COLORS[cert.status]
-    parts = [
-        "<!DOCTYPE html>",
-        '<html lang="en"><head><meta charset="utf-8">',
-        "<title>ipcverify certificate</title>",
-        f"<style>{_CSS}</style></head><body>",
-        "<h1>Inverse perception contract: certificate</h1>",
-        f'<p class="status" style="background:{color}">{html.escape(cert.status.value)}</p>',
-        "<h2>What is guaranteed</h2>",
-        f'<p class="statement">{html.escape(cert.statement)}</p>',
-        '<p class="small">Assumption behind every statement on this page: the calibration samples, the '
-        "test samples and the samples met in deployment are exchangeable (for example, drawn i.i.d. from "
-        "the same distribution), and none of them was used for training. Nothing here holds under "
-        "distribution shift.</p>",
-    ]
-
-    parts.append("<h2>Calibration</h2>")
-    if cal is None:
-        parts.append(
-            "<p><b>Absent.</b> This model carries no calibration, so the calibration certificate is "
-            "missing. Run <code>ipcverify calibrate MODEL CALIBRATION_DATA --epsilon E --delta D --out "
-            "calibrated.pt</code> on held-out data.</p>"
-        )
-    else:
-        rows: list[tuple[str, Any]] = [
-            ("mode", cal.mode + (" (training-conditional)" if cal.mode == "pac" else " (split conformal)")),
-            ("epsilon (target violation rate)", cal.epsilon),
-            ("delta", cal.delta),
-            ("calibration samples n", cal.n),
-            ("calibrated per", cal.grouping),
-            ("certified violation rate", cal.certified_epsilon),
-        ]
-        if len(cal.groups) == 1:
-            rows += [("order statistic k", cal.groups[0].k), ("scale factor s", cal.groups[0].scale)]
-        parts.append(_table(rows))
-        if len(cal.groups) > 1:
-            grows = "".join(
-                f"<tr><td>{html.escape(g.label)}</td><td>{_fmt(g.n)}</td><td>{_fmt(g.k)}</td>"
-                f"<td>{_fmt(g.scale)}</td></tr>"
-                for g in cal.groups
-            )
-            parts.append(f"<table><tr><th>group</th><th>n</th><th>k</th><th>scale</th></tr>{grows}</table>")
-
-    parts.append("<h2>Test set</h2>")
-    parts.append(
-        _table(
-            [
-                ("test samples", t.n),
-                ("violations", t.violations),
-                ("empirical violation rate", t.empirical_rate),
-                (f"upper bound (Clopper-Pearson, confidence {1 - t.delta:.6g})", t.upper_bound),
-                (f"two-sided interval ({1 - t.delta:.6g})", f"[{t.interval[0]:.4g}, {t.interval[1]:.4g}]"),
-                ("mean log-volume of the sets", cert.volume.mean_log),
-                ("median log-volume", cert.volume.median_log),
-            ]
-        )
-    )
-    cons = cert.consistency
-    if cons.checked:
-        verdict = "consistent" if cons.consistent else "CONTRADICTS the calibration"
-        parts.append(
-            f"<p>Consistency check: test lower bound {cons.test_lower_bound:.4g} vs. allowed rate "
-            f"{cons.allowed_rate:.4g}: <b>{verdict}</b>. <span class='small'>{html.escape(cons.rule)}"
-            "</span></p>"
-        )
-    parts.append(_img(plot_scores(ev, cal is not None), "histogram of normalised test scores"))
-
-    parts.append("<h2>Conditional coverage</h2>")
-    parts.append(
-        "<p>The guarantee above is marginal (averaged over all inputs), not per region of the state "
-        "space. This plot shows how the violation rate varies across bins of "
-        f"<code>{html.escape(cert.coverage.column)}</code>.</p>"
-    )
-    parts.append(
-        _img(
-            plot_coverage(cert.coverage, t.delta, None if cal is None else cal.epsilon),
-            "violation rate per bin",
-        )
-    )
-
-    parts.append("<h2>Example sets</h2>")
-    parts.append(
-        "<p class='small'>The smallest, median and largest set of the test data, and one violated sample "
-        "(if any), projected on pairs of coordinates of y. A truth outside the n-dimensional set can "
-        "still lie inside some, or even all, of its 2-D shadows.</p>"
-    )
-    parts.append(_img(plot_projections(ev), "projections of example ellipsoids"))
-
-    parts.append("<h2>Theorem 1 of the paper</h2>")
-    t1 = cert.theorem1
-    if t1 is None:
-        parts.append(f"<p><b>{html.escape(cert.theorem1_reason.capitalize())}.</b> Nothing is claimed.</p>")
-    else:
-        cls = "ok" if t1.usable else "vacuous"
-        parts.append(f'<p class="{cls}">{html.escape(t1.explanation())}</p>')
-
-        def nneed(v: int | None) -> str:
-            return "no N" if v is None else f"{v:.3g}"
-
-        rows2 = "".join(
-            f"<tr><th>{label}</th><td>{b.lipschitz:.4g}</td><td>{t1.empirical_term:.4g}</td>"
-            f"<td>{b.complexity:.4g}</td><td>{t1.confidence_term:.4g}</td><td>{b.bound:.4g}</td>"
-            f"<td>{'yes' if b.vacuous else 'no'}</td><td>{nneed(b.n_needed)}</td></tr>"
-            for label, b in (
-                ("sound L_g (upper bound; valid)", t1.sound),
-                ("empirical L_g (lower estimate; NOT a guarantee)", t1.optimistic),
-            )
-        )
-        parts.append(
-            "<table><tr><th></th><th>L_g</th><th>empirical truncated hinge</th>"
-            "<th>(12/&alpha;) L_g &radic;(p/N)</th><th>&radic;(ln(2/&delta;)/2N)</th><th>bound</th>"
-            f"<th>vacuous</th><th>N for bound &lt; 1</th></tr>{rows2}</table>"
-        )
-        parts.append(
-            f"<p class='small'>p = {t1.n_parameters:,} parameters, N = {t1.n_train:,} training samples, "
-            f"&alpha; = {t1.alpha:g}, &delta; = {t1.delta:g}. The sound L_g bounds the Lipschitz constant "
-            f"over the parameter ball of radius {t1.radius:g} around the trained weights and the bounding "
-            "box of the training data. The empirical L_g is the largest per-sample gradient norm at the "
-            "trained weights: a lower estimate, so its bound is optimistic and proves nothing. A bound "
-            "&ge; 1 says nothing about a probability.</p>"
-        )
-
-    m = cert.model
-    parts.append("<h2>Identity</h2>")
-    rows3: list[tuple[str, Any]] = [
-        ("model file", m.path),
-        ("model file SHA-256", m.file_sha256),
-        ("network SHA-256", m.network_sha256),
-        ("architecture", ", ".join(f"{k}={v}" for k, v in m.architecture.items())),
-        ("parameters p", m.n_parameters),
-        ("test data", cert.test_data.source),
-        ("test data SHA-256 (content)", cert.test_data.content_sha256),
-    ]
-    if cal is not None:
-        rows3.append(("calibration data SHA-256 (content)", cal.data_sha256))
-    if cert.train_data is not None:
-        rows3.append(("training data SHA-256 (content)", cert.train_data.content_sha256))
-    parts.append(_table(rows3))
-    parts.append(
-        "<p class='small'>Generated by ipcverify. The machine-readable record is "
-        "<code>certificate.json</code> beside this file.</p></body></html>"
-    )
+    cert = result.certificate
+    parts = _header(cert)
+    parts += _calibration_section(cert.calibration)
+    parts += _domain_section(cert)
+    parts += _test_section(cert, result.evidence)
+    parts += _theorem1_section(cert)
+    parts += _identity_section(cert)
     return "\n".join(parts)

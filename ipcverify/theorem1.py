@@ -30,10 +30,11 @@ from numpy.typing import ArrayLike
 
 from ipcverify.data import PerceptionDataset
 from ipcverify.errors import InvalidInputError
-from ipcverify.lipschitz import DEFAULT_RADIUS, empirical_lipschitz, sound_lipschitz
+from ipcverify.lipschitz import DEFAULT_RADIUS, DataBox, empirical_lipschitz, sound_lipschitz
 from ipcverify.model import IPCModel
 
 __all__ = [
+    "TrainingStatistics",
     "Theorem1Bound",
     "Theorem1Result",
     "truncated_hinge_mean",
@@ -41,6 +42,87 @@ __all__ = [
     "theorem1",
     "n_needed",
 ]
+
+
+@dataclass(frozen=True, kw_only=True)
+class TrainingStatistics:
+    """What Theorem 1 needs from the training data, stored in the model file at training time.
+
+    With them ``ipcverify certify model.pt`` evaluates Theorem 1 without the training file.
+
+    Attributes
+    ----------
+    n : int
+        Training samples ``N``.
+    alpha : float
+        Hinge margin of the empirical term.
+    truncated_hinge_mean : float
+        The empirical term at the trained weights.
+    empirical_lipschitz : float
+        Largest per-sample gradient norm at the trained weights (a lower estimate of ``L_g``).
+    box : DataBox
+        Bounding box of the training ``(x, y, yhat)`` (for the sound ``L_g``).
+    data_sha256 : str
+        Content hash of the training data.
+    """
+
+    n: int
+    alpha: float
+    truncated_hinge_mean: float
+    empirical_lipschitz: float
+    box: DataBox
+    data_sha256: str
+
+    def __post_init__(self) -> None:
+        if self.n < 1 or not (0.0 <= self.truncated_hinge_mean <= 1.0) or not self.empirical_lipschitz >= 0:
+            raise InvalidInputError("training statistics: need n >= 1, a hinge mean in [0, 1], L_g >= 0")
+
+    @classmethod
+    def compute(cls, model: IPCModel, train_data: PerceptionDataset, alpha: float) -> TrainingStatistics:
+        """Evaluate the statistics on the training data at the trained weights.
+
+        Examples
+        --------
+        >>> from ipcverify.synthetic import make_lagged_perception
+        >>> from ipcverify.training import train, TrainConfig
+        >>> ds = make_lagged_perception(200, seed=0)
+        >>> stats = TrainingStatistics.compute(train(ds, train_config=TrainConfig(epochs=1)).model, ds, 1.0)
+        >>> stats.n, TrainingStatistics.from_dict(stats.to_dict()).to_dict() == stats.to_dict()
+        (200, True)
+        """
+        scores = model.raw_scores(train_data.x, train_data.y, train_data.yhat)
+        return cls(
+            n=len(train_data),
+            alpha=float(alpha),
+            truncated_hinge_mean=truncated_hinge_mean(scores, alpha),
+            empirical_lipschitz=empirical_lipschitz(model, train_data).value,
+            box=DataBox.from_dataset(train_data),
+            data_sha256=train_data.content_hash(),
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data (stored in the model file's metadata)."""
+        return {
+            "n": self.n,
+            "alpha": self.alpha,
+            "truncated_hinge_mean": self.truncated_hinge_mean,
+            "empirical_lipschitz": self.empirical_lipschitz,
+            "box": self.box.to_dict(),
+            "data_sha256": self.data_sha256,
+        }
+
+    @classmethod
+    def from_dict(cls, data: Any) -> TrainingStatistics:
+        """Inverse of :meth:`to_dict`."""
+        b = data["box"]
+        return cls(
+            n=int(data["n"]),
+            alpha=float(data["alpha"]),
+            truncated_hinge_mean=float(data["truncated_hinge_mean"]),
+            empirical_lipschitz=float(data["empirical_lipschitz"]),
+            box=DataBox(b["x_lo"], b["x_hi"], b["y_lo"], b["y_hi"], b["yhat_lo"], b["yhat_hi"]),
+            data_sha256=str(data["data_sha256"]),
+        )
 
 
 def truncated_hinge_mean(scores: ArrayLike, alpha: float) -> float:
@@ -260,20 +342,21 @@ class Theorem1Result:
 
 def theorem1(
     model: IPCModel,
-    train_data: PerceptionDataset,
+    train_data: PerceptionDataset | TrainingStatistics,
     delta: float,
     *,
     alpha: float | None = None,
     radius: float = DEFAULT_RADIUS,
 ) -> Theorem1Result:
-    """Evaluate Theorem 1 for ``model`` on its training data.
+    """Evaluate Theorem 1 for ``model`` on its training data (or its stored statistics).
 
     Parameters
     ----------
     model : IPCModel
         The trained model (``g`` is the raw score; calibration plays no role).
-    train_data : PerceptionDataset
-        The training set ``S`` (``N = len(train_data)``).
+    train_data : PerceptionDataset or TrainingStatistics
+        The training set ``S`` (``N = len(train_data)``), or the statistics of it that
+        :func:`ipcverify.training.train` stored in the model file.
     delta : float
         Confidence parameter, ``0 < delta < 1``.
     alpha : float, optional
@@ -295,16 +378,22 @@ def theorem1(
         if alpha is None:
             raise InvalidInputError("the model file records no training alpha; pass alpha explicitly")
     alpha = float(alpha)
-    if (train_data.x_dim, train_data.y_dim) != (model.config.x_dim, model.config.y_dim):
-        raise InvalidInputError(
-            f"{train_data.source}: training data has x_dim={train_data.x_dim}, y_dim={train_data.y_dim} but "
-            f"the model expects x_dim={model.config.x_dim}, y_dim={model.config.y_dim}"
-        )
-    scores = model.raw_scores(train_data.x, train_data.y, train_data.yhat)
-    emp = truncated_hinge_mean(scores, alpha)
-    n, p = len(train_data), model.n_parameters
-    low = empirical_lipschitz(model, train_data)
-    high = sound_lipschitz(model, train_data, radius=radius)
+    if isinstance(train_data, PerceptionDataset):
+        if (train_data.x_dim, train_data.y_dim) != (model.config.x_dim, model.config.y_dim):
+            raise InvalidInputError(
+                f"{train_data.source}: training data has x_dim={train_data.x_dim}, y_dim={train_data.y_dim} "
+                f"but the model expects x_dim={model.config.x_dim}, y_dim={model.config.y_dim}"
+            )
+        stats = TrainingStatistics.compute(model, train_data, alpha)
+    else:
+        stats = train_data
+        if stats.alpha != alpha:
+            raise InvalidInputError(
+                f"the stored training statistics use alpha={stats.alpha:g}, not {alpha:g}; pass the training "
+                "data (--train-data) to evaluate Theorem 1 at another alpha"
+            )
+    emp, n, p = stats.truncated_hinge_mean, stats.n, model.n_parameters
+    high = sound_lipschitz(model, stats.box, radius=radius)
     return Theorem1Result(
         n_train=n,
         n_parameters=p,
@@ -313,6 +402,6 @@ def theorem1(
         empirical_term=emp,
         confidence_term=math.sqrt(math.log(2.0 / delta) / (2.0 * n)),
         sound=theorem1_terms(emp, high.value, p, n, alpha, delta, valid=True),
-        optimistic=theorem1_terms(emp, low.value, p, n, alpha, delta, valid=False),
+        optimistic=theorem1_terms(emp, stats.empirical_lipschitz, p, n, alpha, delta, valid=False),
         radius=float(radius),
     )

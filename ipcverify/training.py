@@ -22,6 +22,7 @@ from ipcverify.architecture import ModelConfig
 from ipcverify.data import PerceptionDataset
 from ipcverify.errors import InvalidInputError
 from ipcverify.model import IPCModel, IPCNetwork
+from ipcverify.theorem1 import TrainingStatistics
 
 __all__ = [
     "TrainConfig",
@@ -416,8 +417,11 @@ def train(
     if best_state is not None and tc.patience is not None:
         net.load_state_dict(best_state)
     net.eval()
+    stats = TrainingStatistics.compute(IPCModel(net), train_data, tc.alpha)
     metadata = {
         "train_config": tc.to_dict(),
+        # what Theorem 1 needs, so that `ipcverify certify model.pt` works without the training file
+        "training_statistics": stats.to_dict(),
         "train_data_hash": train_data.content_hash(),
         "train_n": len(train_data),
         "x_columns": list(train_data.x_columns),

@@ -15,7 +15,7 @@ from rich.table import Table
 from ipcverify.calibrate import calibrate
 from ipcverify.certificate import CertificateStatus
 from ipcverify.certify import certify_files
-from ipcverify.cli.app import app, console
+from ipcverify.cli.app import app, console, err_console
 from ipcverify.errors import InvalidInputError
 from ipcverify.lipschitz import DEFAULT_RADIUS
 from ipcverify.modelio import load_data_for_model, load_model, save_model
@@ -28,6 +28,7 @@ _STYLE = {
     CertificateStatus.UNCHECKED: "bold cyan",
     CertificateStatus.NOT_CALIBRATED: "bold yellow",
     CertificateStatus.CONTRADICTED: "bold red",
+    CertificateStatus.UNTESTED: "bold cyan",
 }
 
 
@@ -106,7 +107,13 @@ def calibrate_cmd(
 
 @app.command("certify")
 @click.argument("model", type=_EXISTING)
-@click.option("--data", "test", type=_EXISTING, required=True, help="Fresh test data (not used so far).")
+@click.option(
+    "--data",
+    "test",
+    type=_EXISTING,
+    default=None,
+    help="Fresh test data (not used so far). Without it: what the model file alone certifies.",
+)
 @click.option("--train-data", type=_EXISTING, default=None, help="The training data (for Theorem 1).")
 @click.option(
     "--out",
@@ -127,7 +134,7 @@ def calibrate_cmd(
 )
 def certify_cmd(
     model: Path,
-    test: Path,
+    test: Path | None,
     train_data: Path | None,
     out: Path,
     delta: float | None,
@@ -153,19 +160,26 @@ def certify_cmd(
     console.print(f"[{_STYLE[cert.status]}]{cert.status.name}[/]: {cert.status.value}", soft_wrap=True)
     console.print(cert.statement, soft_wrap=True, markup=False)
     table = Table(show_header=False)
-    t = cert.test
     table.add_row("parameters p", f"{cert.model.n_parameters:,}")
     if cert.calibration is not None:
         c = cert.calibration
         table.add_row("calibration", f"{c.mode}, epsilon={c.epsilon:g}, delta={c.delta:g}, n={c.n}")
     else:
         table.add_row("calibration", "ABSENT (no calibration certificate)")
-    table.add_row(
-        "test violations",
-        f"{t.violations}/{t.n} = {t.empirical_rate:.4%}; "
-        f"upper bound {t.upper_bound:.4%} (confidence {1 - t.delta:g})",
-    )
-    table.add_row("mean log-volume", f"{cert.volume.mean_log:.4g}")
+    t = cert.test
+    if t is None:
+        table.add_row("test data", "none given (pass --data TEST for an independent check)")
+    else:
+        table.add_row(
+            "test violations",
+            f"{t.violations}/{t.n} = {t.empirical_rate:.4%}; "
+            f"upper bound {t.upper_bound:.4%} (confidence {1 - t.delta:g})",
+        )
+    if cert.volume is not None:
+        table.add_row("mean log-volume", f"{cert.volume.mean_log:.4g}")
+    if cert.domain is not None:
+        d = cert.domain
+        table.add_row("domain of validity", f"{d.outside}/{d.n} test queries outside (alpha = {d.alpha:g})")
     if cert.theorem1 is None:
         table.add_row("Theorem 1", cert.theorem1_reason)
     else:
@@ -177,6 +191,12 @@ def certify_cmd(
             f"{t1.optimistic.bound:.3g} with empirical L_g {t1.optimistic.lipschitz:.3g} (not a guarantee)",
         )
     console.print(table)
+    if cert.test_bound_note:
+        console.print(cert.test_bound_note, soft_wrap=True, markup=False)
+    if cert.domain is not None and cert.domain.well_above_alpha:
+        err_console.print(
+            f"[bold yellow]warning:[/] {cert.domain.sentence()}", soft_wrap=True, highlight=False
+        )
     console.print(f"wrote {out / 'certificate.json'} and {out / 'report.html'}", markup=False)
     if cert.status is CertificateStatus.CONTRADICTED:
         sys.exit(1)

@@ -14,13 +14,13 @@ import numpy as np
 from rich.table import Table
 
 from ipcverify.architecture import ModelConfig
-from ipcverify.cli.app import app, console
+from ipcverify.cli.app import app, console, err_console
 from ipcverify.data import load_dataset
 from ipcverify.demo import run_demo
 from ipcverify.errors import InvalidInputError
 from ipcverify.evaluation import Evaluation, evaluate
-from ipcverify.files import atomic_write
-from ipcverify.modelio import load_data_for_model, load_model, save_model
+from ipcverify.modelio import load_data_for_model, load_inputs_for_model, load_model, save_model
+from ipcverify.prediction import predict_sets, write_predictions
 from ipcverify.training import TrainConfig, train
 
 __all__ = ["parse_hidden"]
@@ -169,18 +169,32 @@ def evaluate_cmd(model: Path, data: Path, as_json: bool, bin_column: str | None,
 @click.argument("data", type=_EXISTING)
 @click.option("--out", type=click.Path(dir_okay=False, path_type=Path), required=True, help="Output .npz.")
 def predict_cmd(model: Path, data: Path, out: Path) -> None:
-    """Write the IPC's sets for DATA to an NPZ with arrays `center` (B, n) and `shape` (B, n, n).
+    """Write the IPC's sets for the queries in DATA to an NPZ.
 
-    E_i = {y : ||shape_i (y - center_i)|| <= 1}. Calibrated models give calibrated sets.
-    DATA needs the state and estimate columns; truth columns are not used.
+    Arrays: `center` (B, n), `shape` (B, n, n) with E_i = {y : ||shape_i (y - center_i)|| <= 1},
+    `in_domain` (B,) -- the calibration certificate covers only these queries --,
+    `domain_distance` (B,) and `singular` (B,). DATA needs only the state and estimate columns.
     """
     if out.suffix.lower() != ".npz":
         raise InvalidInputError(f"--out must end in .npz; got {out.name}")
     m = load_model(model)
-    ds = load_data_for_model(data, m)
-    sets = m.predict(ds.x, ds.yhat)
-    atomic_write(out, lambda f: np.savez(f, center=sets.centers, shape=sets.shapes))
-    console.print(f"wrote {sets.batch_size} {'calibrated' if m.calibration else 'raw'} ellipsoids to {out}")
+    pred = predict_sets(m, load_inputs_for_model(data, m))
+    write_predictions(pred, out)
+    kind = "calibrated" if pred.calibrated else "raw (uncalibrated)"
+    console.print(f"wrote {len(pred.centers)} {kind} ellipsoids to {out}", markup=False)
+    report = pred.domain
+    if report is None:
+        console.print("no domain-of-validity test in this model: every query is in_domain", markup=False)
+    elif report.outside:
+        target = err_console if report.well_above_alpha else console
+        prefix = "[bold yellow]warning:[/] " if report.well_above_alpha else ""
+        target.print(prefix + report.sentence(), soft_wrap=True, highlight=False)
+    if pred.singular.any():
+        console.print(
+            f"{int(pred.singular.sum())} queries have a degenerate set (far outside the training data); "
+            "they are marked in_domain = False",
+            markup=False,
+        )
 
 
 @app.command("demo")

@@ -86,9 +86,22 @@ def test_uncalibrated_model_is_certified_on_the_test_set_only(setup):
     assert cert.statement.startswith("No calibration certificate")
     assert cert.test.delta == DEFAULT_DELTA
     assert certify(setup["model"], setup["test"], delta=0.2).certificate.test.delta == 0.2
-    t1 = cert.to_dict()["theorem1"]
+    bare = IPCModel(setup["model"].network, None, {"train_config": setup["model"].metadata["train_config"]})
+    t1 = certify(bare, setup["test"]).certificate.to_dict()["theorem1"]
     assert t1["computed"] is False and t1["bound"] is None
     assert t1["reason"] == "not computed: training data not given (pass --train-data)"
+
+
+def test_theorem1_from_stored_training_statistics_equals_theorem1_from_the_training_data(setup):
+    stored = certify(setup["model"], setup["test"]).certificate.to_dict()["theorem1"]
+    fresh = certify(setup["model"], setup["test"], train_data=setup["train"]).certificate.to_dict()[
+        "theorem1"
+    ]
+    assert stored["source"] == "statistics stored at training time" and fresh["source"] == "training data"
+    for key in ("bound", "n_train", "empirical_term", "lipschitz_sound", "confidence_term"):
+        assert stored[key] == pytest.approx(fresh[key], rel=1e-12), key
+    # the empirical L_g is a max of float32 gradient norms: equal up to float32 summation order
+    assert stored["lipschitz_empirical"] == pytest.approx(fresh["lipschitz_empirical"], rel=1e-5)
 
 
 def test_contradicting_test_data_is_flagged(setup):
@@ -161,7 +174,7 @@ def test_cli_uncalibrated_and_contradicted(setup, run_cli, tmp_path):
     assert res.code == 0 and "NOT_CALIBRATED" in res.stdout and "ABSENT" in res.stdout
     cert = json.loads((tmp_path / "u" / "certificate.json").read_text())
     assert cert["calibration"] is None and cert["test"]["delta"] == 0.05
-    assert cert["theorem1"]["reason"].startswith("not computed: training data not given")
+    assert cert["theorem1"]["computed"] and cert["theorem1"]["source"] == "statistics stored at training time"
     save_dataset(make_lagged_perception(2000, seed=54, lag_frames=4.0, noise=0.02), tmp_path / "shift.csv")
     res = run_cli("certify", d / "cal.pt", "--data", tmp_path / "shift.csv", "--out", tmp_path / "s")
     assert res.code == 1 and "CONTRADICTED" in res.stdout

@@ -1,0 +1,381 @@
+"""The domain of validity of a calibrated contract: a conformal out-of-distribution test.
+
+Every certificate ipcverify issues assumes that deployment queries are exchangeable with
+the calibration samples. :class:`DomainModel` makes that assumption checkable per query:
+it is fitted on the calibration inputs ``z = (x, yhat)`` and flags a query whose distance
+to the calibration inputs is larger than the calibration inputs' own distances are,
+except for a share ``alpha``.
+
+* **Distance.** ``z`` is whitened with the calibration inputs' mean and covariance (an
+  eigenvalue floor keeps near-constant directions from dominating), and the score of a
+  query is its Euclidean distance to its ``k``-th nearest calibration input.
+* **Threshold (conformal, leave-one-out).** Each calibration input's score is its distance
+  to its ``k``-th nearest *other* calibration input; the threshold is the
+  ``ceil((n + 1)(1 - alpha))``-th smallest of these ``n`` scores.
+* **Guarantee.** If a query is exchangeable with the ``n`` calibration inputs, it is
+  flagged with probability at most ``alpha`` (proof: ``proofs/domain.md``). A range check
+  alone cannot do this: a query can lie inside every column's range and far from all data.
+
+A flagged query is *outside the domain of validity*: the calibration certificate promises
+nothing for it. The test says nothing, either way, about queries it does not flag -- no
+finite sample can certify that the world did not change; the online monitor
+(:mod:`ipcverify.monitor`) watches for that.
+
+Examples
+--------
+>>> import numpy as np
+>>> rng = np.random.default_rng(0)
+>>> x, yhat = rng.normal(size=(2000, 2)), rng.normal(size=(2000, 3))
+>>> dom = DomainModel.fit(x, yhat, alpha=0.01)
+>>> dom.contains(x[:5] * 0.5, yhat[:5] * 0.5).tolist()
+[True, True, True, True, True]
+>>> bool(dom.contains(np.full((1, 2), 8.0), np.zeros((1, 3)))[0])   # far from every sample
+False
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy import stats
+from scipy.spatial import cKDTree
+
+from ipcverify.bounds import marginal_conformal_index
+from ipcverify.errors import InvalidInputError, SampleSizeError
+
+__all__ = ["DEFAULT_ALPHA", "DEFAULT_K", "MAX_REFERENCE", "DomainModel", "DomainReport"]
+
+FloatArray = NDArray[np.float64]
+
+#: Default false-alarm rate of the domain test (share of in-distribution queries flagged).
+DEFAULT_ALPHA = 0.01
+#: Default neighbour rank: the distance to the nearest calibration input (chosen on the real log and
+#: synthetic shifts: docs/domain.md).
+DEFAULT_K = 1
+#: Most calibration inputs kept as the reference (a seeded random subset beyond that).
+MAX_REFERENCE = 10_000
+#: Eigenvalues of the whitening covariance below this share of the largest are raised to it.
+EIGEN_FLOOR = 1e-6
+#: Level of the one-sided binomial test behind "far more queries outside than false alarms explain".
+WELL_ABOVE_LEVEL = 1e-3
+METHOD = "conformal k-nearest-neighbour distance on whitened (x, yhat), leave-one-out threshold"
+
+
+def _stack(x: ArrayLike, yhat: ArrayLike) -> FloatArray:
+    xa = np.asarray(x, dtype=np.float64)
+    ya = np.asarray(yhat, dtype=np.float64)
+    if xa.ndim == 1:
+        xa = xa[None]
+    if ya.ndim == 1:
+        ya = ya[None]
+    if xa.ndim != 2 or ya.ndim != 2 or len(xa) != len(ya):
+        raise InvalidInputError(
+            f"domain test: x and yhat must be (B, d) and (B, n) with the same B; got {xa.shape}, {ya.shape}"
+        )
+    return np.concatenate([xa, ya], axis=1)
+
+
+@dataclass(frozen=True, eq=False)
+class DomainModel:
+    """A fitted domain-of-validity test (build it with :meth:`fit`).
+
+    Attributes
+    ----------
+    mean : ndarray, shape (D,)
+        Mean of the calibration inputs ``z = (x, yhat)``.
+    whitening : ndarray, shape (D, D)
+        ``W`` with ``W^T W = Sigma^{-1}`` (floored): distances are ``||W (z - z')||``.
+    reference : ndarray, shape (m, D)
+        The whitened calibration inputs.
+    k : int
+        Neighbour rank of the score.
+    alpha : float
+        False-alarm rate the threshold was set for.
+    threshold : float
+        Queries with a score above it are outside the domain.
+    n : int
+        Calibration inputs used (``m``).
+    """
+
+    mean: FloatArray
+    whitening: FloatArray
+    reference: FloatArray
+    k: int
+    alpha: float
+    threshold: float
+    n: int
+    method: str = METHOD
+    _tree: Any = field(default=None, init=False, repr=False)
+    _wt: Any = field(default=None, init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        mean = np.array(self.mean, dtype=np.float64)
+        w = np.array(self.whitening, dtype=np.float64)
+        ref = np.ascontiguousarray(self.reference, dtype=np.float64)
+        D = mean.shape[0] if mean.ndim == 1 else -1
+        if mean.ndim != 1 or w.shape != (D, D) or ref.ndim != 2 or ref.shape[1] != D:
+            raise InvalidInputError(
+                f"domain model: inconsistent shapes mean {mean.shape}, whitening {w.shape}, "
+                f"reference {ref.shape}"
+            )
+        if not (np.isfinite(mean).all() and np.isfinite(w).all() and np.isfinite(ref).all()):
+            raise InvalidInputError("domain model: non-finite entries")
+        if not (1 <= self.k < len(ref)) or self.n != len(ref):
+            raise InvalidInputError(f"domain model: need 1 <= k < n = {len(ref)}; got k={self.k}")
+        if not (0.0 < self.alpha < 1.0) or not (math.isfinite(self.threshold) and self.threshold >= 0):
+            raise InvalidInputError("domain model: alpha must lie in (0, 1) and the threshold be finite")
+        for name, value in (("mean", mean), ("whitening", w), ("reference", ref)):
+            value.setflags(write=False)
+            object.__setattr__(self, name, value)
+        object.__setattr__(self, "_tree", cKDTree(ref))
+        object.__setattr__(self, "_wt", np.ascontiguousarray(w.T))
+
+    # ------------------------------------------------------------------- fitting
+    @classmethod
+    def fit(
+        cls,
+        x: ArrayLike,
+        yhat: ArrayLike,
+        *,
+        alpha: float = DEFAULT_ALPHA,
+        k: int = DEFAULT_K,
+        max_reference: int = MAX_REFERENCE,
+        seed: int = 0,
+    ) -> DomainModel:
+        """Fit the test on calibration inputs (leave-one-out conformal threshold at ``alpha``).
+
+        Raises
+        ------
+        SampleSizeError
+            If there are too few inputs for ``alpha`` (``n >= (1 - alpha) / alpha`` is needed).
+        """
+        z = _stack(x, yhat)
+        if not np.isfinite(z).all():
+            raise InvalidInputError("domain test: calibration inputs must be finite")
+        if not (isinstance(k, (int, np.integer)) and k >= 1):
+            raise InvalidInputError(f"domain test: k must be a positive integer; got {k!r}")
+        if not (isinstance(alpha, (int, float)) and 0.0 < alpha < 1.0):
+            raise InvalidInputError(f"domain test: alpha must lie strictly between 0 and 1; got {alpha!r}")
+        if len(z) > max_reference:
+            z = z[np.sort(np.random.default_rng(seed).choice(len(z), max_reference, replace=False))]
+        n = len(z)
+        need = math.ceil((1.0 - alpha) / alpha)
+        if n < max(need, k + 1):
+            raise SampleSizeError(
+                f"the domain test at alpha={alpha:g} needs at least {max(need, k + 1)} calibration inputs; "
+                f"got {n} -- use more calibration data or a larger --domain-alpha"
+            )
+        mean = z.mean(axis=0)
+        cov = np.atleast_2d(np.cov(z, rowvar=False))
+        vals, vecs = np.linalg.eigh(0.5 * (cov + cov.T))
+        top = max(float(vals[-1]), 1e-300)
+        vals = np.maximum(vals, EIGEN_FLOOR * top)
+        whitening = (vecs / np.sqrt(vals)).T  # rows: scaled principal directions
+        ref = (z - mean) @ whitening.T
+        dist, _ = cKDTree(ref).query(ref, k=k + 1)  # the first neighbour is the point itself
+        loo = np.asarray(dist, dtype=np.float64).reshape(n, k + 1)[:, k]
+        rank = marginal_conformal_index(n, alpha)
+        threshold = float(np.partition(loo, rank - 1)[rank - 1])
+        return cls(
+            mean=mean,
+            whitening=whitening,
+            reference=ref,
+            k=int(k),
+            alpha=float(alpha),
+            threshold=threshold,
+            n=n,
+        )
+
+    # ------------------------------------------------------------------- queries
+    def _whiten(self, z: FloatArray) -> FloatArray:
+        if z.shape[1] != len(self.mean):
+            raise InvalidInputError(
+                f"domain test: queries have {z.shape[1]} columns of (x, yhat) but the domain model was "
+                f"fitted on {len(self.mean)}"
+            )
+        return np.asarray((z - self.mean) @ self.whitening.T)
+
+    def distance(self, x: ArrayLike, yhat: ArrayLike) -> FloatArray:
+        """Each query's score: whitened distance to its ``k``-th nearest calibration input (B,).
+
+        Non-finite queries get ``inf``.
+        """
+        z = _stack(x, yhat)
+        ok = np.isfinite(z).all(axis=1)
+        out = np.full(len(z), np.inf)
+        if ok.any():
+            d, _ = self._tree.query(self._whiten(z[ok]), k=[self.k])
+            out[ok] = np.asarray(d, dtype=np.float64)[:, 0]
+        return out
+
+    def contains(self, x: ArrayLike, yhat: ArrayLike) -> NDArray[np.bool_]:
+        """Boolean mask (B,): the query is inside the domain of validity (score <= threshold)."""
+        return np.asarray(self.distance(x, yhat) <= self.threshold, dtype=np.bool_)
+
+    def contains_one(self, z: FloatArray) -> bool:
+        """One query given as the concatenated 1-D ``(x, yhat)`` (the single-query path).
+
+        Asks the tree only whether ``k`` calibration inputs lie within the threshold, which
+        is cheaper than finding the exact distance.
+        """
+        if not np.isfinite(z).all():
+            return False
+        # the bound is a strict "<" in the tree: one float above the threshold keeps "<=" semantics
+        bound = math.nextafter(self.threshold, math.inf)
+        d, _ = self._tree.query((z - self.mean) @ self._wt, k=self.k, distance_upper_bound=bound)
+        return bool(np.max(d) <= self.threshold)
+
+    # ------------------------------------------------------------- reporting
+    def report(
+        self, x: ArrayLike, yhat: ArrayLike, violated: NDArray[np.bool_] | None = None
+    ) -> DomainReport:
+        """How many of a batch of queries lie outside the domain (and, with labels, how they fared).
+
+        Parameters
+        ----------
+        x, yhat : array_like
+            The queries.
+        violated : bool array, optional
+            Whether each query's truth fell outside its set; counts the violations inside and
+            outside the domain.
+        """
+        return self.summarize(self.distance(x, yhat), violated)
+
+    def summarize(self, distance: FloatArray, violated: NDArray[np.bool_] | None = None) -> DomainReport:
+        """:meth:`report` from distances already computed by :meth:`distance`."""
+        dist = np.asarray(distance, dtype=np.float64)
+        out = ~(dist <= self.threshold)
+        v = None if violated is None else np.asarray(violated, dtype=bool)
+        return DomainReport(
+            method=self.method,
+            alpha=self.alpha,
+            threshold=self.threshold,
+            n_reference=self.n,
+            n=len(dist),
+            outside=int(out.sum()),
+            violations_inside=None if v is None else int((v & ~out).sum()),
+            violations_outside=None if v is None else int((v & out).sum()),
+        )
+
+    def describe(self) -> DomainReport:
+        """The test itself, for a certificate without test queries (``n = 0``)."""
+        return DomainReport(
+            method=self.method, alpha=self.alpha, threshold=self.threshold, n_reference=self.n, n=0, outside=0
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data for the model file (the reference as a nested list is avoided: see modelio)."""
+        return {
+            "method": self.method,
+            "k": self.k,
+            "alpha": self.alpha,
+            "threshold": self.threshold,
+            "n": self.n,
+            "mean": self.mean.tolist(),
+            "whitening": self.whitening.tolist(),
+            "reference": self.reference,
+        }
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> DomainModel:
+        """Inverse of :meth:`to_dict` (``reference`` may be an array or a tensor's numpy view)."""
+        return cls(
+            mean=np.asarray(data["mean"], dtype=np.float64),
+            whitening=np.asarray(data["whitening"], dtype=np.float64),
+            reference=np.asarray(data["reference"], dtype=np.float64),
+            k=int(data["k"]),
+            alpha=float(data["alpha"]),
+            threshold=float(data["threshold"]),
+            n=int(data["n"]),
+            method=str(data.get("method", METHOD)),
+        )
+
+
+@dataclass(frozen=True, kw_only=True)
+class DomainReport:
+    """The ``domain`` block of ``certificate.json``: how many queries of a batch lie outside.
+
+    Examples
+    --------
+    >>> r = DomainReport(method="knn", alpha=0.01, threshold=2.0, n_reference=100, n=50, outside=5)
+    >>> r.outside_fraction, r.well_above_alpha
+    (0.1, True)
+    """
+
+    method: str
+    alpha: float
+    threshold: float
+    n_reference: int
+    n: int
+    outside: int
+    violations_inside: int | None = None
+    violations_outside: int | None = None
+
+    def __post_init__(self) -> None:
+        if not (0 <= self.outside <= self.n):
+            raise InvalidInputError(f"need 0 <= outside <= n; got {self.outside}, {self.n}")
+
+    def sentence(self) -> str:
+        """What the domain test found and what the certificate does (not) promise, in words."""
+        if self.n == 0:
+            return (
+                f"The domain of validity is the region within distance {self.threshold:.3g} (whitened) of "
+                f"the {self.n_reference} calibration inputs; queries beyond it are flagged, and "
+                f"in-distribution queries are flagged at a rate of at most {self.alpha:g}."
+            )
+        text = (
+            f"{self.outside} of {self.n} queries ({100 * self.outside_fraction:.2f} %) lie outside the "
+            f"domain of validity (in-distribution queries are flagged at most {100 * self.alpha:g} % of "
+            "the time)"
+        )
+        if self.outside == 0:
+            return text + "."
+        text += (
+            "; the certificate promises nothing for them: they are unlike every calibration sample, so "
+            "the exchangeability it rests on fails there"
+        )
+        if self.violations_outside is not None and self.violations_inside is not None:
+            inside = self.n - self.outside
+            rate_in = self.violations_inside / inside if inside else float("nan")
+            text += (
+                f" (violations: {self.violations_outside} of {self.outside} outside, "
+                f"{self.violations_inside} of {inside} inside"
+                + (f", {100 * rate_in:.2f} %" if inside else "")
+                + ")"
+            )
+        if self.well_above_alpha:
+            text += ". That is far more than false alarms explain: the deployment data have shifted"
+        return text + "."
+
+    @property
+    def outside_fraction(self) -> float:
+        """Share of the queries outside the domain (0 for an empty batch)."""
+        return self.outside / self.n if self.n else 0.0
+
+    @property
+    def well_above_alpha(self) -> bool:
+        """The outside share is above what false alarms explain (one-sided binomial test at 0.001)."""
+        if self.n == 0 or self.outside == 0:
+            return False
+        return bool(stats.binom.sf(self.outside - 1, self.n, self.alpha) < WELL_ABOVE_LEVEL)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-data form (the keys of ``certificate.json["domain"]``)."""
+        return {
+            "method": self.method,
+            "alpha": self.alpha,
+            "threshold": self.threshold,
+            "n_reference": self.n_reference,
+            "n": self.n,
+            "outside": self.outside,
+            "outside_fraction": self.outside_fraction,
+            "well_above_alpha": self.well_above_alpha,
+            "violations_inside": self.violations_inside,
+            "violations_outside": self.violations_outside,
+            "statement": self.sentence(),
+        }
