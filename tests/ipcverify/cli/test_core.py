@@ -89,6 +89,45 @@ def test_predict_npz(run_cli, files, model_path, tmp_path):
     assert np.array_equal(z["center"], e.centers) and np.array_equal(z["shape"], e.shapes)
 
 
+def test_predict_needs_no_truth_and_marks_the_domain(run_cli, files, model_path, tmp_path):
+    import pandas as pd
+
+    from ipcverify.calibrate import calibrate
+    from ipcverify.modelio import save_model
+
+    cal = calibrate(load_model(model_path), make_lagged_perception(1000, seed=5), 0.1, 0.05)
+    save_model(cal, tmp_path / "cal.pt")
+    frame = pd.read_csv(files / "test.csv")
+    queries = frame[[c for c in frame.columns if not c.startswith("y_")]].copy()
+    queries.loc[:9, ["x_3", "x_4", "x_5"]] *= 30.0  # ten queries at speeds never seen
+    queries.to_csv(tmp_path / "deploy.csv", index=False)
+    res = run_cli("predict", tmp_path / "cal.pt", tmp_path / "deploy.csv", "--out", tmp_path / "sets.npz")
+    assert res.code == 0, res.stderr
+    z = np.load(tmp_path / "sets.npz")
+    assert z["in_domain"].shape == (400,) and not z["in_domain"][:10].any()
+    assert z["in_domain"][10:].mean() > 0.95 and np.isfinite(z["domain_distance"]).all()
+    assert "lie outside the domain of validity" in res.stdout + res.stderr
+
+
+def test_bare_certify_works_from_the_model_file_alone(run_cli, model_path, tmp_path):
+    from ipcverify.calibrate import calibrate
+    from ipcverify.modelio import save_model
+
+    save_model(
+        calibrate(load_model(model_path), make_lagged_perception(1000, seed=6), 0.1, 0.05), tmp_path / "c.pt"
+    )
+    res = run_cli("certify", tmp_path / "c.pt", "--out", tmp_path / "cert")
+    assert res.code == 0, res.stderr
+    assert "UNTESTED" in res.stdout and "none given" in res.stdout
+    cert = json.loads((tmp_path / "cert" / "certificate.json").read_text())
+    assert cert["status"] == "UNTESTED" and cert["test"] is None
+    assert cert["calibration"]["k"] == cert["calibration"]["groups"][0]["k"]
+    assert cert["domain"]["n_reference"] == 1000 and cert["domain"]["n"] == 0
+    assert cert["theorem1"]["computed"] and cert["theorem1"]["vacuous"]
+    page = (tmp_path / "cert" / "report.html").read_text()
+    assert "No test data was given" in page and "Domain of validity" in page
+
+
 def test_demo(run_cli, tmp_path):
     res = run_cli("demo", "--out", tmp_path / "demo", "--n", "400")
     assert res.code == 0, res.stderr
@@ -136,12 +175,26 @@ def test_demo_calibrated_sets_keep_their_guarantee(tmp_path):
         (["train", "{train}", "--out", "{tmp}/m.pt", "--epochs", "abc"], "is not a valid integer"),
         (["train"], "Missing argument 'DATA'"),
         (["no-such-command"], "No such command"),
+        (["predict", "{text}", "{test}", "--out", "{tmp}/s.npz"], "not a readable model file: it is not the"),
+        (["certify", "{text}"], "not a readable model file"),
+        (["predict", "{model}", "{extra_x}", "--out", "{tmp}/s.npz"], "column x_6 looks like a x column"),
+        (["evaluate", "{model}", "{extra_x}"], "column x_6 looks like a x column"),
+        (["predict", "{model}", "{no_x5}", "--out", "{tmp}/s.npz"], "missing column(s) x_5"),
     ],
 )
 def test_user_errors_exit_2_with_one_line(run_cli, files, model_path, tmp_path, args, message):
     bad = tmp_path / "bad.csv"
     bad.write_text("x_0,y_0,yhat_0\n1,inf,2\n")
+    (tmp_path / "model.txt").write_text("this is a text file, not a model\n")
+    import pandas as pd
+
+    frame = pd.read_csv(files / "test.csv")
+    frame.assign(x_6=1.0).to_csv(tmp_path / "extra_x.csv", index=False)
+    frame.drop(columns=["x_5"]).to_csv(tmp_path / "no_x5.csv", index=False)
     subs = {
+        "{text}": str(tmp_path / "model.txt"),
+        "{extra_x}": str(tmp_path / "extra_x.csv"),
+        "{no_x5}": str(tmp_path / "no_x5.csv"),
         "{train}": str(files / "train.parquet"),
         "{test}": str(files / "test.csv"),
         "{model}": str(model_path),
