@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import os
 import platform
 import statistics
@@ -92,8 +91,7 @@ def time_calls(fn: Callable[[], Any], repeats: int, warmup: int = 10) -> np.ndar
 
 
 def write_json(path: Path, data: Any) -> None:
-    """Write ``data`` as indented JSON (atomically)."""
-    from ipcverify.files import atomic_write
+    """Write ``data`` as indented JSON (atomically, with ipcverify's one rule for inf and NaN)."""
+    from ipcverify import files
 
-    text = json.dumps(data, indent=2, allow_nan=False) + "\n"
-    atomic_write(path, lambda f: f.write(text.encode()))
+    files.write_json(path, data, indent=2)
