@@ -7,11 +7,11 @@ import importlib.util
 import numpy as np
 import pytest
 
-from case_studies.quad_landing.campaign import run_campaign, summarize
-from case_studies.quad_landing.config import load_config
-from case_studies.quad_landing.contracts import TrivialContract
-from case_studies.quad_landing.reproduce_config import LandingParams, ScenarioParams
-from case_studies.quad_landing.state_machine import Outcome
+from case_studies.quad_landing.landing.contracts import TrivialContract
+from case_studies.quad_landing.landing.runs import Outcome
+from case_studies.quad_landing.reproduction.campaign import run_campaign, summarize
+from case_studies.quad_landing.reproduction.config import LandingParams, ScenarioParams
+from case_studies.quad_landing.sim.config import load_config
 from ipcverify.errors import InvalidInputError
 
 CFG = load_config()

@@ -14,26 +14,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from case_studies.quad_landing import Flight, Pad, hover_state
-from case_studies.quad_landing.approach import collect_approach, fly_approach
-from case_studies.quad_landing.certified import (
-    certified_bound,
-    closed_loop_violations,
-    hoeffding_upper,
-    unsafe_vs_certified,
-)
-from case_studies.quad_landing.config import ConfigError, load_config
-from case_studies.quad_landing.contracts import LearnedContract, TrivialContract
-from case_studies.quad_landing.datasets import alignment_deg, as_dataset, collect_mixed
-from case_studies.quad_landing.legs import fly_leg
-from case_studies.quad_landing.reproduce_config import (
-    ApproachParams,
+from case_studies.quad_landing.data.approach import ApproachParams, collect_approach, fly_approach
+from case_studies.quad_landing.data.datasets import alignment_deg, as_dataset, collect_mixed
+from case_studies.quad_landing.landing.contracts import LearnedContract, TrivialContract
+from case_studies.quad_landing.landing.runs import Outcome
+from case_studies.quad_landing.landing.scenario import ScenarioParams, draw_scenario, stopping_reference
+from case_studies.quad_landing.landing.state_machine import (
     LandingParams,
-    ScenarioParams,
-    load_reproduce_config,
-)
-from case_studies.quad_landing.scenario import draw_scenario, stopping_reference
-from case_studies.quad_landing.state_machine import (
-    Outcome,
     cut_allowed,
     cut_box,
     decision_target,
@@ -41,7 +28,17 @@ from case_studies.quad_landing.state_machine import (
     new_waypoint,
     run_landing,
 )
-from case_studies.quad_landing.table1 import rates_rising, table1
+from case_studies.quad_landing.reproduction.certified import (
+    certified_bound,
+    closed_loop_violations,
+    hoeffding_upper,
+    unsafe_vs_certified,
+)
+from case_studies.quad_landing.reproduction.config import load_reproduce_config
+from case_studies.quad_landing.reproduction.table1 import rates_rising, table1
+from case_studies.quad_landing.settings import ConfigError
+from case_studies.quad_landing.sim.config import load_config
+from case_studies.quad_landing.sim.legs import fly_leg
 from ipcverify.containment import Status
 from ipcverify.errors import InvalidInputError
 from ipcverify.exact import exact_vector
@@ -52,20 +49,21 @@ from ipcverify.sets import Ellipsoid
 CFG = load_config()
 TAUS = [0.001, 0.005, 0.01, 0.02]
 MODULES = [
-    "reproduce_config",
-    "scenario",
-    "legs",
-    "approach",
-    "contracts",
-    "state_machine",
-    "campaign",
-    "datasets",
-    "learn",
-    "table1",
-    "certified",
-    "figures",
-    "report_page",
-    "reproduce",
+    "reproduction.config",
+    "landing.scenario",
+    "sim.legs",
+    "data.approach",
+    "landing.contracts",
+    "landing.runs",
+    "landing.state_machine",
+    "reproduction.campaign",
+    "data.datasets",
+    "reproduction.learn",
+    "reproduction.table1",
+    "reproduction.certified",
+    "reproduction.figures",
+    "reproduction.report_page",
+    "reproduction.pipeline",
 ]
 
 
@@ -268,7 +266,7 @@ def test_scenarios_respect_their_ranges_and_keep_pad_edges_off_the_image_axes():
 
 
 def test_stopping_reference_is_smooth_and_stops():
-    from case_studies.quad_landing.lqr import Reference
+    from case_studies.quad_landing.sim.lqr import Reference
 
     ref = stopping_reference(Reference((0.0, 0.0, 1.0), (1.5, 0.0, 0.0)), 0.0, 1.5)
     t = np.linspace(0, 3, 301)

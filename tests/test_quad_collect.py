@@ -11,17 +11,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from case_studies.quad_landing import Flight, load_config
-from case_studies.quad_landing.camera import Camera
 from case_studies.quad_landing.cli import main
-from case_studies.quad_landing.collect import (
-    DATASET_COLUMNS,
-    collect,
-    pad_outline_world,
-    write_dataset,
-)
-from case_studies.quad_landing.config import ConfigError
-from case_studies.quad_landing.features import X_COLUMNS, camera_frame_state
-from case_studies.quad_landing.paths import (
+from case_studies.quad_landing.data.collect import collect, pad_outline_world, write_dataset
+from case_studies.quad_landing.data.columns import DATASET_COLUMNS, X_COLUMNS
+from case_studies.quad_landing.data.paths import (
     TEMPLATES,
     ExplorationPath,
     PathParams,
@@ -29,6 +22,9 @@ from case_studies.quad_landing.paths import (
     make_path,
     pad_in_view_along,
 )
+from case_studies.quad_landing.settings import ConfigError
+from case_studies.quad_landing.sim.camera import Camera
+from case_studies.quad_landing.sim.features import camera_frame_state
 from ipcverify.errors import InvalidInputError
 
 CFG = load_config()

@@ -8,8 +8,9 @@ import importlib
 import pytest
 
 MODULES = [
-    "bias", "camera", "collect", "config", "dynamics", "features", "framebuffer", "frames",
-    "lqr", "marker", "paths", "perception", "sim",
+    "perception.bias", "sim.camera", "data.collect", "data.columns", "sim.config", "sim.dynamics",
+    "sim.features", "sim.framebuffer", "sim.frames", "sim.lqr", "sim.marker", "sim.render", "data.paths",
+    "perception.aruco", "sim.flight", "settings",
 ]  # fmt: skip
 
 

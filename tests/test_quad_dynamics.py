@@ -8,8 +8,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from case_studies.quad_landing.config import load_config
-from case_studies.quad_landing.dynamics import (
+from case_studies.quad_landing.sim.config import load_config
+from case_studies.quad_landing.sim.dynamics import (
     QuadParams,
     continuous_dynamics,
     hover_state,

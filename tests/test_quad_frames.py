@@ -8,9 +8,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from case_studies.quad_landing import Flight, hover_state, load_config
-from case_studies.quad_landing.camera import Camera, CameraParams
-from case_studies.quad_landing.features import camera_frame_state, camera_velocity_world
-from case_studies.quad_landing.frames import (
+from case_studies.quad_landing.sim.camera import Camera, CameraParams
+from case_studies.quad_landing.sim.features import camera_frame_state, camera_velocity_world
+from case_studies.quad_landing.sim.frames import (
     Pose,
     euler_to_matrix,
     matrix_to_euler,
@@ -138,7 +138,7 @@ def test_x_c_carries_the_lag_kinematics():
     f.reset(x0)
     m0 = f.measure()
     # one short physics step with the motors at hover thrust barely changes v and omega
-    from case_studies.quad_landing.dynamics import hover_thrust, rk4_step
+    from case_studies.quad_landing.sim.dynamics import hover_thrust, rk4_step
 
     dt = 1e-4
     x1 = np.asarray(rk4_step(CFG.quad, dt)(x0, np.full(4, hover_thrust(CFG.quad)))).ravel()
@@ -155,7 +155,7 @@ def test_x_c_carries_the_lag_kinematics():
 @given(att=st.tuples(angle, st.floats(-1.5, 1.5), angle), t=st.tuples(coord, coord, coord),
        seed=st.integers(0, 10_000))  # fmt: skip
 def test_ellipsoid_moves_with_its_points(att, t, seed):
-    from case_studies.quad_landing.frames import transform_ellipsoid
+    from case_studies.quad_landing.sim.frames import transform_ellipsoid
 
     rng = np.random.default_rng(seed)
     T = Pose(euler_to_matrix(*att), t)

@@ -6,11 +6,12 @@ import numpy as np
 import pytest
 
 from case_studies.quad_landing import Flight, Pad, hover_state, load_config
-from case_studies.quad_landing.collect import fly_path
-from case_studies.quad_landing.framebuffer import Frame, FrameBuffer
-from case_studies.quad_landing.frames import Pose
-from case_studies.quad_landing.marker import MarkerParams, RenderParams
-from case_studies.quad_landing.perception import ArucoPerception, DetectorParams
+from case_studies.quad_landing.data.collect import fly_path
+from case_studies.quad_landing.perception.aruco import ArucoPerception, DetectorParams
+from case_studies.quad_landing.sim.framebuffer import Frame, FrameBuffer
+from case_studies.quad_landing.sim.frames import Pose
+from case_studies.quad_landing.sim.marker import MarkerParams
+from case_studies.quad_landing.sim.render import RenderParams
 from ipcverify.errors import InvalidInputError
 
 CFG = load_config()

@@ -1,7 +1,7 @@
 """Command line: ``python -m case_studies.quad_landing {collect,pictures,bias,reproduce}``.
 
 Thin click wrappers over :func:`.collect.collect`, :func:`.pictures.write_pictures`,
-:func:`.bias.refinement_bias` and :func:`.reproduce.reproduce`. Bad input (a bad option
+:func:`.bias.refinement_bias` and :func:`.pipeline.reproduce`. Bad input (a bad option
 value, a bad config file, an output path that cannot be written) prints one
 ``error: ...`` line and exits with status 2.
 """
@@ -14,8 +14,8 @@ import click
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-from case_studies.quad_landing.config import SimConfig, load_config
-from case_studies.quad_landing.framebuffer import MAX_BUFFER_SIZE
+from case_studies.quad_landing.sim.config import SimConfig, load_config
+from case_studies.quad_landing.sim.framebuffer import MAX_BUFFER_SIZE
 from ipcverify.cli.app import run_group
 from ipcverify.errors import InvalidInputError
 
@@ -86,7 +86,7 @@ def quad() -> None:
 def collect_command(buffer_size: int | None, n: int | None, seed: int, out: str,
                     config_path: str | None, jobs: int, quiet: bool) -> None:  # fmt: skip
     """Fly the exploration paths and write a dataset of lagged measurements."""
-    from case_studies.quad_landing.collect import collect, write_dataset
+    from case_studies.quad_landing.data.collect import collect, write_dataset
 
     out_path = Path(out)
     if out_path.suffix.lower() not in (".parquet", ".csv"):
@@ -125,7 +125,7 @@ def collect_command(buffer_size: int | None, n: int | None, seed: int, out: str,
 @_config_option
 def pictures_command(out: str, seed: int, config_path: str | None) -> None:
     """Write the documentation pictures (a camera frame, the paths, lag error per k)."""
-    from case_studies.quad_landing.pictures import write_pictures
+    from case_studies.quad_landing.data.pictures import write_pictures
 
     info = write_pictures(out, seed=seed, config=_config(config_path))
     frame = info["frame"]
@@ -143,7 +143,7 @@ def pictures_command(out: str, seed: int, config_path: str | None) -> None:
 @_config_option
 def bias_command(poses: int, seed: int, config_path: str | None) -> None:
     """Measure the range bias and speed of each ArUco corner refinement (no lag)."""
-    from case_studies.quad_landing.bias import refinement_bias
+    from case_studies.quad_landing.perception.bias import refinement_bias
 
     df = refinement_bias(poses=poses, seed=seed, config=_config(config_path))
     click.echo(df.to_string(index=False, float_format=lambda v: f"{v:.3f}"))
@@ -189,8 +189,8 @@ def bias_command(poses: int, seed: int, config_path: str | None) -> None:
 def reproduce_command(out: str, quick: bool, jobs: int | None, backend: str, mc_runs: int | None,
                       config_path: str | None, settings_path: str | None, quiet: bool) -> None:  # fmt: skip
     """Reproduce the paper's application study: Table I, safe landing, certified vs empirical."""
-    from case_studies.quad_landing.reproduce import reproduce, table1_text
-    from case_studies.quad_landing.reproduce_config import load_reproduce_config
+    from case_studies.quad_landing.reproduction.config import load_reproduce_config
+    from case_studies.quad_landing.reproduction.pipeline import reproduce, table1_text
 
     overrides = {"sizes": {"mc_runs": mc_runs}} if mc_runs is not None else None
     settings = load_reproduce_config(settings_path, overrides, quick=quick)

@@ -15,10 +15,10 @@ from dataclasses import replace
 import numpy as np
 import pandas as pd
 
-from case_studies.quad_landing.config import SimConfig, load_config
-from case_studies.quad_landing.dynamics import hover_state
-from case_studies.quad_landing.perception import ArucoPerception, DetectorParams
-from case_studies.quad_landing.sim import Flight
+from case_studies.quad_landing.perception.aruco import ArucoPerception, DetectorParams
+from case_studies.quad_landing.sim.config import SimConfig, load_config
+from case_studies.quad_landing.sim.dynamics import hover_state
+from case_studies.quad_landing.sim.flight import Flight
 from ipcverify.errors import InvalidInputError
 
 __all__ = ["refinement_bias", "default_detectors"]

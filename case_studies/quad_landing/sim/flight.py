@@ -9,7 +9,7 @@ and pairs it with the *current* state, as on the real vehicle.
 
 Examples
 --------
->>> from case_studies.quad_landing.dynamics import hover_state
+>>> from case_studies.quad_landing.sim.dynamics import hover_state
 >>> flight = Flight(buffer_size=1, seed=0)
 >>> flight.reset(hover_state((0.3, 0.0, 1.5)))
 >>> flight.fly_to((0.0, 0.0, 1.2)).settled
@@ -30,16 +30,17 @@ import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from case_studies.quad_landing.camera import Camera
-from case_studies.quad_landing.config import SimConfig, load_config
-from case_studies.quad_landing.dynamics import rk4_step
-from case_studies.quad_landing.features import camera_frame_state
-from case_studies.quad_landing.framebuffer import Frame, FrameBuffer
-from case_studies.quad_landing.frames import Pose, wrap_angle
-from case_studies.quad_landing.lqr import HoverLqr, Reference, SettleParams
-from case_studies.quad_landing.marker import Pad, Renderer
-from case_studies.quad_landing.paths import ExplorationPath
-from case_studies.quad_landing.perception import ArucoPerception
+from case_studies.quad_landing.data.paths import ExplorationPath
+from case_studies.quad_landing.perception.aruco import ArucoPerception
+from case_studies.quad_landing.sim.camera import Camera
+from case_studies.quad_landing.sim.config import SimConfig, load_config
+from case_studies.quad_landing.sim.dynamics import rk4_step
+from case_studies.quad_landing.sim.features import camera_frame_state
+from case_studies.quad_landing.sim.framebuffer import Frame, FrameBuffer
+from case_studies.quad_landing.sim.frames import Pose, wrap_angle
+from case_studies.quad_landing.sim.lqr import HoverLqr, Reference, SettleParams
+from case_studies.quad_landing.sim.marker import Pad
+from case_studies.quad_landing.sim.render import Renderer
 from ipcverify.errors import InvalidInputError
 
 __all__ = ["Flight", "Measurement", "FlyResult", "LandingResult"]
@@ -317,8 +318,8 @@ class Flight:
 
         Examples
         --------
-        >>> from case_studies.quad_landing.paths import ExplorationPath
-        >>> from case_studies.quad_landing.dynamics import hover_state
+        >>> from case_studies.quad_landing.data.paths import ExplorationPath
+        >>> from case_studies.quad_landing.sim.dynamics import hover_state
         >>> path = ExplorationPath(name="still", center=(0, 0, 1.5), amplitude=(0, 0, 0),
         ...                        omega=(1, 1, 1), phase=(0, 0, 0), duration=0.5)
         >>> flight = Flight()

@@ -15,7 +15,7 @@ from functools import cached_property
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from case_studies.quad_landing.frames import Pose, mount_rotation, world_from_quad
+from case_studies.quad_landing.sim.frames import Pose, mount_rotation, world_from_quad
 from ipcverify.errors import InvalidInputError
 
 __all__ = ["CameraParams", "Camera"]

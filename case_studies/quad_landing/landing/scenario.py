@@ -16,7 +16,7 @@ so the learned IPC and the baseline fly exactly the same scenarios.
 
 Examples
 --------
->>> from case_studies.quad_landing.config import load_config
+>>> from case_studies.quad_landing.sim.config import load_config
 >>> sc = draw_scenario(0, seed=1, params=ScenarioParams(), config=load_config())
 >>> bool(1.6 <= sc.start_distance <= 2.2), bool(np.linalg.norm(sc.start[3:6]) >= 1.0)
 (True, True)
@@ -32,14 +32,15 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from case_studies.quad_landing.config import SimConfig
-from case_studies.quad_landing.frames import wrap_angle
-from case_studies.quad_landing.lqr import Reference
-from case_studies.quad_landing.marker import Pad
-from case_studies.quad_landing.reproduce_config import ScenarioParams
+from case_studies.quad_landing.settings import ConfigError, Range, check_positive, check_range
+from case_studies.quad_landing.sim.config import SimConfig
+from case_studies.quad_landing.sim.frames import wrap_angle
+from case_studies.quad_landing.sim.lqr import Reference
+from case_studies.quad_landing.sim.marker import Pad
 from ipcverify.errors import InvalidInputError
 
 __all__ = [
+    "ScenarioParams",
     "Scenario",
     "draw_scenario",
     "scenario_rng",
@@ -49,6 +50,55 @@ __all__ = [
 ]
 
 FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True, kw_only=True)
+class ScenarioParams:
+    """How a landing run starts: a random pad, the vehicle arriving toward a prior guess of it.
+
+    Parameters
+    ----------
+    pad_region : float
+        Pad centre ``x, y`` uniform in ``[-r, r]`` (m).
+    start_distance, start_height : (low, high)
+        Horizontal distance from the pad and camera height above it at the start (m).
+    transit_speed : (low, high)
+        Speed of the transit toward the prior guess (m/s).
+    prior_radius : float
+        The prior guess of the pad lies uniformly within this radius of it (m).
+    aligned_margin_deg : float
+        The pad's edges are kept at least this many degrees from the image axes (0 turns
+        it off): OpenCV's AprilTag refinement reads the range ~1 % short within ~2 degrees.
+    deceleration : float
+        Past the prior guess the transit brakes smoothly at up to this (m/s^2).
+
+    Examples
+    --------
+    >>> ScenarioParams().transit_speed
+    (1.2, 1.8)
+    """
+
+    pad_region: float = 2.0
+    start_distance: Range = (1.6, 2.2)
+    start_height: Range = (1.5, 2.1)
+    transit_speed: Range = (1.2, 1.8)
+    prior_radius: float = 0.3
+    aligned_margin_deg: float = 3.0
+    deceleration: float = 1.5
+
+    def __post_init__(self) -> None:
+        check_positive("scenario.pad_region", self.pad_region)
+        check_positive("scenario.deceleration", self.deceleration)
+        check_positive("scenario.prior_radius", self.prior_radius, allow_zero=True)
+        for name in ("start_distance", "start_height", "transit_speed"):
+            object.__setattr__(self, name, check_range(f"scenario.{name}", getattr(self, name), 0.0))
+        if self.start_height[0] < 0.8:
+            raise ConfigError("scenario.start_height must start at >= 0.8 m (the IPC's height range)")
+        if not 0.0 <= self.aligned_margin_deg < 45.0:
+            raise ConfigError(
+                f"scenario.aligned_margin_deg must lie in [0, 45), got {self.aligned_margin_deg}"
+            )
+
 
 #: Separates the random streams of scenarios from those of exploration paths.
 SCENARIO_STREAM = 61

@@ -29,7 +29,7 @@ import control
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from case_studies.quad_landing.dynamics import QuadParams, hover_thrust, linearize_hover
+from case_studies.quad_landing.sim.dynamics import QuadParams, hover_thrust, linearize_hover
 from ipcverify.errors import InvalidInputError
 
 __all__ = ["LqrParams", "SettleParams", "Reference", "HoverLqr", "MOTORS_OFF"]
@@ -163,7 +163,7 @@ class HoverLqr:
 
     Examples
     --------
-    >>> from case_studies.quad_landing.dynamics import hover_state
+    >>> from case_studies.quad_landing.sim.dynamics import hover_state
     >>> quad = QuadParams(mass=1.5, inertia=(0.029, 0.029, 0.055), arm_length=0.25)
     >>> ctrl = HoverLqr.design(quad, LqrParams())
     >>> u = ctrl(hover_state((0, 0, 1)), Reference((0, 0, 1)))

@@ -25,7 +25,7 @@ every setting that went into it, and reuses the file when the settings match.
 
 Examples
 --------
->>> from case_studies.quad_landing.reproduce_config import ApproachParams
+>>> from case_studies.quad_landing.data.approach import ApproachParams
 >>> data = collect_mixed(40, buffer_size=1, seed=0, approach=ApproachParams(hover_points=1))
 >>> len(data), sorted(set(data["source"]))
 (40, [0, 1])
@@ -45,11 +45,10 @@ import numpy as np
 import pandas as pd
 from numpy.typing import ArrayLike, NDArray
 
-from case_studies.quad_landing.approach import collect_approach
-from case_studies.quad_landing.collect import Y_COLUMNS, YHAT_COLUMNS, collect
-from case_studies.quad_landing.config import SimConfig, load_config
-from case_studies.quad_landing.features import X_COLUMNS
-from case_studies.quad_landing.reproduce_config import ApproachParams
+from case_studies.quad_landing.data.approach import ApproachParams, collect_approach
+from case_studies.quad_landing.data.collect import collect
+from case_studies.quad_landing.data.columns import X_COLUMNS, Y_COLUMNS, YHAT_COLUMNS
+from case_studies.quad_landing.sim.config import SimConfig, load_config
 from ipcverify.data import PerceptionDataset
 from ipcverify.files import atomic_write
 
@@ -139,7 +138,7 @@ def collect_mixed(
     Returns
     -------
     pandas.DataFrame
-        :data:`.collect.DATASET_COLUMNS` plus ``source``.
+        :data:`.columns.DATASET_COLUMNS` plus ``source``.
     """
     cfg = load_config() if config is None else config
     cfg = cfg.replace(collect={"sample_every": approach.sample_every})

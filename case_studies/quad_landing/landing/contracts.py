@@ -26,8 +26,8 @@ from typing import Protocol
 
 import numpy as np
 
-from case_studies.quad_landing.frames import transform_ellipsoid
-from case_studies.quad_landing.sim import Measurement
+from case_studies.quad_landing.sim.flight import Measurement
+from case_studies.quad_landing.sim.frames import transform_ellipsoid
 from ipcverify.errors import InvalidInputError
 from ipcverify.model import IPCModel
 from ipcverify.sets import Ellipsoid

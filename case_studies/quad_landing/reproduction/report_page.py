@@ -330,7 +330,7 @@ def render_report(summary: Mapping[str, Any], figures: Mapping[str, bytes]) -> s
     Parameters
     ----------
     summary : mapping
-        As written by :func:`.reproduce.reproduce`; missing sections are left out.
+        As written by :func:`.pipeline.reproduce`; missing sections are left out.
     figures : mapping of str to bytes
         PNGs named ``table1``, ``topview``, ``campaign``, ``trajectories``, ``coverage``.
     """

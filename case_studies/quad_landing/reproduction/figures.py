@@ -29,7 +29,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Rectangle
 
-from case_studies.quad_landing.state_machine import LandingRun, Outcome
+from case_studies.quad_landing.landing.runs import LandingRun, Outcome
 from ipcverify.landing import LANDING_TARGET
 
 __all__ = ["figure_png", "plot_topview", "plot_campaign", "plot_table1", "plot_trajectories", "plot_coverage"]

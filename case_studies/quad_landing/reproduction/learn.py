@@ -1,6 +1,6 @@
 """Learn and calibrate an IPC with the reproduction's recipe, cached on disk.
 
-The recipe (:class:`.reproduce_config.IpcParams`) is the paper's network: an MLP on
+The recipe (:class:`.reproduction.config.IpcParams`) is the paper's network: an MLP on
 ``(x_C, yhat_C)`` with hidden layers (64, 128), trained with Adam at 1e-3
 (:func:`ipcverify.training.train`) — for 40 epochs rather than the paper's 20, which leave
 it under-trained on hovering states here (``docs/reproduce.md``) — then calibrated in PAC
@@ -10,8 +10,9 @@ distribution violates the calibrated contract with probability at most ``epsilon
 
 Examples
 --------
->>> from case_studies.quad_landing.datasets import as_dataset, collect_mixed
->>> from case_studies.quad_landing.reproduce_config import ApproachParams, IpcParams
+>>> from case_studies.quad_landing.data.datasets import as_dataset, collect_mixed
+>>> from case_studies.quad_landing.data.approach import ApproachParams
+>>> from case_studies.quad_landing.reproduction.config import IpcParams
 >>> ap = ApproachParams(hover_points=1)
 >>> tr = as_dataset(collect_mixed(300, buffer_size=1, seed=0, approach=ap))
 >>> cal = as_dataset(collect_mixed(700, buffer_size=1, seed=1, approach=ap))
@@ -29,7 +30,7 @@ from typing import Any
 
 import torch
 
-from case_studies.quad_landing.reproduce_config import IpcParams
+from case_studies.quad_landing.reproduction.config import IpcParams
 from ipcverify.calibration import GlobalCalibration, calibrate
 from ipcverify.data import PerceptionDataset
 from ipcverify.errors import ModelFileError

@@ -23,8 +23,8 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from case_studies.quad_landing.camera import Camera
-from case_studies.quad_landing.marker import MarkerParams, aruco_dictionary
+from case_studies.quad_landing.sim.camera import Camera
+from case_studies.quad_landing.sim.marker import MarkerParams, aruco_dictionary
 from ipcverify.errors import InvalidInputError
 
 __all__ = ["DetectorParams", "ArucoPerception", "REFINEMENTS"]
@@ -105,7 +105,7 @@ class ArucoPerception:
 
     Examples
     --------
-    >>> from case_studies.quad_landing.config import load_config
+    >>> from case_studies.quad_landing.sim.config import load_config
     >>> cfg = load_config()
     >>> perception = ArucoPerception(Camera(cfg.camera), cfg.marker, cfg.detector)
     >>> perception.estimate(np.full((240, 320), 128, np.uint8)) is None  # nothing there

@@ -28,10 +28,10 @@ recorded too.
 
 Examples
 --------
->>> from case_studies.quad_landing.config import load_config
->>> from case_studies.quad_landing.contracts import TrivialContract
->>> from case_studies.quad_landing.reproduce_config import LandingParams, ScenarioParams
->>> from case_studies.quad_landing.scenario import draw_scenario
+>>> from case_studies.quad_landing.sim.config import load_config
+>>> from case_studies.quad_landing.landing.contracts import TrivialContract
+>>> from case_studies.quad_landing.landing.scenario import ScenarioParams
+>>> from case_studies.quad_landing.landing.scenario import draw_scenario
 >>> cfg = load_config()
 >>> sc = draw_scenario(0, seed=0, params=ScenarioParams(), config=cfg)
 >>> run = run_landing(sc, TrivialContract(), sim_config=cfg, params=LandingParams(buffer_size=1))
@@ -42,20 +42,21 @@ Examples
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
-from enum import Enum
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from case_studies.quad_landing.config import SimConfig
-from case_studies.quad_landing.contracts import Contract
-from case_studies.quad_landing.legs import clamp_to_workspace, fly_leg
-from case_studies.quad_landing.lqr import SettleParams
-from case_studies.quad_landing.reproduce_config import LandingParams
-from case_studies.quad_landing.scenario import Scenario, camera_offset_z
-from case_studies.quad_landing.sim import Flight, Measurement
+from case_studies.quad_landing.landing.contracts import Contract
+from case_studies.quad_landing.landing.runs import LandingRun, Outcome, QueryRecord
+from case_studies.quad_landing.landing.scenario import Scenario, camera_offset_z
+from case_studies.quad_landing.settings import ConfigError, check_positive
+from case_studies.quad_landing.sim.config import SimConfig
+from case_studies.quad_landing.sim.flight import Flight, Measurement
+from case_studies.quad_landing.sim.framebuffer import MAX_BUFFER_SIZE
+from case_studies.quad_landing.sim.legs import clamp_to_workspace, fly_leg
+from case_studies.quad_landing.sim.lqr import SettleParams
 from ipcverify.containment import Box, Status
 from ipcverify.errors import InvalidInputError
 from ipcverify.exact import ExactVector, exact_vector
@@ -63,9 +64,7 @@ from ipcverify.landing import LANDING_TARGET, check_landing, landing_decision
 from ipcverify.sets import Ellipsoid
 
 __all__ = [
-    "Outcome",
-    "QueryRecord",
-    "LandingRun",
+    "LandingParams",
     "decision_target",
     "cut_box",
     "cut_allowed",
@@ -76,163 +75,78 @@ __all__ = [
 
 FloatArray = NDArray[np.float64]
 
-#: The final settle asks for this share of ``tau`` (Euclidean), so the exact cut test passes.
-SETTLE_SHARE = 0.9
 
+@dataclass(frozen=True, kw_only=True)
+class LandingParams:
+    """The landing state machine (see :mod:`.state_machine`).
 
-class Outcome(Enum):
-    """How a landing run ended; ``advice`` says what it means."""
-
-    SAFE = "safe"
-    UNSAFE = "unsafe"
-    ABORTED = "aborted"
-
-    @property
-    def advice(self) -> str:
-        """One sentence on the outcome."""
-        return {
-            Outcome.SAFE: "the motors were cut inside {y} + G",
-            Outcome.UNSAFE: "the motors were cut outside {y} + G: a safety violation",
-            Outcome.ABORTED: "no landing (cap, no detection or no settle): the motors stay on; not safe",
-        }[self]
-
-
-@dataclass(frozen=True, eq=False)
-class QueryRecord:
-    """One Measuring step.
-
-    Attributes
+    Parameters
     ----------
-    time : float
-        Flight time (s).
-    position, velocity : ndarray (3,)
-        Vehicle position and velocity in W at the measurement.
-    detected : bool
-        Whether the marker was detected (no contract query otherwise).
-    accepted : bool
-        Whether the set fits ``G_tau`` (PROVEN).
-    center, shape : ndarray or None
-        The contract's set in W.
-    half_widths : ndarray or None
-        Half the set's axis-aligned extents in W (m).
-    truth_inside : bool or None
-        Whether the true pad lies in the set (evaluation only; the machine never sees it).
-    x_c, yhat_c : ndarray or None
-        The query, for the coverage check.
+    buffer_size : int
+        Camera buffer size of the landing runs (frames of lag).
+    tracking_tolerance : float
+        ``tau`` (m): a measurement is accepted only if the ellipsoid fits ``G`` shrunk by
+        ``tau`` on every side, and the motors are cut only within ``tau`` (inf-norm) of the
+        turn-off point (``proofs/landing_safety.md``).
+    max_measurements : int
+        Cap ``M`` on IPC queries per run; a run that reaches it without accepting aborts.
+    measure_height, max_height : float
+        A New Waypoint keeps the camera between these heights above the pad estimate (m).
+    climb : float
+        With no detection at a waypoint, climb this much and look again (m).
+    search_timeout, leg_timeout, settle_timeout : float
+        Seconds allowed for the transit to produce a detection, for a waypoint, and for
+        settling within ``tau`` of the turn-off point; running out aborts the run.
+    trajectory_every : int
+        Keep every n-th frame of the trajectory (figures).
+
+    Examples
+    --------
+    >>> LandingParams().tracking_tolerance
+    0.005
     """
 
-    time: float
-    position: FloatArray
-    velocity: FloatArray
-    detected: bool
-    accepted: bool = False
-    center: FloatArray | None = None
-    shape: FloatArray | None = None
-    half_widths: FloatArray | None = None
-    truth_inside: bool | None = None
-    x_c: FloatArray | None = None
-    yhat_c: FloatArray | None = None
-
-    def to_dict(self) -> dict[str, Any]:
-        """Plain data (the query vectors are left out)."""
-
-        def lst(a: FloatArray | None) -> Any:
-            return None if a is None else np.asarray(a).tolist()
-
-        return {
-            "time": self.time,
-            "position": lst(self.position),
-            "speed": float(np.linalg.norm(self.velocity)),
-            "detected": self.detected,
-            "accepted": self.accepted,
-            "center": lst(self.center),
-            "half_widths": lst(self.half_widths),
-            "truth_inside": self.truth_inside,
-        }
-
-
-@dataclass(frozen=True, eq=False)
-class LandingRun:
-    """The result of :func:`run_landing`.
-
-    Attributes
-    ----------
-    scenario : Scenario
-    contract : str
-        The contract's name.
-    outcome : Outcome
-    reason : str
-        Why the run ended that way.
-    queries : tuple of QueryRecord
-        Every Measuring step, in order.
-    turnoff : ndarray (3,) or None
-        The accepted ``P_turnoff`` (None if nothing was accepted).
-    cut_position, rest_position : ndarray (3,) or None
-        Position at the motor-off command, and after falling to the floor.
-    certificate_verified : bool or None
-        The accepted decision re-verified exactly (:func:`ipcverify.landing.check_landing`).
-    trajectory : ndarray (T, 3)
-        Positions every ``trajectory_every`` frames.
-    flight_time, wall_time : float
-        Simulated and real seconds.
-    """
-
-    scenario: Scenario
-    contract: str
-    outcome: Outcome
-    reason: str
-    queries: tuple[QueryRecord, ...]
-    turnoff: FloatArray | None
-    cut_position: FloatArray | None
-    rest_position: FloatArray | None
-    certificate_verified: bool | None
-    trajectory: FloatArray
-    flight_time: float
-    wall_time: float = field(default=0.0)
+    buffer_size: int = 3
+    tracking_tolerance: float = 0.005
+    max_measurements: int = 8
+    measure_height: float = 0.7
+    max_height: float = 2.3
+    climb: float = 0.3
+    search_timeout: float = 8.0
+    leg_timeout: float = 10.0
+    settle_timeout: float = 6.0
+    trajectory_every: int = 6
 
     def __post_init__(self) -> None:
-        if (self.outcome is Outcome.ABORTED) != (self.cut_position is None):
-            raise ValueError("a run has a cut position exactly when it landed (was not aborted)")
+        b = self.buffer_size
+        if isinstance(b, bool) or not isinstance(b, int) or not 0 <= b <= MAX_BUFFER_SIZE:
+            raise ConfigError(f"landing.buffer_size must be an integer in [0, {MAX_BUFFER_SIZE}], got {b!r}")
+        if not 0.0 < self.tracking_tolerance < 0.025:
+            raise ConfigError(
+                "landing.tracking_tolerance must lie in (0, 0.025) m: G is 0.05 m tall and is shrunk "
+                f"by tau on each side; got {self.tracking_tolerance!r}"
+            )
+        check_positive("landing.max_measurements", self.max_measurements, integer=True)
+        object.__setattr__(self, "max_measurements", int(self.max_measurements))
+        for name in (
+            "measure_height",
+            "max_height",
+            "climb",
+            "search_timeout",
+            "leg_timeout",
+            "settle_timeout",
+        ):
+            check_positive(f"landing.{name}", getattr(self, name))
+        check_positive("landing.trajectory_every", self.trajectory_every, integer=True)
+        if self.measure_height >= self.max_height:
+            raise ConfigError(
+                f"landing.measure_height ({self.measure_height}) must be below landing.max_height "
+                f"({self.max_height})"
+            )
 
-    @property
-    def n_queries(self) -> int:
-        """Measuring steps taken (detections or not)."""
-        return len(self.queries)
 
-    @property
-    def pad(self) -> FloatArray:
-        """True pad position."""
-        return self.scenario.pad.position
-
-    @property
-    def offset(self) -> FloatArray | None:
-        """``cut_position - y`` (None if aborted)."""
-        return None if self.cut_position is None else self.cut_position - self.pad
-
-    def to_dict(self, trajectory: bool = False) -> dict[str, Any]:
-        """Plain data for ``summary.json`` (the trajectory only if asked)."""
-
-        def lst(a: FloatArray | None) -> Any:
-            return None if a is None else np.asarray(a).tolist()
-
-        out: dict[str, Any] = {
-            "scenario": self.scenario.to_dict(),
-            "contract": self.contract,
-            "outcome": self.outcome.value,
-            "reason": self.reason,
-            "n_queries": self.n_queries,
-            "turnoff": lst(self.turnoff),
-            "cut_position": lst(self.cut_position),
-            "rest_position": lst(self.rest_position),
-            "offset": lst(self.offset),
-            "certificate_verified": self.certificate_verified,
-            "flight_time": self.flight_time,
-            "wall_time": self.wall_time,
-            "queries": [q.to_dict() for q in self.queries],
-        }
-        if trajectory:
-            out["trajectory"] = self.trajectory.tolist()
-        return out
+#: The final settle asks for this share of ``tau`` (Euclidean), so the exact cut test passes.
+SETTLE_SHARE = 0.9
 
 
 def decision_target(tau: float, target: Box = LANDING_TARGET) -> Box:
@@ -317,7 +231,6 @@ def new_waypoint(
     Examples
     --------
     >>> from case_studies.quad_landing import Flight
-    >>> from case_studies.quad_landing.reproduce_config import LandingParams
     >>> e = Ellipsoid(np.zeros(3), np.eye(3) * 10.0)          # radius 0.1 m around the origin
     >>> new_waypoint(np.array([0.0, 0.0, 2.0]), e, flight=Flight(), params=LandingParams()).round(3)
     array([0.  , 0.  , 0.75])

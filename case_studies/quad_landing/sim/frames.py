@@ -254,7 +254,7 @@ def transform_ellipsoid(center: ArrayLike, shape: ArrayLike, pose: Pose) -> tupl
 
     The image is ``{y : ||C R^T (y - (R c + t))|| <= 1}``: centre ``R c + t`` and shape
     ``C R^T`` — e.g. an IPC ellipsoid in the camera frame to the world frame with
-    ``pose = T_WC`` (:attr:`.sim.Measurement.world_from_camera`).
+    ``pose = T_WC`` (:attr:`.flight.Measurement.world_from_camera`).
 
     Parameters
     ----------

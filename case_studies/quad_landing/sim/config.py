@@ -1,4 +1,4 @@
-"""Configuration: ``defaults.toml`` beside this module, read with :mod:`tomllib`.
+"""The simulator's configuration: ``defaults.toml`` (:mod:`case_studies.quad_landing.settings`).
 
 :func:`load_config` reads the defaults, merges an optional override file and/or a
 nested mapping of overrides on top (section by section, key by key), and builds a
@@ -9,7 +9,6 @@ errors, so typos do not pass silently. Nothing is ever ``eval``-ed.
 from __future__ import annotations
 
 import dataclasses
-import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -17,31 +16,22 @@ from typing import Any
 
 import numpy as np
 
-from case_studies.quad_landing.camera import CameraParams
-from case_studies.quad_landing.dynamics import QuadParams
-from case_studies.quad_landing.lqr import LqrParams, SettleParams
-from case_studies.quad_landing.marker import MarkerParams, Pad, RenderParams
-from case_studies.quad_landing.paths import PathParams
-from case_studies.quad_landing.perception import DetectorParams
-from ipcverify.errors import InvalidInputError
+from case_studies.quad_landing.data.paths import PathParams
+from case_studies.quad_landing.perception.aruco import DetectorParams
+from case_studies.quad_landing.settings import (
+    DEFAULTS_PATH,
+    ConfigError,
+    build_sections,
+    merge_sections,
+    read_toml,
+)
+from case_studies.quad_landing.sim.camera import CameraParams
+from case_studies.quad_landing.sim.dynamics import QuadParams
+from case_studies.quad_landing.sim.lqr import LqrParams, SettleParams
+from case_studies.quad_landing.sim.marker import MarkerParams, Pad
+from case_studies.quad_landing.sim.render import RenderParams
 
-__all__ = [
-    "ConfigError",
-    "SimParams",
-    "CollectParams",
-    "SimConfig",
-    "load_config",
-    "merge_sections",
-    "read_toml",
-    "DEFAULTS_PATH",
-]
-
-#: The defaults file shipped beside the code.
-DEFAULTS_PATH = Path(__file__).with_name("defaults.toml")
-
-
-class ConfigError(InvalidInputError):
-    """A configuration file or override is malformed; the message names the key."""
+__all__ = ["SimParams", "CollectParams", "SimConfig", "load_config", "SIM_SECTIONS"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -177,10 +167,11 @@ class SimConfig:
 
     def replace(self, **sections: Mapping[str, Any]) -> SimConfig:
         """A copy with some keys of some sections replaced, e.g. ``replace(camera={"fx": 250})``."""
-        return _build(merge_sections(self.as_dict(), sections, "override"))
+        return _build(merge_sections(self.as_dict(), sections, "override", SIM_SECTIONS))
 
 
-_SECTIONS: dict[str, type] = {
+#: The sections of ``defaults.toml`` and their dataclasses.
+SIM_SECTIONS: dict[str, type] = {
     "quad": QuadParams,
     "sim": SimParams,
     "lqr": LqrParams,
@@ -193,56 +184,6 @@ _SECTIONS: dict[str, type] = {
     "paths": PathParams,
     "collect": CollectParams,
 }
-
-
-def merge_sections(
-    base: Mapping[str, Mapping[str, Any]],
-    over: Mapping[str, Any],
-    source: str,
-    sections: Mapping[str, type] | None = None,
-) -> dict[str, dict[str, Any]]:
-    """``base`` with the ``{section: {key: value}}`` tables of ``over`` merged on top.
-
-    Every section must be one of ``sections`` (default: the simulator's) and every key a
-    field of that section's dataclass; errors name ``source``, the section and the key.
-    """
-    known = _SECTIONS if sections is None else sections
-    out = {name: dict(section) for name, section in base.items()}
-    for name, section in over.items():
-        if name not in known:
-            raise ConfigError(f"{source}: unknown section [{name}]; valid sections: {', '.join(known)}")
-        if not isinstance(section, Mapping):
-            raise ConfigError(f"{source}: [{name}] must be a table of keys, got {section!r}")
-        valid = {f.name for f in dataclasses.fields(known[name]) if f.init}
-        for key, value in section.items():
-            if key not in valid:
-                raise ConfigError(
-                    f"{source}: unknown key {name}.{key}; valid keys: {', '.join(sorted(valid))}"
-                )
-            out.setdefault(name, {})[key] = value
-    return out
-
-
-def _build(tree: Mapping[str, Mapping[str, Any]]) -> SimConfig:
-    parts: dict[str, Any] = {}
-    for name, cls in _SECTIONS.items():
-        values = {k: tuple(v) if isinstance(v, list) else v for k, v in tree.get(name, {}).items()}
-        try:
-            parts[name] = cls(**values)
-        except TypeError as exc:  # missing required keys
-            raise ConfigError(f"[{name}]: {exc}") from None
-    return SimConfig(**parts)
-
-
-def read_toml(path: Path) -> dict[str, Any]:
-    """Parse a TOML file; a missing or malformed file is a :class:`ConfigError`."""
-    try:
-        with open(path, "rb") as fh:
-            return tomllib.load(fh)
-    except FileNotFoundError:
-        raise ConfigError(f"config file {path} does not exist") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"config file {path} is not valid TOML: {exc}") from None
 
 
 def load_config(
@@ -267,9 +208,13 @@ def load_config(
     >>> load_config(overrides={"collect": {"buffer_size": 5}}).collect.buffer_size
     5
     """
-    tree = merge_sections({}, read_toml(DEFAULTS_PATH), str(DEFAULTS_PATH))
+    tree = merge_sections({}, read_toml(DEFAULTS_PATH), str(DEFAULTS_PATH), SIM_SECTIONS)
     if path is not None:
-        tree = merge_sections(tree, read_toml(Path(path)), str(path))
+        tree = merge_sections(tree, read_toml(Path(path)), str(path), SIM_SECTIONS)
     if overrides:
-        tree = merge_sections(tree, overrides, "override")
+        tree = merge_sections(tree, overrides, "override", SIM_SECTIONS)
     return _build(tree)
+
+
+def _build(tree: Mapping[str, Mapping[str, Any]]) -> SimConfig:
+    return SimConfig(**build_sections(tree, SIM_SECTIONS))

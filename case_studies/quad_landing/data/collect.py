@@ -8,15 +8,7 @@ without a detection are not rows of the dataset; they are counted in
 :class:`CollectStats`, split into "marker (partly) outside the lagged image" and "in
 view but not detected".
 
-Columns of the returned DataFrame (float64 unless noted):
-
-* ``x_0 .. x_11`` — state in the camera frame ``x_C`` (:data:`.features.X_DESCRIPTIONS`);
-* ``y_0 .. y_2`` — true pad centre in the camera frame ``y_C`` (m);
-* ``yhat_0 .. yhat_2`` — perceived pad centre ``yhat_C`` from the lagged image (m);
-* ``xw_0 .. xw_11`` — world-frame state ``[p, v, roll, pitch, yaw, omega]``;
-* ``yw_0 .. yw_2``, ``yhatw_0 .. yhatw_2`` — true and perceived pad centre in W, the
-  perceived one moved with the *current* camera pose, as on the vehicle;
-* ``path`` (int), ``t`` — path index and time on the path (s).
+The returned DataFrame has the columns of :mod:`case_studies.quad_landing.data.columns`.
 """
 
 from __future__ import annotations
@@ -33,10 +25,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from case_studies.quad_landing.config import SimConfig, load_config
-from case_studies.quad_landing.features import X_COLUMNS
-from case_studies.quad_landing.paths import TEMPLATES, ExplorationPath, fit_to_view, make_path
-from case_studies.quad_landing.sim import Flight
+from case_studies.quad_landing.data.columns import FLOAT_COLUMNS, measurement_row
+from case_studies.quad_landing.data.paths import TEMPLATES, ExplorationPath, fit_to_view, make_path
+from case_studies.quad_landing.sim.config import SimConfig, load_config
+from case_studies.quad_landing.sim.flight import Flight
 from ipcverify.errors import InvalidInputError
 from ipcverify.files import atomic_write
 
@@ -49,25 +41,7 @@ __all__ = [
     "write_dataset",
     "start_state",
     "pad_outline_world",
-    "Y_COLUMNS",
-    "YHAT_COLUMNS",
-    "XW_COLUMNS",
-    "DATASET_COLUMNS",
 ]
-
-#: True pad centre in C.
-Y_COLUMNS: tuple[str, ...] = ("y_0", "y_1", "y_2")
-#: Perceived pad centre in C.
-YHAT_COLUMNS: tuple[str, ...] = ("yhat_0", "yhat_1", "yhat_2")
-#: World-frame state ``[p, v, roll, pitch, yaw, omega]`` (:data:`.dynamics.STATE_NAMES`).
-XW_COLUMNS: tuple[str, ...] = tuple(f"xw_{i}" for i in range(12))
-YW_COLUMNS: tuple[str, ...] = ("yw_0", "yw_1", "yw_2")
-YHATW_COLUMNS: tuple[str, ...] = ("yhatw_0", "yhatw_1", "yhatw_2")
-#: All dataset columns, in order.
-DATASET_COLUMNS: tuple[str, ...] = (
-    X_COLUMNS + Y_COLUMNS + YHAT_COLUMNS + XW_COLUMNS + YW_COLUMNS + YHATW_COLUMNS + ("path", "t")
-)
-_N_FLOAT = len(DATASET_COLUMNS) - 2
 
 
 @dataclass(frozen=True)
@@ -156,7 +130,7 @@ class PathRecord:
     index : int
         Path index (seeds the path and its sensor noise).
     rows : ndarray, shape (m, 36)
-        One row per detection, the float columns of :data:`DATASET_COLUMNS`.
+        One row per detection, the :data:`.columns.FLOAT_COLUMNS`.
     times : ndarray, shape (m,)
         Flight time of each detection (s).
     outcomes : ndarray of int8
@@ -217,15 +191,13 @@ def fly_path(flight: Flight, index: int, seed: int, limit: int | None = None) ->
             outcomes.append(2 if m.pad_in_view else 1)
             continue
         outcomes.append(0)
-        T = m.world_from_camera
-        rows.append(np.concatenate([m.x_c, m.y_c, m.yhat_c, m.state, T.apply(m.y_c),
-                                    T.apply(m.yhat_c)]))  # fmt: skip
+        rows.append(measurement_row(m))
         times.append(m.time)
         if limit is not None and len(rows) >= limit:
             break
     return PathRecord(
         index=index,
-        rows=np.array(rows).reshape(-1, _N_FLOAT),
+        rows=np.array(rows).reshape(-1, len(FLOAT_COLUMNS)),
         times=np.array(times),
         outcomes=np.array(outcomes, dtype=np.int8),
         flight_time=flight.time,
@@ -302,7 +274,7 @@ def collect(
     Returns
     -------
     data : pandas.DataFrame
-        ``n`` rows, columns :data:`DATASET_COLUMNS` (see the module docstring).
+        ``n`` rows, columns :data:`.columns.DATASET_COLUMNS`.
     stats : CollectStats
         Detection counts and timing.
 
@@ -345,7 +317,7 @@ def collect(
     finally:
         records.close()
     outcomes = np.concatenate([r.outcomes for r in parts])
-    data = pd.DataFrame(np.vstack([r.rows for r in parts]), columns=list(DATASET_COLUMNS[:-2]))
+    data = pd.DataFrame(np.vstack([r.rows for r in parts]), columns=list(FLOAT_COLUMNS))
     data["path"] = np.concatenate([np.full(len(r.rows), r.index, np.int64) for r in parts])
     data["t"] = np.concatenate([r.times for r in parts])
     stats = CollectStats(

@@ -1,8 +1,8 @@
 """Flying a leg to a waypoint frame by frame, with a hook per frame (for measuring on the way).
 
-:meth:`.sim.Flight.fly_to` flies to a waypoint in one call; the landing state machine and
+:meth:`.flight.Flight.fly_to` flies to a waypoint in one call; the landing state machine and
 the approach flights need to act between frames (run the detector, record a measurement),
-so :func:`fly_leg` steps :meth:`.sim.Flight.step` itself and calls ``on_frame`` after every
+so :func:`fly_leg` steps :meth:`.flight.Flight.step` itself and calls ``on_frame`` after every
 frame. A leg is *settled* when the vehicle has stayed within the settle tolerances of the
 waypoint for ``settle.hold_time``; it can then dwell there for ``dwell`` more seconds.
 
@@ -24,9 +24,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from case_studies.quad_landing.frames import wrap_angle
-from case_studies.quad_landing.lqr import Reference, SettleParams
-from case_studies.quad_landing.sim import Flight
+from case_studies.quad_landing.sim.flight import Flight
+from case_studies.quad_landing.sim.frames import wrap_angle
+from case_studies.quad_landing.sim.lqr import Reference, SettleParams
 from ipcverify.errors import InvalidInputError
 
 __all__ = ["LegResult", "fly_leg", "clamp_to_workspace", "is_settled"]

@@ -19,9 +19,10 @@ Backends
 
 Examples
 --------
->>> from case_studies.quad_landing.config import load_config
->>> from case_studies.quad_landing.contracts import TrivialContract
->>> from case_studies.quad_landing.reproduce_config import LandingParams, ScenarioParams
+>>> from case_studies.quad_landing.sim.config import load_config
+>>> from case_studies.quad_landing.landing.contracts import TrivialContract
+>>> from case_studies.quad_landing.landing.scenario import ScenarioParams
+>>> from case_studies.quad_landing.landing.state_machine import LandingParams
 >>> runs = run_campaign(TrivialContract(), 2, seed=5, sim_config=load_config(),
 ...                     scenario=ScenarioParams(), landing=LandingParams(buffer_size=1), backend="sequential")
 >>> [r.scenario.index for r in runs], summarize(runs)["runs"]
@@ -38,12 +39,12 @@ from typing import Any
 import joblib
 import numpy as np
 
-from case_studies.quad_landing.config import SimConfig
-from case_studies.quad_landing.contracts import Contract
-from case_studies.quad_landing.reproduce_config import LandingParams, ScenarioParams
-from case_studies.quad_landing.scenario import draw_scenario
-from case_studies.quad_landing.sim import Flight
-from case_studies.quad_landing.state_machine import LandingRun, Outcome, run_landing
+from case_studies.quad_landing.landing.contracts import Contract
+from case_studies.quad_landing.landing.runs import LandingRun, Outcome
+from case_studies.quad_landing.landing.scenario import ScenarioParams, draw_scenario
+from case_studies.quad_landing.landing.state_machine import LandingParams, run_landing
+from case_studies.quad_landing.sim.config import SimConfig
+from case_studies.quad_landing.sim.flight import Flight
 from ipcverify.bounds import clopper_pearson_interval, clopper_pearson_lower, clopper_pearson_upper
 from ipcverify.errors import InvalidInputError
 

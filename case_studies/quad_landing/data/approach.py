@@ -15,14 +15,13 @@ says nothing about those queries. An approach flight flies what a landing run fl
    0.1 m off-centre), each flown until settled and then held for a random dwell.
 
 A measurement is taken every ``sample_every`` camera frames throughout (default 6: 10 Hz),
-as in :func:`.collect.fly_path`, and the rows have the same columns (:data:`.collect.DATASET_COLUMNS`).
+as in :func:`.collect.fly_path`, and the rows have the same columns (:data:`.columns.DATASET_COLUMNS`).
 Flight ``i`` of a collection seeded ``s`` depends only on ``(s, i)``: the same flight,
 sampling instants and noise for every buffer size.
 
 Examples
 --------
 >>> from case_studies.quad_landing import Flight
->>> from case_studies.quad_landing.reproduce_config import ApproachParams
 >>> rec = fly_approach(Flight(buffer_size=1), 0, seed=0, params=ApproachParams(hover_points=1))
 >>> rec.rows.shape[1], bool(len(rec.rows) > 20)
 (36, True)
@@ -32,28 +31,119 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
 
-from case_studies.quad_landing.collect import DATASET_COLUMNS, CollectStats, PathRecord
-from case_studies.quad_landing.config import SimConfig, load_config
-from case_studies.quad_landing.legs import fly_leg
-from case_studies.quad_landing.reproduce_config import ApproachParams
-from case_studies.quad_landing.scenario import (
+from case_studies.quad_landing.data.collect import CollectStats, PathRecord
+from case_studies.quad_landing.data.columns import FLOAT_COLUMNS, measurement_row
+from case_studies.quad_landing.landing.scenario import (
+    ScenarioParams,
     camera_offset_z,
     draw_scenario,
     scenario_rng,
     stopping_reference,
 )
-from case_studies.quad_landing.sim import Flight
+from case_studies.quad_landing.settings import ConfigError, Range, check_positive, check_range
+from case_studies.quad_landing.sim.config import SimConfig, load_config
+from case_studies.quad_landing.sim.flight import Flight
+from case_studies.quad_landing.sim.legs import fly_leg
 from ipcverify.errors import InvalidInputError
 
-__all__ = ["APPROACH_STREAM", "fly_approach", "collect_approach"]
+__all__ = ["ApproachParams", "APPROACH_STREAM", "fly_approach", "collect_approach"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class ApproachParams:
+    """Approach flights: data whose states look like a landing run's (see :mod:`.approach`).
+
+    Parameters
+    ----------
+    fraction : float
+        Share of every dataset flown as approach flights; the rest are exploration paths.
+    start_distance, start_height, transit_speed, prior_radius
+        As in :class:`ScenarioParams` (wider ranges).
+    extra_transit : (low, high)
+        Seconds flown on along the transit after the first detection.
+    deceleration : float
+        Braking at the end of the transit (m/s^2), smooth instead of a step in the reference
+        (also past the prior guess, as in :class:`ScenarioParams`).
+    hover_points : int
+        Waypoints above the pad flown to after the transit.
+    hover_offset : float
+        Horizontal offset of a hover point from the pad (uniform in a disc, m).
+    hover_height : (low, high)
+        Camera height above the pad at a hover point (m).
+    dwell : (low, high)
+        Seconds spent at a hover point after settling.
+    leg_timeout : float
+        Seconds per leg.
+    sample_every : int
+        Camera frames between measurements, in approach flights and exploration paths alike.
+
+    Examples
+    --------
+    >>> ApproachParams().hover_points
+    2
+    """
+
+    fraction: float = 0.5
+    aligned_margin_deg: float = 3.0
+    start_distance: Range = (1.2, 2.2)
+    start_height: Range = (1.2, 2.3)
+    transit_speed: Range = (0.2, 2.0)
+    prior_radius: float = 0.3
+    extra_transit: Range = (0.0, 0.6)
+    deceleration: float = 1.5
+    hover_points: int = 2
+    hover_offset: float = 0.1
+    hover_height: Range = (0.6, 1.2)
+    dwell: Range = (0.2, 0.8)
+    leg_timeout: float = 8.0
+    sample_every: int = 6
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.fraction <= 1.0:
+            raise ConfigError(f"approach.fraction must lie in [0, 1], got {self.fraction!r}")
+        if not 0.0 <= self.aligned_margin_deg < 45.0:
+            raise ConfigError(
+                f"approach.aligned_margin_deg must lie in [0, 45), got {self.aligned_margin_deg!r}"
+            )
+        for name in (
+            "start_distance",
+            "start_height",
+            "transit_speed",
+            "extra_transit",
+            "hover_height",
+            "dwell",
+        ):
+            object.__setattr__(self, name, check_range(f"approach.{name}", getattr(self, name), 0.0))
+        check_positive("approach.prior_radius", self.prior_radius, allow_zero=True)
+        check_positive("approach.hover_offset", self.hover_offset, allow_zero=True)
+        check_positive("approach.deceleration", self.deceleration)
+        check_positive("approach.hover_points", self.hover_points, integer=True, allow_zero=True)
+        check_positive("approach.leg_timeout", self.leg_timeout)
+        check_positive("approach.sample_every", self.sample_every, integer=True)
+        object.__setattr__(self, "hover_points", int(self.hover_points))
+        object.__setattr__(self, "sample_every", int(self.sample_every))
+        if self.transit_speed[1] <= 0:
+            raise ConfigError("approach.transit_speed must allow a positive speed")
+
+    def scenario(self) -> ScenarioParams:
+        """The scenario ranges of an approach flight (pad anywhere, any heading)."""
+        return ScenarioParams(
+            start_distance=self.start_distance,
+            start_height=self.start_height,
+            transit_speed=self.transit_speed,
+            prior_radius=self.prior_radius,
+            aligned_margin_deg=self.aligned_margin_deg,
+            deceleration=self.deceleration,
+        )
+
 
 #: Random stream of approach flights (scenario draw; ``+ 1`` for the hover points).
 APPROACH_STREAM = 71
-_N_FLOAT = len(DATASET_COLUMNS) - 2
 
 
 class _Recorder:
@@ -74,8 +164,7 @@ class _Recorder:
             self.outcomes.append(2 if m.pad_in_view else 1)
             return
         self.outcomes.append(0)
-        T = m.world_from_camera
-        self.rows.append(np.concatenate([m.x_c, m.y_c, m.yhat_c, m.state, T.apply(m.y_c), T.apply(m.yhat_c)]))
+        self.rows.append(measurement_row(m))
         self.times.append(m.time)
 
 
@@ -94,7 +183,7 @@ def fly_approach(flight: Flight, index: int, *, seed: int, params: ApproachParam
     Returns
     -------
     PathRecord
-        Rows in the float columns of :data:`.collect.DATASET_COLUMNS`, their times, the
+        Rows in the :data:`.columns.FLOAT_COLUMNS`, their times, the
         outcome code of every measurement (0 detected, 1 marker outside the lagged image,
         2 missed in view) and the time flown.
     """
@@ -135,7 +224,7 @@ def fly_approach(flight: Flight, index: int, *, seed: int, params: ApproachParam
         )
     return PathRecord(
         index=int(index),
-        rows=np.array(rec.rows).reshape(-1, _N_FLOAT),
+        rows=np.array(rec.rows).reshape(-1, len(FLOAT_COLUMNS)),
         times=np.array(rec.times),
         outcomes=np.array(rec.outcomes, dtype=np.int8),
         flight_time=flight.time,
@@ -171,7 +260,7 @@ def collect_approach(
     Returns
     -------
     data : pandas.DataFrame
-        ``n`` rows with the columns :data:`.collect.DATASET_COLUMNS` (``path`` is the flight index).
+        ``n`` rows with the columns :data:`.columns.DATASET_COLUMNS` (``path`` is the flight index).
     stats : CollectStats
         Detection counts and timing, as for :func:`.collect.collect`.
 
@@ -207,7 +296,7 @@ def collect_approach(
             raise InvalidInputError(
                 "approach flights produce no detections; check the camera and pad settings"
             )
-    data = pd.DataFrame(np.vstack([r.rows for r in parts]), columns=list(DATASET_COLUMNS[:-2]))
+    data = pd.DataFrame(np.vstack([r.rows for r in parts]), columns=list(FLOAT_COLUMNS))
     data["path"] = np.concatenate([np.full(len(r.rows), r.index, np.int64) for r in parts])
     data["t"] = np.concatenate([r.times for r in parts])
     codes = np.concatenate(outcomes)

@@ -3,7 +3,8 @@
 The paper learns the IPC in the camera frame so that it does not depend on where the
 camera is mounted. ``x_C`` keeps the 12-number layout of the state ``[p, v, phi, omega]``
 but every part is a frame-free, camera-frame quantity; nothing in it depends on the
-world's horizontal origin or heading, so it carries no hint of where the pad is:
+world's horizontal origin or heading, so it carries no hint of where the pad is (the
+columns are those of the datasets, :data:`case_studies.quad_landing.data.columns.X_COLUMNS`):
 
 ========  ===========  ============================================================
 column    symbol       meaning
@@ -30,31 +31,12 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from case_studies.quad_landing.camera import Camera
-from case_studies.quad_landing.frames import Pose, world_from_quad
+from case_studies.quad_landing.sim.camera import Camera
+from case_studies.quad_landing.sim.frames import Pose, world_from_quad
 
-__all__ = ["X_COLUMNS", "X_DESCRIPTIONS", "camera_frame_state", "camera_velocity_world"]
+__all__ = ["camera_frame_state", "camera_velocity_world"]
 
 FloatArray = NDArray[np.float64]
-
-#: Column names of ``x_C`` in datasets.
-X_COLUMNS: tuple[str, ...] = tuple(f"x_{i}" for i in range(12))
-
-#: One-line meaning of each ``x_C`` column.
-X_DESCRIPTIONS: dict[str, str] = {
-    "x_0": "nadir vector n_C (camera to floor, straight down), x_C component (m)",
-    "x_1": "nadir vector n_C, y_C component (m)",
-    "x_2": "nadir vector n_C, z_C component (m)",
-    "x_3": "camera velocity v_C, x_C component (m/s)",
-    "x_4": "camera velocity v_C, y_C component (m/s)",
-    "x_5": "camera velocity v_C, z_C component (m/s)",
-    "x_6": "unit down direction g_C, x_C component",
-    "x_7": "unit down direction g_C, y_C component",
-    "x_8": "unit down direction g_C, z_C component",
-    "x_9": "angular velocity omega_C, about x_C (rad/s)",
-    "x_10": "angular velocity omega_C, about y_C (rad/s)",
-    "x_11": "angular velocity omega_C, about z_C (rad/s)",
-}
 
 
 def camera_velocity_world(state: ArrayLike, camera: Camera) -> FloatArray:
@@ -85,7 +67,7 @@ def camera_frame_state(state: ArrayLike, camera: Camera, ground_z: float = 0.0) 
 
     Examples
     --------
-    >>> from case_studies.quad_landing.config import load_config
+    >>> from case_studies.quad_landing.sim.config import load_config
     >>> cam = Camera(load_config().camera)  # downward camera, 5 cm below the body
     >>> x_c, T_WC = camera_frame_state(np.r_[0, 0, 1.05, np.zeros(9)], cam)
     >>> np.round(x_c[:3], 12)  # 1 m straight down the optical axis

@@ -39,17 +39,18 @@ import torch
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-from case_studies.quad_landing.campaign import default_jobs, run_campaign, summarize
-from case_studies.quad_landing.certified import (
+from case_studies.quad_landing.data.datasets import as_dataset, cached_mixed, is_cached
+from case_studies.quad_landing.landing.contracts import LearnedContract, TrivialContract
+from case_studies.quad_landing.landing.runs import LandingRun
+from case_studies.quad_landing.reproduction.campaign import default_jobs, run_campaign, summarize
+from case_studies.quad_landing.reproduction.certified import (
     certified_bound,
     closed_loop_violations,
     coverage_check,
     unsafe_vs_certified,
 )
-from case_studies.quad_landing.config import SimConfig, load_config
-from case_studies.quad_landing.contracts import LearnedContract, TrivialContract
-from case_studies.quad_landing.datasets import as_dataset, cached_mixed, is_cached
-from case_studies.quad_landing.figures import (
+from case_studies.quad_landing.reproduction.config import ReproduceConfig, load_reproduce_config
+from case_studies.quad_landing.reproduction.figures import (
     figure_png,
     plot_campaign,
     plot_coverage,
@@ -57,11 +58,10 @@ from case_studies.quad_landing.figures import (
     plot_topview,
     plot_trajectories,
 )
-from case_studies.quad_landing.learn import cached_ipc, calibration_summary
-from case_studies.quad_landing.report_page import render_report
-from case_studies.quad_landing.reproduce_config import ReproduceConfig, load_reproduce_config
-from case_studies.quad_landing.state_machine import LandingRun
-from case_studies.quad_landing.table1 import PAPER_TABLE1, rates_rising, table1
+from case_studies.quad_landing.reproduction.learn import cached_ipc, calibration_summary
+from case_studies.quad_landing.reproduction.report_page import render_report
+from case_studies.quad_landing.reproduction.table1 import PAPER_TABLE1, rates_rising, table1
+from case_studies.quad_landing.sim.config import SimConfig, load_config
 from ipcverify.data import PerceptionDataset
 from ipcverify.errors import InvalidInputError
 from ipcverify.files import atomic_write, json_data, write_json

@@ -45,7 +45,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from case_studies.quad_landing.state_machine import LandingRun, Outcome
+from case_studies.quad_landing.landing.runs import LandingRun, Outcome
 from ipcverify.bounds import clopper_pearson_interval, clopper_pearson_lower, clopper_pearson_upper
 from ipcverify.data import PerceptionDataset
 from ipcverify.errors import InvalidInputError

@@ -24,9 +24,9 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from case_studies.quad_landing.camera import Camera
-from case_studies.quad_landing.frames import mount_rotation
-from case_studies.quad_landing.lqr import Reference
+from case_studies.quad_landing.sim.camera import Camera
+from case_studies.quad_landing.sim.frames import mount_rotation
+from case_studies.quad_landing.sim.lqr import Reference
 from ipcverify.errors import InvalidInputError
 
 __all__ = ["PathParams", "PathSample", "ExplorationPath", "TEMPLATES", "make_path", "exploration_paths",
