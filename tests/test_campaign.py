@@ -15,8 +15,8 @@ from case_studies.quad_landing.sim.config import load_config
 from ipcverify.errors import InvalidInputError
 
 CFG = load_config()
-SCEN = ScenarioParams()
-LAND = LandingParams(buffer_size=3)
+SCEN = ScenarioParams.defaults()
+LAND = LandingParams.defaults(buffer_size=3)
 
 
 def _key(runs):

@@ -156,7 +156,7 @@ def test_in_target_is_the_closed_box():
 
 # ----------------------------------------------------------------- New Waypoint
 def test_new_waypoint_is_the_surface_point_when_high_enough():
-    params = LandingParams(measure_height=0.3)
+    params = LandingParams.defaults(measure_height=0.3)
     e = Ellipsoid(np.array([0.0, 0.0, 0.0]), np.eye(3) * 2.0)  # radius 0.5
     p = np.array([0.0, 0.0, 2.0])
     w = new_waypoint(p, e, flight=Flight(), params=params)
@@ -166,7 +166,7 @@ def test_new_waypoint_is_the_surface_point_when_high_enough():
 
 
 def test_new_waypoint_is_raised_to_the_measuring_height_and_clamped():
-    params = LandingParams()
+    params = LandingParams.defaults()
     e = Ellipsoid(np.array([2.9, 0.4, 0.0]), np.eye(3) * 20.0)  # radius 0.05
     p = np.array([2.0, 0.4, 1.8])
     w = new_waypoint(p, e, flight=Flight(), params=params)
@@ -184,7 +184,7 @@ def test_new_waypoint_is_raised_to_the_measuring_height_and_clamped():
 def test_new_waypoint_inside_the_ellipsoid_keeps_the_position():
     e = Ellipsoid(np.array([0.0, 0.0, 1.0]), np.eye(3) * 0.5)  # radius 2: p is inside
     p = np.array([0.1, 0.0, 1.2])
-    w = new_waypoint(p, e, flight=Flight(), params=LandingParams())
+    w = new_waypoint(p, e, flight=Flight(), params=LandingParams.defaults())
     np.testing.assert_allclose(w[:2], p[:2])
 
 
@@ -243,15 +243,15 @@ def test_contracts_need_a_detection():
 
 # ----------------------------------------------------------------- scenarios and legs
 def test_scenarios_are_reproducible_and_independent_of_anything_else():
-    a = draw_scenario(7, seed=3, params=ScenarioParams(), config=CFG)
-    b = draw_scenario(7, seed=3, params=ScenarioParams(), config=CFG)
-    c = draw_scenario(8, seed=3, params=ScenarioParams(), config=CFG)
+    a = draw_scenario(7, seed=3, params=ScenarioParams.defaults(), config=CFG)
+    b = draw_scenario(7, seed=3, params=ScenarioParams.defaults(), config=CFG)
+    c = draw_scenario(8, seed=3, params=ScenarioParams.defaults(), config=CFG)
     assert np.array_equal(a.start, b.start) and a.pad.yaw == b.pad.yaw and a.noise_seed == b.noise_seed
     assert not np.array_equal(a.start, c.start)
 
 
 def test_scenarios_respect_their_ranges_and_keep_pad_edges_off_the_image_axes():
-    p = ScenarioParams()
+    p = ScenarioParams.defaults()
     for i in range(200):
         sc = draw_scenario(i, seed=0, params=p, config=CFG)
         assert np.all(np.abs(sc.pad.position[:2]) <= p.pad_region)
@@ -288,7 +288,7 @@ def test_fly_leg_checks_its_target():
 
 
 def test_approach_flights_are_the_same_at_every_buffer_size():
-    params = ApproachParams(hover_points=1, dwell=(0.2, 0.2))
+    params = ApproachParams.defaults(hover_points=1, dwell=(0.2, 0.2))
     a = fly_approach(Flight(buffer_size=1), 2, seed=5, params=params)
     b = fly_approach(Flight(buffer_size=3), 2, seed=5, params=params)
     n = min(len(a.rows), len(b.rows))
@@ -300,13 +300,13 @@ def test_approach_flights_are_the_same_at_every_buffer_size():
 
 def test_collect_approach_checks_its_arguments():
     with pytest.raises(InvalidInputError, match="positive integer"):
-        collect_approach(0, buffer_size=1, seed=0, params=ApproachParams())
+        collect_approach(0, buffer_size=1, seed=0, params=ApproachParams.defaults())
     with pytest.raises(InvalidInputError, match="non-negative"):
-        collect_approach(5, buffer_size=1, seed=-1, params=ApproachParams())
+        collect_approach(5, buffer_size=1, seed=-1, params=ApproachParams.defaults())
 
 
 def test_mixed_data_hold_no_measurement_with_pad_edges_on_the_image_axes():
-    params = ApproachParams(hover_points=1)
+    params = ApproachParams.defaults(hover_points=1)
     data = collect_mixed(300, buffer_size=1, seed=1, approach=params)
     paths = data[data["source"] == 0]
     assert len(data) == 300 and len(paths) == 150

@@ -123,7 +123,7 @@ def test_fitted_paths_keep_the_pad_in_view(seed, which):
 
 
 def test_path_derivatives_are_consistent():
-    path = make_path("lissajous", np.random.default_rng(1), (0, 0, 0), PathParams())
+    path = make_path("lissajous", np.random.default_rng(1), (0, 0, 0), PathParams.defaults())
     t = np.linspace(0.5, 5.0, 50)
     h = 1e-5
     a, b, m = path.sample(t + h), path.sample(t - h), path.sample(t)

@@ -112,9 +112,8 @@ def test_f450_parameters_are_the_defaults():
     ],
 )
 def test_bad_quad_parameters_are_refused(kwargs, match):
-    base = {"mass": 1.5, "inertia": (0.029, 0.029, 0.055), "arm_length": 0.25}
     with pytest.raises(InvalidInputError, match=match):
-        QuadParams(**{**base, **kwargs})
+        QuadParams.defaults(**kwargs)
 
 
 def test_bad_step_length_is_refused():

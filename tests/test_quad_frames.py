@@ -103,7 +103,7 @@ def test_projection_and_view_check():
 
 def test_camera_params_validate():
     with pytest.raises(InvalidInputError, match="principal point"):
-        CameraParams(width=320, height=240, fps=60, fx=220, fy=220, cx=400, cy=120)
+        CameraParams.defaults(cx=400.0, cy=120.0)
 
 
 def test_x_c_of_a_level_hover_with_the_downward_camera():

@@ -139,6 +139,6 @@ def test_fly_to_reports_not_settled_when_out_of_time(flight):
 
 def test_lqr_params_validate_themselves():
     with pytest.raises(InvalidInputError, match="q_position must be 3 positive"):
-        LqrParams(q_position=(1.0, 2.0))
+        LqrParams.defaults(q_position=(1.0, 2.0))
     with pytest.raises(InvalidInputError, match="max_position_error_xy"):
-        LqrParams(max_position_error_xy=0.0)
+        LqrParams.defaults(max_position_error_xy=0.0)

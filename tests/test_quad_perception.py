@@ -51,7 +51,7 @@ def test_detected_corners_match_the_projected_marker():
     T_CW = f.camera_pose().inverse()
     expected = f.camera.project(f.renderer.marker_corners_camera(T_CW, f.pad))
     assert np.max(np.abs(corners - expected)) < 0.2
-    raw = ArucoPerception(f.camera, cfg.marker, DetectorParams(april_tag_corner_shift_px=0.0))
+    raw = ArucoPerception(f.camera, cfg.marker, DetectorParams.defaults(april_tag_corner_shift_px=0.0))
     shift = raw.detect(f.latest_image()) - expected
     assert np.all((shift > 0.3) & (shift < 0.6))
 
@@ -65,7 +65,7 @@ def test_nothing_is_detected_without_the_marker():
     assert not m.detected and not m.pad_in_view
     # a detector looking for another id ignores the pad's marker
     f.reset(hover_state((0.0, 0.0, 1.0)))
-    other = ArucoPerception(f.camera, MarkerParams(marker_id=7), DetectorParams())
+    other = ArucoPerception(f.camera, MarkerParams.defaults(marker_id=7), DetectorParams.defaults())
     assert f.perception.estimate(f.latest_image()) is not None
     assert other.estimate(f.latest_image()) is None
 
@@ -74,7 +74,7 @@ def test_renderer_draws_nothing_of_a_pad_behind_the_camera():
     f = Flight(CFG, buffer_size=0, seed=0)
     # looking straight up from below the pad: T_CW with optical axis +z_W
     T_CW = Pose(np.eye(3), np.array([0.0, 0.0, -0.5]))  # pad at z_C = -0.5
-    img = f.renderer.render(T_CW, Pad((0.0, 0.0, 0.0)), 0)
+    img = f.renderer.render(T_CW, Pad((0.0, 0.0, 0.0), yaw=0.0), 0)
     assert img.shape == (240, 320) and img.max() < 200  # no white pad
 
 
@@ -155,10 +155,10 @@ def test_lag_error_is_explained_by_the_camera_frame_state():
 
 def test_detector_and_render_params_validate():
     with pytest.raises(InvalidInputError, match="corner_refinement must be one of"):
-        DetectorParams(corner_refinement="magic")
+        DetectorParams.defaults(corner_refinement="magic")
     with pytest.raises(InvalidInputError, match="render.floor must be one of"):
-        RenderParams(floor="carpet")
+        RenderParams.defaults(floor="carpet")
     with pytest.raises(InvalidInputError, match="4x4 ArUco dictionary"):
-        MarkerParams(dictionary="DICT_6X6_50")
+        MarkerParams.defaults(dictionary="DICT_6X6_50")
     with pytest.raises(InvalidInputError, match="marker_id must be an integer"):
-        MarkerParams(marker_id=50)
+        MarkerParams.defaults(marker_id=50)

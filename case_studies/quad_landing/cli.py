@@ -14,6 +14,7 @@ import click
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
+from case_studies.quad_landing.settings import DEFAULTS_PATH, REPRODUCE_PATH, read_toml
 from case_studies.quad_landing.sim.config import SimConfig, load_config
 from case_studies.quad_landing.sim.framebuffer import MAX_BUFFER_SIZE
 from ipcverify.cli.app import run_group
@@ -23,6 +24,10 @@ __all__ = ["quad", "main"]
 
 console = Console()
 err_console = Console(stderr=True)
+
+#: The shipped settings, read once for the defaults shown by ``--help``.
+_DEFAULTS = read_toml(DEFAULTS_PATH)
+_REPRODUCE = read_toml(REPRODUCE_PATH)
 
 
 def _config(path: str | None) -> SimConfig:
@@ -57,14 +62,16 @@ def quad() -> None:
     "-k",
     type=click.IntRange(0, MAX_BUFFER_SIZE),
     default=None,
-    help="Camera buffer size k (frames of lag) [default: from the config, 1].",
+    help="Camera buffer size k (frames of lag) "
+    f"[default: [collect] buffer_size of --config or defaults.toml: {_DEFAULTS['collect']['buffer_size']}].",
 )
 @click.option(
     "--n",
     "n",
     type=click.IntRange(min=1),
     default=None,
-    help="Samples with a detection to collect [default: from the config, 5000].",
+    help="Samples with a detection to collect "
+    f"[default: [collect] n of --config or defaults.toml: {_DEFAULTS['collect']['n']}].",
 )
 @_seed_option
 @click.option(
@@ -175,7 +182,8 @@ def bias_command(poses: int, seed: int, config_path: str | None) -> None:
     "--mc-runs",
     type=click.IntRange(min=1),
     default=None,
-    help="Monte Carlo runs per contract [default: from reproduce.toml, 300].",
+    help="Monte Carlo runs per contract [default: [sizes] mc_runs of --settings or reproduce.toml: "
+    f"{_REPRODUCE['sizes']['mc_runs']}, with --quick {_REPRODUCE['quick']['sizes']['mc_runs']}].",
 )
 @_config_option
 @click.option(

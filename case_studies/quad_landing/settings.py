@@ -24,7 +24,7 @@ import math
 import tomllib
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar, Self
 
 from ipcverify.errors import InvalidInputError
 
@@ -32,6 +32,7 @@ __all__ = [
     "DEFAULTS_PATH",
     "REPRODUCE_PATH",
     "ConfigError",
+    "TomlSection",
     "Range",
     "read_toml",
     "merge_sections",
@@ -54,6 +55,50 @@ class ConfigError(InvalidInputError):
     """A configuration file or override is malformed; the message names the key."""
 
 
+class TomlSection:
+    """Base of the dataclasses built from one table of a shipped settings file.
+
+    A subclass (a frozen dataclass) names its file and table (:attr:`toml_file`,
+    :attr:`toml_section`) and carries **no default values**: the file holds them, so a
+    value has one source. The loaders build whole configurations; :meth:`defaults` builds
+    one section from the shipped table, with some keys replaced (for examples and tests).
+    """
+
+    #: The shipped file the section is read from.
+    toml_file: ClassVar[Path]
+    #: The section's table name in that file.
+    toml_section: ClassVar[str]
+
+    @classmethod
+    def toml_keys(cls) -> frozenset[str]:
+        """The keys the section's table accepts (the dataclass's fields)."""
+        return frozenset(f.name for f in dataclasses.fields(cls) if f.init)  # type: ignore[arg-type]
+
+    @classmethod
+    def from_table(cls, table: Mapping[str, Any]) -> Self:
+        """Build from a table (lists become tuples); a missing key is a :class:`ConfigError`."""
+        values = {k: tuple(v) if isinstance(v, list) else v for k, v in table.items()}
+        try:
+            return cls(**values)
+        except TypeError as exc:  # missing required keys
+            raise ConfigError(f"[{cls.toml_section}]: {exc}") from None
+
+    def to_table(self) -> dict[str, Any]:
+        """Plain data in the layout of the TOML table (tuples become lists)."""
+        return {
+            f.name: list(v) if isinstance(v := getattr(self, f.name), tuple) else v
+            for f in dataclasses.fields(self)  # type: ignore[arg-type]
+            if f.init
+        }
+
+    @classmethod
+    def defaults(cls, **overrides: Any) -> Self:
+        """The section as shipped in :attr:`toml_file`, with the keys in ``overrides`` replaced."""
+        name = cls.toml_section
+        shipped = {name: read_toml(cls.toml_file)[name]}
+        return cls.from_table(merge_sections(shipped, {name: overrides}, "override", {name: cls})[name])
+
+
 def read_toml(path: str | Path) -> dict[str, Any]:
     """Parse a TOML file; a missing or malformed file is a :class:`ConfigError`."""
     try:
@@ -70,32 +115,28 @@ def toml_default(path: str | Path, section: str, key: str) -> Any:
     return read_toml(path)[section][key]
 
 
-def _keys(cls: type) -> frozenset[str]:
-    """The keys a section's dataclass accepts (its ``toml_keys()``, else its init fields)."""
-    own = getattr(cls, "toml_keys", None)
-    if callable(own):
-        return frozenset(own())
-    return frozenset(f.name for f in dataclasses.fields(cls) if f.init)
-
-
 def merge_sections(
     base: Mapping[str, Mapping[str, Any]],
     over: Mapping[str, Any],
     source: str,
-    sections: Mapping[str, type],
+    sections: Mapping[str, type[TomlSection]],
 ) -> dict[str, dict[str, Any]]:
     """``base`` with the ``{section: {key: value}}`` tables of ``over`` merged on top.
 
-    Every section must be one of ``sections`` (name -> dataclass) and every key one the
-    dataclass accepts; errors name ``source``, the section and the key.
+    Every section must be one of ``sections`` (name -> :class:`TomlSection`) and every key
+    one of its :meth:`~TomlSection.toml_keys`; errors name ``source``, the section and the key.
 
     Examples
     --------
-    >>> @dataclasses.dataclass
-    ... class Box:
+    >>> @dataclasses.dataclass(frozen=True, kw_only=True)
+    ... class Box(TomlSection):
     ...     side: float
     >>> merge_sections({"box": {"side": 1.0}}, {"box": {"side": 2.0}}, "override", {"box": Box})
     {'box': {'side': 2.0}}
+    >>> merge_sections({}, {"box": {"edge": 2.0}}, "my.toml", {"box": Box})
+    Traceback (most recent call last):
+    ...
+    case_studies.quad_landing.settings.ConfigError: my.toml: unknown key box.edge; valid keys: side
     """
     out = {name: dict(section) for name, section in base.items()}
     for name, section in over.items():
@@ -103,7 +144,7 @@ def merge_sections(
             raise ConfigError(f"{source}: unknown section [{name}]; valid sections: {', '.join(sections)}")
         if not isinstance(section, Mapping):
             raise ConfigError(f"{source}: [{name}] must be a table of keys, got {section!r}")
-        valid = _keys(sections[name])
+        valid = sections[name].toml_keys()
         for key, value in section.items():
             if key not in valid:
                 raise ConfigError(
@@ -113,21 +154,11 @@ def merge_sections(
     return out
 
 
-def build_sections(tree: Mapping[str, Mapping[str, Any]], sections: Mapping[str, type]) -> dict[str, Any]:
-    """Each section's dataclass built from its table of ``tree`` (lists become tuples).
-
-    A dataclass with a ``from_toml(table)`` classmethod builds itself; a missing key is a
-    :class:`ConfigError` naming the section.
-    """
-    parts: dict[str, Any] = {}
-    for name, cls in sections.items():
-        values = {k: tuple(v) if isinstance(v, list) else v for k, v in tree.get(name, {}).items()}
-        build = getattr(cls, "from_toml", cls)
-        try:
-            parts[name] = build(values) if build is not cls else cls(**values)
-        except TypeError as exc:  # missing required keys
-            raise ConfigError(f"[{name}]: {exc}") from None
-    return parts
+def build_sections(
+    tree: Mapping[str, Mapping[str, Any]], sections: Mapping[str, type[TomlSection]]
+) -> dict[str, Any]:
+    """Each section's dataclass built from its table of ``tree`` (:meth:`TomlSection.from_table`)."""
+    return {name: cls.from_table(tree.get(name, {})) for name, cls in sections.items()}
 
 
 def check_range(where: str, value: Any, lo: float = -math.inf) -> Range:

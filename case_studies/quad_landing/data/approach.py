@@ -22,7 +22,7 @@ sampling instants and noise for every buffer size.
 Examples
 --------
 >>> from case_studies.quad_landing import Flight
->>> rec = fly_approach(Flight(buffer_size=1), 0, seed=0, params=ApproachParams(hover_points=1))
+>>> rec = fly_approach(Flight(buffer_size=1), 0, seed=0, params=ApproachParams.defaults(hover_points=1))
 >>> rec.rows.shape[1], bool(len(rec.rows) > 20)
 (36, True)
 """
@@ -45,7 +45,14 @@ from case_studies.quad_landing.landing.scenario import (
     scenario_rng,
     stopping_reference,
 )
-from case_studies.quad_landing.settings import ConfigError, Range, check_positive, check_range
+from case_studies.quad_landing.settings import (
+    REPRODUCE_PATH,
+    ConfigError,
+    Range,
+    TomlSection,
+    check_positive,
+    check_range,
+)
 from case_studies.quad_landing.sim.config import SimConfig, load_config
 from case_studies.quad_landing.sim.flight import Flight
 from case_studies.quad_landing.sim.legs import fly_leg
@@ -55,15 +62,15 @@ __all__ = ["ApproachParams", "APPROACH_STREAM", "fly_approach", "collect_approac
 
 
 @dataclass(frozen=True, kw_only=True)
-class ApproachParams:
+class ApproachParams(TomlSection):
     """Approach flights: data whose states look like a landing run's (see :mod:`.approach`).
 
     Parameters
     ----------
     fraction : float
         Share of every dataset flown as approach flights; the rest are exploration paths.
-    start_distance, start_height, transit_speed, prior_radius
-        As in :class:`ScenarioParams` (wider ranges).
+    pad_region, aligned_margin_deg, start_distance, start_height, transit_speed, prior_radius
+        As in :class:`~case_studies.quad_landing.landing.scenario.ScenarioParams` (wider ranges).
     extra_transit : (low, high)
         Seconds flown on along the transit after the first detection.
     deceleration : float
@@ -84,24 +91,28 @@ class ApproachParams:
 
     Examples
     --------
-    >>> ApproachParams().hover_points
+    >>> ApproachParams.defaults().hover_points  # [approach] of reproduce.toml
     2
     """
 
-    fraction: float = 0.5
-    aligned_margin_deg: float = 3.0
-    start_distance: Range = (1.2, 2.2)
-    start_height: Range = (1.2, 2.3)
-    transit_speed: Range = (0.2, 2.0)
-    prior_radius: float = 0.3
-    extra_transit: Range = (0.0, 0.6)
-    deceleration: float = 1.5
-    hover_points: int = 2
-    hover_offset: float = 0.1
-    hover_height: Range = (0.6, 1.2)
-    dwell: Range = (0.2, 0.8)
-    leg_timeout: float = 8.0
-    sample_every: int = 6
+    toml_file = REPRODUCE_PATH
+    toml_section = "approach"
+
+    fraction: float
+    pad_region: float
+    aligned_margin_deg: float
+    start_distance: Range
+    start_height: Range
+    transit_speed: Range
+    prior_radius: float
+    extra_transit: Range
+    deceleration: float
+    hover_points: int
+    hover_offset: float
+    hover_height: Range
+    dwell: Range
+    leg_timeout: float
+    sample_every: int
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.fraction <= 1.0:
@@ -133,6 +144,7 @@ class ApproachParams:
     def scenario(self) -> ScenarioParams:
         """The scenario ranges of an approach flight (pad anywhere, any heading)."""
         return ScenarioParams(
+            pad_region=self.pad_region,
             start_distance=self.start_distance,
             start_height=self.start_height,
             transit_speed=self.transit_speed,
@@ -266,7 +278,8 @@ def collect_approach(
 
     Examples
     --------
-    >>> data, stats = collect_approach(30, buffer_size=2, seed=0, params=ApproachParams(hover_points=1))
+    >>> params = ApproachParams.defaults(hover_points=1)
+    >>> data, stats = collect_approach(30, buffer_size=2, seed=0, params=params)
     >>> len(data), stats.buffer_size
     (30, 2)
     """

@@ -26,7 +26,7 @@ every setting that went into it, and reuses the file when the settings match.
 Examples
 --------
 >>> from case_studies.quad_landing.data.approach import ApproachParams
->>> data = collect_mixed(40, buffer_size=1, seed=0, approach=ApproachParams(hover_points=1))
+>>> data = collect_mixed(40, buffer_size=1, seed=0, approach=ApproachParams.defaults(hover_points=1))
 >>> len(data), sorted(set(data["source"]))
 (40, [0, 1])
 >>> as_dataset(data).x_dim

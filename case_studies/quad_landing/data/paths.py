@@ -24,6 +24,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from case_studies.quad_landing.settings import DEFAULTS_PATH, TomlSection
 from case_studies.quad_landing.sim.camera import Camera
 from case_studies.quad_landing.sim.frames import mount_rotation
 from case_studies.quad_landing.sim.lqr import Reference
@@ -42,7 +43,7 @@ VIEW_CHECK_DT = 1.0 / 30.0
 
 
 @dataclass(frozen=True, kw_only=True)
-class PathParams:
+class PathParams(TomlSection):
     """Limits of the exploration paths.
 
     Parameters
@@ -56,14 +57,17 @@ class PathParams:
 
     Examples
     --------
-    >>> PathParams().max_height
+    >>> PathParams.defaults().max_height
     2.4
     """
 
-    duration: float = 15.0
-    min_height: float = 0.8
-    max_height: float = 2.4
-    view_margin_px: float = 3.0
+    toml_file = DEFAULTS_PATH
+    toml_section = "paths"
+
+    duration: float
+    min_height: float
+    max_height: float
+    view_margin_px: float
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.duration) and self.duration > 0):
@@ -245,8 +249,9 @@ def make_path(
 
     Examples
     --------
-    >>> p = make_path("orbit", np.random.default_rng(0), (0, 0, 0), PathParams())
-    >>> p.name, bool(p.center[2] >= PathParams().min_height)
+    >>> params = PathParams.defaults()
+    >>> p = make_path("orbit", np.random.default_rng(0), (0, 0, 0), params)
+    >>> p.name, bool(p.center[2] >= params.min_height)
     ('orbit', True)
     """
     if template not in TEMPLATES:

@@ -17,7 +17,7 @@ so the learned IPC and the baseline fly exactly the same scenarios.
 Examples
 --------
 >>> from case_studies.quad_landing.sim.config import load_config
->>> sc = draw_scenario(0, seed=1, params=ScenarioParams(), config=load_config())
+>>> sc = draw_scenario(0, seed=1, params=ScenarioParams.defaults(), config=load_config())
 >>> bool(1.6 <= sc.start_distance <= 2.2), bool(np.linalg.norm(sc.start[3:6]) >= 1.0)
 (True, True)
 >>> sc.reference(0.0).position.tolist() == sc.start[:3].tolist()
@@ -32,7 +32,14 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from case_studies.quad_landing.settings import ConfigError, Range, check_positive, check_range
+from case_studies.quad_landing.settings import (
+    REPRODUCE_PATH,
+    ConfigError,
+    Range,
+    TomlSection,
+    check_positive,
+    check_range,
+)
 from case_studies.quad_landing.sim.config import SimConfig
 from case_studies.quad_landing.sim.frames import wrap_angle
 from case_studies.quad_landing.sim.lqr import Reference
@@ -53,7 +60,7 @@ FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True, kw_only=True)
-class ScenarioParams:
+class ScenarioParams(TomlSection):
     """How a landing run starts: a random pad, the vehicle arriving toward a prior guess of it.
 
     Parameters
@@ -74,17 +81,20 @@ class ScenarioParams:
 
     Examples
     --------
-    >>> ScenarioParams().transit_speed
+    >>> ScenarioParams.defaults().transit_speed  # [scenario] of reproduce.toml
     (1.2, 1.8)
     """
 
-    pad_region: float = 2.0
-    start_distance: Range = (1.6, 2.2)
-    start_height: Range = (1.5, 2.1)
-    transit_speed: Range = (1.2, 1.8)
-    prior_radius: float = 0.3
-    aligned_margin_deg: float = 3.0
-    deceleration: float = 1.5
+    toml_file = REPRODUCE_PATH
+    toml_section = "scenario"
+
+    pad_region: float
+    start_distance: Range
+    start_height: Range
+    transit_speed: Range
+    prior_radius: float
+    aligned_margin_deg: float
+    deceleration: float
 
     def __post_init__(self) -> None:
         check_positive("scenario.pad_region", self.pad_region)
@@ -142,7 +152,7 @@ class Scenario:
     start: FloatArray
     search_point: FloatArray
     yaw: float
-    deceleration: float = 1.5
+    deceleration: float
 
     def __post_init__(self) -> None:
         for name, shape in (("start", (12,)), ("search_point", (3,))):

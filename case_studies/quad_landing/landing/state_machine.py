@@ -33,8 +33,8 @@ Examples
 >>> from case_studies.quad_landing.landing.scenario import ScenarioParams
 >>> from case_studies.quad_landing.landing.scenario import draw_scenario
 >>> cfg = load_config()
->>> sc = draw_scenario(0, seed=0, params=ScenarioParams(), config=cfg)
->>> run = run_landing(sc, TrivialContract(), sim_config=cfg, params=LandingParams(buffer_size=1))
+>>> sc = draw_scenario(0, seed=0, params=ScenarioParams.defaults(), config=cfg)
+>>> run = run_landing(sc, TrivialContract(), sim_config=cfg, params=LandingParams.defaults(buffer_size=1))
 >>> run.outcome.name, run.n_queries   # the baseline trusts its first measurement
 ('SAFE', 1)
 """
@@ -51,7 +51,7 @@ from numpy.typing import NDArray
 from case_studies.quad_landing.landing.contracts import Contract
 from case_studies.quad_landing.landing.runs import LandingRun, Outcome, QueryRecord
 from case_studies.quad_landing.landing.scenario import Scenario, camera_offset_z
-from case_studies.quad_landing.settings import ConfigError, check_positive
+from case_studies.quad_landing.settings import REPRODUCE_PATH, ConfigError, TomlSection, check_positive
 from case_studies.quad_landing.sim.config import SimConfig
 from case_studies.quad_landing.sim.flight import Flight, Measurement
 from case_studies.quad_landing.sim.framebuffer import MAX_BUFFER_SIZE
@@ -77,7 +77,7 @@ FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True, kw_only=True)
-class LandingParams:
+class LandingParams(TomlSection):
     """The landing state machine (see :mod:`.state_machine`).
 
     Parameters
@@ -102,20 +102,23 @@ class LandingParams:
 
     Examples
     --------
-    >>> LandingParams().tracking_tolerance
+    >>> LandingParams.defaults().tracking_tolerance  # [landing] of reproduce.toml
     0.005
     """
 
-    buffer_size: int = 3
-    tracking_tolerance: float = 0.005
-    max_measurements: int = 8
-    measure_height: float = 0.7
-    max_height: float = 2.3
-    climb: float = 0.3
-    search_timeout: float = 8.0
-    leg_timeout: float = 10.0
-    settle_timeout: float = 6.0
-    trajectory_every: int = 6
+    toml_file = REPRODUCE_PATH
+    toml_section = "landing"
+
+    buffer_size: int
+    tracking_tolerance: float
+    max_measurements: int
+    measure_height: float
+    max_height: float
+    climb: float
+    search_timeout: float
+    leg_timeout: float
+    settle_timeout: float
+    trajectory_every: int
 
     def __post_init__(self) -> None:
         b = self.buffer_size
@@ -232,7 +235,7 @@ def new_waypoint(
     --------
     >>> from case_studies.quad_landing import Flight
     >>> e = Ellipsoid(np.zeros(3), np.eye(3) * 10.0)          # radius 0.1 m around the origin
-    >>> new_waypoint(np.array([0.0, 0.0, 2.0]), e, flight=Flight(), params=LandingParams()).round(3)
+    >>> new_waypoint(np.array([0.0, 0.0, 2.0]), e, flight=Flight(), params=LandingParams.defaults()).round(3)
     array([0.  , 0.  , 0.75])
     """
     c, C = ellipsoid.centers[0], ellipsoid.shapes[0]

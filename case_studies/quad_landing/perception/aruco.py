@@ -23,6 +23,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from case_studies.quad_landing.settings import DEFAULTS_PATH, TomlSection
 from case_studies.quad_landing.sim.camera import Camera
 from case_studies.quad_landing.sim.marker import MarkerParams, aruco_dictionary
 from ipcverify.errors import InvalidInputError
@@ -41,7 +42,7 @@ REFINEMENTS: dict[str, int] = {
 
 
 @dataclass(frozen=True, kw_only=True)
-class DetectorParams:
+class DetectorParams(TomlSection):
     """ArUco detector settings.
 
     Parameters
@@ -62,14 +63,17 @@ class DetectorParams:
 
     Examples
     --------
-    >>> DetectorParams().corner_refinement
+    >>> DetectorParams.defaults().corner_refinement
     'apriltag'
     """
 
-    corner_refinement: str = "apriltag"
-    april_tag_min_white_black_diff: int = 30
-    min_marker_perimeter_rate: float = 0.03
-    april_tag_corner_shift_px: float = 0.5
+    toml_file = DEFAULTS_PATH
+    toml_section = "detector"
+
+    corner_refinement: str
+    april_tag_min_white_black_diff: int
+    min_marker_perimeter_rate: float
+    april_tag_corner_shift_px: float
 
     def __post_init__(self) -> None:
         if self.corner_refinement not in REFINEMENTS:

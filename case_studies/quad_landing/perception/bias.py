@@ -73,7 +73,7 @@ def refinement_bias(
     Examples
     --------
     >>> df = refinement_bias(ranges=(1.0,), poses=5,
-    ...                      detectors={"apriltag": DetectorParams()})
+    ...                      detectors={"apriltag": DetectorParams.defaults()})
     >>> df[["detector", "range", "detected"]].to_dict("records")
     [{'detector': 'apriltag', 'range': 1.0, 'detected': 1.0}]
     """

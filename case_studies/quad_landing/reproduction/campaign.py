@@ -24,7 +24,8 @@ Examples
 >>> from case_studies.quad_landing.landing.scenario import ScenarioParams
 >>> from case_studies.quad_landing.landing.state_machine import LandingParams
 >>> runs = run_campaign(TrivialContract(), 2, seed=5, sim_config=load_config(),
-...                     scenario=ScenarioParams(), landing=LandingParams(buffer_size=1), backend="sequential")
+...                     scenario=ScenarioParams.defaults(),
+...                     landing=LandingParams.defaults(buffer_size=1), backend="sequential")
 >>> [r.scenario.index for r in runs], summarize(runs)["runs"]
 ([0, 1], 2)
 """

@@ -34,53 +34,113 @@ from case_studies.quad_landing.landing.state_machine import LandingParams
 from case_studies.quad_landing.settings import (
     REPRODUCE_PATH,
     ConfigError,
+    TomlSection,
     build_sections,
     check_positive,
     merge_sections,
     read_toml,
 )
 from case_studies.quad_landing.sim.framebuffer import MAX_BUFFER_SIZE
+from ipcverify.errors import InvalidInputError
+from ipcverify.training import TrainConfig
 
 __all__ = ["IpcParams", "Sizes", "ReproduceConfig", "load_reproduce_config", "REPRODUCE_SECTIONS"]
 
 
+def _train_fields() -> dict[str, dataclasses.Field[Any]]:
+    return {f.name: f for f in dataclasses.fields(TrainConfig) if f.init}
+
+
 @dataclass(frozen=True, kw_only=True)
-class IpcParams:
-    """The IPC recipe: network, training and calibration settings.
+class IpcParams(TomlSection):
+    """The IPC recipe: the network, its training and its calibration (``[ipc]``).
+
+    The ``[ipc]`` table is flat. Its keys that are fields of
+    :class:`ipcverify.training.TrainConfig` (``epochs``, ``lr``, ``batch_size``, ``alpha``,
+    ``lam``, ``seed``, or any other the library defines) build :attr:`train`; the fields
+    the table leaves out keep the library's defaults. The other keys are not training:
+
+    Parameters
+    ----------
+    hidden : tuple of int
+        Hidden layer sizes of the network (:class:`ipcverify.model.ModelConfig`).
+    train : TrainConfig
+        The training settings.
+    epsilon, delta : float
+        PAC calibration target and confidence parameter.
+    coverage_quantile : float
+        Nearest-neighbour distance quantile of the coverage check
+        (:func:`case_studies.quad_landing.reproduction.certified.coverage_check`).
 
     Examples
     --------
-    >>> IpcParams().hidden
-    (64, 128)
+    >>> ipc = IpcParams.defaults()  # [ipc] of reproduce.toml
+    >>> ipc.hidden, ipc.train.epochs, ipc.epsilon
+    ((64, 128), 40, 0.002)
+    >>> IpcParams.defaults(epochs=2).train.epochs
+    2
     """
 
-    hidden: tuple[int, ...] = (64, 128)
-    epochs: int = 40
-    lr: float = 1e-3
-    batch_size: int = 64
-    alpha: float = 0.1
-    lam: float = 0.01
-    seed: int = 0
-    epsilon: float = 0.002
-    delta: float = 0.001
-    coverage_quantile: float = 0.995
+    toml_file = REPRODUCE_PATH
+    toml_section = "ipc"
+
+    hidden: tuple[int, ...]
+    train: TrainConfig
+    epsilon: float
+    delta: float
+    coverage_quantile: float
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "hidden", tuple(int(h) for h in self.hidden))
-        for name in ("epochs", "batch_size"):
-            check_positive(f"ipc.{name}", getattr(self, name), integer=True)
-        check_positive("ipc.seed", self.seed, integer=True, allow_zero=True)
-        for name in ("lr", "alpha"):
-            check_positive(f"ipc.{name}", getattr(self, name))
-        check_positive("ipc.lam", self.lam, allow_zero=True)
+        h = tuple(self.hidden)
+        if not h or any(isinstance(v, bool) or not isinstance(v, int) or v < 1 for v in h):
+            raise ConfigError(f"ipc.hidden must be a list of positive integers, got {self.hidden!r}")
+        object.__setattr__(self, "hidden", h)
+        if not isinstance(self.train, TrainConfig):
+            raise ConfigError(f"IpcParams.train must be a TrainConfig, got {type(self.train).__name__}")
         for name in ("epsilon", "delta", "coverage_quantile"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and 0.0 < v < 1.0):
                 raise ConfigError(f"ipc.{name} must lie strictly between 0 and 1, got {v!r}")
 
+    @classmethod
+    def toml_keys(cls) -> frozenset[str]:
+        """``hidden``, ``epsilon``, ``delta``, ``coverage_quantile`` and the fields of ``TrainConfig``."""
+        own = {f.name for f in dataclasses.fields(cls) if f.init and f.name != "train"}
+        return frozenset(own | set(_train_fields()))
+
+    @classmethod
+    def from_table(cls, table: Mapping[str, Any]) -> IpcParams:
+        """Split the flat ``[ipc]`` table into the ``TrainConfig`` and the rest."""
+        fields = _train_fields()
+        train = {k: v for k, v in table.items() if k in fields}
+        for key, value in train.items():
+            if fields[key].type in ("int", int) and (isinstance(value, bool) or not isinstance(value, int)):
+                raise ConfigError(f"ipc.{key} must be an integer, got {value!r}")
+        try:
+            config = TrainConfig(**train)
+        except InvalidInputError as exc:
+            raise ConfigError(f"[ipc]: {exc}") from None
+        rest: dict[str, Any] = {
+            k: tuple(v) if isinstance(v, list) else v for k, v in table.items() if k not in fields
+        }
+        try:
+            return cls(train=config, **rest)
+        except TypeError as exc:  # missing required keys
+            raise ConfigError(f"[ipc]: {exc}") from None
+
+    def to_table(self) -> dict[str, Any]:
+        """The flat ``[ipc]`` layout: ``hidden``, every ``TrainConfig`` field, then the rest."""
+        return {
+            "hidden": list(self.hidden),
+            **dataclasses.asdict(self.train),
+            "epsilon": self.epsilon,
+            "delta": self.delta,
+            "coverage_quantile": self.coverage_quantile,
+        }
+
 
 @dataclass(frozen=True, kw_only=True)
-class Sizes:
+class Sizes(TomlSection):
     """Sizes of the reproduction.
 
     Parameters
@@ -96,17 +156,20 @@ class Sizes:
 
     Examples
     --------
-    >>> Sizes().buffers
+    >>> Sizes.defaults().buffers  # [sizes] of reproduce.toml
     (1, 2, 3, 4, 5)
     """
 
-    n_train: int = 5000
-    n_calibration: int = 10000
-    n_test: int = 2000
-    buffers: tuple[int, ...] = (1, 2, 3, 4, 5)
-    paper_runs: int = 10
-    mc_runs: int = 300
-    buffer1_runs: int = 100
+    toml_file = REPRODUCE_PATH
+    toml_section = "sizes"
+
+    n_train: int
+    n_calibration: int
+    n_test: int
+    buffers: tuple[int, ...]
+    paper_runs: int
+    mc_runs: int
+    buffer1_runs: int
 
     def __post_init__(self) -> None:
         for name in ("n_train", "n_calibration", "n_test", "paper_runs", "mc_runs"):
@@ -143,21 +206,14 @@ class ReproduceConfig:
     quick: bool = False
 
     def as_dict(self) -> dict[str, Any]:
-        """Plain data in the TOML layout (for the summary)."""
-        out: dict[str, Any] = {}
-        for f in dataclasses.fields(self):
-            v = getattr(self, f.name)
-            out[f.name] = dataclasses.asdict(v) if dataclasses.is_dataclass(v) else v
-        return out
+        """Plain data in the TOML layout (for the summary), and ``quick``."""
+        sections: dict[str, Any] = {name: getattr(self, name).to_table() for name in REPRODUCE_SECTIONS}
+        return {**sections, "quick": self.quick}
 
 
 #: The sections of ``reproduce.toml`` and their dataclasses.
-REPRODUCE_SECTIONS: dict[str, type] = {
-    "scenario": ScenarioParams,
-    "approach": ApproachParams,
-    "landing": LandingParams,
-    "ipc": IpcParams,
-    "sizes": Sizes,
+REPRODUCE_SECTIONS: dict[str, type[TomlSection]] = {
+    cls.toml_section: cls for cls in (ScenarioParams, ApproachParams, LandingParams, IpcParams, Sizes)
 }
 
 

@@ -13,17 +13,16 @@ Examples
 >>> from case_studies.quad_landing.data.datasets import as_dataset, collect_mixed
 >>> from case_studies.quad_landing.data.approach import ApproachParams
 >>> from case_studies.quad_landing.reproduction.config import IpcParams
->>> ap = ApproachParams(hover_points=1)
+>>> ap = ApproachParams.defaults(hover_points=1)
 >>> tr = as_dataset(collect_mixed(300, buffer_size=1, seed=0, approach=ap))
 >>> cal = as_dataset(collect_mixed(700, buffer_size=1, seed=1, approach=ap))
->>> model = learn_ipc(tr, cal, IpcParams(epochs=2, epsilon=0.05, delta=0.01))
+>>> model = learn_ipc(tr, cal, IpcParams.defaults(epochs=2, epsilon=0.05, delta=0.01))
 >>> model.calibration.mode, model.calibration.n
 ('pac', 700)
 """
 
 from __future__ import annotations
 
-import dataclasses
 import json
 from pathlib import Path
 from typing import Any
@@ -37,7 +36,7 @@ from ipcverify.errors import ModelFileError
 from ipcverify.files import atomic_write
 from ipcverify.model import IPCModel, ModelConfig
 from ipcverify.modelio import load_model, save_model
-from ipcverify.training import TrainConfig, train
+from ipcverify.training import train
 
 __all__ = ["learn_ipc", "cached_ipc", "calibration_summary"]
 
@@ -56,8 +55,8 @@ def learn_ipc(
     train_data, calibration_data : PerceptionDataset
         Disjoint data (different seeds, so different paths and flights).
     params : IpcParams
-        Network, optimiser and calibration settings (passed explicitly; training
-        defaults elsewhere may change).
+        Network (``hidden``), training (``train``, a :class:`~ipcverify.training.TrainConfig`)
+        and calibration (``epsilon``, ``delta``) settings.
     progress : bool
         Show the training progress bar.
 
@@ -67,15 +66,7 @@ def learn_ipc(
         The calibrated model.
     """
     mc = ModelConfig(x_dim=train_data.x_dim, y_dim=train_data.y_dim, hidden=params.hidden)
-    tc = TrainConfig(
-        epochs=params.epochs,
-        lr=params.lr,
-        batch_size=params.batch_size,
-        alpha=params.alpha,
-        lam=params.lam,
-        seed=params.seed,
-    )
-    model = train(train_data, mc, tc, progress=progress).model
+    model = train(train_data, mc, params.train, progress=progress).model
     return calibrate(model, calibration_data, params.epsilon, params.delta, mode="pac")
 
 
@@ -94,7 +85,7 @@ def _key(
     return {
         "train": train_data.content_hash(),
         "calibration": calibration_data.content_hash(),
-        "params": json.loads(json.dumps(dataclasses.asdict(params), default=list)),
+        "params": json.loads(json.dumps(params.to_table(), default=list)),
         "torch": torch.__version__,
     }
 

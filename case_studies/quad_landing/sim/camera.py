@@ -15,6 +15,7 @@ from functools import cached_property
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from case_studies.quad_landing.settings import DEFAULTS_PATH, TomlSection
 from case_studies.quad_landing.sim.frames import Pose, mount_rotation, world_from_quad
 from ipcverify.errors import InvalidInputError
 
@@ -24,7 +25,7 @@ FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True, kw_only=True)
-class CameraParams:
+class CameraParams(TomlSection):
     """Intrinsics and mount of the camera.
 
     Parameters
@@ -43,9 +44,14 @@ class CameraParams:
 
     Examples
     --------
-    >>> CameraParams(width=320, height=240, fps=60, fx=220, fy=220, cx=159.5, cy=119.5).tilt_deg
+    >>> CameraParams.defaults().tilt_deg  # [camera] of defaults.toml: looking straight down
     90.0
+    >>> CameraParams.defaults(fx=250.0).fx
+    250.0
     """
+
+    toml_file = DEFAULTS_PATH
+    toml_section = "camera"
 
     width: int
     height: int
@@ -54,8 +60,8 @@ class CameraParams:
     fy: float
     cx: float
     cy: float
-    tilt_deg: float = 90.0
-    offset: tuple[float, float, float] = (0.0, 0.0, -0.05)
+    tilt_deg: float
+    offset: tuple[float, float, float]
 
     def __post_init__(self) -> None:
         for name in ("width", "height"):
@@ -94,8 +100,7 @@ class Camera:
 
     Examples
     --------
-    >>> cam = Camera(CameraParams(width=320, height=240, fps=60, fx=220, fy=220,
-    ...                           cx=159.5, cy=119.5))
+    >>> cam = Camera(CameraParams.defaults())  # 320 x 240, centre (159.5, 119.5)
     >>> cam.project(np.array([[0.0, 0.0, 2.0]]))  # a point on the optical axis
     array([[159.5, 119.5]])
     """

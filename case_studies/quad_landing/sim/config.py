@@ -21,6 +21,7 @@ from case_studies.quad_landing.perception.aruco import DetectorParams
 from case_studies.quad_landing.settings import (
     DEFAULTS_PATH,
     ConfigError,
+    TomlSection,
     build_sections,
     merge_sections,
     read_toml,
@@ -35,7 +36,7 @@ __all__ = ["SimParams", "CollectParams", "SimConfig", "load_config", "SIM_SECTIO
 
 
 @dataclass(frozen=True, kw_only=True)
-class SimParams:
+class SimParams(TomlSection):
     """Simulation settings.
 
     Parameters
@@ -49,14 +50,17 @@ class SimParams:
 
     Examples
     --------
-    >>> SimParams().physics_rate
+    >>> SimParams.defaults().physics_rate  # [sim] of defaults.toml
     240.0
     """
 
-    physics_rate: float = 240.0
-    ground_z: float = 0.0
-    workspace_min: tuple[float, float, float] = (-3.0, -3.0, 0.0)
-    workspace_max: tuple[float, float, float] = (3.0, 3.0, 3.0)
+    toml_file = DEFAULTS_PATH
+    toml_section = "sim"
+
+    physics_rate: float
+    ground_z: float
+    workspace_min: tuple[float, float, float]
+    workspace_max: tuple[float, float, float]
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.physics_rate) and self.physics_rate >= 200):
@@ -76,7 +80,7 @@ class SimParams:
 
 
 @dataclass(frozen=True, kw_only=True)
-class CollectParams:
+class CollectParams(TomlSection):
     """Data-collection settings.
 
     Parameters
@@ -92,14 +96,17 @@ class CollectParams:
 
     Examples
     --------
-    >>> CollectParams().n
+    >>> CollectParams.defaults().n
     5000
     """
 
-    n: int = 5000
-    buffer_size: int = 1
-    sample_every: int = 2
-    warmup_time: float = 1.0
+    toml_file = DEFAULTS_PATH
+    toml_section = "collect"
+
+    n: int
+    buffer_size: int
+    sample_every: int
+    warmup_time: float
 
     def __post_init__(self) -> None:
         for name, lo in (("n", 1), ("buffer_size", 0), ("sample_every", 1)):
@@ -154,35 +161,29 @@ class SimConfig:
 
     def as_dict(self) -> dict[str, dict[str, Any]]:
         """The configuration as nested plain data (TOML layout)."""
-        out: dict[str, dict[str, Any]] = {}
-        for f in dataclasses.fields(self):
-            part = getattr(self, f.name)
-            if isinstance(part, Pad):
-                out[f.name] = {"position": part.position.tolist(), "yaw": part.yaw}
-            else:
-                out[f.name] = {
-                    k: list(v) if isinstance(v, tuple) else v for k, v in dataclasses.asdict(part).items()
-                }
-        return out
+        return {f.name: getattr(self, f.name).to_table() for f in dataclasses.fields(self)}
 
     def replace(self, **sections: Mapping[str, Any]) -> SimConfig:
         """A copy with some keys of some sections replaced, e.g. ``replace(camera={"fx": 250})``."""
         return _build(merge_sections(self.as_dict(), sections, "override", SIM_SECTIONS))
 
 
-#: The sections of ``defaults.toml`` and their dataclasses.
-SIM_SECTIONS: dict[str, type] = {
-    "quad": QuadParams,
-    "sim": SimParams,
-    "lqr": LqrParams,
-    "settle": SettleParams,
-    "camera": CameraParams,
-    "marker": MarkerParams,
-    "pad": Pad,
-    "render": RenderParams,
-    "detector": DetectorParams,
-    "paths": PathParams,
-    "collect": CollectParams,
+#: The sections of ``defaults.toml`` and their dataclasses, in the order of :class:`SimConfig`.
+SIM_SECTIONS: dict[str, type[TomlSection]] = {
+    cls.toml_section: cls
+    for cls in (
+        QuadParams,
+        SimParams,
+        LqrParams,
+        SettleParams,
+        CameraParams,
+        MarkerParams,
+        Pad,
+        RenderParams,
+        DetectorParams,
+        PathParams,
+        CollectParams,
+    )
 }
 
 

@@ -22,6 +22,7 @@ import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
+from case_studies.quad_landing.settings import DEFAULTS_PATH, TomlSection
 from ipcverify.errors import InvalidInputError
 
 __all__ = [
@@ -44,7 +45,7 @@ STATE_NAMES: tuple[str, ...] = (
 
 
 @dataclass(frozen=True, kw_only=True)
-class QuadParams:
+class QuadParams(TomlSection):
     """Physical parameters of an F450-class quadrotor.
 
     Parameters
@@ -66,18 +67,21 @@ class QuadParams:
 
     Examples
     --------
-    >>> p = QuadParams(mass=1.5, inertia=(0.029, 0.029, 0.055), arm_length=0.25)
+    >>> p = QuadParams.defaults()  # [quad] of defaults.toml
     >>> round(hover_thrust(p), 3)  # 1.5 kg * 9.81 m/s^2 / 4
     3.679
     """
 
+    toml_file = DEFAULTS_PATH
+    toml_section = "quad"
+
     mass: float
     inertia: tuple[float, float, float]
     arm_length: float
-    yaw_moment_coefficient: float = 0.016
-    max_rotor_thrust: float = 8.0
-    linear_drag: float = 0.1
-    gravity: float = 9.81
+    yaw_moment_coefficient: float
+    max_rotor_thrust: float
+    linear_drag: float
+    gravity: float
 
     def __post_init__(self) -> None:
         inertia = tuple(float(v) for v in self.inertia)
@@ -114,7 +118,7 @@ def mixer_matrix(params: QuadParams) -> FloatArray:
 
     Examples
     --------
-    >>> p = QuadParams(mass=1.5, inertia=(0.029, 0.029, 0.055), arm_length=0.25)
+    >>> p = QuadParams.defaults()
     >>> M = mixer_matrix(p)
     >>> M[0].tolist()
     [1.0, 1.0, 1.0, 1.0]
@@ -179,7 +183,7 @@ def continuous_dynamics(params: QuadParams) -> ca.Function:
 
     Examples
     --------
-    >>> p = QuadParams(mass=1.5, inertia=(0.029, 0.029, 0.055), arm_length=0.25)
+    >>> p = QuadParams.defaults()
     >>> f = continuous_dynamics(p)
     >>> xdot = f(x=hover_state((0, 0, 1)), u=np.full(4, hover_thrust(p)))["xdot"]
     >>> float(ca.norm_inf(xdot)) < 1e-12
@@ -204,7 +208,7 @@ def rk4_step(params: QuadParams, dt: float) -> ca.Function:
 
     Examples
     --------
-    >>> p = QuadParams(mass=1.5, inertia=(0.029, 0.029, 0.055), arm_length=0.25)
+    >>> p = QuadParams.defaults()
     >>> step = rk4_step(p, 1 / 240)
     >>> step.name_in(), step.name_out()
     (['x', 'u'], ['x_next'])
@@ -230,7 +234,7 @@ def linearize_hover(params: QuadParams) -> tuple[FloatArray, FloatArray]:
 
     Examples
     --------
-    >>> p = QuadParams(mass=1.5, inertia=(0.029, 0.029, 0.055), arm_length=0.25)
+    >>> p = QuadParams.defaults()
     >>> A, B = linearize_hover(p)
     >>> A.shape, B.shape
     ((12, 12), (12, 4))

@@ -29,6 +29,7 @@ import control
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from case_studies.quad_landing.settings import DEFAULTS_PATH, TomlSection
 from case_studies.quad_landing.sim.dynamics import QuadParams, hover_thrust, linearize_hover
 from ipcverify.errors import InvalidInputError
 
@@ -49,7 +50,7 @@ def _positive_tuple(name: str, values: ArrayLike, n: int) -> tuple[float, ...]:
 
 
 @dataclass(frozen=True, kw_only=True)
-class LqrParams:
+class LqrParams(TomlSection):
     """LQR weights and error clamps.
 
     Parameters
@@ -65,17 +66,20 @@ class LqrParams:
 
     Examples
     --------
-    >>> LqrParams(max_position_error_xy=0.5).max_position_error_xy
+    >>> LqrParams.defaults().max_position_error_xy  # [lqr] of defaults.toml
     0.5
     """
 
-    q_position: tuple[float, float, float] = (30.0, 30.0, 30.0)
-    q_velocity: tuple[float, float, float] = (6.0, 6.0, 6.0)
-    q_attitude: tuple[float, float, float] = (4.0, 4.0, 4.0)
-    q_rate: tuple[float, float, float] = (0.2, 0.2, 0.2)
-    r_thrust: float = 1.0
-    max_position_error_xy: float = 0.6
-    max_position_error_z: float = 0.6
+    toml_file = DEFAULTS_PATH
+    toml_section = "lqr"
+
+    q_position: tuple[float, float, float]
+    q_velocity: tuple[float, float, float]
+    q_attitude: tuple[float, float, float]
+    q_rate: tuple[float, float, float]
+    r_thrust: float
+    max_position_error_xy: float
+    max_position_error_z: float
 
     def __post_init__(self) -> None:
         for name in ("q_position", "q_velocity", "q_attitude", "q_rate"):
@@ -87,19 +91,22 @@ class LqrParams:
 
 
 @dataclass(frozen=True, kw_only=True)
-class SettleParams:
+class SettleParams(TomlSection):
     """When a waypoint counts as reached: within tolerances for ``hold_time`` seconds.
 
     Examples
     --------
-    >>> SettleParams().position_tolerance
+    >>> SettleParams.defaults().position_tolerance
     0.02
     """
 
-    position_tolerance: float = 0.02
-    velocity_tolerance: float = 0.05
-    yaw_tolerance: float = 0.05
-    hold_time: float = 0.25
+    toml_file = DEFAULTS_PATH
+    toml_section = "settle"
+
+    position_tolerance: float
+    velocity_tolerance: float
+    yaw_tolerance: float
+    hold_time: float
 
     def __post_init__(self) -> None:
         for name in ("position_tolerance", "velocity_tolerance", "yaw_tolerance", "hold_time"):
@@ -164,8 +171,7 @@ class HoverLqr:
     Examples
     --------
     >>> from case_studies.quad_landing.sim.dynamics import hover_state
-    >>> quad = QuadParams(mass=1.5, inertia=(0.029, 0.029, 0.055), arm_length=0.25)
-    >>> ctrl = HoverLqr.design(quad, LqrParams())
+    >>> ctrl = HoverLqr.design(QuadParams.defaults(), LqrParams.defaults())
     >>> u = ctrl(hover_state((0, 0, 1)), Reference((0, 0, 1)))
     >>> np.allclose(u, ctrl.u_hover)  # hover is an equilibrium of the closed loop
     True

@@ -9,11 +9,13 @@ The camera image of the pad is drawn by :mod:`case_studies.quad_landing.sim.rend
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from case_studies.quad_landing.settings import DEFAULTS_PATH, TomlSection
 from case_studies.quad_landing.sim.frames import Pose, rot_z
 from ipcverify.errors import InvalidInputError
 
@@ -41,7 +43,7 @@ def aruco_dictionary(name: str) -> cv2.aruco.Dictionary:
 
 
 @dataclass(frozen=True, kw_only=True)
-class MarkerParams:
+class MarkerParams(TomlSection):
     """The ArUco marker on the pad.
 
     Parameters
@@ -57,14 +59,17 @@ class MarkerParams:
 
     Examples
     --------
-    >>> round(MarkerParams(side=0.3).pad_side, 3)
+    >>> round(MarkerParams.defaults(side=0.3).pad_side, 3)
     0.4
     """
 
-    dictionary: str = "DICT_4X4_50"
-    marker_id: int = 0
-    side: float = 0.30
-    margin_cells: int = 1
+    toml_file = DEFAULTS_PATH
+    toml_section = "marker"
+
+    dictionary: str
+    marker_id: int
+    side: float
+    margin_cells: int
 
     def __post_init__(self) -> None:
         d = aruco_dictionary(self.dictionary)
@@ -103,17 +108,22 @@ class MarkerParams:
 
 
 @dataclass(frozen=True)
-class Pad:
+class Pad(TomlSection):
     """Where the pad lies: centre position in W (m) and heading ``yaw`` (rad) about ``z_W``.
 
     Examples
     --------
-    >>> Pad((0.5, -0.2, 0.0)).world_from_marker().t
+    >>> Pad((0.5, -0.2, 0.0), yaw=0.0).world_from_marker().t
     array([ 0.5, -0.2,  0. ])
+    >>> Pad.defaults().yaw  # [pad] of defaults.toml
+    0.3
     """
 
+    toml_file = DEFAULTS_PATH
+    toml_section = "pad"
+
     position: FloatArray
-    yaw: float = 0.0
+    yaw: float
 
     def __post_init__(self) -> None:
         p = np.array(self.position, dtype=np.float64).reshape(-1)
@@ -124,6 +134,10 @@ class Pad:
         p.setflags(write=False)
         object.__setattr__(self, "position", p)
         object.__setattr__(self, "yaw", float(self.yaw))
+
+    def to_table(self) -> dict[str, Any]:
+        """Plain data in the layout of the ``[pad]`` table."""
+        return {"position": self.position.tolist(), "yaw": self.yaw}
 
     def world_from_marker(self) -> Pose:
         """``T_WM``: the pad lies flat, marker ``z`` up."""

@@ -26,6 +26,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from case_studies.quad_landing.settings import DEFAULTS_PATH, TomlSection
 from case_studies.quad_landing.sim.camera import Camera
 from case_studies.quad_landing.sim.frames import Pose
 from case_studies.quad_landing.sim.marker import MARKER_CELLS, MarkerParams, Pad, aruco_dictionary
@@ -47,7 +48,7 @@ FLOOR_SEED = 20230
 
 
 @dataclass(frozen=True, kw_only=True)
-class RenderParams:
+class RenderParams(TomlSection):
     """Image formation settings.
 
     Parameters
@@ -64,14 +65,17 @@ class RenderParams:
 
     Examples
     --------
-    >>> RenderParams(noise_std=0.0).blur_sigma
+    >>> RenderParams.defaults(noise_std=0.0).blur_sigma
     0.5
     """
 
-    floor: str = "concrete"
-    floor_gray: int = 110
-    noise_std: float = 2.0
-    blur_sigma: float = 0.5
+    toml_file = DEFAULTS_PATH
+    toml_section = "render"
+
+    floor: str
+    floor_gray: int
+    noise_std: float
+    blur_sigma: float
 
     def __post_init__(self) -> None:
         if self.floor not in FLOORS:
@@ -139,7 +143,7 @@ class Renderer:
     >>> cfg = load_config()
     >>> r = Renderer(Camera(cfg.camera), cfg.marker, cfg.render)
     >>> T_CW = Pose(np.diag([1.0, -1.0, -1.0]), np.array([0.0, 0.0, 1.0]))  # 1 m above
-    >>> img = r.render(T_CW, Pad((0.0, 0.0, 0.0)), np.random.default_rng(0))
+    >>> img = r.render(T_CW, Pad((0.0, 0.0, 0.0), yaw=0.0), np.random.default_rng(0))
     >>> img.shape, img.dtype
     ((240, 320), dtype('uint8'))
     """
