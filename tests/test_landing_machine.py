@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import doctest
 import importlib
+import json
 from fractions import Fraction
 
 import numpy as np
@@ -15,7 +16,13 @@ from hypothesis import strategies as st
 
 from case_studies.quad_landing import Flight, Pad, hover_state
 from case_studies.quad_landing.data.approach import ApproachParams, collect_approach, fly_approach
-from case_studies.quad_landing.data.datasets import alignment_deg, as_dataset, collect_mixed
+from case_studies.quad_landing.data.datasets import (
+    alignment_deg,
+    as_dataset,
+    cached_mixed,
+    collect_mixed,
+    is_cached,
+)
 from case_studies.quad_landing.landing.contracts import LearnedContract, TrivialContract
 from case_studies.quad_landing.landing.runs import Outcome
 from case_studies.quad_landing.landing.scenario import ScenarioParams, draw_scenario, stopping_reference
@@ -159,7 +166,7 @@ def test_new_waypoint_is_the_surface_point_when_high_enough():
     params = LandingParams.defaults(measure_height=0.3)
     e = Ellipsoid(np.array([0.0, 0.0, 0.0]), np.eye(3) * 2.0)  # radius 0.5
     p = np.array([0.0, 0.0, 2.0])
-    w = new_waypoint(p, e, flight=Flight(), params=params)
+    w = new_waypoint(p, e, flight=Flight(buffer_size=1), params=params)
     # the segment from p to c leaves the ball at height 0.5, above 0.3 + 0.05
     np.testing.assert_allclose(w, [0.0, 0.0, 0.5], atol=1e-12)
     assert float(np.linalg.norm(e.shapes[0] @ (w - e.centers[0]))) == pytest.approx(1.0)
@@ -169,13 +176,13 @@ def test_new_waypoint_is_raised_to_the_measuring_height_and_clamped():
     params = LandingParams.defaults()
     e = Ellipsoid(np.array([2.9, 0.4, 0.0]), np.eye(3) * 20.0)  # radius 0.05
     p = np.array([2.0, 0.4, 1.8])
-    w = new_waypoint(p, e, flight=Flight(), params=params)
+    w = new_waypoint(p, e, flight=Flight(buffer_size=1), params=params)
     assert w[2] == pytest.approx(params.measure_height + 0.05)
     assert 2.8 < w[0] < 2.9
     far = new_waypoint(
         np.array([0.0, 0.0, 2.9]),
         Ellipsoid(np.array([3.5, 0.0, 0.0]), np.eye(3) * 20.0),
-        flight=Flight(),
+        flight=Flight(buffer_size=1),
         params=params,
     )
     assert far[0] == 3.0  # clamped into the workspace
@@ -184,7 +191,7 @@ def test_new_waypoint_is_raised_to_the_measuring_height_and_clamped():
 def test_new_waypoint_inside_the_ellipsoid_keeps_the_position():
     e = Ellipsoid(np.array([0.0, 0.0, 1.0]), np.eye(3) * 0.5)  # radius 2: p is inside
     p = np.array([0.1, 0.0, 1.2])
-    w = new_waypoint(p, e, flight=Flight(), params=LandingParams.defaults())
+    w = new_waypoint(p, e, flight=Flight(buffer_size=1), params=LandingParams.defaults())
     np.testing.assert_allclose(w[:2], p[:2])
 
 
@@ -312,6 +319,24 @@ def test_mixed_data_hold_no_measurement_with_pad_edges_on_the_image_axes():
     assert len(data) == 300 and len(paths) == 150
     assert alignment_deg(paths["xw_8"].to_numpy(), CFG.pad.yaw).min() >= params.aligned_margin_deg
     assert as_dataset(data).extra["source"].shape == (300,)
+
+
+def test_a_cached_dataset_records_its_buffer_size_once(tmp_path):
+    params = ApproachParams.defaults(hover_points=1)
+    path = tmp_path / "d.parquet"
+    cfg = CFG.replace(collect={"buffer_size": 4})  # the collect command's default: not this dataset's
+    data, cached = cached_mixed(path, 40, buffer_size=1, seed=3, approach=params, config=cfg)
+    assert not cached and len(data) == 40
+
+    def keys(obj, name):
+        if isinstance(obj, dict):
+            return sum((k == name) + keys(v, name) for k, v in obj.items())
+        return sum(keys(v, name) for v in obj) if isinstance(obj, list) else 0
+
+    key = json.loads(path.with_suffix(".key.json").read_text())
+    assert key["buffer_size"] == 1 and keys(key, "buffer_size") == 1
+    assert is_cached(path, 40, buffer_size=1, seed=3, approach=params, config=CFG)
+    assert not is_cached(path, 40, buffer_size=2, seed=3, approach=params, config=CFG)
 
 
 # ----------------------------------------------------------------- runs

@@ -76,6 +76,19 @@ def test_paths_are_shared_across_buffer_sizes(small):
     pd.testing.assert_frame_equal(other[cols], data.iloc[:40][cols])
 
 
+def test_the_buffer_size_reaches_the_simulator_from_one_place(small):
+    # the argument and the config's [collect] default are two ways to give the same one value
+    data, stats = small
+    via_config, cstats = collect(60, seed=4, config=SHORT.replace(collect={"buffer_size": 2}))
+    pd.testing.assert_frame_equal(via_config, data.iloc[:60])
+    assert stats.buffer_size == cstats.buffer_size == 2
+    # the argument wins over the config, and the config is not what the flight reads
+    other, ostats = collect(60, buffer_size=0, seed=4, config=SHORT.replace(collect={"buffer_size": 2}))
+    assert ostats.buffer_size == 0 and not np.allclose(other["yhat_0"], data["yhat_0"].iloc[:60])
+    with pytest.raises(InvalidInputError, match="buffer size must be an integer in"):
+        collect(5, buffer_size=99, seed=4, config=SHORT, jobs=2)
+
+
 def test_worker_processes_do_not_change_the_data():
     a, sa = collect(30, buffer_size=1, seed=2, config=SHORT)
     b, sb = collect(30, buffer_size=1, seed=2, config=SHORT, jobs=2)
@@ -196,7 +209,7 @@ def test_config_overrides_and_unknown_keys(tmp_path):
 
 
 def test_flight_validates_its_inputs():
-    f = Flight(CFG)
+    f = Flight(CFG, buffer_size=1)
     with pytest.raises(InvalidInputError, match="call Flight.reset"):
         f.measure()
     with pytest.raises(InvalidInputError, match="12 finite numbers"):

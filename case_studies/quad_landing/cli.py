@@ -100,20 +100,13 @@ def collect_command(buffer_size: int | None, n: int | None, seed: int, out: str,
         raise InvalidInputError(f"--out must end in .parquet or .csv, got {out_path.name!r}")
     if not out_path.parent.exists():
         raise InvalidInputError(f"--out directory {out_path.parent} does not exist; create it")
-    overrides: dict[str, int] = {}
-    if n is not None:
-        overrides["n"] = n
-    if buffer_size is not None:
-        overrides["buffer_size"] = buffer_size
     cfg = _config(config_path)
-    if overrides:
-        cfg = cfg.replace(collect=overrides)
     with Progress(
         TextColumn("collecting"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
         console=err_console, transient=True, disable=quiet,
     ) as bar:  # fmt: skip
-        task = bar.add_task("collect", total=cfg.collect.n)
-        data, stats = collect(seed=seed, config=cfg, jobs=jobs,
+        task = bar.add_task("collect", total=cfg.collect.n if n is None else n)
+        data, stats = collect(n, buffer_size=buffer_size, seed=seed, config=cfg, jobs=jobs,
                               progress=lambda k: bar.advance(task, k))  # fmt: skip
     write_dataset(data, out_path, stats)
     console.print(f"wrote {out_path}: {stats.summary()}", markup=False, highlight=False,

@@ -29,6 +29,7 @@ from case_studies.quad_landing.data.columns import FLOAT_COLUMNS, measurement_ro
 from case_studies.quad_landing.data.paths import TEMPLATES, ExplorationPath, fit_to_view, make_path
 from case_studies.quad_landing.sim.config import SimConfig, load_config
 from case_studies.quad_landing.sim.flight import Flight
+from case_studies.quad_landing.sim.framebuffer import check_buffer_size
 from ipcverify.errors import InvalidInputError
 from ipcverify.files import atomic_write
 
@@ -207,12 +208,12 @@ def fly_path(flight: Flight, index: int, seed: int, limit: int | None = None) ->
 _WORKER_FLIGHT: Flight | None = None
 
 
-def _worker_init(config: SimConfig) -> None:
+def _worker_init(config: SimConfig, buffer_size: int) -> None:
     global _WORKER_FLIGHT
     import cv2
 
     cv2.setNumThreads(1)  # one process per core already
-    _WORKER_FLIGHT = Flight(config)
+    _WORKER_FLIGHT = Flight(config, buffer_size=buffer_size)
 
 
 def _worker_fly(index: int, seed: int) -> PathRecord:
@@ -220,17 +221,17 @@ def _worker_fly(index: int, seed: int) -> PathRecord:
     return fly_path(_WORKER_FLIGHT, index, seed)
 
 
-def _records(cfg: SimConfig, seed: int, jobs: int) -> Iterator[PathRecord]:
+def _records(cfg: SimConfig, buffer_size: int, seed: int, jobs: int) -> Iterator[PathRecord]:
     """Path records in index order, flown here (jobs = 1) or by worker processes."""
     if jobs == 1:
-        flight = Flight(cfg)
+        flight = Flight(cfg, buffer_size=buffer_size)
         index = 0
         while True:
             yield fly_path(flight, index, seed)
             index += 1
     ctx = multiprocessing.get_context("spawn")  # OpenCV's threads do not survive fork
     with ProcessPoolExecutor(jobs, mp_context=ctx, initializer=_worker_init,
-                             initargs=(cfg,)) as pool:  # fmt: skip
+                             initargs=(cfg, buffer_size)) as pool:  # fmt: skip
         index = 0
         pending: deque[Future[PathRecord]] = deque()
         while True:
@@ -261,7 +262,8 @@ def collect(
     n : int, optional
         Samples to collect (``config.collect.n`` if None).
     buffer_size : int, optional
-        Camera buffer size ``k`` (``config.collect.buffer_size`` if None).
+        Camera buffer size ``k`` (``config.collect.buffer_size`` if None). Resolved once
+        here and handed to the simulator; the config is not rewritten with it.
     seed : int
         Seeds the path parameters and the sensor noise.
     config : SimConfig, optional
@@ -285,13 +287,9 @@ def collect(
     (20, 20, True)
     """
     cfg = load_config() if config is None else config
-    overrides: dict[str, object] = {}
     if n is not None:
-        overrides["n"] = n
-    if buffer_size is not None:
-        overrides["buffer_size"] = buffer_size
-    if overrides:
-        cfg = cfg.replace(collect=overrides)
+        cfg = cfg.replace(collect={"n": n})
+    k = check_buffer_size(cfg.collect.buffer_size if buffer_size is None else buffer_size)
     if isinstance(seed, bool) or int(seed) != seed or seed < 0:
         raise InvalidInputError(f"seed must be a non-negative integer, got {seed!r}")
     if isinstance(jobs, bool) or int(jobs) != jobs or jobs < 1:
@@ -300,7 +298,7 @@ def collect(
     t0 = time.perf_counter()
     parts: list[PathRecord] = []
     n_done = 0
-    records = _records(cfg, int(seed), int(jobs))
+    records = _records(cfg, k, int(seed), int(jobs))
     try:
         for rec in records:
             take = min(len(rec.rows), n_target - n_done)
@@ -321,7 +319,7 @@ def collect(
     data["path"] = np.concatenate([np.full(len(r.rows), r.index, np.int64) for r in parts])
     data["t"] = np.concatenate([r.times for r in parts])
     stats = CollectStats(
-        buffer_size=cfg.collect.buffer_size,
+        buffer_size=k,
         seed=int(seed),
         samples=n_done,
         measurements=len(outcomes),

@@ -35,7 +35,6 @@ Examples
 
 from __future__ import annotations
 
-import dataclasses
 import json
 from collections.abc import Callable
 from pathlib import Path
@@ -64,7 +63,7 @@ __all__ = [
 
 #: Values of the ``source`` column.
 SOURCE_PATHS, SOURCE_APPROACH = 0, 1
-_KEY_VERSION = 2
+_KEY_VERSION = 3
 
 
 def alignment_deg(yaw: ArrayLike, pad_yaw: float) -> NDArray[np.float64]:
@@ -183,13 +182,15 @@ def as_dataset(data: pd.DataFrame, source: str = "<memory>") -> PerceptionDatase
 
 
 def _key(n: int, buffer_size: int, seed: int, approach: ApproachParams, config: SimConfig) -> dict[str, Any]:
+    sim = config.as_dict()
+    del sim["collect"]["buffer_size"]  # the collect command's default; the dataset's is buffer_size
     return {
         "version": _KEY_VERSION,
         "n": int(n),
         "buffer_size": int(buffer_size),
         "seed": int(seed),
-        "approach": dataclasses.asdict(approach),
-        "sim": config.as_dict(),
+        "approach": approach.to_table(),
+        "sim": sim,
     }
 
 

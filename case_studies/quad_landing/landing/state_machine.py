@@ -235,7 +235,8 @@ def new_waypoint(
     --------
     >>> from case_studies.quad_landing import Flight
     >>> e = Ellipsoid(np.zeros(3), np.eye(3) * 10.0)          # radius 0.1 m around the origin
-    >>> new_waypoint(np.array([0.0, 0.0, 2.0]), e, flight=Flight(), params=LandingParams.defaults()).round(3)
+    >>> flight, params = Flight(buffer_size=1), LandingParams.defaults()
+    >>> new_waypoint(np.array([0.0, 0.0, 2.0]), e, flight=flight, params=params).round(3)
     array([0.  , 0.  , 0.75])
     """
     c, C = ellipsoid.centers[0], ellipsoid.shapes[0]

@@ -142,8 +142,10 @@ class Flight:
     ----------
     config : SimConfig, optional
         Defaults from ``defaults.toml`` when omitted.
-    buffer_size : int, optional
-        Camera buffer size ``k`` (frames of lag); ``config.collect.buffer_size`` if omitted.
+    buffer_size : int
+        Camera buffer size ``k`` (frames of lag). The flight's only source of it: data
+        collection passes ``[collect] buffer_size`` (or its ``buffer_size`` argument), a
+        landing run ``[landing] buffer_size``.
     seed : int
         Seeds the sensor noise.
 
@@ -154,12 +156,9 @@ class Flight:
     :meth:`cut_motors` to turn the motors off and fall to the floor.
     """
 
-    def __init__(
-        self, config: SimConfig | None = None, *, buffer_size: int | None = None, seed: int = 0
-    ) -> None:
+    def __init__(self, config: SimConfig | None = None, *, buffer_size: int, seed: int = 0) -> None:
         self.config = load_config() if config is None else config
-        k = self.config.collect.buffer_size if buffer_size is None else buffer_size
-        self.buffer = FrameBuffer(k)
+        self.buffer = FrameBuffer(buffer_size)
         self.camera = Camera(self.config.camera)
         self.renderer = Renderer(self.camera, self.config.marker, self.config.render)
         self.perception = ArucoPerception(self.camera, self.config.marker, self.config.detector)
@@ -322,7 +321,7 @@ class Flight:
         >>> from case_studies.quad_landing.sim.dynamics import hover_state
         >>> path = ExplorationPath(name="still", center=(0, 0, 1.5), amplitude=(0, 0, 0),
         ...                        omega=(1, 1, 1), phase=(0, 0, 0), duration=0.5)
-        >>> flight = Flight()
+        >>> flight = Flight(buffer_size=1)
         >>> flight.reset(hover_state((0, 0, 1.5)))
         >>> sum(1 for _ in flight.follow(path))  # 0.5 s at 60 fps
         30

@@ -17,10 +17,25 @@ from numpy.typing import NDArray
 
 from ipcverify.errors import InvalidInputError
 
-__all__ = ["Frame", "FrameBuffer", "MAX_BUFFER_SIZE"]
+__all__ = ["Frame", "FrameBuffer", "MAX_BUFFER_SIZE", "check_buffer_size"]
 
 #: Largest buffer size accepted (frames).
 MAX_BUFFER_SIZE = 30
+
+
+def check_buffer_size(size: int) -> int:
+    """``size`` as a buffer size: a whole number of frames in ``[0, MAX_BUFFER_SIZE]``.
+
+    Examples
+    --------
+    >>> check_buffer_size(3)
+    3
+    """
+    if int(size) != size or not 0 <= size <= MAX_BUFFER_SIZE:
+        raise InvalidInputError(
+            f"buffer size must be an integer in [0, {MAX_BUFFER_SIZE}] frames, got {size}"
+        )
+    return int(size)
 
 
 class Frame:
@@ -83,11 +98,7 @@ class FrameBuffer:
     """
 
     def __init__(self, size: int) -> None:
-        if int(size) != size or not 0 <= size <= MAX_BUFFER_SIZE:
-            raise InvalidInputError(
-                f"buffer size must be an integer in [0, {MAX_BUFFER_SIZE}] frames, got {size}"
-            )
-        self.size = int(size)
+        self.size = check_buffer_size(size)
         self._frames: deque[Frame] = deque(maxlen=self.size + 1)
 
     def capture(self, frame: Frame) -> None:

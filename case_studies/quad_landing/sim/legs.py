@@ -49,7 +49,7 @@ def clamp_to_workspace(point: ArrayLike, flight: Flight) -> FloatArray:
     Examples
     --------
     >>> from case_studies.quad_landing import Flight
-    >>> clamp_to_workspace((4.0, 0.0, -0.2), Flight()).tolist()
+    >>> clamp_to_workspace((4.0, 0.0, -0.2), Flight(buffer_size=1)).tolist()
     [3.0, 0.0, 0.0]
     """
     p = np.asarray(point, dtype=np.float64).reshape(3)
