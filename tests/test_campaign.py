@@ -41,10 +41,11 @@ def sequential():
 def test_sequential_runs_are_in_order_and_summarized(sequential):
     assert [r.scenario.index for r in sequential] == [0, 1, 2, 3]
     s = summarize(sequential)
-    assert s["runs"] == 4 and s["safe"] + s["unsafe"] + s["aborted"] == 4
-    assert s["mean_queries"] == 1.0  # the baseline trusts its first measurement
-    lo, hi = s["unsafe_interval"]
-    assert lo <= s["unsafe_rate"] <= hi and s["unsafe_upper"] <= hi
+    assert s.runs == 4 and s.safe + s.unsafe + s.aborted == 4
+    assert s.mean_queries == 1.0  # the baseline trusts its first measurement
+    assert s.unsafe_interval is not None and s.unsafe_rate is not None and s.unsafe_upper is not None
+    lo, hi = s.unsafe_interval
+    assert lo <= s.unsafe_rate <= hi and s.unsafe_upper <= hi
 
 
 def test_loky_gives_the_same_runs_and_reports_progress(sequential):
@@ -77,9 +78,14 @@ def test_campaign_rejects_bad_arguments():
 
 def test_summarize_counts_outcomes(sequential):
     s = summarize(sequential)
-    assert s["unsafe"] == sum(r.outcome is Outcome.UNSAFE for r in sequential)
-    assert np.isclose(s["safe_rate"] + s["unsafe_rate"] + s["aborted_rate"], 1.0)
-    assert summarize([])["runs"] == 0
+    assert s.unsafe == sum(r.outcome is Outcome.UNSAFE for r in sequential)
+    assert s.safe_rate is not None and s.unsafe_rate is not None and s.aborted_rate is not None
+    assert np.isclose(s.safe_rate + s.unsafe_rate + s.aborted_rate, 1.0)
+    empty = summarize([])
+    assert empty.runs == 0 and set(empty.to_dict()) == {"runs", "safe", "unsafe", "aborted", "confidence"}
+    assert set(s.to_dict()) > set(empty.to_dict()) and s.to_dict()["unsafe_interval"] == list(
+        s.unsafe_interval
+    )
 
 
 @pytest.mark.slow

@@ -42,7 +42,7 @@ from case_studies.quad_landing.reproduction.certified import (
     unsafe_vs_certified,
 )
 from case_studies.quad_landing.reproduction.config import load_reproduce_config
-from case_studies.quad_landing.reproduction.table1 import rates_rising, table1
+from case_studies.quad_landing.reproduction.table1 import RatesRising, table1
 from case_studies.quad_landing.settings import ConfigError
 from case_studies.quad_landing.sim.config import load_config
 from case_studies.quad_landing.sim.legs import fly_leg
@@ -71,6 +71,7 @@ MODULES = [
     "reproduction.figures",
     "reproduction.report_page",
     "reproduction.pipeline",
+    "reproduction.claims",
 ]
 
 
@@ -396,12 +397,12 @@ def test_landing_decision_status_matches_acceptance():
 # ----------------------------------------------------------------- certified bound and statistics
 def test_certified_bound_formula():
     b = certified_bound(0.002, 0.001, max_queries=8, queries_per_run=[2] * 200)
-    assert b["union_bound"] == pytest.approx(0.016)
+    assert b.union_bound == pytest.approx(0.016)
     ucb = 2 + 8 * np.sqrt(np.log(1000) / 400)
-    assert b["mean_queries_upper"] == pytest.approx(ucb)
-    assert b["refined_bound"] == pytest.approx(0.002 * ucb)
-    assert b["refined_confidence"] == pytest.approx(0.998)
-    assert certified_bound(0.2, 0.01, max_queries=8, queries_per_run=[1])["vacuous"]
+    assert b.mean_queries_upper == pytest.approx(ucb)
+    assert b.refined_bound == pytest.approx(0.002 * ucb)
+    assert b.refined_confidence == pytest.approx(0.998)
+    assert certified_bound(0.2, 0.01, max_queries=8, queries_per_run=[1]).vacuous
 
 
 def test_certified_bound_checks_its_inputs():
@@ -431,7 +432,48 @@ def test_closed_loop_violations_and_empirical_vs_certified(baseline_runs):
     b = certified_bound(0.002, 0.001, max_queries=1, queries_per_run=[1] * len(baseline_runs))
     ev = unsafe_vs_certified(baseline_runs, b)
     n_unsafe = sum(r.outcome is Outcome.UNSAFE for r in baseline_runs)
-    assert ev["unsafe"] == n_unsafe and ev["bound_at_least_rate"] == (0.002 >= n_unsafe / len(baseline_runs))
+    assert ev.unsafe == n_unsafe and ev.bound_at_least_rate == (0.002 >= n_unsafe / len(baseline_runs))
+
+
+def test_claims_and_summary_records_from_real_runs(baseline_runs):
+    """The typed results of the reproduction on a few real runs: claims, and summary.json's layout."""
+    from case_studies.quad_landing.reproduction.campaign import summarize
+    from case_studies.quad_landing.reproduction.claims import evaluate_claims
+    from case_studies.quad_landing.reproduction.results import ContractResults, LandingExperiment
+    from ipcverify.data import PerceptionDataset
+
+    runs = tuple(baseline_runs)
+    bound = certified_bound(0.002, 0.001, max_queries=8, queries_per_run=[r.n_queries for r in runs])
+    side = {
+        "monte_carlo": summarize(runs),
+        "runs": runs,
+        "paper": summarize(runs[:3]),
+        "paper_runs": runs[:3],
+    }
+    landing = LandingExperiment(
+        buffer_size=3,
+        tracking_tolerance=0.005,
+        max_measurements=8,
+        ipc=ContractResults(**side, certified=bound, empirical_vs_certified=unsafe_vs_certified(runs, bound)),
+        baseline=ContractResults(**side),
+        closed_loop=closed_loop_violations(runs, 0.002),
+        coverage={"shift_detected": False},
+    )
+    x = np.zeros((20, 12))
+    x[:, 2] = 1.0
+    table = table1(_model(True), {1: PerceptionDataset(x, np.zeros((20, 3)), np.zeros((20, 3)))})
+    claims = evaluate_claims(table, landing)
+    n_unsafe = sum(r.outcome is Outcome.UNSAFE for r in runs)
+    assert claims["baseline_unsafe_in_most_runs"].holds == (n_unsafe > 0.5 * len(runs))
+    assert claims["ipc_safe_all_paper_runs"].holds == all(r.outcome is Outcome.SAFE for r in runs[:3])
+    assert claims["table1_buffer1_at_most_1pct"].holds and not claims["table1_buffer1_at_most_1pct"].supported
+    assert claims["certified_bound_at_least_empirical"].holds == (bound.union_bound >= n_unsafe / len(runs))
+    d = landing.to_dict()
+    assert d["ipc"]["certified_unsafe_bound"] == bound.union_bound and "certified" not in d["baseline"]
+    assert len(d["ipc"]["runs_detail"]) == len(runs) and len(d["ipc"]["paper_runs"]["runs_detail"]) == 3
+    assert d["ipc"]["unsafe"] == n_unsafe and landing.shift_detected is False
+    with pytest.raises(InvalidInputError, match="count the runs"):
+        ContractResults(**{**side, "runs": runs[:2]})
 
 
 # ----------------------------------------------------------------- Table I helpers
@@ -443,10 +485,14 @@ def test_table1_counts_and_simultaneous_intervals():
     x[:, 2] = 1.0
     near = PerceptionDataset(x, np.zeros((50, 3)), np.zeros((50, 3)))
     far = PerceptionDataset(x, np.full((50, 3), 1e3), np.zeros((50, 3)))
-    rows = table1(m, {1: near, 2: far}, delta=0.1)
-    assert rows[1]["violations"] == 0 and rows[2]["violations"] == 50
-    assert rows[1]["confidence"] == 0.9 and rows[1]["paper_rate"] == 0.0019
-    assert rates_rising(rows) == {"strict": True, "separated": True}
+    rows = table1(m, {2: far, 1: near}, delta=0.1)
+    assert rows.buffers == (1, 2)
+    assert rows.row(1).violations == 0 and rows.row(2).violations == 50
+    assert rows.row(1).confidence == 0.9 and rows.row(1).paper_rate == 0.0019
+    assert rows.rising() == RatesRising(strict=True, separated=True)
+    assert rows.to_dict()["2"]["violations"] == 50
+    with pytest.raises(InvalidInputError, match="no row for buffer size 3"):
+        rows.row(3)
     with pytest.raises(InvalidInputError, match="at least one"):
         table1(m, {})
 

@@ -58,6 +58,21 @@ def test_summary_has_the_documented_structure(quick):
             == s["settings"]["sizes"]["mc_runs"]
         )
         assert land["paper_runs"]["runs"] == 10
+    # summary.json is a published format: these keys are never renamed or removed
+    assert set(s) >= {
+        "format", "version", "quick", "settings", "seeds", "paper", "ipc", "table1", "table1_rising",
+        "landing", "landing_buffer1", "machine", "jobs", "backend", "claims", "stage_seconds",
+        "runtime_seconds",
+    }  # fmt: skip
+    assert set(s["landing"]) >= {
+        "buffer_size", "tracking_tolerance", "max_measurements", "ipc", "baseline", "closed_loop", "coverage",
+    }  # fmt: skip
+    assert set(s["claims"]) == {
+        "table1_buffer1_at_most_1pct", "table1_rates_rising", "ipc_safe_99pct_monte_carlo",
+        "ipc_safe_all_paper_runs", "baseline_unsafe_in_most_runs", "certified_bound_at_least_empirical",
+    }  # fmt: skip
+    assert all(set(c) == {"holds", "supported", "detail"} for c in s["claims"].values())
+    assert set(s["ipc"]) == {"k1", "k3"} and set(s["landing_buffer1"]) == {"buffer_size", "ipc", "baseline"}
     assert 0 < s["landing"]["ipc"]["certified_unsafe_bound"] <= 1
     assert s["landing"]["coverage"]["shift_detected"] in (True, False)
     assert s["quick"] is True and s["runtime_seconds"] > 0

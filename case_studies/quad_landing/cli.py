@@ -191,26 +191,30 @@ def reproduce_command(out: str, quick: bool, jobs: int | None, backend: str, mc_
                       config_path: str | None, settings_path: str | None, quiet: bool) -> None:  # fmt: skip
     """Reproduce the paper's application study: Table I, safe landing, certified vs empirical."""
     from case_studies.quad_landing.reproduction.config import load_reproduce_config
-    from case_studies.quad_landing.reproduction.pipeline import reproduce, table1_text
+    from case_studies.quad_landing.reproduction.pipeline import reproduce
+    from case_studies.quad_landing.reproduction.table1 import table1_text
 
     overrides = {"sizes": {"mc_runs": mc_runs}} if mc_runs is not None else None
     settings = load_reproduce_config(settings_path, overrides, quick=quick)
     result = reproduce(out, config=settings, sim_config=_config(config_path), n_jobs=jobs, backend=backend,
                        progress=not quiet, console=err_console)  # fmt: skip
     s = result.summary
-    land = s["landing"]
-    ipc, base = land["ipc"], land["baseline"]
+    land = s.landing
+    ipc, base = land.ipc.monte_carlo, land.baseline.monte_carlo
+    paper_ipc, paper_base = land.ipc.paper, land.baseline.paper
+    bound = land.ipc.certified
+    assert bound is not None  # the IPC's landing results always carry it
     lines = [
-        table1_text(s),
-        f"landing at buffer size {land['buffer_size']} ({ipc['runs']} Monte Carlo runs each): "
-        f"IPC {ipc['safe']} safe / {ipc['unsafe']} unsafe / {ipc['aborted']} aborted; "
-        f"baseline {base['safe']} safe / {base['unsafe']} unsafe / {base['aborted']} aborted",
-        f"paper-style runs: IPC {ipc['paper_runs']['safe']}/{ipc['paper_runs']['runs']} safe, baseline "
-        f"{base['paper_runs']['unsafe']}/{base['paper_runs']['runs']} unsafe",
-        f"certified P(unsafe) <= {ipc['certified_unsafe_bound']:.4g} "
-        f"(refined {ipc['certified']['refined_bound']:.4g}) vs empirical {ipc['unsafe']}/{ipc['runs']}; "
-        f"coverage shift: {land['coverage'].get('shift_detected')}",
-        f"wrote {result.report} and {result.summary_path} in {s['runtime_seconds']} s",
+        table1_text(s.table1),
+        f"landing at buffer size {land.buffer_size} ({ipc.runs} Monte Carlo runs each): "
+        f"IPC {ipc.safe} safe / {ipc.unsafe} unsafe / {ipc.aborted} aborted; "
+        f"baseline {base.safe} safe / {base.unsafe} unsafe / {base.aborted} aborted",
+        f"paper-style runs: IPC {paper_ipc.safe}/{paper_ipc.runs} safe, baseline "
+        f"{paper_base.unsafe}/{paper_base.runs} unsafe",
+        f"certified P(unsafe) <= {bound.union_bound:.4g} "
+        f"(refined {bound.refined_bound:.4g}) vs empirical {ipc.unsafe}/{ipc.runs}; "
+        f"coverage shift: {land.shift_detected}",
+        f"wrote {result.report} and {result.summary_path} in {s.runtime_seconds} s",
     ]
     console.print("\n".join(lines), markup=False, highlight=False, soft_wrap=True)
 

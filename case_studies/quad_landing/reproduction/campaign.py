@@ -26,15 +26,17 @@ Examples
 >>> runs = run_campaign(TrivialContract(), 2, seed=5, sim_config=load_config(),
 ...                     scenario=ScenarioParams.defaults(),
 ...                     landing=LandingParams.defaults(buffer_size=1), backend="sequential")
->>> [r.scenario.index for r in runs], summarize(runs)["runs"]
+>>> [r.scenario.index for r in runs], summarize(runs).runs
 ([0, 1], 2)
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import joblib
@@ -49,7 +51,7 @@ from case_studies.quad_landing.sim.flight import Flight
 from ipcverify.bounds import clopper_pearson_interval, clopper_pearson_lower, clopper_pearson_upper
 from ipcverify.errors import InvalidInputError
 
-__all__ = ["BACKENDS", "run_campaign", "summarize", "default_jobs"]
+__all__ = ["BACKENDS", "CampaignSummary", "run_campaign", "summarize", "default_jobs"]
 
 #: Supported joblib backends.
 BACKENDS = ("loky", "sequential", "ray")
@@ -180,42 +182,100 @@ def run_campaign(
     return results
 
 
-def summarize(runs: Sequence[LandingRun], delta: float = 0.05) -> dict[str, Any]:
-    """Counts and exact binomial intervals of a set of runs.
+@dataclass(frozen=True, kw_only=True)
+class CampaignSummary:
+    """Outcome counts of a set of landing runs, with exact binomial bounds.
 
-    Returns ``runs``, ``safe``, ``unsafe``, ``aborted``, their rates, two-sided
-    Clopper--Pearson intervals (confidence ``1 - delta``) of the unsafe and safe rates,
-    one-sided bounds (``unsafe_upper``, ``unsafe_lower``, ``safe_lower``, each at
-    confidence ``1 - delta``), the mean number of queries and the wall time per run.
+    (Not :class:`~case_studies.quad_landing.sim.flight.LandingResult`, which is one motor
+    cut of the simulator.)
+
+    Attributes
+    ----------
+    runs, safe, unsafe, aborted : int
+        Counts (``safe + unsafe + aborted == runs``).
+    confidence : float
+        Confidence ``1 - delta`` of every interval and bound.
+    safe_rate, unsafe_rate, aborted_rate : float or None
+        The rates (None for no runs, as are the fields below).
+    unsafe_interval, safe_interval : (float, float) or None
+        Two-sided Clopper--Pearson intervals.
+    unsafe_upper, unsafe_lower, safe_lower : float or None
+        One-sided Clopper--Pearson bounds.
+    mean_queries : float or None
+        Mean number of Measuring steps per run; ``max_queries`` the largest.
+    wall_time_per_run : float or None
+        Mean real seconds per run.
+    reasons : tuple of str or None
+        Why the aborted runs aborted (distinct, sorted).
+    """
+
+    runs: int
+    safe: int
+    unsafe: int
+    aborted: int
+    confidence: float
+    safe_rate: float | None = None
+    unsafe_rate: float | None = None
+    aborted_rate: float | None = None
+    unsafe_interval: tuple[float, float] | None = None
+    unsafe_upper: float | None = None
+    unsafe_lower: float | None = None
+    safe_interval: tuple[float, float] | None = None
+    safe_lower: float | None = None
+    mean_queries: float | None = None
+    max_queries: int | None = None
+    wall_time_per_run: float | None = None
+    reasons: tuple[str, ...] | None = None
+
+    def __post_init__(self) -> None:
+        if (
+            self.safe + self.unsafe + self.aborted != self.runs
+            or min(self.safe, self.unsafe, self.aborted) < 0
+        ):
+            raise InvalidInputError(
+                f"safe + unsafe + aborted must equal runs, got {self.safe} + {self.unsafe} + "
+                f"{self.aborted} != {self.runs}"
+            )
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data for ``summary.json``; the rates and bounds only when there are runs."""
+        out: dict[str, Any] = {}
+        for f in dataclasses.fields(self):
+            v = getattr(self, f.name)
+            if v is not None:
+                out[f.name] = list(v) if isinstance(v, tuple) else v
+        return out
+
+
+def summarize(runs: Sequence[LandingRun], delta: float = 0.05) -> CampaignSummary:
+    """Counts and exact binomial intervals of a set of runs (:class:`CampaignSummary`).
 
     Examples
     --------
-    >>> summarize([])["runs"]
-    0
+    >>> summarize([]).runs, summarize([]).unsafe_rate is None
+    (0, True)
     """
     n = len(runs)
     counts = {o: sum(1 for r in runs if r.outcome is o) for o in Outcome}
-    out: dict[str, Any] = {
-        "runs": n,
-        "safe": counts[Outcome.SAFE],
-        "unsafe": counts[Outcome.UNSAFE],
-        "aborted": counts[Outcome.ABORTED],
-        "confidence": 1 - delta,
-    }
-    if n:
-        u, s = counts[Outcome.UNSAFE], counts[Outcome.SAFE]
-        out.update(
-            safe_rate=s / n,
-            unsafe_rate=u / n,
-            aborted_rate=counts[Outcome.ABORTED] / n,
-            unsafe_interval=list(clopper_pearson_interval(u, n, delta)),
-            unsafe_upper=clopper_pearson_upper(u, n, delta),
-            unsafe_lower=clopper_pearson_lower(u, n, delta),
-            safe_interval=list(clopper_pearson_interval(s, n, delta)),
-            safe_lower=clopper_pearson_lower(s, n, delta),
-            mean_queries=float(np.mean([r.n_queries for r in runs])),
-            max_queries=int(max(r.n_queries for r in runs)),
-            wall_time_per_run=float(np.mean([r.wall_time for r in runs])),
-            reasons=sorted({r.reason for r in runs if r.outcome is Outcome.ABORTED}),
-        )
-    return out
+    s, u, a = counts[Outcome.SAFE], counts[Outcome.UNSAFE], counts[Outcome.ABORTED]
+    if not n:
+        return CampaignSummary(runs=0, safe=0, unsafe=0, aborted=0, confidence=1 - delta)
+    return CampaignSummary(
+        runs=n,
+        safe=s,
+        unsafe=u,
+        aborted=a,
+        confidence=1 - delta,
+        safe_rate=s / n,
+        unsafe_rate=u / n,
+        aborted_rate=a / n,
+        unsafe_interval=clopper_pearson_interval(u, n, delta),
+        unsafe_upper=clopper_pearson_upper(u, n, delta),
+        unsafe_lower=clopper_pearson_lower(u, n, delta),
+        safe_interval=clopper_pearson_interval(s, n, delta),
+        safe_lower=clopper_pearson_lower(s, n, delta),
+        mean_queries=float(np.mean([r.n_queries for r in runs])),
+        max_queries=int(max(r.n_queries for r in runs)),
+        wall_time_per_run=float(np.mean([r.wall_time for r in runs])),
+        reasons=tuple(sorted({r.reason for r in runs if r.outcome is Outcome.ABORTED})),
+    )

@@ -31,14 +31,16 @@ the gap:
 Examples
 --------
 >>> b = certified_bound(0.002, 0.001, max_queries=8, queries_per_run=[2, 2, 3])
->>> round(b["union_bound"], 6), b["vacuous"]
+>>> round(b.union_bound, 6), b.vacuous
 (0.016, False)
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -53,6 +55,8 @@ from ipcverify.model import IPCModel
 
 __all__ = [
     "ASSUMPTION_A",
+    "CertifiedBound",
+    "EmpiricalVsCertified",
     "certified_bound",
     "closed_loop_violations",
     "coverage_check",
@@ -69,6 +73,93 @@ ASSUMPTION_A = (
     "like the calibration samples (i.i.d. from one distribution); the calibration samples are i.i.d. "
     "draws from that distribution; and the pad lies on the floor (y_z = floor height)."
 )
+
+
+@dataclass(frozen=True, kw_only=True)
+class CertifiedBound:
+    """The certified upper bound on ``P(unsafe landing)`` under assumption A (:func:`certified_bound`).
+
+    Attributes
+    ----------
+    epsilon, delta : float
+        The calibration's certified violation rate and confidence parameter.
+    max_queries : int
+        Cap ``M`` on contract queries per run.
+    union_bound : float
+        ``min(1, M eps)``, at confidence ``union_confidence = 1 - delta``.
+    runs_for_mean : int
+        Runs whose query counts bound ``E[N]``.
+    mean_queries : float or None
+        Their mean number of queries (None without runs).
+    mean_queries_upper : float
+        Hoeffding upper confidence bound on ``E[N]``.
+    refined_bound : float
+        ``min(1, eps UCB(E[N]))``, at confidence ``refined_confidence``.
+    assumption : str
+        Assumption A in words.
+    vacuous : bool
+        The union bound is 1.
+    """
+
+    epsilon: float
+    delta: float
+    max_queries: int
+    union_bound: float
+    union_confidence: float
+    runs_for_mean: int
+    mean_queries: float | None
+    mean_queries_upper: float
+    refined_bound: float
+    refined_confidence: float
+    assumption: str
+    vacuous: bool
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data for ``summary.json`` (``landing.ipc.certified``)."""
+        return dataclasses.asdict(self)
+
+
+@dataclass(frozen=True, kw_only=True)
+class EmpiricalVsCertified:
+    """The empirical unsafe rate of a campaign beside the certified bound (:func:`unsafe_vs_certified`).
+
+    Attributes
+    ----------
+    runs, unsafe : int
+        Runs, and unsafe ones.
+    certified_union, certified_refined : float
+        The union and refined certified bounds.
+    unsafe_rate : float or None
+        ``unsafe / runs`` (None without runs, as are the fields below).
+    unsafe_interval : (float, float) or None
+        Two-sided Clopper--Pearson interval of the unsafe rate.
+    bound_at_least_rate : bool or None
+        The union bound is at least the point rate.
+    consistent : bool or None
+        The one-sided lower bound of the unsafe rate does not exceed the refined bound
+        (False: the data refute the certified bound).
+    confidence : float or None
+        Confidence of the interval and the lower bound.
+    """
+
+    runs: int
+    unsafe: int
+    certified_union: float
+    certified_refined: float
+    unsafe_rate: float | None = None
+    unsafe_interval: tuple[float, float] | None = None
+    bound_at_least_rate: bool | None = None
+    consistent: bool | None = None
+    confidence: float | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data for ``summary.json``; the rate and its checks only when there are runs."""
+        out: dict[str, Any] = {}
+        for f in dataclasses.fields(self):
+            v = getattr(self, f.name)
+            if v is not None:
+                out[f.name] = list(v) if isinstance(v, tuple) else v
+        return out
 
 
 def hoeffding_upper(values: Sequence[float], low: float, high: float, delta: float) -> float:
@@ -97,7 +188,7 @@ def certified_bound(
     max_queries: int,
     queries_per_run: Sequence[int],
     delta_queries: float | None = None,
-) -> dict[str, Any]:
+) -> CertifiedBound:
     """The certified upper bound on ``P(unsafe landing)`` under assumption A.
 
     Parameters
@@ -116,7 +207,7 @@ def certified_bound(
 
     Returns
     -------
-    dict
+    CertifiedBound
         ``union_bound = min(1, M eps)`` (confidence ``1 - delta``), ``refined_bound =
         min(1, eps UCB(E[N]))`` (confidence ``1 - delta - delta_queries``), the inputs, the
         assumption and ``vacuous`` (the union bound is 1).
@@ -129,20 +220,20 @@ def certified_bound(
     counts = [int(c) for c in queries_per_run]
     ucb = hoeffding_upper(counts, 0, max_queries, dq)
     union = min(1.0, max_queries * epsilon)
-    return {
-        "epsilon": epsilon,
-        "delta": delta,
-        "max_queries": int(max_queries),
-        "union_bound": union,
-        "union_confidence": 1 - delta,
-        "runs_for_mean": len(counts),
-        "mean_queries": float(np.mean(counts)) if counts else None,
-        "mean_queries_upper": ucb,
-        "refined_bound": min(1.0, epsilon * ucb),
-        "refined_confidence": 1 - delta - dq,
-        "assumption": ASSUMPTION_A,
-        "vacuous": union >= 1.0,
-    }
+    return CertifiedBound(
+        epsilon=epsilon,
+        delta=delta,
+        max_queries=int(max_queries),
+        union_bound=union,
+        union_confidence=1 - delta,
+        runs_for_mean=len(counts),
+        mean_queries=float(np.mean(counts)) if counts else None,
+        mean_queries_upper=ucb,
+        refined_bound=min(1.0, epsilon * ucb),
+        refined_confidence=1 - delta - dq,
+        assumption=ASSUMPTION_A,
+        vacuous=union >= 1.0,
+    )
 
 
 def _rate(k: int, n: int, delta: float, epsilon: float | None = None) -> dict[str, Any]:
@@ -197,7 +288,7 @@ def coverage_check(
     test_data: PerceptionDataset,
     runs: Sequence[LandingRun],
     *,
-    quantile: float = 0.995,
+    quantile: float,
     delta: float = 0.05,
 ) -> dict[str, Any]:
     """Do the closed loop's queries look like the calibration data? (nearest-neighbour test)
@@ -295,30 +386,29 @@ def coverage_check(
 
 
 def unsafe_vs_certified(
-    runs: Sequence[LandingRun], bound: dict[str, Any], delta: float = 0.05
-) -> dict[str, Any]:
+    runs: Sequence[LandingRun], bound: CertifiedBound, delta: float = 0.05
+) -> EmpiricalVsCertified:
     """The empirical unsafe rate beside the certified bound; ``consistent`` is False if the data refute it.
 
     Examples
     --------
-    >>> unsafe_vs_certified([], {"union_bound": 0.01, "refined_bound": 0.005})["runs"]
+    >>> b = certified_bound(0.002, 0.001, max_queries=8, queries_per_run=[1])
+    >>> unsafe_vs_certified([], b).runs
     0
     """
     n = len(runs)
     k = sum(1 for r in runs if r.outcome is Outcome.UNSAFE)
-    out: dict[str, Any] = {
-        "runs": n,
-        "unsafe": k,
-        "certified_union": bound["union_bound"],
-        "certified_refined": bound["refined_bound"],
-    }
-    if n:
-        lower = clopper_pearson_lower(k, n, delta)
-        out.update(
-            unsafe_rate=k / n,
-            unsafe_interval=list(clopper_pearson_interval(k, n, delta)),
-            bound_at_least_rate=bool(bound["union_bound"] >= k / n),
-            consistent=bool(lower <= bound["refined_bound"]),
-            confidence=1 - delta,
-        )
-    return out
+    union, refined = bound.union_bound, bound.refined_bound
+    if not n:
+        return EmpiricalVsCertified(runs=0, unsafe=0, certified_union=union, certified_refined=refined)
+    return EmpiricalVsCertified(
+        runs=n,
+        unsafe=k,
+        certified_union=union,
+        certified_refined=refined,
+        unsafe_rate=k / n,
+        unsafe_interval=clopper_pearson_interval(k, n, delta),
+        bound_at_least_rate=bool(union >= k / n),
+        consistent=bool(clopper_pearson_lower(k, n, delta) <= refined),
+        confidence=1 - delta,
+    )

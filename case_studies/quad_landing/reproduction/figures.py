@@ -12,8 +12,10 @@
 
 Examples
 --------
->>> fig = plot_table1({1: {"rate": 0.001, "interval": [0.0, 0.004], "upper": 0.004, "paper_rate": 0.0019}})
->>> figure_png(fig)[:4] == b"\\x89PNG"
+>>> from case_studies.quad_landing.reproduction.table1 import Table1, Table1Row
+>>> row = Table1Row(buffer_size=1, n=1000, violations=1, rate=0.001, upper=0.004, interval=(0.0, 0.004),
+...                 confidence=0.95, paper_rate=0.0019, paths=None, paths_with_violations=None)
+>>> figure_png(plot_table1(Table1((row,))))[:4] == b"\\x89PNG"
 True
 """
 
@@ -30,6 +32,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Rectangle
 
 from case_studies.quad_landing.landing.runs import LandingRun, Outcome
+from case_studies.quad_landing.reproduction.table1 import Table1
 from ipcverify.landing import LANDING_TARGET
 
 __all__ = ["figure_png", "plot_topview", "plot_campaign", "plot_table1", "plot_trajectories", "plot_coverage"]
@@ -200,31 +203,31 @@ def plot_campaign(ipc: Sequence[LandingRun], baseline: Sequence[LandingRun]) -> 
     return fig
 
 
-def plot_table1(rows: Mapping[int, Mapping[str, Any]]) -> Figure:
+def plot_table1(table: Table1) -> Figure:
     """Violation rate per buffer size (log scale) with Clopper--Pearson intervals, and the paper's.
 
     A zero rate is drawn as a downward triangle at its upper bound.
     """
     fig = Figure(figsize=(6.4, 4.2))
     ax = fig.subplots()
-    ks = sorted(rows)
+    ks = list(table.buffers)
     floor = 1e-4
-    for k in ks:
-        r = rows[k]
-        lo, hi = r["interval"]
-        if r["rate"] > 0:
+    for r in table.rows:
+        k = r.buffer_size
+        lo, hi = r.interval
+        if r.rate > 0:
             ax.errorbar(
                 [k - 0.06],
-                [r["rate"]],
-                yerr=[[r["rate"] - max(lo, floor)], [hi - r["rate"]]],
+                [r.rate],
+                yerr=[[r.rate - max(lo, floor)], [hi - r.rate]],
                 fmt="o",
                 color="#1f77b4",
                 capsize=4,
             )
         else:
-            ax.plot([k - 0.06], [r["upper"]], marker="v", color="#1f77b4", ls="")
-            ax.vlines(k - 0.06, floor, r["upper"], color="#1f77b4")
-    paper = [(k, rows[k]["paper_rate"]) for k in ks if rows[k].get("paper_rate") is not None]
+            ax.plot([k - 0.06], [r.upper], marker="v", color="#1f77b4", ls="")
+            ax.vlines(k - 0.06, floor, r.upper, color="#1f77b4")
+    paper = [(r.buffer_size, r.paper_rate) for r in table.rows if r.paper_rate is not None]
     ax.plot(
         [k + 0.06 for k, _ in paper], [v for _, v in paper], "s", color="#ff7f0e", label="paper (Table I)"
     )

@@ -38,7 +38,7 @@ from ipcverify.model import IPCModel, ModelConfig
 from ipcverify.modelio import load_model, save_model
 from ipcverify.training import train
 
-__all__ = ["learn_ipc", "cached_ipc", "calibration_summary"]
+__all__ = ["learn_ipc", "cached_ipc", "calibration_summary", "certified_epsilon"]
 
 
 def learn_ipc(
@@ -70,11 +70,21 @@ def learn_ipc(
     return calibrate(model, calibration_data, params.epsilon, params.delta, mode="pac")
 
 
-def calibration_summary(model: IPCModel) -> dict[str, Any]:
-    """The calibration of a model as plain data, with its certified epsilon and guarantee."""
+def _global_calibration(model: IPCModel) -> GlobalCalibration:
     cal = model.calibration
     if not isinstance(cal, GlobalCalibration):
         raise ModelFileError("expected a model with a global calibration")
+    return cal
+
+
+def certified_epsilon(model: IPCModel) -> float:
+    """The violation rate the model's PAC calibration certifies (at its ``1 - delta``)."""
+    return float(_global_calibration(model).threshold.certified_epsilon)
+
+
+def calibration_summary(model: IPCModel) -> dict[str, Any]:
+    """The calibration of a model as plain data, with its certified epsilon and guarantee."""
+    cal = _global_calibration(model)
     t = cal.threshold
     return {**t.to_dict(), "certified_epsilon": t.certified_epsilon, "guarantee": cal.guarantee()}
 

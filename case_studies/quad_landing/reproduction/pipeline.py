@@ -19,8 +19,14 @@
 6. ``OUT/summary.json`` and the self-contained ``OUT/report.html`` (:mod:`.report_page`),
    figures also as ``OUT/figures/*.png``.
 
-The claims the issue asks for are evaluated in ``summary["claims"]`` with the statistics
-that support them (or do not).
+The claims the issue asks for are evaluated (:mod:`.claims`) with the statistics that
+support them (or do not). The results are frozen dataclasses (:mod:`.results`);
+``summary.json`` is :meth:`.results.ReproductionSummary.to_dict`.
+
+:func:`reproduce` is a short pipeline; each step is a function of its own:
+:func:`_collect_datasets`, :func:`_learn_ipcs`, :func:`.table1.table1`,
+:func:`_fly_campaigns`, :func:`_judge_landing`, :func:`_draw_figures`, then
+:func:`_summarize` and :func:`_write`.
 """
 
 from __future__ import annotations
@@ -31,6 +37,7 @@ import platform
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -39,16 +46,19 @@ import torch
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
+from case_studies.quad_landing.data.approach import ApproachParams
 from case_studies.quad_landing.data.datasets import as_dataset, cached_mixed, is_cached
-from case_studies.quad_landing.landing.contracts import LearnedContract, TrivialContract
+from case_studies.quad_landing.landing.contracts import Contract, LearnedContract, TrivialContract
 from case_studies.quad_landing.landing.runs import LandingRun
 from case_studies.quad_landing.reproduction.campaign import default_jobs, run_campaign, summarize
 from case_studies.quad_landing.reproduction.certified import (
+    CertifiedBound,
     certified_bound,
     closed_loop_violations,
     coverage_check,
     unsafe_vs_certified,
 )
+from case_studies.quad_landing.reproduction.claims import evaluate_claims
 from case_studies.quad_landing.reproduction.config import ReproduceConfig, load_reproduce_config
 from case_studies.quad_landing.reproduction.figures import (
     figure_png,
@@ -58,31 +68,36 @@ from case_studies.quad_landing.reproduction.figures import (
     plot_topview,
     plot_trajectories,
 )
-from case_studies.quad_landing.reproduction.learn import cached_ipc, calibration_summary
+from case_studies.quad_landing.reproduction.learn import cached_ipc, calibration_summary, certified_epsilon
 from case_studies.quad_landing.reproduction.report_page import render_report
-from case_studies.quad_landing.reproduction.table1 import PAPER_TABLE1, rates_rising, table1
+from case_studies.quad_landing.reproduction.results import (
+    PAPER_LANDING,
+    ContractResults,
+    ControlExperiment,
+    IpcSummary,
+    LandingExperiment,
+    ReproductionSummary,
+)
+from case_studies.quad_landing.reproduction.table1 import Table1, table1
 from case_studies.quad_landing.sim.config import SimConfig, load_config
 from ipcverify.data import PerceptionDataset
 from ipcverify.errors import InvalidInputError
 from ipcverify.files import atomic_write, json_data, write_json
 from ipcverify.model import IPCModel
 
-__all__ = ["SEEDS", "PAPER_LANDING", "ReproduceResult", "reproduce", "evaluate_claims", "table1_text"]
+__all__ = ["SEEDS", "PAPER_LANDING", "REPORT_DELTA", "ReproduceResult", "reproduce"]
 
 #: Seeds of the datasets and campaigns (different seeds: disjoint paths, flights, pads).
 SEEDS = {"train": 0, "calibration": 1, "test": 2, "paper": 10, "monte_carlo": 11, "buffer1": 12}
-#: The paper's landing experiment: 10 pads; the IPC landed safely in all, the baseline failed 9.
-PAPER_LANDING = {"runs": 10, "ipc_safe": 10, "baseline_unsafe": 9}
 #: Confidence parameter of the reported intervals (two-sided 95 %).
 REPORT_DELTA = 0.05
-SUMMARY_VERSION = 1
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclass(frozen=True)
 class ReproduceResult:
     """What :func:`reproduce` wrote: the summary and the paths of the report and summary files."""
 
-    summary: dict[str, Any]
+    summary: ReproductionSummary
     report: Path
     summary_path: Path
 
@@ -112,6 +127,58 @@ class _Stages:
             self.seconds[name] = round(time.perf_counter() - t0, 2)
 
 
+@dataclass(frozen=True)
+class _Run:
+    """What every step of one reproduction shares: settings, output directory, workers, stages."""
+
+    cfg: ReproduceConfig
+    sim: SimConfig
+    out_dir: Path
+    n_jobs: int | None
+    backend: str
+    stages: _Stages
+
+    @property
+    def landing_buffer(self) -> int:
+        """The buffer size of the landing runs (``[landing] buffer_size``)."""
+        return self.cfg.landing.buffer_size
+
+    @property
+    def ipc_buffers(self) -> list[int]:
+        """Buffer sizes an IPC is learned at: 1 (Table I) and the landing's."""
+        return sorted({1, self.landing_buffer})
+
+    @property
+    def test_buffers(self) -> list[int]:
+        """Buffer sizes with a test set: Table I's and the landing's."""
+        return sorted({*self.cfg.sizes.buffers, self.landing_buffer})
+
+
+@dataclass(frozen=True)
+class _DatasetSpec:
+    """One dataset of the reproduction: name, size, buffer size and seed."""
+
+    name: str
+    n: int
+    buffer_size: int
+    seed: int
+
+    def path(self, out_dir: Path) -> Path:
+        return out_dir / "data" / f"{self.name}.parquet"
+
+
+@dataclass(frozen=True)
+class _Flights:
+    """The landing runs of every campaign (the buffer-1 ones None when skipped)."""
+
+    paper_ipc: tuple[LandingRun, ...]
+    paper_baseline: tuple[LandingRun, ...]
+    mc_ipc: tuple[LandingRun, ...]
+    mc_baseline: tuple[LandingRun, ...]
+    buffer1_ipc: tuple[LandingRun, ...] | None
+    buffer1_baseline: tuple[LandingRun, ...] | None
+
+
 def _machine() -> dict[str, Any]:
     return {
         "cpu_count": os.cpu_count(),
@@ -122,13 +189,71 @@ def _machine() -> dict[str, Any]:
     }
 
 
-def _collect_one(path: Path, n: int, k: int, seed: int, approach: Any, sim: SimConfig) -> int:
+def _start(
+    out: str | os.PathLike[str],
+    cfg: ReproduceConfig,
+    sim: SimConfig,
+    n_jobs: int | None,
+    backend: str,
+    stages: _Stages,
+) -> _Run:
+    """Check and create the output directory (``data``, ``models``, ``certificates``, ``figures``)."""
+    out_dir = Path(out)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise InvalidInputError(f"--out {out_dir} exists and is not a directory; choose a directory")
+    for sub in ("data", "models", "certificates", "figures"):
+        (out_dir / sub).mkdir(parents=True, exist_ok=True)
+    return _Run(cfg, sim, out_dir, n_jobs, backend, stages)
+
+
+def _dataset_specs(run: _Run) -> list[_DatasetSpec]:
+    """Test sets at every test buffer size; training and calibration sets at every IPC's."""
+    sizes = run.cfg.sizes
+    specs = [_DatasetSpec(f"test_k{b}", sizes.n_test, b, SEEDS["test"]) for b in run.test_buffers]
+    for k in run.ipc_buffers:
+        specs += [
+            _DatasetSpec(f"train_k{k}", sizes.n_train, k, SEEDS["train"]),
+            _DatasetSpec(f"calibration_k{k}", sizes.n_calibration, k, SEEDS["calibration"]),
+        ]
+    return specs
+
+
+def _collect_one(path: Path, n: int, k: int, seed: int, approach: ApproachParams, sim: SimConfig) -> int:
     """Collect one dataset into the cache (a joblib task; OpenCV single-threaded per process)."""
     import cv2
 
     cv2.setNumThreads(1)
     cached_mixed(path, n, buffer_size=k, seed=seed, approach=approach, config=sim)
     return n
+
+
+def _collect_datasets(run: _Run) -> dict[str, PerceptionDataset]:
+    """Step 1: collect the datasets not yet cached (in parallel, largest first), then load all."""
+    specs, approach, sim = _dataset_specs(run), run.cfg.approach, run.sim
+    todo = [
+        s
+        for s in specs
+        if not is_cached(
+            s.path(run.out_dir), s.n, buffer_size=s.buffer_size, seed=s.seed, approach=approach, config=sim
+        )
+    ]
+    todo.sort(key=lambda s: -s.n)  # largest first: better balance across workers
+    jobs = 1 if run.backend == "sequential" else (run.n_jobs or default_jobs())
+    with run.stages.stage(f"collect {len(todo)} datasets ({jobs} jobs)", sum(s.n for s in todo)) as bar:
+        tasks = (
+            joblib.delayed(_collect_one)(s.path(run.out_dir), s.n, s.buffer_size, s.seed, approach, sim)
+            for s in todo
+        )
+        parallel = joblib.Parallel(n_jobs=min(jobs, max(1, len(todo))), return_as="generator_unordered")
+        for done in parallel(tasks):
+            bar(done)
+    data = {}
+    for s in specs:
+        df, _ = cached_mixed(
+            s.path(run.out_dir), s.n, buffer_size=s.buffer_size, seed=s.seed, approach=approach, config=sim
+        )
+        data[s.name] = as_dataset(df, source=f"{s.name}.parquet")
+    return data
 
 
 def _certify(model: IPCModel, test: PerceptionDataset, out_dir: Path) -> dict[str, Any]:
@@ -145,91 +270,186 @@ def _certify(model: IPCModel, test: PerceptionDataset, out_dir: Path) -> dict[st
     }
 
 
-def _runs_table(runs: list[LandingRun]) -> list[dict[str, Any]]:
-    return [
-        {
-            "index": r.scenario.index,
-            "outcome": r.outcome.value,
-            "n_queries": r.n_queries,
-            "offset": None if r.offset is None else r.offset.tolist(),
-            "reason": r.reason,
-        }
-        for r in runs
-    ]
+def _learn_ipcs(
+    run: _Run, data: dict[str, PerceptionDataset]
+) -> tuple[dict[int, IPCModel], dict[int, IpcSummary]]:
+    """Step 2: train, calibrate (cached) and certify an IPC at each of :attr:`_Run.ipc_buffers`."""
+    models: dict[int, IPCModel] = {}
+    summaries: dict[int, IpcSummary] = {}
+    for k in run.ipc_buffers:
+        train, cal = data[f"train_k{k}"], data[f"calibration_k{k}"]
+        with run.stages.stage(f"train + calibrate IPC k={k}", 1):
+            models[k], _ = cached_ipc(run.out_dir / "models" / f"ipc_k{k}.pt", train, cal, run.cfg.ipc)
+        with run.stages.stage(f"certify IPC k={k}", 1):
+            certificate = _certify(models[k], data[f"test_k{k}"], run.out_dir / "certificates" / f"ipc_k{k}")
+        summaries[k] = IpcSummary(
+            buffer_size=k,
+            calibration=calibration_summary(models[k]),
+            certificate=certificate,
+            n_parameters=models[k].n_parameters,
+        )
+    return models, summaries
 
 
-def _side(mc: list[LandingRun], paper: list[LandingRun]) -> dict[str, Any]:
-    out = summarize(mc, REPORT_DELTA)
-    out["paper_runs"] = summarize(paper, REPORT_DELTA)
-    out["paper_runs"]["runs_detail"] = [r.to_dict(trajectory=True) for r in paper]
-    out["runs_detail"] = _runs_table(mc)
-    return out
+def _campaign(
+    run: _Run, name: str, contract: Contract, n: int, seed: int, buffer_size: int
+) -> tuple[LandingRun, ...]:
+    """One campaign of ``n`` runs at ``buffer_size``, with a progress bar."""
+    landing = dataclasses.replace(run.cfg.landing, buffer_size=buffer_size)
+    with run.stages.stage(name, n) as bar:
+        runs = run_campaign(
+            contract,
+            n,
+            seed=seed,
+            sim_config=run.sim,
+            scenario=run.cfg.scenario,
+            landing=landing,
+            n_jobs=run.n_jobs,
+            backend=run.backend,
+            progress=bar,
+        )
+    return tuple(runs)
 
 
-def evaluate_claims(summary: dict[str, Any]) -> dict[str, Any]:
-    """The issue's acceptance claims, each with ``holds`` (the point statement) and ``supported``
-    (what the sample sizes can establish at the report's confidence), and the numbers behind them.
+def _fly_campaigns(run: _Run, models: dict[int, IPCModel]) -> _Flights:
+    """Step 4: paper-style and Monte Carlo runs of both contracts, and the buffer-1 control."""
+    sizes, k = run.cfg.sizes, run.landing_buffer
+    ipc, base = LearnedContract(models[k]), TrivialContract()
+    paper_ipc = _campaign(run, "paper runs: IPC", ipc, sizes.paper_runs, SEEDS["paper"], k)
+    paper_base = _campaign(run, "paper runs: baseline", base, sizes.paper_runs, SEEDS["paper"], k)
+    mc_ipc = _campaign(run, "Monte Carlo: IPC", ipc, sizes.mc_runs, SEEDS["monte_carlo"], k)
+    mc_base = _campaign(run, "Monte Carlo: baseline", base, sizes.mc_runs, SEEDS["monte_carlo"], k)
+    b1_ipc = b1_base = None
+    if sizes.buffer1_runs and k != 1:
+        b1_ipc = _campaign(
+            run, "buffer 1: IPC", LearnedContract(models[1]), sizes.buffer1_runs, SEEDS["buffer1"], 1
+        )
+        b1_base = _campaign(run, "buffer 1: baseline", base, sizes.buffer1_runs, SEEDS["buffer1"], 1)
+    return _Flights(paper_ipc, paper_base, mc_ipc, mc_base, b1_ipc, b1_base)
+
+
+def _landing_checks(
+    run: _Run, model: IPCModel, data: dict[str, PerceptionDataset], flights: _Flights
+) -> tuple[CertifiedBound, dict[str, Any], dict[str, Any]]:
+    """The certified bound on unsafe landings, the coverage check and the closed loop's violations."""
+    k, delta = run.landing_buffer, REPORT_DELTA
+    with run.stages.stage("certified bound and coverage", 1):
+        eps = certified_epsilon(model)
+        queries = [sum(q.detected for q in r.queries) for r in flights.mc_ipc]
+        max_queries = run.cfg.landing.max_measurements
+        bound = certified_bound(eps, run.cfg.ipc.delta, max_queries=max_queries, queries_per_run=queries)
+        coverage = coverage_check(
+            model,
+            data[f"calibration_k{k}"],
+            data[f"test_k{k}"],
+            [*flights.mc_ipc, *flights.paper_ipc],
+            quantile=run.cfg.ipc.coverage_quantile,
+            delta=delta,
+        )
+        loop = closed_loop_violations(flights.mc_ipc, eps, delta)
+    return bound, coverage, loop
+
+
+def _judge_landing(
+    run: _Run, model: IPCModel, data: dict[str, PerceptionDataset], flights: _Flights
+) -> tuple[LandingExperiment, dict[str, Any]]:
+    """Step 5: both contracts' landings with the certified bound beside the IPC's.
+
+    Returns the landing experiment and the full coverage check (with the distances the
+    coverage figure draws).
     """
-    claims: dict[str, Any] = {}
-    t1 = summary["table1"]
-    b1 = t1[1] if 1 in t1 else t1["1"]
-    claims["table1_buffer1_at_most_1pct"] = {
-        "holds": b1["rate"] <= 0.01,
-        "supported": b1["upper"] <= 0.01,
-        "detail": f"rate {b1['rate']:.4%}, one-sided CP upper bound {b1['upper']:.4%} (n = {b1['n']})",
-    }
-    rising = summary["table1_rising"]
-    claims["table1_rates_rising"] = {
-        "holds": rising["strict"],
-        "supported": rising["separated"],
-        "detail": "point rates strictly increasing; 'supported' = simultaneous CP intervals do not overlap",
-    }
-    land = summary["landing"]
-    ipc, base = land["ipc"], land["baseline"]
-    n = ipc["runs"]
-    lo_safe = ipc["safe_lower"]
-    claims["ipc_safe_99pct_monte_carlo"] = {
-        "holds": ipc["safe"] >= 0.99 * n,
-        "supported": lo_safe >= 0.99,
-        "detail": (
-            f"{ipc['safe']}/{n} safe, {ipc['unsafe']} unsafe, {ipc['aborted']} aborted; one-sided 95 % "
-            f"lower bound of the safe rate {lo_safe:.4f}"
-            + (
-                ""
-                if lo_safe >= 0.99
-                else f" ({n} runs cannot establish >= 99 % unless (nearly) all are safe)"
-            )
-        ),
-    }
-    pr = ipc["paper_runs"]
-    claims["ipc_safe_all_paper_runs"] = {
-        "holds": pr["safe"] == pr["runs"],
-        "supported": pr["safe"] == pr["runs"],
-        "detail": f"{pr['safe']}/{pr['runs']} safe ({pr['unsafe']} unsafe, {pr['aborted']} aborted)",
-    }
-    claims["baseline_unsafe_in_most_runs"] = {
-        "holds": base["unsafe"] > 0.5 * base["runs"],
-        "supported": base["unsafe_lower"] > 0.5,
-        "detail": (
-            f"{base['unsafe']}/{base['runs']} unsafe, one-sided 95 % lower bound {base['unsafe_lower']:.3f}, "
-            f"two-sided interval [{base['unsafe_interval'][0]:.3f}, "
-            f"{base['unsafe_interval'][1]:.3f}]; paper runs: {base['paper_runs']['unsafe']}/"
-            f"{base['paper_runs']['runs']} unsafe (paper: 9/10)"
-        ),
-    }
-    ev = ipc["empirical_vs_certified"]
-    claims["certified_bound_at_least_empirical"] = {
-        "holds": ev.get("bound_at_least_rate", False),
-        "supported": ev.get("consistent", False),
-        "detail": (
-            f"certified {ipc['certified_unsafe_bound']:.4g} (refined {ev['certified_refined']:.4g}) "
-            "vs empirical "
-            f"{ev.get('unsafe_rate', float('nan')):.4g} ({ev['unsafe']}/{ev['runs']}); 'supported' = "
-            "the CP lower "
-            "bound of the unsafe rate does not exceed the refined bound"
-        ),
-    }
-    return claims
+    bound, coverage, loop = _landing_checks(run, model, data, flights)
+    delta = REPORT_DELTA
+    ipc = ContractResults(
+        monte_carlo=summarize(flights.mc_ipc, delta),
+        runs=flights.mc_ipc,
+        paper=summarize(flights.paper_ipc, delta),
+        paper_runs=flights.paper_ipc,
+        certified=bound,
+        empirical_vs_certified=unsafe_vs_certified(flights.mc_ipc, bound, delta),
+    )
+    baseline = ContractResults(
+        monte_carlo=summarize(flights.mc_baseline, delta),
+        runs=flights.mc_baseline,
+        paper=summarize(flights.paper_baseline, delta),
+        paper_runs=flights.paper_baseline,
+    )
+    landing = LandingExperiment(
+        buffer_size=run.landing_buffer,
+        tracking_tolerance=run.cfg.landing.tracking_tolerance,
+        max_measurements=run.cfg.landing.max_measurements,
+        ipc=ipc,
+        baseline=baseline,
+        closed_loop=loop,
+        coverage={key: v for key, v in coverage.items() if key != "distances"},
+    )
+    return landing, coverage
+
+
+def _control(flights: _Flights) -> ControlExperiment | None:
+    """The buffer-1 control experiment, if it was flown."""
+    if flights.buffer1_ipc is None or flights.buffer1_baseline is None:
+        return None
+    return ControlExperiment(
+        buffer_size=1,
+        ipc=summarize(flights.buffer1_ipc, REPORT_DELTA),
+        baseline=summarize(flights.buffer1_baseline, REPORT_DELTA),
+    )
+
+
+def _write_bytes(path: Path, data: bytes) -> None:
+    atomic_write(path, lambda fh: fh.write(data))
+
+
+def _draw_figures(run: _Run, table: Table1, flights: _Flights, coverage: dict[str, Any]) -> dict[str, bytes]:
+    """Step 6: the figures as PNG bytes, also written to ``OUT/figures``."""
+    with run.stages.stage("figures and report", 1):
+        figs = {
+            "topview": figure_png(plot_topview(flights.paper_ipc, flights.paper_baseline)),
+            "campaign": figure_png(plot_campaign(flights.mc_ipc, flights.mc_baseline)),
+            "table1": figure_png(plot_table1(table)),
+            "trajectories": figure_png(plot_trajectories(flights.paper_ipc, flights.paper_baseline)),
+            "coverage": figure_png(plot_coverage(coverage)),
+        }
+        for name, png in figs.items():
+            _write_bytes(run.out_dir / "figures" / f"{name}.png", png)
+    return figs
+
+
+def _summarize(
+    run: _Run,
+    ipcs: dict[int, IpcSummary],
+    table: Table1,
+    landing: LandingExperiment,
+    control: ControlExperiment | None,
+    started: float,
+) -> ReproductionSummary:
+    """Everything found, with the claims and the timings (:class:`.results.ReproductionSummary`)."""
+    return ReproductionSummary(
+        quick=run.cfg.quick,
+        settings=run.cfg,
+        seeds=SEEDS,
+        ipcs=ipcs,
+        table1=table,
+        landing=landing,
+        landing_buffer1=control,
+        claims=evaluate_claims(table, landing),
+        machine=_machine(),
+        jobs=run.n_jobs or default_jobs(),
+        backend=run.backend,
+        stage_seconds=dict(run.stages.seconds),
+        runtime_seconds=round(time.perf_counter() - started, 1),
+    )
+
+
+def _write(run: _Run, summary: ReproductionSummary, figures: dict[str, bytes]) -> ReproduceResult:
+    """``OUT/summary.json`` (the library's JSON encoder) and the report page rendered from it."""
+    summary_path, report_path = run.out_dir / "summary.json", run.out_dir / "report.html"
+    content = json_data(summary)
+    write_json(summary_path, content, indent=1)
+    page = render_report(content, figures)
+    atomic_write(report_path, lambda fh: fh.write(page), "w")
+    return ReproduceResult(summary, report_path, summary_path)
 
 
 def reproduce(
@@ -268,200 +488,17 @@ def reproduce(
     Returns
     -------
     ReproduceResult
+        The :class:`.results.ReproductionSummary` and the paths of the files written.
     """
-    t_start = time.perf_counter()
+    started = time.perf_counter()
     cfg = config or load_reproduce_config(quick=quick)
-    sim = sim_config or load_config()
-    out_dir = Path(out)
-    if out_dir.exists() and not out_dir.is_dir():
-        raise InvalidInputError(f"--out {out_dir} exists and is not a directory; choose a directory")
-    for sub in ("data", "models", "certificates", "figures"):
-        (out_dir / sub).mkdir(parents=True, exist_ok=True)
-    sizes, ipc_p, land = cfg.sizes, cfg.ipc, cfg.landing
-    K = land.buffer_size
-    stages = _Stages(progress, console)
-
-    specs = [(f"test_k{b}", sizes.n_test, b, SEEDS["test"]) for b in sorted({*sizes.buffers, K})]
-    for k in sorted({1, K}):
-        specs += [
-            (f"train_k{k}", sizes.n_train, k, SEEDS["train"]),
-            (f"calibration_k{k}", sizes.n_calibration, k, SEEDS["calibration"]),
-        ]
-    path = {name: out_dir / "data" / f"{name}.parquet" for name, *_ in specs}
-    jobs = 1 if backend == "sequential" else (n_jobs or default_jobs())
-
-    def data(name: str) -> PerceptionDataset:
-        n, k, seed = next((n, k, seed) for nm, n, k, seed in specs if nm == name)
-        df, _ = cached_mixed(path[name], n, buffer_size=k, seed=seed, approach=cfg.approach, config=sim)
-        return as_dataset(df, source=f"{name}.parquet")
-
-    with stages.progress:
-        todo = [
-            sp
-            for sp in specs
-            if not is_cached(
-                path[sp[0]], sp[1], buffer_size=sp[2], seed=sp[3], approach=cfg.approach, config=sim
-            )
-        ]
-        todo.sort(key=lambda sp: -sp[1])  # largest first: better balance across workers
-        with stages.stage(f"collect {len(todo)} datasets ({jobs} jobs)", sum(sp[1] for sp in todo)) as bar:
-            tasks = (
-                joblib.delayed(_collect_one)(path[name], n, k, seed, cfg.approach, sim)
-                for name, n, k, seed in todo
-            )
-            parallel = joblib.Parallel(n_jobs=min(jobs, max(1, len(todo))), return_as="generator_unordered")
-            for done in parallel(tasks):
-                bar(done)
-        tests = {b: data(f"test_k{b}") for b in sorted({*sizes.buffers, K})}
-        models: dict[int, IPCModel] = {}
-        certificates: dict[int, dict[str, Any]] = {}
-        calibration_sets: dict[int, PerceptionDataset] = {}
-        for k in sorted({1, K}):
-            train, cal = data(f"train_k{k}"), data(f"calibration_k{k}")
-            with stages.stage(f"train + calibrate IPC k={k}", 1):
-                models[k], _ = cached_ipc(out_dir / "models" / f"ipc_k{k}.pt", train, cal, ipc_p)
-            with stages.stage(f"certify IPC k={k}", 1):
-                certificates[k] = _certify(models[k], tests[k], out_dir / "certificates" / f"ipc_k{k}")
-            calibration_sets[k] = cal
-        rows = table1(models[1], {b: tests[b] for b in sizes.buffers}, REPORT_DELTA)
-
-        def campaign(name: str, contract: Any, n: int, seed: int, buffer_size: int) -> list[LandingRun]:
-            lp = dataclasses.replace(land, buffer_size=buffer_size)
-            with stages.stage(name, n) as bar:
-                return run_campaign(
-                    contract,
-                    n,
-                    seed=seed,
-                    sim_config=sim,
-                    scenario=cfg.scenario,
-                    landing=lp,
-                    n_jobs=n_jobs,
-                    backend=backend,
-                    progress=bar,
-                )
-
-        ipc_c, base_c = LearnedContract(models[K]), TrivialContract()
-        paper_ipc = campaign("paper runs: IPC", ipc_c, sizes.paper_runs, SEEDS["paper"], K)
-        paper_base = campaign("paper runs: baseline", base_c, sizes.paper_runs, SEEDS["paper"], K)
-        mc_ipc = campaign("Monte Carlo: IPC", ipc_c, sizes.mc_runs, SEEDS["monte_carlo"], K)
-        mc_base = campaign("Monte Carlo: baseline", base_c, sizes.mc_runs, SEEDS["monte_carlo"], K)
-        b1: dict[str, Any] | None = None
-        if sizes.buffer1_runs and K != 1:
-            b1_ipc = campaign(
-                "buffer 1: IPC", LearnedContract(models[1]), sizes.buffer1_runs, SEEDS["buffer1"], 1
-            )
-            b1_base = campaign("buffer 1: baseline", base_c, sizes.buffer1_runs, SEEDS["buffer1"], 1)
-            b1 = {
-                "buffer_size": 1,
-                "ipc": summarize(b1_ipc, REPORT_DELTA),
-                "baseline": summarize(b1_base, REPORT_DELTA),
-            }
-
-        with stages.stage("certified bound and coverage", 1):
-            cal_info = calibration_summary(models[K])
-            eps = cal_info["certified_epsilon"]
-            bound = certified_bound(
-                eps,
-                ipc_p.delta,
-                max_queries=land.max_measurements,
-                queries_per_run=[sum(q.detected for q in r.queries) for r in mc_ipc],
-            )
-            coverage = coverage_check(
-                models[K],
-                calibration_sets[K],
-                tests[K],
-                [*mc_ipc, *paper_ipc],
-                quantile=ipc_p.coverage_quantile,
-                delta=REPORT_DELTA,
-            )
-            loop = closed_loop_violations(mc_ipc, eps, REPORT_DELTA)
-
-        ipc_side = _side(mc_ipc, paper_ipc)
-        ipc_side["certified_unsafe_bound"] = bound["union_bound"]
-        ipc_side["certified"] = bound
-        ipc_side["empirical_vs_certified"] = unsafe_vs_certified(mc_ipc, bound, REPORT_DELTA)
-        cov_public = {k: v for k, v in coverage.items() if k != "distances"}
-        summary: dict[str, Any] = {
-            "format": "quad-landing-reproduction",
-            "version": SUMMARY_VERSION,
-            "quick": cfg.quick,
-            "settings": cfg.as_dict(),
-            "seeds": SEEDS,
-            "paper": {"table1": PAPER_TABLE1, "landing": PAPER_LANDING},
-            "ipc": {
-                f"k{k}": {
-                    "buffer_size": k,
-                    "calibration": calibration_summary(models[k]),
-                    "certificate": certificates[k],
-                    "n_parameters": models[k].n_parameters,
-                }
-                for k in models
-            },
-            "table1": rows,
-            "table1_rising": rates_rising(rows),
-            "landing": {
-                "buffer_size": K,
-                "tracking_tolerance": land.tracking_tolerance,
-                "max_measurements": land.max_measurements,
-                "ipc": ipc_side,
-                "baseline": _side(mc_base, paper_base),
-                "closed_loop": loop,
-                "coverage": cov_public,
-            },
-            "landing_buffer1": b1,
-            "machine": _machine(),
-            "jobs": n_jobs or default_jobs(),
-            "backend": backend,
-        }
-        summary["claims"] = evaluate_claims(summary)
-        with stages.stage("figures and report", 1):
-            figs = {
-                "topview": figure_png(plot_topview(paper_ipc, paper_base)),
-                "campaign": figure_png(plot_campaign(mc_ipc, mc_base)),
-                "table1": figure_png(plot_table1(rows)),
-                "trajectories": figure_png(plot_trajectories(paper_ipc, paper_base)),
-                "coverage": figure_png(plot_coverage(coverage)),
-            }
-            for name, png in figs.items():
-                atomic_write(out_dir / "figures" / f"{name}.png", lambda fh, b=png: fh.write(b))
-    summary["stage_seconds"] = stages.seconds
-    summary["runtime_seconds"] = round(time.perf_counter() - t_start, 1)
-    summary = json_data(summary)
-    summary_path, report_path = out_dir / "summary.json", out_dir / "report.html"
-    write_json(summary_path, summary, indent=1)
-    page = render_report(summary, figs)
-    atomic_write(report_path, lambda fh: fh.write(page), "w")
-    return ReproduceResult(summary, report_path, summary_path)
-
-
-def table1_text(summary: dict[str, Any]) -> str:
-    """Table I of a summary as a Markdown table beside the paper's row (for the README).
-
-    Examples
-    --------
-    >>> s = {"table1": {"1": {"n": 10, "violations": 0, "rate": 0.0, "interval": [0.0, 0.3]}}}
-    >>> print(table1_text(s).splitlines()[2])
-    | this reproduction | 0.00 % (0/10; [0.00, 30.00] %) |
-    """
-    rows = summary["table1"]
-    keys = sorted(rows, key=int)
-    head = "| buffer size | " + " | ".join(str(k) for k in keys) + " |"
-    sep = "|---|" + "---|" * len(keys)
-    ours = (
-        "| this reproduction | "
-        + " | ".join(
-            f"{100 * rows[k]['rate']:.2f} % ({rows[k]['violations']}/{rows[k]['n']}; "
-            f"[{100 * rows[k]['interval'][0]:.2f}, {100 * rows[k]['interval'][1]:.2f}] %)"
-            for k in keys
-        )
-        + " |"
-    )
-    paper = (
-        "| paper | "
-        + " | ".join(f"{100 * PAPER_TABLE1[int(k)]:.2f} %" if int(k) in PAPER_TABLE1 else "—" for k in keys)
-        + " |"
-    )
-    lines = [head, sep, ours]
-    if any(int(k) in PAPER_TABLE1 for k in keys):
-        lines.append(paper)
-    return "\n".join(lines)
+    run = _start(out, cfg, sim_config or load_config(), n_jobs, backend, _Stages(progress, console))
+    with run.stages.progress:
+        data = _collect_datasets(run)
+        models, ipcs = _learn_ipcs(run, data)
+        table = table1(models[1], {b: data[f"test_k{b}"] for b in cfg.sizes.buffers}, REPORT_DELTA)
+        flights = _fly_campaigns(run, models)
+        landing, coverage = _judge_landing(run, models[run.landing_buffer], data, flights)
+        figures = _draw_figures(run, table, flights, coverage)
+    summary = _summarize(run, ipcs, table, landing, _control(flights), started)
+    return _write(run, summary, figures)
