@@ -23,8 +23,6 @@ SECTIONS = [(DEFAULTS_PATH, name, cls) for name, cls in SIM_SECTIONS.items()] + 
     (REPRODUCE_PATH, name, cls) for name, cls in REPRODUCE_SECTIONS.items()
 ]
 IDS = [f"{path.name}:{name}" for path, name, _ in SECTIONS]
-
-#: One changed, valid value per section of each file (the rest stay as shipped).
 CHANGED_SIM = {
     "quad": {"mass": 1.6},
     "sim": {"ground_z": 0.1},

@@ -22,7 +22,6 @@ from ipcverify.errors import InvalidInputError
 
 CFG = load_config()
 CAM = Camera(CFG.camera)
-
 angle = st.floats(-np.pi, np.pi, allow_nan=False)
 coord = st.floats(-5, 5, allow_nan=False)
 
