@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from case_studies.quad_landing.data.collect import CollectStats, PathRecord
+from case_studies.quad_landing.data.collect import CollectStats, PathRecord, dataset_from_records
 from case_studies.quad_landing.data.columns import FLOAT_COLUMNS, measurement_row
 from case_studies.quad_landing.landing.scenario import (
     ScenarioParams,
@@ -291,16 +291,11 @@ def collect_approach(
     flight = Flight(cfg, buffer_size=buffer_size)
     t0 = time.perf_counter()
     parts: list[PathRecord] = []
-    outcomes: list[np.ndarray] = []
     done, index = 0, 0
     while done < n:
         rec = fly_approach(flight, index, seed=int(seed), params=params)
         take = min(len(rec.rows), n - done)
-        out = rec.outcomes
-        if take < len(rec.rows):
-            out = out[: int(np.flatnonzero(out == 0)[take - 1]) + 1]
-        parts.append(PathRecord(rec.index, rec.rows[:take], rec.times[:take], out, rec.flight_time))
-        outcomes.append(out)
+        parts.append(rec.head(take))
         done += take
         index += 1
         if progress is not None and take:
@@ -309,19 +304,4 @@ def collect_approach(
             raise InvalidInputError(
                 "approach flights produce no detections; check the camera and pad settings"
             )
-    data = pd.DataFrame(np.vstack([r.rows for r in parts]), columns=list(FLOAT_COLUMNS))
-    data["path"] = np.concatenate([np.full(len(r.rows), r.index, np.int64) for r in parts])
-    data["t"] = np.concatenate([r.times for r in parts])
-    codes = np.concatenate(outcomes)
-    stats = CollectStats(
-        buffer_size=int(buffer_size),
-        seed=int(seed),
-        samples=done,
-        measurements=len(codes),
-        missed_out_of_view=int(np.sum(codes == 1)),
-        missed_in_view=int(np.sum(codes == 2)),
-        paths=len(parts),
-        flight_time=float(sum(r.flight_time for r in parts)),
-        wall_time=time.perf_counter() - t0,
-    )
-    return data, stats
+    return dataset_from_records(parts, buffer_size=buffer_size, seed=int(seed), started=t0)

@@ -17,7 +17,7 @@ import json
 import multiprocessing
 import time
 from collections import deque
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -36,6 +36,7 @@ from ipcverify.files import atomic_write
 __all__ = [
     "CollectStats",
     "PathRecord",
+    "dataset_from_records",
     "collect",
     "fly_path",
     "path_rng",
@@ -146,6 +147,39 @@ class PathRecord:
     times: np.ndarray
     outcomes: np.ndarray
     flight_time: float
+
+    def head(self, samples: int) -> PathRecord:
+        """The first ``samples`` rows, with the measurements up to the last of them."""
+        if samples >= len(self.rows):
+            return self
+        last = int(np.flatnonzero(self.outcomes == 0)[samples - 1]) if samples else -1
+        return PathRecord(self.index, self.rows[:samples], self.times[:samples],
+                          self.outcomes[: last + 1], self.flight_time)  # fmt: skip
+
+
+def dataset_from_records(
+    parts: Sequence[PathRecord], *, buffer_size: int, seed: int, started: float
+) -> tuple[pd.DataFrame, CollectStats]:
+    """The rows of ``parts`` as a dataset (:data:`.columns.DATASET_COLUMNS`) and its statistics.
+
+    ``started`` is the :func:`time.perf_counter` reading when flying began (for the wall time).
+    """
+    outcomes = np.concatenate([r.outcomes for r in parts])
+    data = pd.DataFrame(np.vstack([r.rows for r in parts]), columns=list(FLOAT_COLUMNS))
+    data["path"] = np.concatenate([np.full(len(r.rows), r.index, np.int64) for r in parts])
+    data["t"] = np.concatenate([r.times for r in parts])
+    stats = CollectStats(
+        buffer_size=int(buffer_size),
+        seed=int(seed),
+        samples=len(data),
+        measurements=len(outcomes),
+        missed_out_of_view=int(np.sum(outcomes == 1)),
+        missed_in_view=int(np.sum(outcomes == 2)),
+        paths=len(parts),
+        flight_time=float(sum(r.flight_time for r in parts)),
+        wall_time=time.perf_counter() - started,
+    )
+    return data, stats
 
 
 def path_rng(seed: int, index: int) -> np.random.Generator:
@@ -302,11 +336,7 @@ def collect(
     try:
         for rec in records:
             take = min(len(rec.rows), n_target - n_done)
-            if take < len(rec.rows):  # keep measurements up to the last sample used
-                last = int(np.flatnonzero(rec.outcomes == 0)[take - 1]) if take else -1
-                rec = PathRecord(rec.index, rec.rows[:take], rec.times[:take],
-                                 rec.outcomes[: last + 1], rec.flight_time)  # fmt: skip
-            parts.append(rec)
+            parts.append(rec.head(take))  # measurements up to the last sample used
             n_done += take
             if progress is not None and take:
                 progress(take)
@@ -314,22 +344,7 @@ def collect(
                 break
     finally:
         records.close()
-    outcomes = np.concatenate([r.outcomes for r in parts])
-    data = pd.DataFrame(np.vstack([r.rows for r in parts]), columns=list(FLOAT_COLUMNS))
-    data["path"] = np.concatenate([np.full(len(r.rows), r.index, np.int64) for r in parts])
-    data["t"] = np.concatenate([r.times for r in parts])
-    stats = CollectStats(
-        buffer_size=k,
-        seed=int(seed),
-        samples=n_done,
-        measurements=len(outcomes),
-        missed_out_of_view=int(np.sum(outcomes == 1)),
-        missed_in_view=int(np.sum(outcomes == 2)),
-        paths=len(parts),
-        flight_time=float(sum(r.flight_time for r in parts)),
-        wall_time=time.perf_counter() - t0,
-    )
-    return data, stats
+    return dataset_from_records(parts, buffer_size=k, seed=int(seed), started=t0)
 
 
 def write_dataset(data: pd.DataFrame, out: str | Path, stats: CollectStats | None = None) -> Path:

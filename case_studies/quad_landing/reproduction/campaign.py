@@ -239,12 +239,7 @@ class CampaignSummary:
 
     def to_dict(self) -> dict[str, Any]:
         """Plain data for ``summary.json``; the rates and bounds only when there are runs."""
-        out: dict[str, Any] = {}
-        for f in dataclasses.fields(self):
-            v = getattr(self, f.name)
-            if v is not None:
-                out[f.name] = list(v) if isinstance(v, tuple) else v
-        return out
+        return {f.name: v for f in dataclasses.fields(self) if (v := getattr(self, f.name)) is not None}
 
 
 def summarize(runs: Sequence[LandingRun], delta: float = 0.05) -> CampaignSummary:
