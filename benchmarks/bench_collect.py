@@ -18,7 +18,7 @@ import os
 import platform
 import time
 
-from case_studies.quad_landing.collect import collect
+from case_studies.quad_landing.data.collect import collect
 
 
 def run(n: int, buffer_size: int, seed: int, jobs: int) -> dict:

@@ -29,7 +29,7 @@ import cvxpy as cp
 import numpy as np
 
 from benchmarks.common import machine_info
-from case_studies.quad_landing.state_machine import LANDING_TARGET
+from case_studies.quad_landing.landing.state_machine import LANDING_TARGET
 from ipcverify.containment import Status, contained_float, prove, support_slack, verify
 from ipcverify.containment.sdp import sdp_problem
 from ipcverify.landing import landing_decision

@@ -18,7 +18,7 @@ import numpy as np
 from benchmarks.bench_containment import bench_closed_form_batch, bench_sdp
 from benchmarks.common import spread
 from benchmarks.datasets import Splits
-from case_studies.quad_landing.state_machine import LANDING_TARGET
+from case_studies.quad_landing.landing.state_machine import LANDING_TARGET
 from ipcverify.landing import landing_accept_float
 from ipcverify.model import IPCModel
 

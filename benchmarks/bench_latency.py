@@ -34,7 +34,7 @@ import numpy as np
 import torch
 
 from benchmarks.common import spread, time_calls
-from case_studies.quad_landing.state_machine import LANDING_TARGET
+from case_studies.quad_landing.landing.state_machine import LANDING_TARGET
 from ipcverify.data import PerceptionDataset
 from ipcverify.model import IPCModel
 from ipcverify.query import IPCQuery

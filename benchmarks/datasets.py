@@ -5,7 +5,7 @@ method is fitted on the same training split, calibrated on the same calibration 
 and measured on the same test split.
 
 * ``synthetic``: :func:`ipcverify.synthetic.make_lagged_perception` with seeds 1000, 1001, 1002.
-* ``quad_landing``: :func:`case_studies.quad_landing.collect` at buffer size 1 with seeds
+* ``quad_landing``: :func:`case_studies.quad_landing.data.collect` at buffer size 1 with seeds
   1000, 1001, 1002 (different exploration paths and sensor noise per split). The quad
   data takes about 12 s per 5000 samples to fly, so it is cached as Parquet under
   ``benchmarks/.cache/`` (gitignored), keyed by size and seed.

@@ -297,9 +297,9 @@ def _out_of_domain_message(error: str, domain: DomainModel | None, x: FloatArray
                 f"{domain.threshold:.3g})"
             )
     return (
-        f"{where}: the contract's set is degenerate (singular or non-finite shape matrix) for this input, which lies "
-        f"outside the domain the contract was trained and calibrated on{far}; the contract certifies "
-        "nothing there -- drop such inputs, or retrain and recalibrate on data that covers them"
+        f"{where}: the contract's set is degenerate (singular or non-finite shape matrix) for this input, "
+        f"which lies outside the domain the contract was trained and calibrated on{far}; the contract "
+        "certifies nothing there -- drop such inputs, or retrain and recalibrate on data that covers them"
     )
 
 

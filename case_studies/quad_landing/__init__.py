@@ -6,6 +6,13 @@ estimates the pad position ``yhat_C``, and a frame buffer of size ``k`` makes th
 lag the state by ``k`` frames, the main error source in the paper. See
 ``docs/case_study.md``.
 
+Layout, one subpackage per stage (each ``__init__`` says what it owns):
+:mod:`.sim` (the simulator), :mod:`.perception` (the ArUco detector),
+:mod:`.data` (exploration paths, approach flights, datasets), :mod:`.landing` (the
+landing state machine and contracts) and :mod:`.reproduction` (the paper reproduction).
+The settings live in ``defaults.toml`` and ``reproduce.toml`` beside this file, read by
+:mod:`.settings`; :mod:`.cli` is the command line.
+
 Public API
 ----------
 * :func:`load_config`, :class:`SimConfig` — defaults from ``defaults.toml``.
@@ -27,19 +34,14 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-from case_studies.quad_landing.collect import (
-    DATASET_COLUMNS,
-    CollectStats,
-    collect,
-    write_dataset,
-)
-from case_studies.quad_landing.config import SimConfig, load_config
-from case_studies.quad_landing.dynamics import hover_state
-from case_studies.quad_landing.features import X_COLUMNS, X_DESCRIPTIONS
-from case_studies.quad_landing.frames import Pose, transform_ellipsoid
-from case_studies.quad_landing.lqr import Reference
-from case_studies.quad_landing.marker import Pad
-from case_studies.quad_landing.sim import Flight, FlyResult, LandingResult, Measurement
+from case_studies.quad_landing.data.collect import CollectStats, collect, write_dataset
+from case_studies.quad_landing.data.columns import DATASET_COLUMNS, X_COLUMNS, X_DESCRIPTIONS
+from case_studies.quad_landing.sim.config import SimConfig, load_config
+from case_studies.quad_landing.sim.dynamics import hover_state
+from case_studies.quad_landing.sim.flight import Flight, FlyResult, LandingResult, Measurement
+from case_studies.quad_landing.sim.frames import Pose, transform_ellipsoid
+from case_studies.quad_landing.sim.lqr import Reference
+from case_studies.quad_landing.sim.marker import Pad
 
 __all__ = [
     "DATASET_COLUMNS",
@@ -72,15 +74,15 @@ __all__ = [
 ]
 
 _LAZY = {
-    "LandingRun": "state_machine",
-    "Outcome": "state_machine",
-    "run_landing": "state_machine",
-    "LearnedContract": "contracts",
-    "TrivialContract": "contracts",
-    "draw_scenario": "scenario",
-    "load_reproduce_config": "reproduce_config",
-    "reproduce": "reproduce",
-    "run_campaign": "campaign",
+    "LandingRun": "landing.runs",
+    "Outcome": "landing.runs",
+    "run_landing": "landing.state_machine",
+    "LearnedContract": "landing.contracts",
+    "TrivialContract": "landing.contracts",
+    "draw_scenario": "landing.scenario",
+    "load_reproduce_config": "reproduction.config",
+    "reproduce": "reproduction.pipeline",
+    "run_campaign": "reproduction.campaign",
 }
 
 

@@ -1,7 +1,7 @@
 """Command line: ``python -m case_studies.quad_landing {collect,pictures,bias,reproduce}``.
 
 Thin click wrappers over :func:`.collect.collect`, :func:`.pictures.write_pictures`,
-:func:`.bias.refinement_bias` and :func:`.reproduce.reproduce`. Bad input (a bad option
+:func:`.bias.refinement_bias` and :func:`.pipeline.reproduce`. Bad input (a bad option
 value, a bad config file, an output path that cannot be written) prints one
 ``error: ...`` line and exits with status 2.
 """
@@ -14,8 +14,9 @@ import click
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-from case_studies.quad_landing.config import SimConfig, load_config
-from case_studies.quad_landing.framebuffer import MAX_BUFFER_SIZE
+from case_studies.quad_landing.settings import DEFAULTS_PATH, REPRODUCE_PATH, read_toml
+from case_studies.quad_landing.sim.config import SimConfig, load_config
+from case_studies.quad_landing.sim.framebuffer import MAX_BUFFER_SIZE
 from ipcverify.cli.app import run_group
 from ipcverify.errors import InvalidInputError
 
@@ -23,6 +24,10 @@ __all__ = ["quad", "main"]
 
 console = Console()
 err_console = Console(stderr=True)
+
+#: The shipped settings, read once for the defaults shown by ``--help``.
+_DEFAULTS = read_toml(DEFAULTS_PATH)
+_REPRODUCE = read_toml(REPRODUCE_PATH)
 
 
 def _config(path: str | None) -> SimConfig:
@@ -57,14 +62,16 @@ def quad() -> None:
     "-k",
     type=click.IntRange(0, MAX_BUFFER_SIZE),
     default=None,
-    help="Camera buffer size k (frames of lag) [default: from the config, 1].",
+    help="Camera buffer size k (frames of lag) "
+    f"[default: [collect] buffer_size of --config or defaults.toml: {_DEFAULTS['collect']['buffer_size']}].",
 )
 @click.option(
     "--n",
     "n",
     type=click.IntRange(min=1),
     default=None,
-    help="Samples with a detection to collect [default: from the config, 5000].",
+    help="Samples with a detection to collect "
+    f"[default: [collect] n of --config or defaults.toml: {_DEFAULTS['collect']['n']}].",
 )
 @_seed_option
 @click.option(
@@ -86,27 +93,20 @@ def quad() -> None:
 def collect_command(buffer_size: int | None, n: int | None, seed: int, out: str,
                     config_path: str | None, jobs: int, quiet: bool) -> None:  # fmt: skip
     """Fly the exploration paths and write a dataset of lagged measurements."""
-    from case_studies.quad_landing.collect import collect, write_dataset
+    from case_studies.quad_landing.data.collect import collect, write_dataset
 
     out_path = Path(out)
     if out_path.suffix.lower() not in (".parquet", ".csv"):
         raise InvalidInputError(f"--out must end in .parquet or .csv, got {out_path.name!r}")
     if not out_path.parent.exists():
         raise InvalidInputError(f"--out directory {out_path.parent} does not exist; create it")
-    overrides: dict[str, int] = {}
-    if n is not None:
-        overrides["n"] = n
-    if buffer_size is not None:
-        overrides["buffer_size"] = buffer_size
     cfg = _config(config_path)
-    if overrides:
-        cfg = cfg.replace(collect=overrides)
     with Progress(
         TextColumn("collecting"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
         console=err_console, transient=True, disable=quiet,
     ) as bar:  # fmt: skip
-        task = bar.add_task("collect", total=cfg.collect.n)
-        data, stats = collect(seed=seed, config=cfg, jobs=jobs,
+        task = bar.add_task("collect", total=cfg.collect.n if n is None else n)
+        data, stats = collect(n, buffer_size=buffer_size, seed=seed, config=cfg, jobs=jobs,
                               progress=lambda k: bar.advance(task, k))  # fmt: skip
     write_dataset(data, out_path, stats)
     console.print(f"wrote {out_path}: {stats.summary()}", markup=False, highlight=False,
@@ -125,7 +125,7 @@ def collect_command(buffer_size: int | None, n: int | None, seed: int, out: str,
 @_config_option
 def pictures_command(out: str, seed: int, config_path: str | None) -> None:
     """Write the documentation pictures (a camera frame, the paths, lag error per k)."""
-    from case_studies.quad_landing.pictures import write_pictures
+    from case_studies.quad_landing.data.pictures import write_pictures
 
     info = write_pictures(out, seed=seed, config=_config(config_path))
     frame = info["frame"]
@@ -143,7 +143,7 @@ def pictures_command(out: str, seed: int, config_path: str | None) -> None:
 @_config_option
 def bias_command(poses: int, seed: int, config_path: str | None) -> None:
     """Measure the range bias and speed of each ArUco corner refinement (no lag)."""
-    from case_studies.quad_landing.bias import refinement_bias
+    from case_studies.quad_landing.perception.bias import refinement_bias
 
     df = refinement_bias(poses=poses, seed=seed, config=_config(config_path))
     click.echo(df.to_string(index=False, float_format=lambda v: f"{v:.3f}"))
@@ -175,7 +175,8 @@ def bias_command(poses: int, seed: int, config_path: str | None) -> None:
     "--mc-runs",
     type=click.IntRange(min=1),
     default=None,
-    help="Monte Carlo runs per contract [default: from reproduce.toml, 300].",
+    help="Monte Carlo runs per contract [default: [sizes] mc_runs of --settings or reproduce.toml: "
+    f"{_REPRODUCE['sizes']['mc_runs']}, with --quick {_REPRODUCE['quick']['sizes']['mc_runs']}].",
 )
 @_config_option
 @click.option(
@@ -189,27 +190,31 @@ def bias_command(poses: int, seed: int, config_path: str | None) -> None:
 def reproduce_command(out: str, quick: bool, jobs: int | None, backend: str, mc_runs: int | None,
                       config_path: str | None, settings_path: str | None, quiet: bool) -> None:  # fmt: skip
     """Reproduce the paper's application study: Table I, safe landing, certified vs empirical."""
-    from case_studies.quad_landing.reproduce import reproduce, table1_text
-    from case_studies.quad_landing.reproduce_config import load_reproduce_config
+    from case_studies.quad_landing.reproduction.config import load_reproduce_config
+    from case_studies.quad_landing.reproduction.pipeline import reproduce
+    from case_studies.quad_landing.reproduction.table1 import table1_text
 
     overrides = {"sizes": {"mc_runs": mc_runs}} if mc_runs is not None else None
     settings = load_reproduce_config(settings_path, overrides, quick=quick)
     result = reproduce(out, config=settings, sim_config=_config(config_path), n_jobs=jobs, backend=backend,
                        progress=not quiet, console=err_console)  # fmt: skip
     s = result.summary
-    land = s["landing"]
-    ipc, base = land["ipc"], land["baseline"]
+    land = s.landing
+    ipc, base = land.ipc.monte_carlo, land.baseline.monte_carlo
+    paper_ipc, paper_base = land.ipc.paper, land.baseline.paper
+    bound = land.ipc.certified
+    assert bound is not None  # the IPC's landing results always carry it
     lines = [
-        table1_text(s),
-        f"landing at buffer size {land['buffer_size']} ({ipc['runs']} Monte Carlo runs each): "
-        f"IPC {ipc['safe']} safe / {ipc['unsafe']} unsafe / {ipc['aborted']} aborted; "
-        f"baseline {base['safe']} safe / {base['unsafe']} unsafe / {base['aborted']} aborted",
-        f"paper-style runs: IPC {ipc['paper_runs']['safe']}/{ipc['paper_runs']['runs']} safe, baseline "
-        f"{base['paper_runs']['unsafe']}/{base['paper_runs']['runs']} unsafe",
-        f"certified P(unsafe) <= {ipc['certified_unsafe_bound']:.4g} "
-        f"(refined {ipc['certified']['refined_bound']:.4g}) vs empirical {ipc['unsafe']}/{ipc['runs']}; "
-        f"coverage shift: {land['coverage'].get('shift_detected')}",
-        f"wrote {result.report} and {result.summary_path} in {s['runtime_seconds']} s",
+        table1_text(s.table1),
+        f"landing at buffer size {land.buffer_size} ({ipc.runs} Monte Carlo runs each): "
+        f"IPC {ipc.safe} safe / {ipc.unsafe} unsafe / {ipc.aborted} aborted; "
+        f"baseline {base.safe} safe / {base.unsafe} unsafe / {base.aborted} aborted",
+        f"paper-style runs: IPC {paper_ipc.safe}/{paper_ipc.runs} safe, baseline "
+        f"{paper_base.unsafe}/{paper_base.runs} unsafe",
+        f"certified P(unsafe) <= {bound.union_bound:.4g} "
+        f"(refined {bound.refined_bound:.4g}) vs empirical {ipc.unsafe}/{ipc.runs}; "
+        f"coverage shift: {land.shift_detected}",
+        f"wrote {result.report} and {result.summary_path} in {s.runtime_seconds} s",
     ]
     console.print("\n".join(lines), markup=False, highlight=False, soft_wrap=True)
 

@@ -1,0 +1,7 @@
+"""Perception: the ArUco pipeline that turns a camera image into the pad estimate ``yhat_C``.
+
+It owns the detector and its settings (:mod:`.aruco`: OpenCV's ``ArucoDetector`` and
+``solvePnP``) and the study of how each corner refinement biases the range
+(:mod:`.bias`, ``python -m case_studies.quad_landing bias``). The simulator runs the
+detector on every lagged image it reads; the detector knows nothing of the lag.
+"""

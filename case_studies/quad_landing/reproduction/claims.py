@@ -1,0 +1,137 @@
+"""The issue's acceptance claims, each with what the numbers show and what they establish.
+
+Every :class:`Claim` has ``holds`` (the point statement on the observed counts),
+``supported`` (what the sample sizes can establish at the report's confidence,
+Clopper--Pearson) and ``detail`` (the numbers behind it). :func:`evaluate_claims` reads
+them off Table I and the landing experiment.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+from case_studies.quad_landing.reproduction.table1 import Table1
+
+if TYPE_CHECKING:
+    from case_studies.quad_landing.reproduction.results import LandingExperiment
+
+__all__ = ["Claim", "evaluate_claims"]
+
+
+@dataclass(frozen=True)
+class Claim:
+    """One acceptance claim: ``holds`` on the point counts, ``supported`` by the statistics.
+
+    Examples
+    --------
+    >>> Claim(holds=True, supported=False, detail="30/30 safe").to_dict()
+    {'holds': True, 'supported': False, 'detail': '30/30 safe'}
+    """
+
+    holds: bool
+    supported: bool
+    detail: str
+
+    def to_dict(self) -> dict[str, bool | str]:
+        """``summary.json``'s ``claims.<name>``."""
+        return {"holds": self.holds, "supported": self.supported, "detail": self.detail}
+
+
+def _table1_claims(table: Table1) -> dict[str, Claim]:
+    b1 = table.row(1)
+    rising = table.rising()
+    return {
+        "table1_buffer1_at_most_1pct": Claim(
+            holds=b1.rate <= 0.01,
+            supported=b1.upper <= 0.01,
+            detail=f"rate {b1.rate:.4%}, one-sided CP upper bound {b1.upper:.4%} (n = {b1.n})",
+        ),
+        "table1_rates_rising": Claim(
+            holds=rising.strict,
+            supported=rising.separated,
+            detail="point rates strictly increasing; 'supported' = simultaneous CP intervals do not overlap",
+        ),
+    }
+
+
+def _ipc_claims(landing: LandingExperiment) -> dict[str, Claim]:
+    mc, paper = landing.ipc.monte_carlo, landing.ipc.paper
+    n, lo_safe = mc.runs, mc.safe_lower
+    established = lo_safe is not None and lo_safe >= 0.99
+    note = "" if established else f" ({n} runs cannot establish >= 99 % unless (nearly) all are safe)"
+    return {
+        "ipc_safe_99pct_monte_carlo": Claim(
+            holds=mc.safe >= 0.99 * n,
+            supported=established,
+            detail=(
+                f"{mc.safe}/{n} safe, {mc.unsafe} unsafe, {mc.aborted} aborted; one-sided 95 % "
+                f"lower bound of the safe rate {_num(lo_safe, '.4f')}" + note
+            ),
+        ),
+        "ipc_safe_all_paper_runs": Claim(
+            holds=paper.safe == paper.runs,
+            supported=paper.safe == paper.runs,
+            detail=f"{paper.safe}/{paper.runs} safe ({paper.unsafe} unsafe, {paper.aborted} aborted)",
+        ),
+    }
+
+
+def _baseline_claim(landing: LandingExperiment) -> Claim:
+    base, paper = landing.baseline.monte_carlo, landing.baseline.paper
+    lower = base.unsafe_lower
+    lo, hi = base.unsafe_interval or (math.nan, math.nan)
+    return Claim(
+        holds=base.unsafe > 0.5 * base.runs,
+        supported=lower is not None and lower > 0.5,
+        detail=(
+            f"{base.unsafe}/{base.runs} unsafe, one-sided 95 % lower bound {_num(lower, '.3f')}, "
+            f"two-sided interval [{lo:.3f}, {hi:.3f}]; paper runs: {paper.unsafe}/"
+            f"{paper.runs} unsafe (paper: 9/10)"
+        ),
+    )
+
+
+def _certified_claim(landing: LandingExperiment) -> Claim:
+    bound, ev = landing.ipc.certified, landing.ipc.empirical_vs_certified
+    assert bound is not None and ev is not None  # LandingExperiment requires them
+    rate = math.nan if ev.unsafe_rate is None else ev.unsafe_rate
+    return Claim(
+        holds=bool(ev.bound_at_least_rate),
+        supported=bool(ev.consistent),
+        detail=(
+            f"certified {bound.union_bound:.4g} (refined {ev.certified_refined:.4g}) vs empirical "
+            f"{rate:.4g} ({ev.unsafe}/{ev.runs}); 'supported' = the CP lower bound of the unsafe rate "
+            "does not exceed the refined bound"
+        ),
+    )
+
+
+def _num(value: float | None, spec: str) -> str:
+    return "n/a" if value is None else format(value, spec)
+
+
+def evaluate_claims(table: Table1, landing: LandingExperiment) -> dict[str, Claim]:
+    """The acceptance claims of the reproduction, in the order of ``summary.json``.
+
+    Parameters
+    ----------
+    table : Table1
+        Table I (needs the buffer-1 row).
+    landing : LandingExperiment
+        The landing at the landing buffer size, with the IPC's certified bound.
+
+    Returns
+    -------
+    dict of str to Claim
+        ``table1_buffer1_at_most_1pct``, ``table1_rates_rising``,
+        ``ipc_safe_99pct_monte_carlo``, ``ipc_safe_all_paper_runs``,
+        ``baseline_unsafe_in_most_runs``, ``certified_bound_at_least_empirical``.
+    """
+    return {
+        **_table1_claims(table),
+        **_ipc_claims(landing),
+        "baseline_unsafe_in_most_runs": _baseline_claim(landing),
+        "certified_bound_at_least_empirical": _certified_claim(landing),
+    }

@@ -1,0 +1,257 @@
+"""Settings of the paper reproduction: ``reproduce.toml`` (:mod:`case_studies.quad_landing.settings`).
+
+The simulator's settings stay in ``defaults.toml`` (:mod:`case_studies.quad_landing.sim.config`);
+this file holds what the reproduction adds: landing scenarios
+(:class:`~case_studies.quad_landing.landing.scenario.ScenarioParams`), approach-flight data
+(:class:`~case_studies.quad_landing.data.approach.ApproachParams`), the landing state
+machine (:class:`~case_studies.quad_landing.landing.state_machine.LandingParams`), the IPC
+recipe (:class:`IpcParams`) and the sizes of the reproduction (:class:`Sizes`). Each
+section's dataclass lives beside the code that uses it. The ``[quick]`` table is an
+overlay with the same layout (``[quick.sizes]``, ``[quick.ipc]``) applied by
+``load_reproduce_config(quick=True)``. Unknown sections or keys are errors; nothing is
+``eval``-ed.
+
+Examples
+--------
+>>> cfg = load_reproduce_config()
+>>> cfg.landing.max_measurements, cfg.sizes.n_train
+(8, 5000)
+>>> load_reproduce_config(quick=True).sizes.mc_runs < cfg.sizes.mc_runs
+True
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from case_studies.quad_landing.data.approach import ApproachParams
+from case_studies.quad_landing.landing.scenario import ScenarioParams
+from case_studies.quad_landing.landing.state_machine import LandingParams
+from case_studies.quad_landing.settings import (
+    REPRODUCE_PATH,
+    ConfigError,
+    TomlSection,
+    build_sections,
+    check_positive,
+    merge_sections,
+    read_toml,
+)
+from case_studies.quad_landing.sim.framebuffer import MAX_BUFFER_SIZE
+from ipcverify.errors import InvalidInputError
+from ipcverify.training import TrainConfig
+
+__all__ = ["IpcParams", "Sizes", "ReproduceConfig", "load_reproduce_config", "REPRODUCE_SECTIONS"]
+
+
+def _train_fields() -> dict[str, dataclasses.Field[Any]]:
+    return {f.name: f for f in dataclasses.fields(TrainConfig) if f.init}
+
+
+@dataclass(frozen=True, kw_only=True)
+class IpcParams(TomlSection):
+    """The IPC recipe: the network, its training and its calibration (``[ipc]``).
+
+    The ``[ipc]`` table is flat. Its keys that are fields of
+    :class:`ipcverify.training.TrainConfig` (``epochs``, ``lr``, ``batch_size``, ``alpha``,
+    ``lam``, ``seed``, or any other the library defines) build :attr:`train`; the fields
+    the table leaves out keep the library's defaults. The other keys are not training:
+
+    Parameters
+    ----------
+    hidden : tuple of int
+        Hidden layer sizes of the network (:class:`ipcverify.model.ModelConfig`).
+    train : TrainConfig
+        The training settings.
+    epsilon, delta : float
+        PAC calibration target and confidence parameter.
+    coverage_quantile : float
+        Nearest-neighbour distance quantile of the coverage check
+        (:func:`case_studies.quad_landing.reproduction.certified.coverage_check`).
+
+    Examples
+    --------
+    >>> ipc = IpcParams.defaults()  # [ipc] of reproduce.toml
+    >>> ipc.hidden, ipc.train.epochs, ipc.epsilon
+    ((64, 128), 40, 0.002)
+    >>> IpcParams.defaults(epochs=2).train.epochs
+    2
+    """
+
+    toml_file = REPRODUCE_PATH
+    toml_section = "ipc"
+
+    hidden: tuple[int, ...]
+    train: TrainConfig
+    epsilon: float
+    delta: float
+    coverage_quantile: float
+
+    def __post_init__(self) -> None:
+        h = tuple(self.hidden)
+        if not h or any(isinstance(v, bool) or not isinstance(v, int) or v < 1 for v in h):
+            raise ConfigError(f"ipc.hidden must be a list of positive integers, got {self.hidden!r}")
+        object.__setattr__(self, "hidden", h)
+        if not isinstance(self.train, TrainConfig):
+            raise ConfigError(f"IpcParams.train must be a TrainConfig, got {type(self.train).__name__}")
+        for name in ("epsilon", "delta", "coverage_quantile"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and 0.0 < v < 1.0):
+                raise ConfigError(f"ipc.{name} must lie strictly between 0 and 1, got {v!r}")
+
+    @classmethod
+    def toml_keys(cls) -> frozenset[str]:
+        """``hidden``, ``epsilon``, ``delta``, ``coverage_quantile`` and the fields of ``TrainConfig``."""
+        own = {f.name for f in dataclasses.fields(cls) if f.init and f.name != "train"}
+        return frozenset(own | set(_train_fields()))
+
+    @classmethod
+    def from_table(cls, table: Mapping[str, Any]) -> IpcParams:
+        """Split the flat ``[ipc]`` table into the ``TrainConfig`` and the rest."""
+        fields = _train_fields()
+        train = {k: v for k, v in table.items() if k in fields}
+        for key, value in train.items():
+            if fields[key].type in ("int", int) and (isinstance(value, bool) or not isinstance(value, int)):
+                raise ConfigError(f"ipc.{key} must be an integer, got {value!r}")
+        try:
+            config = TrainConfig(**train)
+        except InvalidInputError as exc:
+            raise ConfigError(f"[ipc]: {exc}") from None
+        rest: dict[str, Any] = {
+            k: tuple(v) if isinstance(v, list) else v for k, v in table.items() if k not in fields
+        }
+        try:
+            return cls(train=config, **rest)
+        except TypeError as exc:  # missing required keys
+            raise ConfigError(f"[ipc]: {exc}") from None
+
+    def to_table(self) -> dict[str, Any]:
+        """The flat ``[ipc]`` layout: ``hidden``, every ``TrainConfig`` field, then the rest."""
+        return {
+            "hidden": list(self.hidden),
+            **dataclasses.asdict(self.train),
+            "epsilon": self.epsilon,
+            "delta": self.delta,
+            "coverage_quantile": self.coverage_quantile,
+        }
+
+
+@dataclass(frozen=True, kw_only=True)
+class Sizes(TomlSection):
+    """Sizes of the reproduction.
+
+    Parameters
+    ----------
+    n_train, n_calibration, n_test : int
+        Samples of the training and calibration sets (per IPC) and of each test set.
+    buffers : tuple of int
+        Buffer sizes of Table I.
+    paper_runs, mc_runs : int
+        Landing runs: the paper-style experiment and the Monte Carlo campaign.
+    buffer1_runs : int
+        Runs of the buffer-1 landing (the lag control experiment); 0 skips it.
+
+    Examples
+    --------
+    >>> Sizes.defaults().buffers  # [sizes] of reproduce.toml
+    (1, 2, 3, 4, 5)
+    """
+
+    toml_file = REPRODUCE_PATH
+    toml_section = "sizes"
+
+    n_train: int
+    n_calibration: int
+    n_test: int
+    buffers: tuple[int, ...]
+    paper_runs: int
+    mc_runs: int
+    buffer1_runs: int
+
+    def __post_init__(self) -> None:
+        for name in ("n_train", "n_calibration", "n_test", "paper_runs", "mc_runs"):
+            check_positive(f"sizes.{name}", getattr(self, name), integer=True)
+        check_positive("sizes.buffer1_runs", self.buffer1_runs, integer=True, allow_zero=True)
+        b = tuple(self.buffers)
+        if (
+            not b
+            or any(isinstance(k, bool) or not isinstance(k, int) or not 0 <= k <= MAX_BUFFER_SIZE for k in b)
+            or len(set(b)) != len(b)
+        ):
+            raise ConfigError(f"sizes.buffers must be distinct integers in [0, {MAX_BUFFER_SIZE}], got {b!r}")
+        if 1 not in b:
+            raise ConfigError("sizes.buffers must include 1, the buffer size the Table I IPC is learned at")
+        object.__setattr__(self, "buffers", tuple(sorted(b)))
+
+
+@dataclass(frozen=True, kw_only=True)
+class ReproduceConfig:
+    """Everything :mod:`.pipeline` needs besides the simulator's :class:`.sim.config.SimConfig`.
+
+    Examples
+    --------
+    >>> cfg = load_reproduce_config(overrides={"landing": {"max_measurements": 5}})
+    >>> cfg.landing.max_measurements
+    5
+    """
+
+    scenario: ScenarioParams
+    approach: ApproachParams
+    landing: LandingParams
+    ipc: IpcParams
+    sizes: Sizes
+    quick: bool = False
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain data in the TOML layout (for the summary), and ``quick``."""
+        sections: dict[str, Any] = {name: getattr(self, name).to_table() for name in REPRODUCE_SECTIONS}
+        return {**sections, "quick": self.quick}
+
+
+#: The sections of ``reproduce.toml`` and their dataclasses.
+REPRODUCE_SECTIONS: dict[str, type[TomlSection]] = {
+    cls.toml_section: cls for cls in (ScenarioParams, ApproachParams, LandingParams, IpcParams, Sizes)
+}
+
+
+def load_reproduce_config(
+    path: str | Path | None = None,
+    overrides: Mapping[str, Mapping[str, Any]] | None = None,
+    *,
+    quick: bool = False,
+) -> ReproduceConfig:
+    """Read ``reproduce.toml``, then the ``[quick]`` overlay (if ``quick``), ``path`` and ``overrides``.
+
+    Parameters
+    ----------
+    path : str or Path, optional
+        A TOML file with any subset of the sections and keys of ``reproduce.toml``
+        (its own ``[quick]`` table, if any, is applied with ``quick=True``).
+    overrides : mapping, optional
+        ``{section: {key: value}}`` applied last.
+    quick : bool
+        Apply the ``[quick]`` overlay (smaller sizes, same pipeline).
+
+    Raises
+    ------
+    ConfigError
+        If a file is missing or malformed, or a section, key or value is invalid.
+    """
+    tree: dict[str, dict[str, Any]] = {}
+    sources = [(REPRODUCE_PATH, read_toml(REPRODUCE_PATH))]
+    if path is not None:
+        sources.append((Path(path), read_toml(Path(path))))
+    for src, data in sources:
+        data = dict(data)
+        overlay = data.pop("quick", {})
+        tree = merge_sections(tree, data, str(src), REPRODUCE_SECTIONS)
+        if quick:
+            if not isinstance(overlay, Mapping):
+                raise ConfigError(f"{src}: [quick] must be a table of sections")
+            tree = merge_sections(tree, overlay, f"{src} [quick]", REPRODUCE_SECTIONS)
+    if overrides:
+        tree = merge_sections(tree, overrides, "override", REPRODUCE_SECTIONS)
+    return ReproduceConfig(**build_sections(tree, REPRODUCE_SECTIONS), quick=quick)

@@ -1,0 +1,294 @@
+"""Figures of the reproduction, drawn on private matplotlib figures (no pyplot state).
+
+* :func:`plot_topview` — the paper's 2-D figure: every run translated so the pad is at
+  the origin; crosses where the baseline cut the motors, stars where the IPC did, circles
+  at the IPC's measurements sized by their ellipsoids; with a zoom on ``G``.
+* :func:`plot_campaign` — the Monte Carlo analogue: every run's motor-off offset.
+* :func:`plot_table1` — Table I with Clopper--Pearson intervals beside the paper's numbers.
+* :func:`plot_trajectories` — a few runs in 3-D.
+* :func:`plot_coverage` — nearest-neighbour distances of closed-loop queries vs test data.
+
+:func:`figure_png` renders a figure to PNG bytes with the Agg canvas.
+
+Examples
+--------
+>>> from case_studies.quad_landing.reproduction.table1 import Table1, Table1Row
+>>> row = Table1Row(buffer_size=1, n=1000, violations=1, rate=0.001, upper=0.004, interval=(0.0, 0.004),
+...                 confidence=0.95, paper_rate=0.0019, paths=None, paths_with_violations=None)
+>>> figure_png(plot_table1(Table1((row,))))[:4] == b"\\x89PNG"
+True
+"""
+
+from __future__ import annotations
+
+import io
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.patches import Rectangle
+
+from case_studies.quad_landing.landing.runs import LandingRun, Outcome
+from case_studies.quad_landing.landing.state_machine import LANDING_TARGET
+from case_studies.quad_landing.reproduction.table1 import Table1
+
+__all__ = ["figure_png", "plot_topview", "plot_campaign", "plot_table1", "plot_trajectories", "plot_coverage"]
+
+_COLORS = [
+    "#1f77b4",
+    "#ff7f0e",
+    "#2ca02c",
+    "#d62728",
+    "#9467bd",
+    "#8c564b",
+    "#e377c2",
+    "#7f7f7f",
+    "#bcbd22",
+    "#17becf",
+]
+
+
+def figure_png(fig: Figure, dpi: int = 90) -> bytes:
+    """PNG bytes of ``fig`` (Agg canvas, tight bounding box)."""
+    FigureCanvasAgg(fig)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
+    return buf.getvalue()
+
+
+def _g_box(ax: Any, scale: float = 100.0) -> None:
+    lo, hi = LANDING_TARGET.lower * scale, LANDING_TARGET.upper * scale
+    ax.add_patch(
+        Rectangle(
+            (lo[0], lo[1]),
+            hi[0] - lo[0],
+            hi[1] - lo[1],
+            fill=False,
+            ls="--",
+            lw=1.2,
+            color="black",
+            label="G (x-y)",
+        )
+    )
+
+
+def _color(i: int) -> str:
+    return _COLORS[i % len(_COLORS)]
+
+
+def plot_topview(ipc: Sequence[LandingRun], baseline: Sequence[LandingRun]) -> Figure:
+    """The paper's 2-D figure for paired runs (same scenarios), pad at the origin.
+
+    Left: the IPC runs' paths, their measurements (circle area grows with the ellipsoid's
+    horizontal half-width) and where each contract cut the motors. Right: the same cut
+    positions in centimetres around ``G``.
+    """
+    fig = Figure(figsize=(11, 5.2))
+    ax, zoom = fig.subplots(1, 2, gridspec_kw={"width_ratios": [1.15, 1]})
+    for i, run in enumerate(ipc):
+        c, pad = _color(i), run.pad
+        traj = run.trajectory - pad
+        ax.plot(traj[:, 0], traj[:, 1], color=c, lw=0.8, alpha=0.6)
+        for q in run.queries:
+            if q.half_widths is None:
+                continue
+            p = q.position - pad
+            ax.scatter(
+                p[0],
+                p[1],
+                s=40 + 4000 * float(np.max(q.half_widths[:2])),
+                facecolors="none",
+                edgecolors=c,
+                lw=1.0,
+            )
+        if run.cut_position is not None:
+            off = run.cut_position - pad
+            ax.scatter(off[0], off[1], marker="*", s=120, color=c, edgecolors="black", lw=0.4, zorder=5)
+            zoom.scatter(
+                100 * off[0], 100 * off[1], marker="*", s=150, color=c, edgecolors="black", lw=0.4, zorder=5
+            )
+    for i, run in enumerate(baseline):
+        if run.cut_position is not None:
+            off = run.cut_position - run.pad
+            ax.scatter(off[0], off[1], marker="x", s=60, color=_color(i), lw=1.8, zorder=4)
+            zoom.scatter(100 * off[0], 100 * off[1], marker="x", s=80, color=_color(i), lw=2.0, zorder=4)
+    ax.scatter([0], [0], marker="s", s=60, color="black", zorder=6)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x - y_x (m)")
+    ax.set_ylabel("y - y_y (m)")
+    ax.set_title("runs, pad at the origin")
+    handles = [
+        Line2D([], [], marker="*", ls="", color="gray", markersize=11, label="IPC: motors off"),
+        Line2D([], [], marker="x", ls="", color="gray", markersize=8, mew=2, label="baseline: motors off"),
+        Line2D(
+            [],
+            [],
+            marker="o",
+            ls="",
+            mfc="none",
+            color="gray",
+            markersize=9,
+            label="IPC measurement (size ~ ellipsoid)",
+        ),
+        Line2D([], [], marker="s", ls="", color="black", label="pad"),
+    ]
+    ax.legend(handles=handles, loc="best", fontsize=8)
+    _g_box(zoom)
+    zoom.set_aspect("equal")
+    lim = 12.0
+    offs = [
+        100 * np.abs(r.cut_position - r.pad)[:2].max()
+        for r in [*ipc, *baseline]
+        if r.cut_position is not None
+    ]
+    if offs:
+        lim = max(lim, 1.1 * max(offs))
+    zoom.set_xlim(-lim, lim)
+    zoom.set_ylim(-lim, lim)
+    zoom.set_xlabel("x - y_x (cm)")
+    zoom.set_ylabel("y - y_y (cm)")
+    zoom.set_title("where the motors were cut (dashed: G)")
+    zoom.grid(alpha=0.3)
+    fig.tight_layout()
+    return fig
+
+
+def plot_campaign(ipc: Sequence[LandingRun], baseline: Sequence[LandingRun]) -> Figure:
+    """Motor-off offsets of every Monte Carlo run (cm), horizontal and vertical, with ``G``."""
+    fig = Figure(figsize=(11, 4.6))
+    top, side = fig.subplots(1, 2)
+    for runs, marker, color, label in ((baseline, "x", "#d62728", "baseline"), (ipc, "*", "#1f77b4", "IPC")):
+        off = np.array([100 * r.offset for r in runs if r.offset is not None]).reshape(-1, 3)
+        counts = {o: sum(1 for r in runs if r.outcome is o) for o in Outcome}
+        text = (
+            f"{label}: {counts[Outcome.SAFE]} safe, {counts[Outcome.UNSAFE]} unsafe, "
+            f"{counts[Outcome.ABORTED]} aborted"
+        )
+        top.scatter(
+            off[:, 0],
+            off[:, 1],
+            marker=marker,
+            s=25 if marker == "x" else 40,
+            color=color,
+            alpha=0.7,
+            label=text,
+        )
+        side.scatter(
+            np.hypot(off[:, 0], off[:, 1]),
+            off[:, 2],
+            marker=marker,
+            s=25 if marker == "x" else 40,
+            color=color,
+            alpha=0.7,
+        )
+    _g_box(top)
+    top.set_aspect("equal")
+    top.set_xlabel("x - y_x (cm)")
+    top.set_ylabel("y - y_y (cm)")
+    top.set_title("motor-off position, top view (dashed: G)")
+    top.legend(fontsize=8, loc="upper left")
+    top.grid(alpha=0.3)
+    lo, hi = 100 * LANDING_TARGET.lower[2], 100 * LANDING_TARGET.upper[2]
+    side.axhspan(lo, hi, color="green", alpha=0.12, label="G (z)")
+    side.axvline(5.0, color="black", ls="--", lw=1.0, label="5 cm")
+    side.set_xlabel("horizontal distance to the pad centre (cm)")
+    side.set_ylabel("height above the pad (cm)")
+    side.set_title("motor-off position, side view")
+    side.legend(fontsize=8)
+    side.grid(alpha=0.3)
+    fig.tight_layout()
+    return fig
+
+
+def plot_table1(table: Table1) -> Figure:
+    """Violation rate per buffer size (log scale) with Clopper--Pearson intervals, and the paper's.
+
+    A zero rate is drawn as a downward triangle at its upper bound.
+    """
+    fig = Figure(figsize=(6.4, 4.2))
+    ax = fig.subplots()
+    ks = list(table.buffers)
+    floor = 1e-4
+    for r in table.rows:
+        k = r.buffer_size
+        lo, hi = r.interval
+        if r.rate > 0:
+            ax.errorbar(
+                [k - 0.06],
+                [r.rate],
+                yerr=[[r.rate - max(lo, floor)], [hi - r.rate]],
+                fmt="o",
+                color="#1f77b4",
+                capsize=4,
+            )
+        else:
+            ax.plot([k - 0.06], [r.upper], marker="v", color="#1f77b4", ls="")
+            ax.vlines(k - 0.06, floor, r.upper, color="#1f77b4")
+    paper = [(r.buffer_size, r.paper_rate) for r in table.rows if r.paper_rate is not None]
+    ax.plot(
+        [k + 0.06 for k, _ in paper], [v for _, v in paper], "s", color="#ff7f0e", label="paper (Table I)"
+    )
+    ax.plot([], [], "o", color="#1f77b4", label="this reproduction (CP interval)")
+    ax.set_yscale("log")
+    ax.set_ylim(floor, 1.0)
+    ax.set_xticks(ks)
+    ax.set_xlabel("camera buffer size (frames of lag)")
+    ax.set_ylabel("violation rate of the buffer-1 IPC")
+    ax.set_title("Table I: the contract holds where it was learned")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=8, loc="lower right")
+    fig.tight_layout()
+    return fig
+
+
+def plot_trajectories(ipc: Sequence[LandingRun], baseline: Sequence[LandingRun], count: int = 3) -> Figure:
+    """A few paired runs in 3-D (pad at the origin): IPC solid, baseline dashed."""
+    fig = Figure(figsize=(7.5, 6))
+    ax = fig.add_subplot(projection="3d")
+    for i, (a, b) in enumerate(zip(ipc[:count], baseline[:count], strict=False)):
+        c = _color(i)
+        for run, ls in ((a, "-"), (b, "--")):
+            t = run.trajectory - run.pad
+            ax.plot(t[:, 0], t[:, 1], t[:, 2], ls=ls, color=c, lw=1.2)
+        for q in a.queries:
+            p = q.position - a.pad
+            ax.scatter([p[0]], [p[1]], [p[2]], color=c, s=30, marker="o", edgecolors="black", lw=0.4)
+        for run, m in ((a, "*"), (b, "x")):
+            if run.cut_position is not None:
+                o = run.cut_position - run.pad
+                ax.scatter([o[0]], [o[1]], [o[2]], color=c, s=80, marker=m)
+    ax.scatter([0], [0], [0], color="black", marker="s", s=40)
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_zlabel("z (m)")
+    ax.set_title("3-D paths: IPC (solid, dots = measurements) vs baseline (dashed)")
+    return fig
+
+
+def plot_coverage(coverage: Mapping[str, Any]) -> Figure:
+    """Histogram of nearest-neighbour distances to the calibration set: test data vs closed-loop queries."""
+    fig = Figure(figsize=(6.4, 3.8))
+    ax = fig.subplots()
+    dist = coverage.get("distances")
+    if dist:
+        test, q = np.asarray(dist["test"]), np.asarray(dist["queries"])
+        top = float(max(test.max(initial=0), q.max(initial=0)))
+        bins = np.linspace(0, top * 1.01 + 1e-9, 40)
+        ax.hist(test, bins=bins, density=True, alpha=0.5, label="held-out test samples (null)")
+        ax.hist(q, bins=bins, density=True, alpha=0.5, label="closed-loop IPC queries")
+        ax.axvline(
+            coverage["threshold"],
+            color="black",
+            ls="--",
+            lw=1,
+            label=f"{100 * coverage['quantile']:.1f} % quantile of the test distances",
+        )
+    ax.set_xlabel("distance to the nearest calibration sample (standardised inputs)")
+    ax.set_ylabel("density")
+    ax.set_title("coverage: do the closed loop's queries look like the calibration data?")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    return fig

@@ -1,0 +1,51 @@
+"""Fixtures shared by the quad-landing case study's tests (``tests/quad_landing/...``)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+import pytest
+
+from case_studies.quad_landing.landing.contracts import TrivialContract
+from case_studies.quad_landing.landing.runs import LandingRun
+from case_studies.quad_landing.landing.scenario import draw_scenario
+from case_studies.quad_landing.landing.state_machine import run_landing
+from case_studies.quad_landing.reproduction.config import load_reproduce_config
+from case_studies.quad_landing.sim.config import load_config
+from ipcverify.architecture import ModelConfig
+from ipcverify.model import IPCModel, IPCNetwork
+
+
+@pytest.fixture
+def make_ipc() -> Callable[[bool], IPCModel]:
+    """A factory of small untrained IPCs on ``x_C`` (12) and ``yhat_C`` (3), calibrated or not."""
+
+    def make(calibrated: bool) -> IPCModel:
+        m = IPCModel(IPCNetwork(ModelConfig(x_dim=12, y_dim=3, hidden=(4,))))
+        if not calibrated:
+            return m
+        from ipcverify.calibration import GlobalCalibration, threshold_scores
+        from ipcverify.model import network_fingerprint
+
+        t = threshold_scores(np.linspace(0.1, 1.0, 200), 0.1, 0.1, "marginal")
+        return m.with_calibration(
+            GlobalCalibration(threshold=t, data_hash="d", network_hash=network_fingerprint(m.network))
+        )
+
+    return make
+
+
+@pytest.fixture(scope="session")
+def baseline_runs() -> list[LandingRun]:
+    """Six landing runs of the trivial baseline at the landing buffer size (it lands unsafely often)."""
+    cfg, p = load_config(), load_reproduce_config()
+    return [
+        run_landing(
+            draw_scenario(i, seed=21, params=p.scenario, config=cfg),
+            TrivialContract(),
+            sim_config=cfg,
+            params=p.landing,
+        )
+        for i in range(6)
+    ]

@@ -1,0 +1,52 @@
+"""The perception contracts: calibrated IPCs only, moved to the world frame; the baseline."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from case_studies.quad_landing import Flight, Pad, hover_state
+from case_studies.quad_landing.landing.contracts import LearnedContract, TrivialContract
+from ipcverify.architecture import ModelConfig
+from ipcverify.errors import InvalidInputError
+from ipcverify.model import IPCModel, IPCNetwork
+
+
+def test_learned_contract_refuses_an_uncalibrated_model(make_ipc):
+    with pytest.raises(InvalidInputError, match="calibrated IPC"):
+        LearnedContract(make_ipc(False))
+
+
+def test_learned_contract_refuses_the_wrong_dimensions():
+    m = IPCModel(IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(4,))))
+    from ipcverify.calibration import GlobalCalibration, threshold_scores
+
+    t = threshold_scores(np.linspace(0.1, 1.0, 200), 0.1, 0.1, "marginal")
+    with pytest.raises(InvalidInputError, match="x_dim=6"):
+        LearnedContract(m.with_calibration(GlobalCalibration(threshold=t, data_hash="d", network_hash="h")))
+
+
+def test_learned_contract_matches_predict_moved_to_the_world(make_ipc):
+    model = make_ipc(True)
+    contract = LearnedContract(model)
+    flight = Flight(buffer_size=1, seed=0)
+    flight.reset(hover_state((0.2, -0.1, 1.2), yaw=0.4), Pad((0.0, 0.0, 0.0), yaw=0.9))
+    m = flight.measure()
+    e = contract.world_ellipsoid(m)
+    ref = model.predict(m.x_c, m.yhat_c)
+    T = m.world_from_camera
+    np.testing.assert_allclose(e.centers[0], T.apply(ref.centers[0]), atol=1e-12)
+    # the same set: a point inside in C is inside in W, with the same score
+    y_c = ref.centers[0] + 0.5 * np.linalg.solve(ref.shapes[0], np.array([1.0, 0.0, 0.0]))
+    assert e.g(T.apply(y_c))[0] == pytest.approx(ref.g(y_c)[0], abs=1e-9)
+
+
+def test_contracts_need_a_detection():
+    flight = Flight(buffer_size=1, seed=0)
+    flight.reset(hover_state((2.5, 2.5, 1.0)), Pad((-2.5, -2.5, 0.0), yaw=0.3))  # pad far out of view
+    m = flight.measure()
+    assert m.yhat_c is None
+    with pytest.raises(InvalidInputError, match="detection"):
+        TrivialContract().world_ellipsoid(m)
+    with pytest.raises(InvalidInputError, match="positive"):
+        TrivialContract(precision=0.0)

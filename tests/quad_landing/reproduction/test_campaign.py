@@ -1,0 +1,118 @@
+"""Monte Carlo campaigns: the same runs whatever the backend, progress, errors, and the Ray path."""
+
+from __future__ import annotations
+
+import importlib.util
+
+import numpy as np
+import pytest
+
+from case_studies.quad_landing.landing.contracts import TrivialContract
+from case_studies.quad_landing.landing.runs import Outcome
+from case_studies.quad_landing.reproduction.campaign import run_campaign, summarize
+from case_studies.quad_landing.reproduction.config import LandingParams, ScenarioParams
+from case_studies.quad_landing.sim.config import load_config
+from ipcverify.errors import InvalidInputError
+
+CFG = load_config()
+SCEN = ScenarioParams.defaults()
+LAND = LandingParams.defaults(buffer_size=3)
+
+
+def _key(runs):
+    return [
+        (
+            r.scenario.index,
+            r.outcome,
+            r.n_queries,
+            None if r.cut_position is None else r.cut_position.tolist(),
+        )
+        for r in runs
+    ]
+
+
+@pytest.fixture(scope="module")
+def sequential():
+    return run_campaign(
+        TrivialContract(), 4, seed=3, sim_config=CFG, scenario=SCEN, landing=LAND, backend="sequential"
+    )
+
+
+def test_sequential_runs_are_in_order_and_summarized(sequential):
+    assert [r.scenario.index for r in sequential] == [0, 1, 2, 3]
+    s = summarize(sequential)
+    assert s.runs == 4 and s.safe + s.unsafe + s.aborted == 4
+    assert s.mean_queries == 1.0  # the baseline trusts its first measurement
+    assert s.unsafe_interval is not None and s.unsafe_rate is not None and s.unsafe_upper is not None
+    lo, hi = s.unsafe_interval
+    assert lo <= s.unsafe_rate <= hi and s.unsafe_upper <= hi
+
+
+def test_loky_gives_the_same_runs_and_reports_progress(sequential):
+    seen = []
+    runs = run_campaign(
+        TrivialContract(),
+        4,
+        seed=3,
+        sim_config=CFG,
+        scenario=SCEN,
+        landing=LAND,
+        n_jobs=2,
+        backend="loky",
+        chunks_per_job=2,
+        progress=seen.append,
+    )
+    assert _key(runs) == _key(sequential)
+    assert sum(seen) == 4 and len(seen) == 4  # one chunk per run here
+
+
+def test_campaign_rejects_bad_arguments():
+    kw = {"seed": 0, "sim_config": CFG, "scenario": SCEN, "landing": LAND}
+    with pytest.raises(InvalidInputError, match="n_runs"):
+        run_campaign(TrivialContract(), 0, **kw)
+    with pytest.raises(InvalidInputError, match="backend must be one of"):
+        run_campaign(TrivialContract(), 1, backend="dask", **kw)
+    with pytest.raises(InvalidInputError, match="n_jobs"):
+        run_campaign(TrivialContract(), 1, n_jobs=0, **kw)
+
+
+def test_summarize_counts_outcomes(sequential):
+    s = summarize(sequential)
+    assert s.unsafe == sum(r.outcome is Outcome.UNSAFE for r in sequential)
+    assert s.safe_rate is not None and s.unsafe_rate is not None and s.aborted_rate is not None
+    assert np.isclose(s.safe_rate + s.unsafe_rate + s.aborted_rate, 1.0)
+    empty = summarize([])
+    assert empty.runs == 0 and set(empty.to_dict()) == {"runs", "safe", "unsafe", "aborted", "confidence"}
+    assert set(s.to_dict()) > set(empty.to_dict()) and s.to_dict()["unsafe_interval"] == s.unsafe_interval
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(
+    importlib.util.find_spec("ray") is None, reason="Ray is an optional extra: pip install 'ipcverify[ray]'"
+)
+def test_ray_backend_on_a_local_instance_gives_the_same_runs(sequential):
+    import ray
+
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, ignore_reinit_error=True)
+    try:
+        runs = run_campaign(
+            TrivialContract(), 4, seed=3, sim_config=CFG, scenario=SCEN, landing=LAND, n_jobs=2, backend="ray"
+        )
+    finally:
+        ray.shutdown()
+    assert _key(runs) == _key(sequential)
+
+
+def test_ray_backend_without_ray_says_how_to_install(monkeypatch):
+    import builtins
+
+    real_import = builtins.__import__
+
+    def no_ray(name, *args, **kwargs):
+        if name == "ray" or name.startswith("ray."):
+            raise ImportError("no ray")
+        return real_import(name, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "__import__", no_ray)
+    with pytest.raises(InvalidInputError, match=r"pip install 'ipcverify\[ray\]'"):
+        run_campaign(TrivialContract(), 1, seed=0, sim_config=CFG, scenario=SCEN, landing=LAND, backend="ray")

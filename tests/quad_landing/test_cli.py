@@ -1,0 +1,52 @@
+"""The command line: collect writes a dataset; bad input is one line and exit status 2."""
+
+from __future__ import annotations
+
+import pandas as pd
+import pytest
+
+from case_studies.quad_landing.cli import main
+
+
+def _run(capsys, *args: str) -> tuple[int, str, str]:
+    capsys.readouterr()
+    try:
+        main([str(a) for a in args])
+        code = 0
+    except SystemExit as exc:
+        code = int(exc.code or 0)
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def test_cli_collect_writes_the_dataset(tmp_path, capsys):
+    out = tmp_path / "data.parquet"
+    code, stdout, _ = _run(capsys, "collect", "--buffer-size", "1", "--n", "25", "--seed", "3",
+                           "--out", out, "--quiet")  # fmt: skip
+    assert code == 0 and out.exists() and (tmp_path / "data.stats.json").exists()
+    assert len(pd.read_parquet(out)) == 25
+    assert "25 samples" in stdout and "detection rate" in stdout
+
+
+@pytest.mark.parametrize(
+    ("args", "match"),
+    [
+        (["collect", "--n", "0", "--out", "{d}/x.parquet"], "--n"),
+        (["collect", "--n", "5", "-k", "-1", "--out", "{d}/x.parquet"], "--buffer-size"),
+        (["collect", "--n", "5", "--out", "{d}/x.txt"], ".parquet or .csv"),
+        (["collect", "--n", "5", "--out", "{d}/missing/x.csv"], "does not exist"),
+        (["collect", "--n", "5", "--out", "{d}/x.csv", "--config", "{d}/nope.toml"],
+         "does not exist"),
+        (["collect", "--n", "5", "--out", "{d}/x.csv", "--config", "{d}/bad.toml"],
+         "unknown key"),
+        (["collect", "--n", "5"], "--out"),
+        (["fly"], "No such command"),
+    ],
+)  # fmt: skip
+def test_cli_bad_input_is_one_line_and_status_2(tmp_path, capsys, args, match):
+    (tmp_path / "bad.toml").write_text("[camera]\nfocal = 3\n")
+    code, _, stderr = _run(capsys, *[a.format(d=tmp_path) for a in args])
+    assert code == 2
+    assert stderr.startswith("error: ") and len(stderr.strip().splitlines()) == 1
+    assert match in stderr
+    assert not list(tmp_path.glob("x.*"))

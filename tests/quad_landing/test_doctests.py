@@ -1,0 +1,28 @@
+"""The docstring examples of the quad-landing case study run and are right."""
+
+from __future__ import annotations
+
+import doctest
+import importlib
+
+import pytest
+
+#: Every module of the case study with examples, by subpackage.
+MODULES = [
+    "settings",
+    "sim.camera", "sim.config", "sim.dynamics", "sim.features", "sim.flight", "sim.framebuffer",
+    "sim.frames", "sim.legs", "sim.lqr", "sim.marker", "sim.render",
+    "perception.aruco", "perception.bias",
+    "data.approach", "data.collect", "data.columns", "data.datasets", "data.paths",
+    "landing.contracts", "landing.runs", "landing.scenario", "landing.state_machine",
+    "reproduction.campaign", "reproduction.certified", "reproduction.claims", "reproduction.config",
+    "reproduction.figures", "reproduction.learn", "reproduction.report_page", "reproduction.table1",
+]  # fmt: skip
+
+
+@pytest.mark.parametrize("name", MODULES)
+def test_docstring_examples(name):
+    module = importlib.import_module(f"case_studies.quad_landing.{name}")
+    result = doctest.testmod(module, optionflags=doctest.NORMALIZE_WHITESPACE)
+    assert result.attempted > 0, f"{name} has no examples: drop it from MODULES or add one"
+    assert result.failed == 0
