@@ -29,7 +29,7 @@ import cvxpy as cp
 import numpy as np
 
 from benchmarks.common import machine_info
-from case_studies.quad_landing.landing.state_machine import LANDING_TARGET
+from case_studies.quad_landing.landing.state_machine import LandingParams
 from ipcverify.containment import Status, contained_float, prove, support_slack, verify
 from ipcverify.containment.sdp import sdp_problem
 from ipcverify.landing import landing_decision
@@ -134,7 +134,7 @@ def bench_exact(rng, count=200):
         q = _orth(rng, 3)
         e = Ellipsoid(rng.uniform(-5, 5, 3), q @ np.diag(1 / rng.uniform(0.01, 0.05, 3)) @ q.T)
         t = time.perf_counter()
-        landing_decision(e, LANDING_TARGET)
+        landing_decision(e, LandingParams.defaults().target)
         landing.append(time.perf_counter() - t)
     out["landing_decision"] = _ms(landing)
     return out

@@ -18,7 +18,7 @@ import numpy as np
 from benchmarks.bench_containment import bench_closed_form_batch, bench_sdp
 from benchmarks.common import spread
 from benchmarks.datasets import Splits
-from case_studies.quad_landing.landing.state_machine import LANDING_TARGET
+from case_studies.quad_landing.landing.state_machine import LandingParams
 from ipcverify.landing import landing_accept_float
 from ipcverify.model import IPCModel
 
@@ -52,7 +52,7 @@ def bench_cost(
     landing = []
     for _ in range(repeats):
         t0 = time.perf_counter()
-        landing_accept_float(sets, LANDING_TARGET)
+        landing_accept_float(sets, LandingParams.defaults().target)
         landing.append(time.perf_counter() - t0)
     return {
         "training_seconds": tightness_ipc["spread"]["train_seconds"],

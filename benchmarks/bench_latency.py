@@ -34,7 +34,7 @@ import numpy as np
 import torch
 
 from benchmarks.common import spread, time_calls
-from case_studies.quad_landing.landing.state_machine import LANDING_TARGET
+from case_studies.quad_landing.landing.state_machine import LandingParams
 from ipcverify.data import PerceptionDataset
 from ipcverify.model import IPCModel
 from ipcverify.query import IPCQuery
@@ -71,7 +71,7 @@ def single_query(
     onnx: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Per-call latency (microseconds) of the single-query paths; see the module docstring."""
-    q = IPCQuery(model, LANDING_TARGET)
+    q = IPCQuery(model, LandingParams.defaults().target)
     body = model.network.body
     eng = model.engine
     xs, ys = np.ascontiguousarray(queries.x), np.ascontiguousarray(queries.yhat)

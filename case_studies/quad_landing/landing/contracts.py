@@ -1,27 +1,30 @@
-"""The perception contracts the landing state machine can use, as world-frame ellipsoids.
+"""The perception contracts the landing state machine can use, each answering one measurement.
 
 * :class:`LearnedContract` — a trained, calibrated IPC in the camera frame. Each query
-  ``(x_C, yhat_C)`` goes through the model's float64 engine (the same evaluation the
-  calibration certified), is scaled by the calibration, and is moved to W with the
-  measurement's *current* camera pose ``T_WC`` (:func:`.frames.transform_ellipsoid`),
-  as in the paper.
+  ``(x_C, yhat_C)`` goes through the library's one query path,
+  :class:`ipcverify.query.IPCQuery`: the model's float64 engine (the same evaluation the
+  calibration certified), the calibration's scale, the domain-of-validity test, then the
+  set moved to W with the measurement's *current* camera pose ``T_WC``
+  (:func:`.frames.transform_ellipsoid`), as in the paper, and the landing decision.
 * :class:`TrivialContract` — the paper's baseline ``E(yhat, 10000 I)``: a ball of radius
-  0.1 mm around the perceived position, i.e. "trust every measurement".
+  0.1 mm around the perceived position, i.e. "trust every measurement", decided by the same
+  rule (:class:`ipcverify.landing.LandingRule`).
 
 Examples
 --------
 >>> import numpy as np
 >>> from case_studies.quad_landing import Flight, Pad, hover_state
+>>> from ipcverify.sets import Box
 >>> flight = Flight(buffer_size=1, seed=0)
 >>> flight.reset(hover_state((0.0, 0.0, 1.0)), Pad((0.0, 0.0, 0.0), yaw=0.3))
->>> e = TrivialContract().world_ellipsoid(flight.measure())
->>> float(e.half_widths()[0, 0])
-0.0001
+>>> d = TrivialContract().decide(flight.measure(), Box([-0.05, -0.05, 0.0], [0.05, 0.05, 0.05]))
+>>> d.accept, d.proven, float(np.linalg.inv(d.shape)[0, 0])
+(True, True, 0.0001)
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
@@ -29,8 +32,10 @@ import numpy as np
 from case_studies.quad_landing.sim.flight import Measurement
 from case_studies.quad_landing.sim.frames import transform_ellipsoid
 from ipcverify.errors import InvalidInputError
+from ipcverify.landing import LandingRule, QueryDecision
 from ipcverify.model import IPCModel
-from ipcverify.sets import Ellipsoid
+from ipcverify.query import IPCQuery
+from ipcverify.sets import Box
 
 __all__ = ["Contract", "LearnedContract", "TrivialContract"]
 
@@ -43,8 +48,8 @@ class Contract(Protocol):
         """Short label (``"ipc"``, ``"baseline"``)."""
         ...
 
-    def world_ellipsoid(self, measurement: Measurement) -> Ellipsoid:
-        """The contract's set for a measurement with a detection, in W (a batch of one)."""
+    def decide(self, measurement: Measurement, target: Box) -> QueryDecision:
+        """The set in W for a measurement with a detection, and the landing decision against ``target``."""
         ...
 
 
@@ -56,7 +61,7 @@ def _require_detection(m: Measurement) -> tuple[np.ndarray, np.ndarray]:
 
 @dataclass(frozen=True, eq=False)
 class LearnedContract:
-    """A calibrated IPC learned in the camera frame, queried per measurement.
+    """A calibrated IPC learned in the camera frame, queried per measurement through :class:`IPCQuery`.
 
     Parameters
     ----------
@@ -73,31 +78,28 @@ class LearnedContract:
 
     model: IPCModel
     name: str = "ipc"
+    _queries: dict[tuple[float, ...], IPCQuery] = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
-        if self.model.calibration is None:
-            raise InvalidInputError(
-                "the landing needs a calibrated IPC (its raw sets carry no guarantee); "
-                "calibrate it with ipcverify.calibrate.calibrate first"
-            )
+        self.model.require_calibration()
         if (self.model.config.x_dim, self.model.config.y_dim) != (12, 3):
             raise InvalidInputError(
                 f"the IPC must map x_C (12) and yhat_C (3); the model has x_dim={self.model.config.x_dim}, "
                 f"y_dim={self.model.config.y_dim}"
             )
 
-    def camera_ellipsoid(self, x_c: np.ndarray, yhat_c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Calibrated centre and shape in C for one query (float64 engine, then ``C / s``)."""
-        c, C = self.model.engine.single(np.asarray(x_c, np.float64), np.asarray(yhat_c, np.float64))
-        assert self.model.calibration is not None
-        s = float(self.model.calibration.scale_for(x_c[None, :], yhat_c[None, :])[0])
-        return c, C / s
+    def query(self, target: Box) -> IPCQuery:
+        """The :class:`IPCQuery` of this contract for ``target`` (built once per target)."""
+        key = (*target.lower.tolist(), *target.upper.tolist())
+        if key not in self._queries:
+            self._queries[key] = IPCQuery(self.model, target)
+        return self._queries[key]
 
-    def world_ellipsoid(self, measurement: Measurement) -> Ellipsoid:
-        """The calibrated set moved to W with the measurement's current camera pose."""
-        c, C = self.camera_ellipsoid(*_require_detection(measurement))
-        cw, Cw = transform_ellipsoid(c, C, measurement.world_from_camera)
-        return Ellipsoid(cw, Cw)
+    def decide(self, measurement: Measurement, target: Box) -> QueryDecision:
+        """Query -> calibrated set in C -> moved to W by the current camera pose -> decision."""
+        x_c, yhat_c = _require_detection(measurement)
+        pose = measurement.world_from_camera
+        return self.query(target).decide(x_c, yhat_c, transform=lambda c, C: transform_ellipsoid(c, C, pose))
 
 
 @dataclass(frozen=True)
@@ -117,7 +119,9 @@ class TrivialContract:
         if not (np.isfinite(self.precision) and self.precision > 0):
             raise InvalidInputError(f"precision must be a positive number, got {self.precision!r}")
 
-    def world_ellipsoid(self, measurement: Measurement) -> Ellipsoid:
-        """A tiny ball around the perceived pad position in W."""
+    def decide(self, measurement: Measurement, target: Box) -> QueryDecision:
+        """A tiny ball around the perceived pad position in W, decided by the landing rule."""
         _require_detection(measurement)
-        return Ellipsoid(measurement.yhat_w, self.precision * np.eye(3))
+        return LandingRule(target).decide(
+            np.asarray(measurement.yhat_w, dtype=np.float64), self.precision * np.eye(3)
+        )

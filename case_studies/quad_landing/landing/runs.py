@@ -64,6 +64,9 @@ class QueryRecord:
         Whether the true pad lies in the set (evaluation only; the machine never sees it).
     x_c, yhat_c : ndarray or None
         The query, for the coverage check.
+    in_domain : bool
+        Whether the query lay inside the contract's domain of validity (False: answered
+        OUTSIDE_DOMAIN, never accepted).
     """
 
     time: float
@@ -77,6 +80,7 @@ class QueryRecord:
     truth_inside: bool | None = None
     x_c: FloatArray | None = None
     yhat_c: FloatArray | None = None
+    in_domain: bool = True
 
     def to_dict(self) -> dict[str, Any]:
         """Plain data (the query vectors are left out)."""
@@ -93,6 +97,7 @@ class QueryRecord:
             "center": lst(self.center),
             "half_widths": lst(self.half_widths),
             "truth_inside": self.truth_inside,
+            "in_domain": self.in_domain,
         }
 
 

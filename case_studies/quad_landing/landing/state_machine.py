@@ -4,16 +4,20 @@ States (paper, Fig. "state machine"), preceded by a search:
 
 * **Searching** — fly the scenario's transit (:mod:`.scenario`) and run the detector on
   every frame; the first detection is the first measurement (taken in motion).
-* **Measuring** — query the contract with ``(x_C, yhat_C)``; map the set to W with the
-  current camera pose. Accept iff :func:`ipcverify.landing.landing_decision` PROVES, in
-  exact arithmetic, ``P - y in G_tau`` for every ``y`` in the ellipsoid, where
-  ``P = [c_x, c_y, z_max]`` and ``G_tau = [-0.045, 0.045]^2 x [0, 0.05 - 2 tau]`` is ``G``
-  shrunk by the tracking tolerance ``tau`` (:func:`decision_target`).
+* **Measuring** — ask the contract (:meth:`.contracts.Contract.decide`): the learned IPC
+  answers through the library's one query path, :class:`ipcverify.query.IPCQuery`, with the
+  set moved to W by the current camera pose. Accept iff the answer is PROVEN in exact
+  arithmetic (:func:`ipcverify.landing.landing_decision`): ``P - y in G_tau`` for every ``y``
+  in the ellipsoid, where ``P = [c_x, c_y, z_max]`` and ``G_tau`` is ``G`` (``[landing]
+  target_lower/upper`` of ``reproduce.toml``, the paper's ``[-0.05, 0.05]^2 x [0, 0.05]``)
+  shrunk by the tracking tolerance ``tau`` (:func:`decision_target`). A query outside the
+  IPC's domain of validity is answered OUTSIDE_DOMAIN and treated like a missed detection.
 * **New Waypoint** — the paper's point: where the segment from the current position to
   the ellipsoid's centre leaves the ellipsoid. It is then moved vertically so that the
   camera is between ``measure_height`` and ``max_height`` above the centre (the IPC's data
   cover those heights, and the pad must fit in the image), and clamped into the
-  workspace. Without a detection the vehicle climbs ``climb`` m instead. Fly there,
+  workspace. Without a detection (or with an OUTSIDE_DOMAIN answer) the vehicle climbs
+  ``climb`` m instead. Fly there,
   settle (``settle`` of the simulator config), measure again.
 * **Landing** — fly horizontally above ``P``, then down to ``P + tau e_z``; cut the motors
   only once settled there and ``p - P`` lies in the cut box ``K = G - G_tau``
@@ -43,7 +47,6 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -58,9 +61,9 @@ from case_studies.quad_landing.sim.framebuffer import MAX_BUFFER_SIZE
 from case_studies.quad_landing.sim.legs import clamp_to_workspace, fly_leg
 from case_studies.quad_landing.sim.lqr import SettleParams
 from ipcverify.containment import Status
-from ipcverify.errors import InvalidInputError
+from ipcverify.errors import InvalidInputError, SetError
 from ipcverify.exact import ExactVector, exact_vector
-from ipcverify.landing import check_landing, landing_decision
+from ipcverify.landing import QueryDecision, check_landing
 from ipcverify.sets import Box, Ellipsoid
 
 __all__ = [
@@ -75,9 +78,6 @@ __all__ = [
 
 FloatArray = NDArray[np.float64]
 
-#: The paper's target region ``G = [-0.05, 0.05] x [-0.05, 0.05] x [0, 0.05]`` (metres).
-LANDING_TARGET = Box(np.array([-0.05, -0.05, 0.0]), np.array([0.05, 0.05, 0.05]))
-
 
 @dataclass(frozen=True, kw_only=True)
 class LandingParams(TomlSection):
@@ -85,6 +85,9 @@ class LandingParams(TomlSection):
 
     Parameters
     ----------
+    target_lower, target_upper : 3 floats
+        The target region ``G`` (m): the run is safe iff ``p - y`` lies in it when the motors are
+        cut (the paper's ``[-0.05, 0.05]^2 x [0, 0.05]``); :attr:`target` is it as a box.
     buffer_size : int
         Camera buffer size of the landing runs (frames of lag).
     tracking_tolerance : float
@@ -112,6 +115,8 @@ class LandingParams(TomlSection):
     toml_file = REPRODUCE_PATH
     toml_section = "landing"
 
+    target_lower: tuple[float, float, float]
+    target_upper: tuple[float, float, float]
     buffer_size: int
     tracking_tolerance: float
     max_measurements: int
@@ -124,13 +129,27 @@ class LandingParams(TomlSection):
     trajectory_every: int
 
     def __post_init__(self) -> None:
+        lo, up = (tuple(float(v) for v in getattr(self, f"target_{s}")) for s in ("lower", "upper"))
+        ok = (
+            len(lo) == 3
+            and len(up) == 3
+            and all(a <= 0.0 <= b and a < b for a, b in zip(lo, up, strict=True))
+        )
+        if not ok:
+            raise ConfigError(
+                "landing.target_lower/upper must be 3 numbers each with lower <= 0 <= upper and lower < "
+                f"upper (the target G around the pad); got {self.target_lower} and {self.target_upper}"
+            )
+        object.__setattr__(self, "target_lower", lo)
+        object.__setattr__(self, "target_upper", up)
         b = self.buffer_size
         if isinstance(b, bool) or not isinstance(b, int) or not 0 <= b <= MAX_BUFFER_SIZE:
             raise ConfigError(f"landing.buffer_size must be an integer in [0, {MAX_BUFFER_SIZE}], got {b!r}")
-        if not 0.0 < self.tracking_tolerance < 0.025:
+        half = min(up[i] - lo[i] for i in range(3)) / 2.0
+        if not 0.0 < self.tracking_tolerance < half:
             raise ConfigError(
-                "landing.tracking_tolerance must lie in (0, 0.025) m: G is 0.05 m tall and is shrunk "
-                f"by tau on each side; got {self.tracking_tolerance!r}"
+                f"landing.tracking_tolerance must lie in (0, {half:g}) m: G is shrunk by tau on each side; "
+                f"got {self.tracking_tolerance!r}"
             )
         check_positive("landing.max_measurements", self.max_measurements, integer=True)
         object.__setattr__(self, "max_measurements", int(self.max_measurements))
@@ -150,12 +169,17 @@ class LandingParams(TomlSection):
                 f"({self.max_height})"
             )
 
+    @property
+    def target(self) -> Box:
+        """The target region ``G`` as a box."""
+        return Box(np.asarray(self.target_lower), np.asarray(self.target_upper))
+
 
 #: The final settle asks for this share of ``tau`` (Euclidean), so the exact cut test passes.
 SETTLE_SHARE = 0.9
 
 
-def decision_target(tau: float, target: Box = LANDING_TARGET) -> Box:
+def decision_target(tau: float, target: Box) -> Box:
     """``G_tau``, the box the accept test proves ``P - y`` lies in (``P`` the turn-off point).
 
     ``[G.lower + (tau, tau, 0), G.upper - (tau, tau, 2 tau)]``: ``G`` shrunk by ``tau`` on
@@ -165,7 +189,7 @@ def decision_target(tau: float, target: Box = LANDING_TARGET) -> Box:
 
     Examples
     --------
-    >>> decision_target(0.005).upper.round(6).tolist()
+    >>> decision_target(0.005, LandingParams.defaults().target).upper.round(6).tolist()
     [0.045, 0.045, 0.04]
     """
     width = target.upper - target.lower
@@ -177,7 +201,7 @@ def decision_target(tau: float, target: Box = LANDING_TARGET) -> Box:
     return Box(target.lower + shift, target.upper - np.array([tau, tau, 2.0 * tau]))
 
 
-def cut_box(tau: float, target: Box = LANDING_TARGET) -> tuple[ExactVector, ExactVector]:
+def cut_box(tau: float, target: Box) -> tuple[ExactVector, ExactVector]:
     """``K = [G.lower - G_tau.lower, G.upper - G_tau.upper]`` in exact rationals.
 
     For boxes, ``K + G_tau = G`` exactly, so ``p - P in K`` and ``P - y in G_tau`` give
@@ -185,7 +209,7 @@ def cut_box(tau: float, target: Box = LANDING_TARGET) -> tuple[ExactVector, Exac
 
     Examples
     --------
-    >>> lo, hi = cut_box(0.005)
+    >>> lo, hi = cut_box(0.005, LandingParams.defaults().target)
     >>> [round(float(v), 6) for v in lo + hi]
     [-0.005, -0.005, 0.0, 0.005, 0.005, 0.01]
     """
@@ -195,13 +219,13 @@ def cut_box(tau: float, target: Box = LANDING_TARGET) -> tuple[ExactVector, Exac
     return lower, upper
 
 
-def cut_allowed(position: FloatArray, turnoff: FloatArray, tau: float, target: Box = LANDING_TARGET) -> bool:
+def cut_allowed(position: FloatArray, turnoff: FloatArray, tau: float, target: Box) -> bool:
     """Exact test of ``position - turnoff in K`` (:func:`cut_box`): may the motors be cut here?
 
     Examples
     --------
-    >>> P = np.array([1.0, 2.0, 0.03])
-    >>> cut_allowed(P + [0.004, -0.005, 0.009], P, 0.005), cut_allowed(P - [0, 0, 1e-9], P, 0.005)
+    >>> P, G = np.array([1.0, 2.0, 0.03]), LandingParams.defaults().target
+    >>> cut_allowed(P + [0.004, -0.005, 0.009], P, 0.005, G), cut_allowed(P - [0, 0, 1e-9], P, 0.005, G)
     (True, False)
     """
     lower, upper = cut_box(tau, target)
@@ -209,12 +233,13 @@ def cut_allowed(position: FloatArray, turnoff: FloatArray, tau: float, target: B
     return all(lo <= v <= hi for lo, v, hi in zip(lower, d, upper, strict=True))
 
 
-def in_target(offset: FloatArray, target: Box = LANDING_TARGET) -> bool:
+def in_target(offset: FloatArray, target: Box) -> bool:
     """Whether ``p - y`` lies in the closed box ``G``.
 
     Examples
     --------
-    >>> in_target(np.array([0.05, -0.02, 0.0])), in_target(np.array([0.0, 0.0, -0.001]))
+    >>> G = LandingParams.defaults().target
+    >>> in_target(np.array([0.05, -0.02, 0.0]), G), in_target(np.array([0.0, 0.0, -0.001]), G)
     (True, False)
     """
     return bool(np.all(offset >= target.lower) and np.all(offset <= target.upper))
@@ -263,25 +288,31 @@ class _Logger:
             self.points.append(self.flight.state[:3])
 
 
-def _record(m: Measurement, contract: Contract, target: Box) -> tuple[QueryRecord, Any]:
+def _record(m: Measurement, contract: Contract, target: Box) -> tuple[QueryRecord, QueryDecision | None]:
     if m.yhat_c is None:
         return QueryRecord(time=m.time, position=m.state[:3], velocity=m.state[3:6], detected=False), None
-    e = contract.world_ellipsoid(m)
-    decision = landing_decision(e, target)
+    decision = contract.decide(m, target)
+    c, C = decision.center, decision.shape
+    try:
+        e = Ellipsoid(c, C)
+        half, inside = e.half_widths()[0], bool(e.contains(m.y_w)[0])
+    except SetError:  # a degenerate set (an OUTSIDE_DOMAIN answer): nothing to measure
+        half, inside = None, None
     rec = QueryRecord(
         time=m.time,
         position=m.state[:3],
         velocity=m.state[3:6],
         detected=True,
         accepted=decision.accept,
-        center=e.centers[0].copy(),
-        shape=e.shapes[0].copy(),
-        half_widths=e.half_widths()[0],
-        truth_inside=bool(e.contains(m.y_w)[0]),
+        center=np.array(c, copy=True),
+        shape=np.array(C, copy=True),
+        half_widths=half,
+        truth_inside=inside,
         x_c=m.x_c.copy(),
         yhat_c=m.yhat_c.copy(),
+        in_domain=decision.in_domain,
     )
-    return rec, (e, decision)
+    return rec, decision
 
 
 def run_landing(
@@ -316,7 +347,8 @@ def run_landing(
         flight = Flight(sim_config, buffer_size=params.buffer_size)
     flight.reset(scenario.start, scenario.pad, seed=scenario.noise_seed)
     tau = params.tracking_tolerance
-    target = decision_target(tau)
+    G = params.target
+    target = decision_target(tau, G)
     log = _Logger(flight, params.trajectory_every)
     queries: list[QueryRecord] = []
 
@@ -360,27 +392,29 @@ def run_landing(
     while True:
         rec, result = _record(m, contract, target)
         queries.append(rec)
-        if result is not None and result[1].accept:
+        if result is not None and result.accept:
             accepted = result
             break
         if len(queries) >= params.max_measurements:
             return finish(Outcome.ABORTED, f"cap of {params.max_measurements} measurements reached")
         here = flight.state[:3]
-        if result is None:
+        if result is None or not result.in_domain:
             lift = camera_offset_z(flight.config)
             top = flight.config.sim.ground_z + params.max_height + lift
             waypoint = clamp_to_workspace(
                 np.array([here[0], here[1], min(here[2] + params.climb, top)]), flight
             )
         else:
-            waypoint = new_waypoint(here, result[0], flight=flight, params=params)
+            waypoint = new_waypoint(
+                here, Ellipsoid(result.center, result.shape), flight=flight, params=params
+            )
         fly_leg(flight, waypoint, yaw=scenario.yaw, timeout=params.leg_timeout, on_frame=log)
         m = flight.measure()
 
     # Landing: over P, then down to P + tau e_z; cut only when p - P is in K (exact).
-    _, decision = accepted
+    decision = accepted
     turnoff = decision.turnoff.copy()
-    verified = check_landing(decision).status is Status.PROVEN
+    verified = decision.proof is not None and check_landing(decision.proof).status is Status.PROVEN
     goal = clamp_to_workspace(turnoff + np.array([0.0, 0.0, tau]), flight)
     here = flight.state[:3]
     above = clamp_to_workspace(np.array([goal[0], goal[1], max(here[2], goal[2])]), flight)
@@ -401,7 +435,7 @@ def run_landing(
         on_frame=log,
     )
     cut = flight.state[:3]
-    if not (leg.settled and cut_allowed(cut, turnoff, tau)):
+    if not (leg.settled and cut_allowed(cut, turnoff, tau, G)):
         return finish(
             Outcome.ABORTED,
             f"could not settle within tau = {tau:g} m of P + tau e_z",
@@ -410,6 +444,6 @@ def run_landing(
         )
     rest = flight.cut_motors().position
     log.points.append(rest)
-    safe = in_target(cut - scenario.pad.position)
+    safe = in_target(cut - scenario.pad.position, G)
     reason = "motors cut inside {y} + G" if safe else "motors cut outside {y} + G"
     return finish(Outcome.SAFE if safe else Outcome.UNSAFE, reason, turnoff, cut, rest, verified)

@@ -45,7 +45,6 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial import cKDTree
 
 from case_studies.quad_landing.landing.runs import LandingRun, Outcome
 from ipcverify.bounds import clopper_pearson_interval, clopper_pearson_lower, clopper_pearson_upper
@@ -60,7 +59,6 @@ __all__ = [
     "certified_bound",
     "closed_loop_violations",
     "coverage_check",
-    "query_features",
     "hoeffding_upper",
     "unsafe_vs_certified",
 ]
@@ -269,82 +267,73 @@ def closed_loop_violations(runs: Sequence[LandingRun], epsilon: float, delta: fl
     }
 
 
-def query_features(model: IPCModel, x: FloatArray, yhat: FloatArray) -> FloatArray:
-    """``(x, yhat)`` standardised as the network sees them (its stored input mean and std)."""
-    net = model.network
-    mean = net.in_mean.detach().cpu().double().numpy()  # type: ignore[operator]
-    std = net.in_std.detach().cpu().double().numpy()  # type: ignore[operator]
-    return (np.concatenate([np.atleast_2d(x), np.atleast_2d(yhat)], axis=1) - mean) / std
-
-
 def coverage_check(
     model: IPCModel,
     calibration_data: PerceptionDataset,
     test_data: PerceptionDataset,
     runs: Sequence[LandingRun],
     *,
-    quantile: float,
     delta: float = 0.05,
 ) -> dict[str, Any]:
-    """Do the closed loop's queries look like the calibration data? (nearest-neighbour test)
+    """Do the closed loop's queries look like the calibration data? The model's own domain test.
+
+    The same machinery every deployment path uses (:class:`ipcverify.domain.DomainModel`,
+    fitted by :func:`ipcverify.calibrate.calibrate` on the calibration inputs): a query is
+    outside the domain of validity when its whitened distance to the calibration inputs
+    exceeds the test's threshold; an exchangeable query is flagged with probability at most
+    ``alpha`` (``proofs/domain.md``).
 
     Parameters
     ----------
     model : IPCModel
-        The IPC used in the runs (its input standardisation defines the distance).
+        The IPC used in the runs, with its domain model.
     calibration_data : PerceptionDataset
-        The data the calibration was computed on.
+        The data the calibration was computed on (for the per-feature range figures).
     test_data : PerceptionDataset
-        Held-out samples drawn like the calibration data (the null distribution).
+        Held-out samples drawn like the calibration data: their flag rate checks the test.
     runs : sequence of LandingRun
         Runs flown with the model; every query with a detection is checked.
-    quantile : float
-        The threshold is the ``ceil(quantile (n + 1))``-th smallest of the ``n`` test samples'
-        distances; a fresh calibration-like sample exceeds it with probability at most
-        ``null_rate = 1 - k / (n + 1)``.
     delta : float
         Confidence parameter of the intervals and of the flag.
 
     Returns
     -------
     dict
-        ``threshold``, per group (``all``, ``first``, ``later`` queries) the number of
-        queries, the exceedances and their rate with a Clopper--Pearson interval,
-        ``null_rate``, ``shift_detected`` (the one-sided lower bound of some group's rate
-        exceeds ``null_rate``), and per-feature range checks.
+        ``threshold``, ``null_rate`` (= ``alpha``), the held-out ``test`` flag rate, per group
+        (``all``, ``first``, ``later`` queries) the number of queries, the ones outside the domain
+        and their rate with a Clopper--Pearson interval, ``shift_detected`` (the one-sided lower
+        bound of some group's rate exceeds ``alpha``), and per-feature range figures.
     """
-    if not 0 < quantile < 1:
-        raise InvalidInputError(f"quantile must lie in (0, 1), got {quantile!r}")
-    ref = query_features(model, calibration_data.x, calibration_data.yhat)
-    tree = cKDTree(ref)
-    test_d = np.sort(tree.query(query_features(model, test_data.x, test_data.yhat), k=1)[0])
-    n_test = int(test_d.size)
-    k_thr = min(n_test, math.ceil(quantile * (n_test + 1)))
-    threshold = float(test_d[k_thr - 1])
-    # a fresh sample drawn like the test samples exceeds the k-th smallest of n with probability
-    # at most 1 - k / (n + 1) (exchangeability; averaged over the test draw)
-    null_rate = 1.0 - k_thr / (n_test + 1)
-    qs = [(i, q) for r in runs for i, q in enumerate(r.queries) if q.detected and q.x_c is not None]
+    domain = model.domain
+    if domain is None:
+        raise InvalidInputError("the model has no domain-of-validity test; recalibrate it with calibrate()")
+    test_d = domain.distance(test_data.x, test_data.yhat)
     out: dict[str, Any] = {
-        "quantile": quantile,
-        "threshold": threshold,
-        "test": {"n": n_test, "median_distance": float(np.median(test_d))},
-        "null_rate": null_rate,
+        "method": domain.method,
+        "quantile": 1.0 - domain.alpha,
+        "threshold": domain.threshold,
+        "test": {
+            "n": int(test_d.size),
+            "median_distance": float(np.median(test_d)),
+            "outside": int((test_d > domain.threshold).sum()),
+        },
+        "null_rate": domain.alpha,
         "confidence": 1 - delta,
     }
+    qs = [(i, q) for r in runs for i, q in enumerate(r.queries) if q.detected and q.x_c is not None]
     if not qs:
         out.update(shift_detected=None, groups={})
         return out
     x = np.array([q.x_c for _, q in qs])
     yh = np.array([q.yhat_c for _, q in qs])
-    d = tree.query(query_features(model, x, yh), k=1)[0]
+    d = domain.distance(x, yh)
     first = np.array([i == 0 for i, _ in qs])
     groups: dict[str, Any] = {}
     for name, mask in (("all", np.ones(len(qs), bool)), ("first", first), ("later", ~first)):
         n = int(mask.sum())
         if not n:
             continue
-        k = int((d[mask] > threshold).sum())
+        k = int((d[mask] > domain.threshold).sum())
         groups[name] = {
             "n": n,
             "exceed": k,
@@ -353,31 +342,33 @@ def coverage_check(
             "lower": clopper_pearson_lower(k, n, delta),
             "median_distance": float(np.median(d[mask])),
         }
-    lo_q, hi_q = np.quantile(calibration_data.x, [0.005, 0.995], axis=0)
-    lo_y, hi_y = np.quantile(calibration_data.yhat, [0.005, 0.995], axis=0)
-    lo, hi = np.concatenate([lo_q, lo_y]), np.concatenate([hi_q, hi_y])
-
-    def outside(xx: FloatArray, yy: FloatArray) -> NDArray[np.bool_]:
-        z = np.concatenate([xx, yy], axis=1)
-        return np.any((z < lo) | (z > hi), axis=1)
-
-    names = [*calibration_data.x_columns, *calibration_data.yhat_columns]
-    q_out = np.concatenate([x, yh], axis=1)
-    per_feature = {
-        n: float(np.mean((q_out[:, i] < lo[i]) | (q_out[:, i] > hi[i]))) for i, n in enumerate(names)
-    }
     out.update(
         groups=groups,
-        shift_detected=bool(any(g["lower"] > null_rate for g in groups.values())),
-        distances={"queries": d.tolist(), "test": test_d.tolist()},
-        feature_range={
-            "range": "0.5-99.5 % of the calibration data, per feature",
-            "queries_outside_any": float(np.mean(outside(x, yh))),
-            "test_outside_any": float(np.mean(outside(test_data.x, test_data.yhat))),
-            "queries_outside_by_feature": per_feature,
-        },
+        shift_detected=bool(any(g["lower"] > domain.alpha for g in groups.values())),
+        distances={"queries": d.tolist(), "test": np.sort(test_d).tolist()},
+        feature_range=_feature_ranges(calibration_data, test_data, x, yh),
     )
     return out
+
+
+def _feature_ranges(
+    calibration_data: PerceptionDataset, test_data: PerceptionDataset, x: FloatArray, yh: FloatArray
+) -> dict[str, Any]:
+    """Per-feature 0.5-99.5 % ranges: informational only (a query can be inside every range and far
+    from all data, or outside one range and still near the data); the domain test decides."""
+    cal = np.concatenate([calibration_data.x, calibration_data.yhat], axis=1)
+    lo, hi = np.quantile(cal, 0.005, axis=0), np.quantile(cal, 0.995, axis=0)
+    names = [*calibration_data.x_columns, *calibration_data.yhat_columns]
+    q = np.concatenate([x, yh], axis=1)
+    t = np.concatenate([test_data.x, test_data.yhat], axis=1)
+    return {
+        "range": "0.5-99.5 % of the calibration data, per feature (informational; the domain test decides)",
+        "queries_outside_any": float(np.mean(np.any((q < lo) | (q > hi), axis=1))),
+        "test_outside_any": float(np.mean(np.any((t < lo) | (t > hi), axis=1))),
+        "queries_outside_by_feature": {
+            n: float(np.mean((q[:, i] < lo[i]) | (q[:, i] > hi[i]))) for i, n in enumerate(names)
+        },
+    }
 
 
 def unsafe_vs_certified(

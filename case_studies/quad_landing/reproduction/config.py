@@ -69,8 +69,11 @@ class IpcParams(TomlSection):
     epsilon, delta : float
         PAC calibration target and confidence parameter.
     coverage_quantile : float
-        Nearest-neighbour distance quantile of the coverage check
-        (:func:`case_studies.quad_landing.reproduction.certified.coverage_check`).
+        The domain of validity fitted at calibration (:class:`ipcverify.domain.DomainModel`)
+        flags queries beyond this quantile of the calibration inputs' nearest-neighbour
+        distances: its false-alarm rate is ``1 - coverage_quantile``. The closed loop's
+        shift check (:func:`case_studies.quad_landing.reproduction.certified.coverage_check`)
+        uses the same test.
 
     Examples
     --------

@@ -32,7 +32,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Rectangle
 
 from case_studies.quad_landing.landing.runs import LandingRun, Outcome
-from case_studies.quad_landing.landing.state_machine import LANDING_TARGET
+from case_studies.quad_landing.landing.state_machine import LandingParams
 from case_studies.quad_landing.reproduction.table1 import Table1
 
 __all__ = ["figure_png", "plot_topview", "plot_campaign", "plot_table1", "plot_trajectories", "plot_coverage"]
@@ -60,7 +60,8 @@ def figure_png(fig: Figure, dpi: int = 90) -> bytes:
 
 
 def _g_box(ax: Any, scale: float = 100.0) -> None:
-    lo, hi = LANDING_TARGET.lower * scale, LANDING_TARGET.upper * scale
+    target = LandingParams.defaults().target
+    lo, hi = target.lower * scale, target.upper * scale
     ax.add_patch(
         Rectangle(
             (lo[0], lo[1]),
@@ -191,7 +192,8 @@ def plot_campaign(ipc: Sequence[LandingRun], baseline: Sequence[LandingRun]) -> 
     top.set_title("motor-off position, top view (dashed: G)")
     top.legend(fontsize=8, loc="upper left")
     top.grid(alpha=0.3)
-    lo, hi = 100 * LANDING_TARGET.lower[2], 100 * LANDING_TARGET.upper[2]
+    target = LandingParams.defaults().target
+    lo, hi = 100 * target.lower[2], 100 * target.upper[2]
     side.axhspan(lo, hi, color="green", alpha=0.12, label="G (z)")
     side.axvline(5.0, color="black", ls="--", lw=1.0, label="5 cm")
     side.set_xlabel("horizontal distance to the pad centre (cm)")
@@ -269,7 +271,7 @@ def plot_trajectories(ipc: Sequence[LandingRun], baseline: Sequence[LandingRun],
 
 
 def plot_coverage(coverage: Mapping[str, Any]) -> Figure:
-    """Histogram of nearest-neighbour distances to the calibration set: test data vs closed-loop queries."""
+    """Histogram of the domain test's distances: held-out test data vs closed-loop queries."""
     fig = Figure(figsize=(6.4, 3.8))
     ax = fig.subplots()
     dist = coverage.get("distances")
@@ -284,11 +286,11 @@ def plot_coverage(coverage: Mapping[str, Any]) -> Figure:
             color="black",
             ls="--",
             lw=1,
-            label=f"{100 * coverage['quantile']:.1f} % quantile of the test distances",
+            label="domain threshold",
         )
-    ax.set_xlabel("distance to the nearest calibration sample (standardised inputs)")
+    ax.set_xlabel("distance to the nearest calibration input (whitened)")
     ax.set_ylabel("density")
-    ax.set_title("coverage: do the closed loop's queries look like the calibration data?")
+    ax.set_title("domain of validity: do the closed loop's queries look like the calibration data?")
     ax.legend(fontsize=8)
     fig.tight_layout()
     return fig

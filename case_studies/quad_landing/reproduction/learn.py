@@ -68,7 +68,10 @@ def learn_ipc(
     """
     mc = ModelConfig(x_dim=train_data.x_dim, y_dim=train_data.y_dim, hidden=params.hidden)
     model = train(train_data, mc, params.train, progress=progress).model
-    return calibrate(model, calibration_data, params.epsilon, params.delta, mode="pac")
+    # the domain of validity: queries beyond the calibration inputs' coverage_quantile
+    # nearest-neighbour distance are outside it (false-alarm rate 1 - coverage_quantile)
+    alpha = 1.0 - params.coverage_quantile
+    return calibrate(model, calibration_data, params.epsilon, params.delta, mode="pac", domain_alpha=alpha)
 
 
 def certified_epsilon(model: IPCModel) -> float:
@@ -89,6 +92,7 @@ def _key(
         "calibration": calibration_data.content_hash(),
         "params": json.loads(json.dumps(params.to_table(), default=list)),
         "torch": torch.__version__,
+        "model_format": 2,  # 2: the calibrated model carries its domain-of-validity test
     }
 
 

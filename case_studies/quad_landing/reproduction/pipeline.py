@@ -343,7 +343,6 @@ def _landing_checks(
             data[f"calibration_k{k}"],
             data[f"test_k{k}"],
             [*flights.mc_ipc, *flights.paper_ipc],
-            quantile=run.cfg.ipc.coverage_quantile,
             delta=delta,
         )
         loop = closed_loop_violations(flights.mc_ipc, eps, delta)

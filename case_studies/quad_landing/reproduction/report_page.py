@@ -260,13 +260,13 @@ def _certified(summary: Mapping[str, Any], figs: Mapping[str, bytes]) -> str:
     ]
     fr = cov.get("feature_range") or {}
     flag_text = (
-        '<p class="no">Coverage shift detected: the closed loop queries the IPC on states unlike its '
-        "calibration "
-        "data more often than fresh calibration-like samples are; assumption A, and with it the "
-        "certified bound, "
-        "is in doubt for those queries.</p>"
+        '<p class="no">Shift detected: the closed loop queries the IPC outside its domain of validity '
+        "more often than the test's false-alarm rate explains. Those queries are answered "
+        "OUTSIDE_DOMAIN and never accepted, so the landing never acts on them; the certified bound "
+        "speaks only for the queries inside.</p>"
         if flag
-        else '<p class="ok">No coverage shift detected at 95 % confidence.</p>'
+        else '<p class="ok">No shift detected at 95 % confidence: the closed loop stays inside the '
+        "IPC's domain of validity about as often as calibration-like samples do.</p>"
         if flag is not None
         else ""
     )
@@ -285,21 +285,24 @@ def _certified(summary: Mapping[str, Any], figs: Mapping[str, bytes]) -> str:
         "state machine actually made; 'contradicts eps' is yes when the one-sided CP lower bound "
         "exceeds eps.</p>"
         + _table(["queries", "n", "violations", "rate", "95 % interval", "contradicts eps"], loop_rows)
-        + "<h3>Coverage of the closed loop by the calibration data</h3>"
-        f"<p>Distance of each query to its nearest calibration sample (standardised inputs) against the "
-        f"{100 * cov['quantile']:.1f} % quantile of held-out test samples' distances "
-        f"({_num(cov['threshold'])}).</p>"
+        + "<h3>The closed loop and the IPC's domain of validity</h3>"
+        "<p>The IPC's own domain test (fitted at calibration, the same one every query passes "
+        "through): the whitened distance of each query to its nearest calibration input against the "
+        f"test's threshold ({_num(cov['threshold'])}, false-alarm rate {_pct(cov['null_rate'])}).</p>"
         + (
-            _table(["queries", "n", "beyond threshold", "rate", "95 % interval", "expected"], cov_rows)
+            _table(
+                ["queries", "n", "outside the domain", "rate", "95 % interval", "false-alarm rate"], cov_rows
+            )
             if cov_rows
             else ""
         )
         + flag_text
         + (
-            f"<p class='muted'>Per-feature 0.5–99.5 % ranges of the calibration data: "
-            f"{_pct(fr.get('queries_outside_any'))} of the queries and "
-            f"{_pct(fr.get('test_outside_any'))} of the "
-            "test samples have some feature outside.</p>"
+            f"<p class='muted'>For comparison only, per-feature 0.5–99.5 % ranges of the calibration "
+            f"data: {_pct(fr.get('queries_outside_any'))} of the queries and "
+            f"{_pct(fr.get('test_outside_any'))} of the test samples have some feature outside a range "
+            "(a range check alone does not decide: a query can be inside every range and far from all "
+            "data).</p>"
             if fr
             else ""
         )

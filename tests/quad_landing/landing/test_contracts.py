@@ -10,10 +10,13 @@ from case_studies.quad_landing.landing.contracts import LearnedContract, Trivial
 from ipcverify.architecture import ModelConfig
 from ipcverify.errors import InvalidInputError
 from ipcverify.model import IPCModel, IPCNetwork
+from ipcverify.sets import Box, Ellipsoid
+
+G = Box([-0.05, -0.05, 0.0], [0.05, 0.05, 0.05])
 
 
 def test_learned_contract_refuses_an_uncalibrated_model(make_ipc):
-    with pytest.raises(InvalidInputError, match="calibrated IPC"):
+    with pytest.raises(InvalidInputError, match="the model is not calibrated"):
         LearnedContract(make_ipc(False))
 
 
@@ -32,7 +35,8 @@ def test_learned_contract_matches_predict_moved_to_the_world(make_ipc):
     flight = Flight(buffer_size=1, seed=0)
     flight.reset(hover_state((0.2, -0.1, 1.2), yaw=0.4), Pad((0.0, 0.0, 0.0), yaw=0.9))
     m = flight.measure()
-    e = contract.world_ellipsoid(m)
+    d = contract.decide(m, G)
+    e = Ellipsoid(d.center, d.shape)
     ref = model.predict(m.x_c, m.yhat_c)
     T = m.world_from_camera
     np.testing.assert_allclose(e.centers[0], T.apply(ref.centers[0]), atol=1e-12)
@@ -47,6 +51,20 @@ def test_contracts_need_a_detection():
     m = flight.measure()
     assert m.yhat_c is None
     with pytest.raises(InvalidInputError, match="detection"):
-        TrivialContract().world_ellipsoid(m)
+        TrivialContract().decide(m, G)
     with pytest.raises(InvalidInputError, match="positive"):
         TrivialContract(precision=0.0)
+
+
+def test_both_contracts_answer_through_the_same_landing_rule(make_ipc):
+    """The learned IPC goes through IPCQuery; the baseline through the same LandingRule."""
+    flight = Flight(buffer_size=1, seed=0)
+    flight.reset(hover_state((0.0, 0.0, 1.0)), Pad((0.0, 0.0, 0.0), yaw=0.3))
+    m = flight.measure()
+    base = TrivialContract().decide(m, G)
+    assert base.accept and base.proven and base.proof is not None
+    np.testing.assert_array_equal(base.center, m.yhat_w)
+    contract = LearnedContract(make_ipc(True))
+    d = contract.decide(m, G)
+    assert contract.query(G) is contract.query(Box(G.lower, G.upper))  # built once per target
+    assert d.accept == (d.proof is not None and d.proof.accept)

@@ -28,18 +28,21 @@ from case_studies.quad_landing.sim.config import load_config
 from ipcverify.containment import Status
 from ipcverify.errors import InvalidInputError
 from ipcverify.exact import exact_vector
-from ipcverify.landing import LANDING_TARGET, landing_decision
+from ipcverify.landing import LandingRule, landing_decision
 from ipcverify.sets import Ellipsoid
 
 CFG = load_config()
 TAUS = [0.001, 0.005, 0.01, 0.02]
 
+#: The paper's target region, as the reproduction configures it.
+G = LandingParams.defaults().target
+
 
 @pytest.mark.parametrize("tau", TAUS)
 def test_box_sum_is_exactly_G(tau):
-    lo, hi = cut_box(tau)
-    g_tau = decision_target(tau)
-    gl, gu = exact_vector(LANDING_TARGET.lower), exact_vector(LANDING_TARGET.upper)
+    lo, hi = cut_box(tau, G)
+    g_tau = decision_target(tau, G)
+    gl, gu = exact_vector(G.lower), exact_vector(G.upper)
     tl, tu = exact_vector(g_tau.lower), exact_vector(g_tau.upper)
     assert [a + b for a, b in zip(lo, tl, strict=True)] == gl
     assert [a + b for a, b in zip(hi, tu, strict=True)] == gu
@@ -73,45 +76,45 @@ def test_theorem1_accept_and_cut_give_p_minus_y_in_G(center, axes, angle, tau_in
     c, s = np.cos(angle), np.sin(angle)
     R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
     e = Ellipsoid(np.array(center), np.diag(1.0 / np.array(axes)) @ R.T)
-    d = landing_decision(e, decision_target(tau))
+    d = landing_decision(e, decision_target(tau, G))
     if not d.accept or np.linalg.norm(u) < 1e-6:
         return
     y = _rational_point_in(e, np.array(u), r)
     if not y:
         return
-    lo, hi = cut_box(tau)
+    lo, hi = cut_box(tau, G)
     P = exact_vector(d.turnoff)
     p = [Pi + lo_i + w * (hi_i - lo_i) for Pi, lo_i, hi_i, w in zip(P, lo, hi, cut, strict=True)]
     diff = [a - b for a, b in zip(p, y, strict=True)]
-    gl, gu = exact_vector(LANDING_TARGET.lower), exact_vector(LANDING_TARGET.upper)
+    gl, gu = exact_vector(G.lower), exact_vector(G.upper)
     assert all(a <= v <= b for a, v, b in zip(gl, diff, gu, strict=True))
 
 
 def test_cut_allowed_is_exact_at_the_faces():
     P = np.array([0.3, -1.2, 0.021])
     tau = 0.005
-    lo, hi = cut_box(tau)
+    lo, hi = cut_box(tau, G)
     corner_hi = np.array([float(Fraction(float(a)) + b) for a, b in zip(P, hi, strict=True)])
     # the float nearest the exact face may lie just outside: the test must decide exactly
     exact_inside = all(
         Fraction(float(v)) - Fraction(float(a)) <= b for v, a, b in zip(corner_hi, P, hi, strict=True)
     )
-    assert cut_allowed(corner_hi, P, tau) == exact_inside
-    assert cut_allowed(P + np.array([0.0, 0.0, tau]), P, tau)
-    assert not cut_allowed(P + np.array([0.0, 0.0, -1e-12]), P, tau)
-    assert not cut_allowed(P + np.array([tau * 1.001, 0.0, tau]), P, tau)
+    assert cut_allowed(corner_hi, P, tau, G) == exact_inside
+    assert cut_allowed(P + np.array([0.0, 0.0, tau]), P, tau, G)
+    assert not cut_allowed(P + np.array([0.0, 0.0, -1e-12]), P, tau, G)
+    assert not cut_allowed(P + np.array([tau * 1.001, 0.0, tau]), P, tau, G)
 
 
 @pytest.mark.parametrize("tau", [0.0, 0.025, 0.03, float("nan")])
 def test_decision_target_refuses_a_bad_tau(tau):
     with pytest.raises(InvalidInputError, match="tau must be > 0"):
-        decision_target(tau)
+        decision_target(tau, G)
 
 
 def test_in_target_is_the_closed_box():
-    assert in_target(np.array([0.05, -0.05, 0.05]))
-    assert not in_target(np.array([0.0501, 0.0, 0.01]))
-    assert not in_target(np.array([0.0, 0.0, -1e-9]))
+    assert in_target(np.array([0.05, -0.05, 0.05]), G)
+    assert not in_target(np.array([0.0501, 0.0, 0.01]), G)
+    assert not in_target(np.array([0.0, 0.0, -1e-9]), G)
 
 
 def test_new_waypoint_is_the_surface_point_when_high_enough():
@@ -156,8 +159,8 @@ def test_unsafe_runs_have_a_violated_accepted_query(baseline_runs):
             assert r.queries[-1].truth_inside is False
         if r.outcome is not Outcome.ABORTED:
             assert r.certificate_verified
-            assert cut_allowed(r.cut_position, r.turnoff, 0.005)
-            assert (r.outcome is Outcome.SAFE) == in_target(r.offset)
+            assert cut_allowed(r.cut_position, r.turnoff, 0.005, G)
+            assert (r.outcome is Outcome.SAFE) == in_target(r.offset, G)
 
 
 def test_a_run_records_what_the_figures_need(baseline_runs):
@@ -171,8 +174,8 @@ def test_a_run_that_reaches_the_cap_aborts_and_never_cuts():
     class Huge:
         name = "huge"
 
-        def world_ellipsoid(self, m):
-            return Ellipsoid(m.yhat_w, np.eye(3) * 2.0)  # 0.5 m radius: never fits in G
+        def decide(self, m, target):
+            return LandingRule(target).decide(m.yhat_w, np.eye(3) * 2.0)  # 0.5 m radius: never fits in G
 
     p = load_reproduce_config()
     sc = draw_scenario(0, seed=21, params=p.scenario, config=CFG)
@@ -182,5 +185,5 @@ def test_a_run_that_reaches_the_cap_aborts_and_never_cuts():
 
 
 def test_landing_decision_status_matches_acceptance():
-    d = landing_decision(Ellipsoid(np.array([0.0, 0.0, 0.01]), np.eye(3) * 100.0), decision_target(0.005))
+    d = landing_decision(Ellipsoid(np.array([0.0, 0.0, 0.01]), np.eye(3) * 100.0), decision_target(0.005, G))
     assert d.accept and d.certificate.status is Status.PROVEN
