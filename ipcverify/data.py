@@ -12,6 +12,7 @@ calibration).
 from __future__ import annotations
 
 import hashlib
+import math
 import os
 import re
 from collections.abc import Mapping, Sequence
@@ -21,12 +22,12 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from ipcverify.errors import DataError
 from ipcverify.files import atomic_write
 
-__all__ = ["PerceptionDataset", "DatasetSplits", "load_dataset", "save_dataset"]
+__all__ = ["PerceptionDataset", "DatasetSplits", "load_dataset", "save_dataset", "group_codes"]
 
 FloatArray = NDArray[np.float64]
 SUFFIXES = (".csv", ".parquet", ".pq", ".npz")
@@ -196,27 +197,76 @@ class PerceptionDataset:
             h.update(np.ascontiguousarray(a, dtype="<f8").tobytes())
         return h.hexdigest()
 
-    def split(self, fractions: Sequence[float] = (0.6, 0.2, 0.2), seed: int = 0) -> DatasetSplits:
-        """Deterministic random train / calibration / test split.
+    def split(
+        self,
+        fractions: Sequence[float] = (0.6, 0.2, 0.2),
+        seed: int = 0,
+        group_column: str | None = None,
+    ) -> DatasetSplits:
+        """Deterministic random train / calibration / test split, of samples or of whole groups.
 
         Parameters
         ----------
         fractions : three floats summing to 1
-            Shares of train, calibration and test samples. A share may be 0.
+            Shares of train, calibration and test samples (of groups, with ``group_column``).
+            A share may be 0.
         seed : int
             The same seed always gives the same split of the same data.
+        group_column : str, optional
+            A column naming the exchangeable unit (a flight, run or sequence: samples of one
+            group are correlated). Whole groups are assigned to the parts, so no group is
+            split between training, calibration and test; the shares count groups, not rows.
+
+        Raises
+        ------
+        DataError
+            If the fractions are bad, the group column is unknown or has missing labels, or
+            there are too few groups to give every part with a positive share one group.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> ds = PerceptionDataset(np.zeros((6, 1)), np.ones((6, 1)), np.ones((6, 1)),
+        ...                        extra={"run": np.array([1, 1, 2, 2, 3, 3])})
+        >>> parts = ds.split((1 / 3, 1 / 3, 1 / 3), seed=0, group_column="run")
+        >>> sorted(len(np.unique(p.column("run"))) for p in (parts.train, parts.calibration, parts.test))
+        [1, 1, 1]
         """
         fr = np.asarray(fractions, dtype=float)
         if fr.shape != (3,) or (fr < 0).any() or not np.isclose(fr.sum(), 1.0):
             raise DataError(
                 f"split fractions must be three non-negative numbers summing to 1; got {list(fractions)}"
             )
-        n = len(self)
-        perm = np.random.default_rng(seed).permutation(n)
-        n_train = int(round(fr[0] * n))
-        n_cal = int(round(fr[1] * n))
-        n_cal = min(n_cal, n - n_train)
-        parts = np.split(perm, [n_train, n_train + n_cal])
+        if group_column is None:
+            n = len(self)
+            perm = np.random.default_rng(seed).permutation(n)
+            counts = _part_sizes(fr, n)
+            parts = np.split(perm, np.cumsum(counts)[:2])
+        else:
+            codes, labels = group_codes(
+                self.column(group_column), f"{self.source}: group column {group_column!r}"
+            )
+            G = len(labels)
+            counts = _part_sizes(fr, G)
+            empty = [
+                name
+                for name, f, c in zip(("train", "calibration", "test"), fr, counts, strict=True)
+                if f > 0 and c == 0
+            ]
+            if empty:
+                need = max(math.ceil(1 / f) for f in fr if f > 0)
+                parts_text = " and ".join(empty) + (" parts" if len(empty) > 1 else " part")
+                raise DataError(
+                    f"{self.source}: group column {group_column!r} has {G} group(s), too few for split "
+                    f"fractions {list(fractions)}: the {parts_text} would get no group; "
+                    f"use about {need} or more groups, or change the fractions"
+                )
+            group_perm = np.random.default_rng(seed).permutation(G)
+            part_of_group = np.empty(G, dtype=np.intp)
+            for j, ids in enumerate(np.split(group_perm, np.cumsum(counts)[:2])):
+                part_of_group[ids] = j
+            part = part_of_group[codes]
+            parts = [np.flatnonzero(part == j) for j in range(3)]
         return DatasetSplits(
             *(
                 self.subset(np.sort(p), label) if len(p) else None
@@ -245,6 +295,57 @@ class DatasetSplits:
     train: PerceptionDataset | None
     calibration: PerceptionDataset | None
     test: PerceptionDataset | None
+
+
+def _part_sizes(fractions: NDArray[np.float64], n: int) -> list[int]:
+    """Sizes of the train, calibration and test parts of ``n`` items (rounded; test takes the rest)."""
+    n_train = int(round(fractions[0] * n))
+    n_cal = min(int(round(fractions[1] * n)), n - n_train)
+    return [n_train, n_cal, n - n_train - n_cal]
+
+
+def group_codes(labels: ArrayLike, what: str = "group column") -> tuple[NDArray[np.intp], NDArray[Any]]:
+    """Integer codes ``0 .. G - 1`` of group labels, in the order of the sorted distinct labels.
+
+    Parameters
+    ----------
+    labels : array_like, shape (N,)
+        One label per sample (numbers or strings; mixed types are compared as strings).
+    what : str
+        How to name the labels in error messages.
+
+    Returns
+    -------
+    codes : ndarray of int, shape (N,)
+        The group of every sample.
+    distinct : ndarray, shape (G,)
+        The distinct labels, sorted; ``distinct[codes]`` gives back the labels.
+
+    Raises
+    ------
+    DataError
+        If there are no labels, they are not one-dimensional, or one is missing (NaN/None).
+
+    Examples
+    --------
+    >>> codes, distinct = group_codes(["b", "a", "b", "c"])
+    >>> codes.tolist(), distinct.tolist()
+    ([1, 0, 1, 2], ['a', 'b', 'c'])
+    """
+    arr = np.asarray(labels)
+    if arr.ndim != 1 or arr.size == 0:
+        raise DataError(
+            f"{what}: need one group label per sample (a non-empty 1-D array); got shape {arr.shape}"
+        )
+    missing = pd.isna(arr)
+    if missing.any():
+        r = int(np.flatnonzero(missing)[0])
+        raise DataError(f"{what}: row {r} has no group label ({arr[r]!r}); every sample needs its group")
+    try:
+        distinct, codes = np.unique(arr, return_inverse=True)
+    except TypeError:  # mixed types in an object array: compare as text
+        distinct, codes = np.unique(arr.astype(str), return_inverse=True)
+    return codes.astype(np.intp).ravel(), distinct
 
 
 def _read_table(path: Path) -> pd.DataFrame:
