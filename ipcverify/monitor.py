@@ -32,6 +32,7 @@ samples outside their sets); H0 then reads "conditional mean at most epsilon".
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass
 from typing import Any
 
@@ -68,7 +69,7 @@ _CHUNK = 1 << 15
 
 
 def _check_rate(name: str, value: float) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (0.0 < value < 1.0):
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not (0.0 < value < 1.0):
         raise InvalidInputError(f"{name} must lie strictly between 0 and 1; got {value!r}")
     return float(value)
 
@@ -116,10 +117,12 @@ class BettingEProcess:
         """``log K_t`` after the observations so far (0 before any)."""
         return float(logsumexp(self.log_weights + self._log_wealth))
 
-    def adaptive_bets(self, x: FloatArray) -> FloatArray:
-        """The adaptive bets ``lambda`` (A, m) for the next ``m`` observations ``x`` (predictable)."""
+    def _adaptive_bets(self, x: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """The adaptive bets (A, m) for the next observations ``x`` (each from the ones before it),
+        and the exponentially weighted sums after ``x`` (committed by :meth:`advance`)."""
         eps, prior = self.null_rate, 1.0 / self.null_rate  # one pseudo-violation in 1 / eps samples
         bets = np.empty((len(self.decays), len(x)))
+        num_end, den_end = self._num.copy(), self._den.copy()
         for a, g in enumerate(self.decays):
             num = lfilter([1.0], [1.0, -g], x, zi=[g * self._num[a]])[0]
             den = lfilter([1.0], [1.0, -g], np.ones_like(x), zi=[g * self._den[a]])[0]
@@ -128,8 +131,8 @@ class BettingEProcess:
             p_hat = (num_before + prior * eps) / (den_before + prior)
             bets[a] = np.clip((p_hat - eps) / (eps * (1.0 - eps)), 0.0, MAX_BET_FRACTION / eps)
             if len(x):
-                self._num[a], self._den[a] = num[-1], den[-1]
-        return bets
+                num_end[a], den_end[a] = num[-1], den[-1]
+        return bets, num_end, den_end
 
     def advance(self, observations: ArrayLike) -> FloatArray:
         """Consume observations in ``[0, 1]``; returns ``log K_t`` after each of them.
@@ -145,11 +148,12 @@ class BettingEProcess:
         out = np.empty(len(x))
         for lo in range(0, len(x), _CHUNK):
             xc = x[lo : lo + _CHUNK]
-            bets = np.vstack([np.repeat(self.lambdas[:, None], len(xc), axis=1), self.adaptive_bets(xc)])
+            adaptive, num, den = self._adaptive_bets(xc)
+            bets = np.vstack([np.repeat(self.lambdas[:, None], len(xc), axis=1), adaptive])
             path = self._log_wealth[:, None] + np.cumsum(np.log1p(bets * (xc - self.null_rate)), axis=1)
             out[lo : lo + len(xc)] = logsumexp(self.log_weights[:, None] + path, axis=0)
             if len(xc):
-                self._log_wealth = path[:, -1].copy()
+                self._log_wealth, self._num, self._den = path[:, -1].copy(), num, den
         self.n += len(x)
         return out
 
@@ -356,7 +360,7 @@ def _observations(violated: ArrayLike, in_domain: ArrayLike | None) -> tuple[Flo
         )
     if in_domain is None:
         return x, np.ones(len(x), dtype=bool)
-    d = np.atleast_1d(np.asarray(in_domain))
+    d = np.array(in_domain, ndmin=1)  # a copy: the result's arrays are made read-only
     if d.shape != x.shape:
         raise InvalidInputError(
             f"in_domain has shape {d.shape} but violated has {x.shape}; give one flag each"
