@@ -41,6 +41,7 @@ __all__ = [
     "pac_epsilon",
     "marginal_conformal_index",
     "min_calibration_size",
+    "smallest_epsilon",
     "calibration_index",
 ]
 
@@ -295,3 +296,25 @@ def min_calibration_size(epsilon: float, delta: float, mode: CalibrationMode = "
     if mode == "marginal":
         return max(1, math.ceil(1 / Fraction(epsilon) - 1))
     raise InvalidInputError(f"mode must be 'pac' or 'marginal'; got {mode!r}")
+
+
+def smallest_epsilon(n: int, delta: float, mode: CalibrationMode = "pac") -> float:
+    """The smallest ``epsilon`` on the grid 0.001, 0.002, ... for which ``n`` samples suffice.
+
+    The inverse of :func:`min_calibration_size`, for messages that say what a small sample
+    can certify: about ``1 - delta**(1/n)`` (PAC) or ``1/(n + 1)`` (marginal), rounded up to
+    the grid and checked against :func:`min_calibration_size` (1.0 if no grid value works).
+
+    Examples
+    --------
+    >>> smallest_epsilon(20, 0.001, "pac"), smallest_epsilon(20, 0.001, "marginal")
+    (0.293, 0.048)
+    """
+    if int(n) != n or n < 1:
+        raise InvalidInputError(f"n must be a positive integer; got {n!r}")
+    delta = _check_probability("delta", delta)
+    exact = -math.expm1(math.log(delta) / n) if mode == "pac" else 1.0 / (n + 1)
+    eps = math.ceil(exact * 1000) / 1000
+    while eps < 1 and min_calibration_size(eps, delta, mode) > n:
+        eps = round(eps + 0.001, 3)
+    return min(eps, 1.0)

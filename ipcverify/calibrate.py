@@ -14,6 +14,7 @@ import numpy as np
 
 from ipcverify.bounds import CalibrationMode
 from ipcverify.calibration.global_scale import GlobalCalibration
+from ipcverify.calibration.grouped import GroupedCalibration, GuaranteeKind
 from ipcverify.calibration.mondrian import MondrianCalibration
 from ipcverify.calibration.protocol import Calibration
 from ipcverify.calibration.threshold import check_eps_delta, check_mode
@@ -51,6 +52,8 @@ def calibrate(
     *,
     mondrian_column: str | None = None,
     bins: int | None = None,
+    group_column: str | None = None,
+    guarantee: GuaranteeKind = "sample",
     recalibrate: bool = False,
     edge_fraction: float = 0.2,
     seed: int = 0,
@@ -77,6 +80,15 @@ def calibrate(
     bins : int, optional
         With ``mondrian_column``: calibrate per quantile bin of a continuous column.
         Without it, the column's distinct values are the groups.
+    group_column : str, optional
+        A column naming the exchangeable unit of the data -- flights, runs, sequences (any
+        column of the file, not needed at predict time). Samples within one group are
+        correlated, so the groups, not the rows, are calibrated as exchangeable units
+        (:class:`~ipcverify.calibration.GroupedCalibration`, ``proofs/group_calibration.md``).
+    guarantee : {"sample", "trajectory"}
+        With ``group_column``: bound the expected share of a new group's samples outside their
+        sets (``"sample"``), or the probability that a new group leaves its sets anywhere
+        (``"trajectory"``).
     recalibrate : bool
         Allow replacing an existing calibration.
     edge_fraction : float
@@ -108,10 +120,27 @@ def calibrate(
     _check_inputs(model, calibration_data, epsilon, delta, mode, recalibrate)
     if bins is not None and mondrian_column is None:
         raise InvalidInputError("bins needs a group column (CLI: --mondrian-column COL --bins K)")
+    if mondrian_column is not None and group_column is not None:
+        raise InvalidInputError(
+            "choose one of a Mondrian column (one scale per group of an x/yhat column) and a group column "
+            "(flights or runs as the exchangeable units); they cannot be combined"
+        )
     scores = model.raw_scores(calibration_data.x, calibration_data.y, calibration_data.yhat)
     ids = {"data_hash": calibration_data.content_hash(), "network_hash": network_fingerprint(model.network)}
     cal: Calibration
-    if mondrian_column is None:
+    if group_column is not None:
+        cal = GroupedCalibration.fit(
+            scores,
+            calibration_data.column(group_column),
+            epsilon,
+            delta,
+            mode,
+            guarantee=guarantee,
+            column=group_column,
+            seed=seed,
+            **ids,
+        )
+    elif mondrian_column is None:
         cal = GlobalCalibration.fit(scores, epsilon, delta, mode, **ids)
     else:
         source, index = _locate_column(calibration_data, mondrian_column)

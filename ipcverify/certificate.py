@@ -88,6 +88,9 @@ class TestResult:
         One-sided lower bound at ``1 - delta`` (used for the consistency check).
     interval : tuple of float
         Two-sided interval at ``1 - delta``.
+    unit : str
+        What was counted: ``"samples"``, or groups (flights, runs) for a calibration whose
+        claim is about groups (their rows are correlated, so rows are not the unit).
 
     Examples
     --------
@@ -104,6 +107,7 @@ class TestResult:
     upper_bound: float
     lower_bound: float
     interval: tuple[float, float]
+    unit: str = "samples"
 
     def __post_init__(self) -> None:
         if not (0 <= self.violations <= self.n and self.n >= 1):
@@ -112,7 +116,7 @@ class TestResult:
             raise InvalidInputError("test bounds must bracket the empirical rate")
 
     @classmethod
-    def from_counts(cls, violations: int, n: int, delta: float) -> TestResult:
+    def from_counts(cls, violations: int, n: int, delta: float, unit: str = "samples") -> TestResult:
         """Compute the bounds from counts."""
         return cls(
             n=int(n),
@@ -121,6 +125,7 @@ class TestResult:
             upper_bound=clopper_pearson_upper(violations, n, delta),
             lower_bound=clopper_pearson_lower(violations, n, delta),
             interval=clopper_pearson_interval(violations, n, delta),
+            unit=unit,
         )
 
     @property
@@ -138,6 +143,7 @@ class TestResult:
             "lower_bound": self.lower_bound,
             "interval": list(self.interval),
             "delta": self.delta,
+            "unit": self.unit,
             "bound": "one-sided Clopper-Pearson upper bound at confidence 1 - delta",
         }
 

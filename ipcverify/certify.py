@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from ipcverify.calibration.protocol import Calibration
+from ipcverify.calibration.protocol import Calibration, row_counts
 from ipcverify.certificate import (
     Certificate,
     CertificateStatus,
@@ -163,8 +163,10 @@ def score_test_set(model: IPCModel, test_data: PerceptionDataset) -> TestScores:
 def test_results(
     cal: Calibration | None, test_data: PerceptionDataset, violated: NDArray[np.bool_], delta: float
 ) -> tuple[TestResult, tuple[GroupTestResult, ...]]:
-    """Step 3: the test bound overall and, for a calibration with several groups, per group."""
-    test = TestResult.from_counts(int(violated.sum()), len(test_data), delta)
+    """Step 3: the test bound overall (counted in the unit of the calibration's claim) and, for a
+    calibration with several groups, per group."""
+    counts = row_counts(violated) if cal is None else cal.test_counts(violated, test_data)
+    test = TestResult.from_counts(counts.violations, counts.n, delta, counts.unit)
     if cal is None or len(cal.groups()) == 1:
         return test, ()
     gi = cal.group_index(test_data.x, test_data.yhat)
@@ -211,10 +213,10 @@ def statement(cal: Calibration | None, test: TestResult | None, status: Certific
         return cal.guarantee() + " No test data was given: nothing here checks the calibration independently."
     test_sentence = (
         f"Independently, the ground truth fell outside its set for {test.violations} of {test.n} fresh "
-        f"test samples, so with "
+        f"test {test.unit}, so with "
         f"confidence {1 - test.delta:.6g} the violation rate of this contract is at most "
-        f"{test.upper_bound:.4g} (Clopper-Pearson; valid if the test samples are i.i.d. from deployment "
-        "and unused in training and calibration)."
+        f"{test.upper_bound:.4g} (Clopper-Pearson; valid if the test {test.unit} are i.i.d. from "
+        "deployment and unused in training and calibration)."
     )
     if cal is None:
         return "No calibration certificate: the model was not calibrated. " + test_sentence

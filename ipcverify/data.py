@@ -12,8 +12,8 @@ calibration).
 from __future__ import annotations
 
 import hashlib
+import math
 import os
-import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -21,10 +21,11 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from ipcverify.errors import DataError
 from ipcverify.files import atomic_write
+from ipcverify.tables import SUFFIXES, data_file, read_blocks
 
 __all__ = [
     "PerceptionDataset",
@@ -32,26 +33,11 @@ __all__ = [
     "DatasetSplits",
     "load_dataset",
     "load_inputs",
-    "refuse_unknown_columns",
     "save_dataset",
+    "group_codes",
 ]
 
 FloatArray = NDArray[np.float64]
-SUFFIXES = (".csv", ".parquet", ".pq", ".npz")
-
-
-def _numbered(prefix: str, columns: Sequence[str]) -> list[str]:
-    pat = re.compile(rf"^{re.escape(prefix)}_(\d+)$")
-    found = sorted((int(m.group(1)), c) for c in columns if (m := pat.match(c)))
-    names = [c for _, c in found]
-    idx = [i for i, _ in found]
-    if idx != list(range(len(idx))):
-        missing = sorted(set(range(max(idx) + 1)) - set(idx)) if idx else []
-        raise DataError(
-            f"columns {prefix}_0..{prefix}_{max(idx)} are not contiguous: missing "
-            + ", ".join(f"{prefix}_{i}" for i in missing)
-        )
-    return names
 
 
 def _checked_blocks(
@@ -217,27 +203,76 @@ class PerceptionDataset:
             h.update(np.ascontiguousarray(a, dtype="<f8").tobytes())
         return h.hexdigest()
 
-    def split(self, fractions: Sequence[float] = (0.6, 0.2, 0.2), seed: int = 0) -> DatasetSplits:
-        """Deterministic random train / calibration / test split.
+    def split(
+        self,
+        fractions: Sequence[float] = (0.6, 0.2, 0.2),
+        seed: int = 0,
+        group_column: str | None = None,
+    ) -> DatasetSplits:
+        """Deterministic random train / calibration / test split, of samples or of whole groups.
 
         Parameters
         ----------
         fractions : three floats summing to 1
-            Shares of train, calibration and test samples. A share may be 0.
+            Shares of train, calibration and test samples (of groups, with ``group_column``).
+            A share may be 0.
         seed : int
             The same seed always gives the same split of the same data.
+        group_column : str, optional
+            A column naming the exchangeable unit (a flight, run or sequence: samples of one
+            group are correlated). Whole groups are assigned to the parts, so no group is
+            split between training, calibration and test; the shares count groups, not rows.
+
+        Raises
+        ------
+        DataError
+            If the fractions are bad, the group column is unknown or has missing labels, or
+            there are too few groups to give every part with a positive share one group.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> ds = PerceptionDataset(np.zeros((6, 1)), np.ones((6, 1)), np.ones((6, 1)),
+        ...                        extra={"run": np.array([1, 1, 2, 2, 3, 3])})
+        >>> parts = ds.split((1 / 3, 1 / 3, 1 / 3), seed=0, group_column="run")
+        >>> sorted(len(np.unique(p.column("run"))) for p in (parts.train, parts.calibration, parts.test))
+        [1, 1, 1]
         """
         fr = np.asarray(fractions, dtype=float)
         if fr.shape != (3,) or (fr < 0).any() or not np.isclose(fr.sum(), 1.0):
             raise DataError(
                 f"split fractions must be three non-negative numbers summing to 1; got {list(fractions)}"
             )
-        n = len(self)
-        perm = np.random.default_rng(seed).permutation(n)
-        n_train = int(round(fr[0] * n))
-        n_cal = int(round(fr[1] * n))
-        n_cal = min(n_cal, n - n_train)
-        parts = np.split(perm, [n_train, n_train + n_cal])
+        if group_column is None:
+            n = len(self)
+            perm = np.random.default_rng(seed).permutation(n)
+            counts = _part_sizes(fr, n)
+            parts = np.split(perm, np.cumsum(counts)[:2])
+        else:
+            codes, labels = group_codes(
+                self.column(group_column), f"{self.source}: group column {group_column!r}"
+            )
+            G = len(labels)
+            counts = _part_sizes(fr, G)
+            empty = [
+                name
+                for name, f, c in zip(("train", "calibration", "test"), fr, counts, strict=True)
+                if f > 0 and c == 0
+            ]
+            if empty:
+                need = max(math.ceil(1 / f) for f in fr if f > 0)
+                parts_text = " and ".join(empty) + (" parts" if len(empty) > 1 else " part")
+                raise DataError(
+                    f"{self.source}: group column {group_column!r} has {G} group(s), too few for split "
+                    f"fractions {list(fractions)}: the {parts_text} would get no group; "
+                    f"use about {need} or more groups, or change the fractions"
+                )
+            group_perm = np.random.default_rng(seed).permutation(G)
+            part_of_group = np.empty(G, dtype=np.intp)
+            for j, ids in enumerate(np.split(group_perm, np.cumsum(counts)[:2])):
+                part_of_group[ids] = j
+            part = part_of_group[codes]
+            parts = [np.flatnonzero(part == j) for j in range(3)]
         return DatasetSplits(
             *(
                 self.subset(np.sort(p), label) if len(p) else None
@@ -268,19 +303,55 @@ class DatasetSplits:
     test: PerceptionDataset | None
 
 
-def _read_table(path: Path) -> pd.DataFrame:
-    suffix = path.suffix.lower()
+def _part_sizes(fractions: NDArray[np.float64], n: int) -> list[int]:
+    """Sizes of the train, calibration and test parts of ``n`` items (rounded; test takes the rest)."""
+    n_train = int(round(fractions[0] * n))
+    n_cal = min(int(round(fractions[1] * n)), n - n_train)
+    return [n_train, n_cal, n - n_train - n_cal]
+
+
+def group_codes(labels: ArrayLike, what: str = "group column") -> tuple[NDArray[np.intp], NDArray[Any]]:
+    """Integer codes ``0 .. G - 1`` of group labels, in the order of the sorted distinct labels.
+
+    Parameters
+    ----------
+    labels : array_like, shape (N,)
+        One label per sample (numbers or strings; mixed types are compared as strings).
+    what : str
+        How to name the labels in error messages.
+
+    Returns
+    -------
+    codes : ndarray of int, shape (N,)
+        The group of every sample.
+    distinct : ndarray, shape (G,)
+        The distinct labels, sorted; ``distinct[codes]`` gives back the labels.
+
+    Raises
+    ------
+    DataError
+        If there are no labels, they are not one-dimensional, or one is missing (NaN/None).
+
+    Examples
+    --------
+    >>> codes, distinct = group_codes(["b", "a", "b", "c"])
+    >>> codes.tolist(), distinct.tolist()
+    ([1, 0, 1, 2], ['a', 'b', 'c'])
+    """
+    arr = np.asarray(labels)
+    if arr.ndim != 1 or arr.size == 0:
+        raise DataError(
+            f"{what}: need one group label per sample (a non-empty 1-D array); got shape {arr.shape}"
+        )
+    missing = pd.isna(arr)
+    if missing.any():
+        r = int(np.flatnonzero(missing)[0])
+        raise DataError(f"{what}: row {r} has no group label ({arr[r]!r}); every sample needs its group")
     try:
-        if suffix == ".csv":
-            return pd.read_csv(path)
-        return pd.read_parquet(path)
-    except pd.errors.EmptyDataError:
-        raise DataError(f"{path}: the file is empty; expected a header row and samples") from None
-    except (pd.errors.ParserError, UnicodeDecodeError, OSError, ValueError) as exc:
-        if isinstance(exc, FileNotFoundError):
-            raise
-        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise DataError(f"{path}: cannot read as {suffix[1:].upper()}: {msg}") from None
+        distinct, codes = np.unique(arr, return_inverse=True)
+    except TypeError:  # mixed types in an object array: compare as text
+        distinct, codes = np.unique(arr.astype(str), return_inverse=True)
+    return codes.astype(np.intp).ravel(), distinct
 
 
 def load_dataset(
@@ -317,9 +388,9 @@ def load_dataset(
     >>> load_dataset(p).y_dim
     1
     """
-    p = _existing(path)
+    p = data_file(path)
     names = {"x": x_columns, "y": y_columns, "yhat": yhat_columns}
-    arrays, cols, extra = _read_blocks(p, names)
+    arrays, cols, extra = read_blocks(p, names)
     return PerceptionDataset(
         arrays["x"],
         arrays["y"],
@@ -330,75 +401,6 @@ def load_dataset(
         yhat_columns=cols["yhat"],
         extra=extra,
     )
-
-
-def _existing(path: str | os.PathLike[str]) -> Path:
-    p = Path(path)
-    if not p.exists():
-        raise FileNotFoundError(2, "No such file", str(p))
-    if p.suffix.lower() not in SUFFIXES:
-        raise DataError(f"{p}: unknown data format {p.suffix.lower()!r}; use one of {', '.join(SUFFIXES)}")
-    return p
-
-
-def _read_npz(p: Path, kinds: Sequence[str]) -> dict[str, NDArray[Any]]:
-    try:
-        with np.load(p, allow_pickle=False) as z:
-            missing = [k for k in kinds if k not in z.files]
-            if missing:
-                raise DataError(f"{p}: NPZ lacks array(s) {', '.join(missing)}; it needs {', '.join(kinds)}")
-            arrs = {k: z[k] for k in kinds}
-    except DataError:
-        raise
-    except (ValueError, OSError) as exc:
-        raise DataError(f"{p}: cannot read as NPZ: {exc}") from None
-    for k, a in arrs.items():
-        if not np.issubdtype(a.dtype, np.number):
-            raise DataError(f"{p}: array {k!r} is not numeric (dtype {a.dtype})")
-    return arrs
-
-
-def _read_blocks(
-    p: Path, names: Mapping[str, Sequence[str] | None]
-) -> tuple[dict[str, NDArray[Any]], dict[str, tuple[str, ...]], dict[str, NDArray[Any]]]:
-    """The numeric blocks of the kinds in ``names`` (x, y, yhat ...), their columns, and the rest."""
-    kinds = list(names)
-    if p.suffix.lower() == ".npz":
-        if any(names.values()):
-            raise DataError(f"{p}: column names apply to CSV/Parquet, not NPZ (arrays {', '.join(kinds)})")
-        return _read_npz(p, kinds), {k: () for k in kinds}, {}
-    df = _read_table(p)
-    if len(df) == 0:
-        raise DataError(f"{p}: the file has a header but no samples")
-    cols = [str(c) for c in df.columns]
-    chosen = {k: list(v) if v else _numbered(k, cols) for k, v in names.items()}
-    for kind, ks in chosen.items():
-        if not ks:
-            raise DataError(
-                f"{p}: no {kind} columns (expected {kind}_0, {kind}_1, ...; "
-                f"found: {', '.join(cols[:12])}{' ...' if len(cols) > 12 else ''})"
-            )
-        missing = [c for c in ks if c not in cols]
-        if missing:
-            raise DataError(f"{p}: missing column(s) {', '.join(missing)}")
-    if "y" in chosen and "yhat" in chosen and len(chosen["y"]) != len(chosen["yhat"]):
-        raise DataError(
-            f"{p}: y has {len(chosen['y'])} columns but yhat has {len(chosen['yhat'])}; they must describe "
-            "the same quantity"
-        )
-    arrays = {}
-    for kind, ks in chosen.items():
-        block = df[ks]
-        for c in ks:
-            if not pd.api.types.is_numeric_dtype(block[c]):
-                conv = pd.to_numeric(block[c], errors="coerce")
-                bad = conv.isna() & block[c].notna()
-                r = int(np.flatnonzero(bad.to_numpy())[0]) if bad.any() else 0
-                raise DataError(f"{p}: row {r}, column {c!r}: not a number ({block[c].iloc[r]!r})")
-        arrays[kind] = block.to_numpy(dtype=np.float64)
-    used = {c for ks in chosen.values() for c in ks}
-    extra = {c: df[c].to_numpy() for c in cols if c not in used}
-    return arrays, {k: tuple(v) for k, v in chosen.items()}, extra
 
 
 def save_dataset(dataset: PerceptionDataset, path: str | os.PathLike[str]) -> None:
@@ -466,38 +468,8 @@ def load_inputs(
     >>> load_inputs(p).yhat.shape
     (3, 1)
     """
-    p = _existing(path)
-    arrays, cols, extra = _read_blocks(p, {"x": x_columns, "yhat": yhat_columns})
+    p = data_file(path)
+    arrays, cols, extra = read_blocks(p, {"x": x_columns, "yhat": yhat_columns})
     return PerceptionInputs(
         arrays["x"], arrays["yhat"], str(p), x_columns=cols["x"], yhat_columns=cols["yhat"], extra=extra
     )
-
-
-def refuse_unknown_columns(source: str, extra: Mapping[str, Any], known: Mapping[str, Sequence[str]]) -> None:
-    """Refuse a table whose extra columns look like ``x_i`` / ``y_i`` / ``yhat_i`` columns the model lacks.
-
-    A file with more state columns than the model was trained on would otherwise be read
-    silently without them.
-
-    Raises
-    ------
-    DataError
-        Naming the columns and the ones the model knows.
-
-    Examples
-    --------
-    >>> refuse_unknown_columns("log.csv", {"x_6": None}, {"x": ["x_0", "x_1"]})  # doctest: +ELLIPSIS
-    Traceback (most recent call last):
-    ...
-    ipcverify.errors.DataError: log.csv: column x_6 looks like a x column but the model knows only x_0, ...
-    """
-    for kind, names in known.items():
-        pat = re.compile(rf"^{re.escape(kind)}_(\d+)$")
-        unknown = sorted((str(c) for c in extra if pat.match(str(c))), key=lambda c: (len(c), c))
-        if unknown:
-            raise DataError(
-                f"{source}: column{'s' if len(unknown) > 1 else ''} {', '.join(unknown)} look"
-                f"{'' if len(unknown) > 1 else 's'} like a {kind} column but the model knows only "
-                f"{', '.join(names)} -- drop {'them' if len(unknown) > 1 else 'it'}, or retrain and "
-                "recalibrate with them"
-            )

@@ -29,12 +29,12 @@ from ipcverify.data import (
     PerceptionInputs,
     load_dataset,
     load_inputs,
-    refuse_unknown_columns,
 )
 from ipcverify.domain import DomainModel
 from ipcverify.errors import InvalidInputError, ModelFileError
 from ipcverify.files import atomic_write
 from ipcverify.model import IPCModel, IPCNetwork
+from ipcverify.tables import refuse_unknown_columns
 
 __all__ = [
     "FORMAT",

@@ -1,16 +1,18 @@
-"""Deployment batches: a contract's sets for many queries, each marked in or out of its domain.
+"""Deployment: a contract's sets for many queries (marked in or out of its domain), and logs replayed
+through the online monitor.
 
 :func:`predict_sets` needs only the queries ``(x, yhat)`` -- a deployment log has no ground
 truth. Every query gets its calibrated ellipsoid, its distance to the calibration inputs and
 an ``in_domain`` flag (:mod:`ipcverify.domain`); a query whose set degenerates (singular shape
 matrix, which happens far from the training data) is kept, marked ``in_domain = False`` and
 counted, instead of stopping the batch. :func:`write_predictions` writes the arrays to NPZ.
+:func:`monitor_log` replays a labelled log, in order, through the anytime-valid monitor.
 
 Examples
 --------
 >>> import numpy as np
 >>> from ipcverify.architecture import ModelConfig
->>> from ipcverify.data import PerceptionInputs
+>>> from ipcverify.data import PerceptionDataset, PerceptionInputs
 >>> from ipcverify.model import IPCModel, IPCNetwork
 >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(8,))))
 >>> p = predict_sets(m, PerceptionInputs(np.zeros((4, 2)), np.zeros((4, 3))))
@@ -22,18 +24,20 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ipcverify.data import PerceptionInputs
+from ipcverify.data import PerceptionDataset, PerceptionInputs
 from ipcverify.domain import DomainReport
 from ipcverify.errors import InvalidInputError
 from ipcverify.files import atomic_write
 from ipcverify.model import IPCModel
+from ipcverify.monitor import MonitorResult, ViolationMonitor
 from ipcverify.sets import SINGULAR_RCOND
 
-__all__ = ["Predictions", "predict_sets", "write_predictions"]
+__all__ = ["LogMonitoring", "Predictions", "monitor_log", "predict_sets", "write_predictions"]
 
 FloatArray = NDArray[np.float64]
 
@@ -129,4 +133,105 @@ def write_predictions(predictions: Predictions, path: str | os.PathLike[str]) ->
             domain_distance=p.distance,
             singular=p.singular,
         ),
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class LogMonitoring:
+    """A labelled deployment log replayed through the online monitor (:mod:`ipcverify.monitor`).
+
+    Attributes
+    ----------
+    result : MonitorResult
+        The monitor's trajectory (e-values, alarm, in-domain fraction).
+    violated, in_domain : bool ndarray (B,)
+        Per row: the truth fell outside its calibrated set; the query was in the domain.
+    epsilon, delta : float
+        The tested rate (the calibration's allowed rate) and the false-alarm bound.
+    calibration_delta : float
+        The calibration's own confidence parameter: given a calibration whose claim holds
+        (probability at least ``1 - calibration_delta``), a false alarm has probability at
+        most ``delta``.
+    """
+
+    result: MonitorResult
+    violated: NDArray[np.bool_]
+    in_domain: NDArray[np.bool_]
+    epsilon: float
+    delta: float
+    calibration_delta: float
+
+    @property
+    def alarm_index(self) -> int | None:
+        """Row of the log at which the certificate was refuted, or None."""
+        return self.result.alarm_index
+
+    def sentence(self) -> str:
+        """The outcome in words."""
+        n = len(self.violated)
+        share = f"{100 * self.in_domain.mean():.1f} % of the queries were inside the domain of validity"
+        if self.alarm_index is None:
+            return (
+                f"No alarm over {n} rows: the log is consistent with a violation rate of at most "
+                f"{self.epsilon:.4g} (anytime-valid test, false-alarm probability at most {self.delta:g}); "
+                f"{share}."
+            )
+        return (
+            f"ALARM at row {self.alarm_index}: the violations up to there refute a violation rate of at "
+            f"most {self.epsilon:.4g} (false-alarm probability at most {self.delta:g}, given a calibration "
+            f"whose claim holds, which it does with probability at least {1 - self.calibration_delta:g}); "
+            f"{share}."
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data for ``monitor.json``."""
+        return {
+            "rows": len(self.violated),
+            "violations": int(self.violated.sum()),
+            "epsilon": self.epsilon,
+            "delta": self.delta,
+            "calibration_delta": self.calibration_delta,
+            "alarm": self.alarm_index is not None,
+            "alarm_index": self.alarm_index,
+            "in_domain_fraction": float(self.in_domain.mean()),
+            "statement": self.sentence(),
+            "monitor": self.result.to_dict(),
+        }
+
+
+def monitor_log(model: IPCModel, data: PerceptionDataset, *, delta: float | None = None) -> LogMonitoring:
+    """Replay a labelled log, row by row in order, through :class:`~ipcverify.monitor.ViolationMonitor`.
+
+    The tested rate is the calibration's allowed rate (:meth:`Calibration.allowed_violation_rate`,
+    or its epsilon when it makes no per-draw claim); every row is an observation, in the domain
+    or not, since the calibration's claim covers every exchangeable query.
+
+    Raises
+    ------
+    InvalidInputError
+        If the model is not calibrated or its claim is about groups (feed one observation per
+        group with :class:`~ipcverify.monitor.ViolationMonitor` instead).
+    """
+    cal = model.require_calibration()
+    allowed = cal.allowed_violation_rate()
+    epsilon = allowed.rate if allowed.rate is not None else cal.epsilon
+    delta = cal.delta if delta is None else float(delta)
+    pred = predict_sets(model, PerceptionInputs(data.x, data.yhat, data.source))
+    d = data.y - pred.centers
+    g = np.linalg.norm(np.einsum("bij,bj->bi", pred.shapes, d), axis=1)
+    violated = np.asarray(~(g <= 1.0), dtype=np.bool_)
+    if cal.test_counts(violated, data).unit != "samples":
+        raise InvalidInputError(
+            "this calibration's claim is about groups (flights, runs): monitor one observation per group "
+            "with ipcverify.monitor.ViolationMonitor, not one per row"
+        )
+    monitor = ViolationMonitor(epsilon, delta, in_domain_only=False)
+    result = monitor.run(violated, pred.in_domain)
+    return LogMonitoring(
+        result=result,
+        violated=violated,
+        in_domain=pred.in_domain,
+        epsilon=epsilon,
+        delta=delta,
+        calibration_delta=cal.delta,
     )

@@ -30,6 +30,12 @@ mode every group is calibrated at ``delta / G`` (Bonferroni over the ``G``
 groups), so that with probability at least ``1 - delta`` *every* group's
 violation rate is at most ``epsilon``.
 
+Grouped calibration (:mod:`~ipcverify.calibration.grouped`) treats groups of correlated
+samples (flights, runs; a column of the calibration data only) as the exchangeable units
+and gives one scale with a trajectory-level guarantee (every sample of a new flight inside)
+or a per-sample one valid under group exchangeability. Proofs:
+``proofs/group_calibration.md``.
+
 The stored scale is the order statistic times ``1 + SCALE_MARGIN``: a slightly
 larger set, so that float32 rounding differences between batch sizes cannot
 turn a calibration sample on the boundary into a violation.
@@ -38,12 +44,20 @@ turn a calibration sample on the boundary into a violation.
 from __future__ import annotations
 
 from ipcverify.calibration.global_scale import GlobalCalibration
+from ipcverify.calibration.grouped import (
+    GUARANTEES,
+    GroupedCalibration,
+    GroupViolations,
+    group_violation_counts,
+    risk_control_threshold,
+)
 from ipcverify.calibration.kinds import KINDS, calibration_from_dict
 from ipcverify.calibration.mondrian import MAX_GROUPS, GroupScale, MondrianCalibration
 from ipcverify.calibration.protocol import AllowedRate, Calibration, CalibrationSummary, GroupInfo
 from ipcverify.calibration.threshold import SCALE_MARGIN, ScoreThreshold, threshold_scores
 
 __all__ = [
+    "GUARANTEES",
     "KINDS",
     "MAX_GROUPS",
     "SCALE_MARGIN",
@@ -52,9 +66,13 @@ __all__ = [
     "CalibrationSummary",
     "GlobalCalibration",
     "GroupInfo",
+    "GroupViolations",
+    "GroupedCalibration",
     "GroupScale",
     "MondrianCalibration",
     "ScoreThreshold",
     "calibration_from_dict",
+    "group_violation_counts",
+    "risk_control_threshold",
     "threshold_scores",
 ]

@@ -16,8 +16,9 @@ from numpy.typing import NDArray
 from scipy import stats
 
 from ipcverify.bounds import CalibrationMode
-from ipcverify.calibration.protocol import AllowedRate, CalibrationSummary, GroupInfo
+from ipcverify.calibration.protocol import AllowedRate, CalibrationSummary, GroupInfo, TestCounts, row_counts
 from ipcverify.calibration.threshold import ScoreThreshold, guarantee_sentence, threshold_scores
+from ipcverify.data import PerceptionDataset
 from ipcverify.errors import InvalidInputError
 
 __all__ = ["GlobalCalibration"]
@@ -105,6 +106,10 @@ class GlobalCalibration:
             rate=float(stats.beta.ppf(1.0 - t.delta, t.n - t.k + 1, t.k)),
             reason="1 - delta quantile of the marginal calibration's Beta(n - k + 1, k) violation rate",
         )
+
+    def test_counts(self, violated: NDArray[np.bool_], test_data: PerceptionDataset) -> TestCounts:
+        """Rows: the claim is about a new sample."""
+        return row_counts(violated)
 
     def summary(self) -> CalibrationSummary:
         """The typed record (``k``, ``scale`` and ``order_statistic`` as details)."""

@@ -10,6 +10,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from ipcverify.calibration.global_scale import GlobalCalibration
+from ipcverify.calibration.grouped import GroupedCalibration
 from ipcverify.calibration.mondrian import MondrianCalibration
 from ipcverify.calibration.protocol import Calibration
 from ipcverify.errors import InvalidInputError
@@ -17,7 +18,9 @@ from ipcverify.errors import InvalidInputError
 __all__ = ["KINDS", "calibration_from_dict"]
 
 #: Calibration kinds by the ``kind`` stored in their records.
-KINDS: dict[str, Any] = {cls.kind: cls for cls in (GlobalCalibration, MondrianCalibration)}
+KINDS: dict[str, Any] = {
+    cls.kind: cls for cls in (GlobalCalibration, MondrianCalibration, GroupedCalibration)
+}
 
 
 def calibration_from_dict(data: Mapping[str, Any]) -> Calibration:

@@ -19,13 +19,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ipcverify.bounds import CalibrationMode, min_calibration_size
-from ipcverify.calibration.protocol import AllowedRate, CalibrationSummary, GroupInfo
+from ipcverify.calibration.protocol import AllowedRate, CalibrationSummary, GroupInfo, TestCounts, row_counts
 from ipcverify.calibration.threshold import (
     ScoreThreshold,
     check_eps_delta,
     check_mode,
     threshold_scores,
 )
+from ipcverify.data import PerceptionDataset
 from ipcverify.errors import InvalidInputError, SampleSizeError
 
 __all__ = ["MAX_GROUPS", "GroupScale", "MondrianCalibration"]
@@ -194,6 +195,10 @@ class MondrianCalibration:
                 reason="with probability 1 - delta every group, hence the whole, violates at most epsilon",
             )
         return AllowedRate(rate=None, reason="marginal Mondrian calibration makes no per-draw claim")
+
+    def test_counts(self, violated: NDArray[np.bool_], test_data: PerceptionDataset) -> TestCounts:
+        """Rows: the claim is about a new sample."""
+        return row_counts(violated)
 
     def summary(self) -> CalibrationSummary:
         """The typed record (per-group ``k``, ``scale`` and records as details)."""

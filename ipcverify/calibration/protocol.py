@@ -10,6 +10,9 @@ ONNX export, reports and the case study use only the :class:`Calibration` protoc
 * :meth:`~Calibration.allowed_violation_rate` -- the violation rate the calibration allows
   with probability ``1 - delta`` (what test data may be checked against), as
   :class:`AllowedRate`;
+* :meth:`~Calibration.test_counts` -- how test data checks the calibration's claim: the
+  violations counted in the unit the claim is about (samples, or whole groups), as
+  :class:`TestCounts`;
 * :meth:`~Calibration.summary` -- one typed record (:class:`CalibrationSummary`), the
   ``calibration`` block of ``certificate.json``;
 * :meth:`~Calibration.guarantee`, :meth:`~Calibration.to_dict`.
@@ -29,9 +32,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ipcverify.bounds import CalibrationMode
+from ipcverify.data import PerceptionDataset
 from ipcverify.errors import InvalidInputError
 
-__all__ = ["Calibration", "GroupInfo", "AllowedRate", "CalibrationSummary"]
+__all__ = ["Calibration", "GroupInfo", "AllowedRate", "CalibrationSummary", "TestCounts", "row_counts"]
 
 FloatArray = NDArray[np.float64]
 
@@ -92,6 +96,41 @@ class AllowedRate:
     def checkable(self) -> bool:
         """Whether test data can be checked against a rate."""
         return self.rate is not None
+
+
+@dataclass(frozen=True, kw_only=True)
+class TestCounts:
+    """Violations of fresh test data counted in the unit a calibration's claim is about.
+
+    A per-sample claim over exchangeable samples is tested on rows; a claim over exchangeable
+    groups (flights) on one statistic per group, since the rows of a group are correlated and
+    a binomial bound on them would not be valid.
+
+    Examples
+    --------
+    >>> row_counts(np.array([True, False, False])).to_dict()
+    {'violations': 1, 'n': 3, 'unit': 'samples'}
+    """
+
+    __test__ = False  # not a pytest test class
+
+    violations: int
+    n: int
+    unit: str
+
+    def __post_init__(self) -> None:
+        if not (0 <= self.violations <= self.n and self.n >= 1):
+            raise InvalidInputError(f"need 0 <= violations <= n, n >= 1; got {self.violations}, {self.n}")
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data."""
+        return {"violations": self.violations, "n": self.n, "unit": self.unit}
+
+
+def row_counts(violated: NDArray[np.bool_]) -> TestCounts:
+    """Violations counted per test sample (the unit of a per-sample claim over exchangeable rows)."""
+    v = np.asarray(violated, dtype=bool)
+    return TestCounts(violations=int(v.sum()), n=int(v.size), unit="samples")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -219,6 +258,10 @@ class Calibration(Protocol):
 
     def allowed_violation_rate(self) -> AllowedRate:
         """The rate test data may be checked against (w.p. ``1 - delta``), if any."""
+        ...
+
+    def test_counts(self, violated: NDArray[np.bool_], test_data: PerceptionDataset) -> TestCounts:
+        """The test data's violations counted in the unit of this calibration's claim."""
         ...
 
     def summary(self) -> CalibrationSummary:

@@ -16,6 +16,7 @@ from ipcverify.calibrate import calibrate
 from ipcverify.certificate import CertificateStatus
 from ipcverify.certify import certify_files
 from ipcverify.cli.app import app, console, err_console
+from ipcverify.domain import DEFAULT_ALPHA
 from ipcverify.errors import InvalidInputError
 from ipcverify.lipschitz import DEFAULT_RADIUS
 from ipcverify.modelio import load_data_for_model, load_model, save_model
@@ -51,6 +52,25 @@ _STYLE = {
     "--bins", default=None, type=int, help="With --mondrian-column: quantile bins of a continuous column."
 )
 @click.option(
+    "--group-column",
+    default=None,
+    help="The exchangeable unit (flights, runs): calibrate with whole groups of this column as samples.",
+)
+@click.option(
+    "--guarantee",
+    type=click.Choice(["sample", "trajectory"]),
+    default="sample",
+    show_default=True,
+    help="With --group-column: bound a new group's expected share of violations, or its chance of any.",
+)
+@click.option(
+    "--domain-alpha",
+    type=float,
+    default=DEFAULT_ALPHA,
+    show_default=True,
+    help="False-alarm rate of the domain-of-validity test fitted on the calibration inputs.",
+)
+@click.option(
     "--recalibrate", is_flag=True, help="Replace an existing calibration (calibrates the raw network)."
 )
 @click.option(
@@ -67,6 +87,9 @@ def calibrate_cmd(
     mode: str,
     mondrian_column: str | None,
     bins: int | None,
+    group_column: str | None,
+    guarantee: str,
+    domain_alpha: float,
     recalibrate: bool,
     seed: int,
     out: Path,
@@ -74,7 +97,8 @@ def calibrate_cmd(
     """Calibrate MODEL on DATA and write the calibrated model to --out.
 
     DATA must be held-out data that was NOT used for training (nor for choosing the
-    model), drawn like the data the contract will meet in deployment.
+    model), drawn like the data the contract will meet in deployment. The domain-of-validity
+    test is fitted on its inputs and stored with the model.
     """
     m = load_model(model)
     ds = load_data_for_model(data, m)
@@ -86,7 +110,10 @@ def calibrate_cmd(
         mode,  # type: ignore[arg-type]
         mondrian_column=mondrian_column,
         bins=bins,
+        group_column=group_column,
+        guarantee=guarantee,  # type: ignore[arg-type]
         recalibrate=recalibrate,
+        domain_alpha=domain_alpha,
         seed=seed,
     )
     save_model(cal_model, out)
@@ -102,6 +129,8 @@ def calibrate_cmd(
         table.add_row(g.label, str(g.n), str(g.k), f"{g.scale:.5g}")
     console.print(table)
     console.print(cal.guarantee(), soft_wrap=True, markup=False)
+    if cal_model.domain is not None:
+        console.print(cal_model.domain.describe().sentence(), soft_wrap=True, markup=False)
     console.print(f"calibrated model -> {out}", markup=False)
 
 

@@ -7,6 +7,7 @@ result; nothing else happens here.
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 import click
@@ -19,8 +20,11 @@ from ipcverify.data import load_dataset
 from ipcverify.demo import run_demo
 from ipcverify.errors import InvalidInputError
 from ipcverify.evaluation import Evaluation, evaluate
+from ipcverify.files import atomic_write, write_json
 from ipcverify.modelio import load_data_for_model, load_inputs_for_model, load_model, save_model
-from ipcverify.prediction import predict_sets, write_predictions
+from ipcverify.monitor import plot_monitor
+from ipcverify.prediction import monitor_log, predict_sets, write_predictions
+from ipcverify.report import figure_to_png
 from ipcverify.training import TrainConfig, train
 
 __all__ = ["parse_hidden"]
@@ -195,6 +199,40 @@ def predict_cmd(model: Path, data: Path, out: Path) -> None:
             "they are marked in_domain = False",
             markup=False,
         )
+
+
+@app.command("monitor")
+@click.argument("model", type=_EXISTING)
+@click.argument("log", type=_EXISTING)
+@click.option(
+    "--out",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=Path("monitor"),
+    show_default=True,
+    help="Directory for monitor.json and monitor.png.",
+)
+@click.option(
+    "--delta", type=float, default=None, help="False-alarm bound (default: the calibration's delta)."
+)
+def monitor_cmd(model: Path, log: Path, out: Path, delta: float | None) -> None:
+    """Replay a labelled deployment LOG (rows in time order) through the online monitor.
+
+    An anytime-valid test of "the violation rate is at most the calibrated rate": it raises an
+    alarm at the first row where the violations so far refute the certificate, with a false-alarm
+    probability of at most --delta. Exits with status 1 on an alarm.
+    """
+    m = load_model(model)
+    res = monitor_log(m, load_data_for_model(log, m), delta=delta)
+    write_json(out / "monitor.json", res)
+    png = figure_to_png(plot_monitor(res.result, title=f"{log.name}: anytime-valid test of the certificate"))
+    atomic_write(out / "monitor.png", lambda f: f.write(png))
+    target, style = (err_console, "bold red") if res.alarm_index is not None else (console, "bold green")
+    target.print(
+        f"[{style}]{'ALARM' if res.alarm_index is not None else 'OK'}[/] {res.sentence()}", soft_wrap=True
+    )
+    console.print(f"wrote {out / 'monitor.json'} and {out / 'monitor.png'}", markup=False)
+    if res.alarm_index is not None:
+        sys.exit(1)
 
 
 @app.command("demo")

@@ -177,3 +177,71 @@ def test_saved_files_get_ordinary_permissions(tmp_path, small):
     finally:
         os.umask(old)
     assert (tmp_path / "d.csv").stat().st_mode & 0o777 == 0o640
+
+
+def _with_runs(n_runs: int, rows: int = 5) -> PerceptionDataset:
+    runs = np.repeat([f"run{i:02d}" for i in range(n_runs)], rows)
+    n = len(runs)
+    x = np.arange(n, dtype=float)[:, None]
+    return PerceptionDataset(x, np.zeros((n, 1)), np.zeros((n, 1)), source="log", extra={"run": runs})
+
+
+def test_group_split_keeps_whole_groups_and_is_deterministic():
+    ds = _with_runs(20)
+    a = ds.split((0.6, 0.2, 0.2), seed=3, group_column="run")
+    b = ds.split((0.6, 0.2, 0.2), seed=3, group_column="run")
+    c = ds.split((0.6, 0.2, 0.2), seed=4, group_column="run")
+    parts = (a.train, a.calibration, a.test)
+    runs = [set(p.column("run")) for p in parts]
+    assert [len(r) for r in runs] == [12, 4, 4]  # shares count groups
+    assert not (runs[0] & runs[1]) and not (runs[0] & runs[2]) and not (runs[1] & runs[2])
+    assert [len(p) for p in parts] == [60, 20, 20]  # whole groups: 5 rows each
+    rows = np.sort(np.concatenate([p.x[:, 0] for p in parts]))
+    assert np.array_equal(rows, ds.x[:, 0])  # every row exactly once
+    assert all(np.array_equal(p.x, q.x) for p, q in zip(parts, (b.train, b.calibration, b.test), strict=True))
+    assert set(c.calibration.column("run")) != runs[1]
+
+
+def test_group_split_does_not_depend_on_row_order():
+    ds = _with_runs(10, rows=3)
+    perm = np.random.default_rng(0).permutation(len(ds))
+    shuffled = ds.subset(perm)
+    a = ds.split((0.5, 0.3, 0.2), seed=1, group_column="run")
+    b = shuffled.split((0.5, 0.3, 0.2), seed=1, group_column="run")
+    assert set(a.calibration.column("run")) == set(b.calibration.column("run"))
+
+
+def test_split_without_group_column_is_unchanged(small):
+    a = small.split((0.6, 0.2, 0.2), seed=7)
+    b = small.split((0.6, 0.2, 0.2), seed=7, group_column=None)
+    perm = np.random.default_rng(7).permutation(len(small))
+    assert np.array_equal(a.train.x, small.x[np.sort(perm[:30])])
+    assert np.array_equal(a.test.x, b.test.x)
+
+
+def test_group_split_refuses_unknown_column_and_too_few_groups():
+    ds = _with_runs(2)
+    with pytest.raises(DataError, match=r"log: no column 'flight'; available: x_0, y_0, yhat_0, run"):
+        ds.split(group_column="flight")
+    with pytest.raises(
+        DataError,
+        match=r"log: group column 'run' has 2 group\(s\), too few for split fractions \[0\.6, 0\.2, 0\.2\]: "
+        r"the calibration part would get no group; use about 5 or more groups",
+    ):
+        ds.split((0.6, 0.2, 0.2), group_column="run")
+    with pytest.raises(
+        DataError, match=r"has 1 group\(s\).*the calibration and test parts would get no group"
+    ):
+        _with_runs(1).split((0.6, 0.2, 0.2), group_column="run")
+    # a zero share may be empty
+    parts = ds.split((0.5, 0.5, 0.0), group_column="run")
+    assert parts.test is None and len(parts.train) == len(parts.calibration) == 5
+
+
+def test_group_split_refuses_missing_labels():
+    ds = _with_runs(4)
+    runs = np.array(ds.column("run"), dtype=object)
+    runs[7] = None
+    bad = PerceptionDataset(ds.x, ds.y, ds.yhat, source="log", extra={"run": runs})
+    with pytest.raises(DataError, match=r"log: group column 'run': row 7 has no group label \(None\)"):
+        bad.split(group_column="run")

@@ -1,0 +1,162 @@
+"""Reading perception logs: CSV, Parquet and NPZ files to named numeric blocks.
+
+:func:`read_blocks` is the one reader behind :func:`ipcverify.data.load_dataset` (x, y and
+yhat) and :func:`ipcverify.data.load_inputs` (x and yhat only, for deployment queries). It
+finds the ``kind_0, kind_1, ...`` columns (or takes the names given), checks that they are
+numeric, and keeps every other column of a table as an extra. Errors name the file, row and
+column at fault.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from numpy.typing import NDArray
+
+from ipcverify.errors import DataError
+
+__all__ = ["SUFFIXES", "data_file", "numbered_columns", "read_blocks", "refuse_unknown_columns"]
+
+SUFFIXES = (".csv", ".parquet", ".pq", ".npz")
+
+
+def numbered_columns(prefix: str, columns: Sequence[str]) -> list[str]:
+    """The columns ``prefix_0, prefix_1, ...`` in order; refuses a gap in the numbering.
+
+    Examples
+    --------
+    >>> numbered_columns("x", ["y_0", "x_1", "x_0", "t"])
+    ['x_0', 'x_1']
+    """
+    pat = re.compile(rf"^{re.escape(prefix)}_(\d+)$")
+    found = sorted((int(m.group(1)), c) for c in columns if (m := pat.match(c)))
+    names = [c for _, c in found]
+    idx = [i for i, _ in found]
+    if idx != list(range(len(idx))):
+        missing = sorted(set(range(max(idx) + 1)) - set(idx)) if idx else []
+        raise DataError(
+            f"columns {prefix}_0..{prefix}_{max(idx)} are not contiguous: missing "
+            + ", ".join(f"{prefix}_{i}" for i in missing)
+        )
+    return names
+
+
+def _read_table(path: Path) -> pd.DataFrame:
+    suffix = path.suffix.lower()
+    try:
+        if suffix == ".csv":
+            return pd.read_csv(path)
+        return pd.read_parquet(path)
+    except pd.errors.EmptyDataError:
+        raise DataError(f"{path}: the file is empty; expected a header row and samples") from None
+    except (pd.errors.ParserError, UnicodeDecodeError, OSError, ValueError) as exc:
+        if isinstance(exc, FileNotFoundError):
+            raise
+        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise DataError(f"{path}: cannot read as {suffix[1:].upper()}: {msg}") from None
+
+
+def data_file(path: str | os.PathLike[str]) -> Path:
+    """``path`` as a Path, if it exists and has a known data-file suffix."""
+    p = Path(path)
+    if not p.exists():
+        raise FileNotFoundError(2, "No such file", str(p))
+    if p.suffix.lower() not in SUFFIXES:
+        raise DataError(f"{p}: unknown data format {p.suffix.lower()!r}; use one of {', '.join(SUFFIXES)}")
+    return p
+
+
+def _read_npz(p: Path, kinds: Sequence[str]) -> dict[str, NDArray[Any]]:
+    try:
+        with np.load(p, allow_pickle=False) as z:
+            missing = [k for k in kinds if k not in z.files]
+            if missing:
+                raise DataError(f"{p}: NPZ lacks array(s) {', '.join(missing)}; it needs {', '.join(kinds)}")
+            arrs = {k: z[k] for k in kinds}
+    except DataError:
+        raise
+    except (ValueError, OSError) as exc:
+        raise DataError(f"{p}: cannot read as NPZ: {exc}") from None
+    for k, a in arrs.items():
+        if not np.issubdtype(a.dtype, np.number):
+            raise DataError(f"{p}: array {k!r} is not numeric (dtype {a.dtype})")
+    return arrs
+
+
+def read_blocks(
+    p: Path, names: Mapping[str, Sequence[str] | None]
+) -> tuple[dict[str, NDArray[Any]], dict[str, tuple[str, ...]], dict[str, NDArray[Any]]]:
+    """The numeric blocks of the kinds in ``names`` (x, y, yhat ...), their columns, and the rest."""
+    kinds = list(names)
+    if p.suffix.lower() == ".npz":
+        if any(names.values()):
+            raise DataError(f"{p}: column names apply to CSV/Parquet, not NPZ (arrays {', '.join(kinds)})")
+        return _read_npz(p, kinds), {k: () for k in kinds}, {}
+    df = _read_table(p)
+    if len(df) == 0:
+        raise DataError(f"{p}: the file has a header but no samples")
+    cols = [str(c) for c in df.columns]
+    chosen = {k: list(v) if v else numbered_columns(k, cols) for k, v in names.items()}
+    for kind, ks in chosen.items():
+        if not ks:
+            raise DataError(
+                f"{p}: no {kind} columns (expected {kind}_0, {kind}_1, ...; "
+                f"found: {', '.join(cols[:12])}{' ...' if len(cols) > 12 else ''})"
+            )
+        missing = [c for c in ks if c not in cols]
+        if missing:
+            raise DataError(f"{p}: missing column(s) {', '.join(missing)}")
+    if "y" in chosen and "yhat" in chosen and len(chosen["y"]) != len(chosen["yhat"]):
+        raise DataError(
+            f"{p}: y has {len(chosen['y'])} columns but yhat has {len(chosen['yhat'])}; they must describe "
+            "the same quantity"
+        )
+    arrays = {}
+    for kind, ks in chosen.items():
+        block = df[ks]
+        for c in ks:
+            if not pd.api.types.is_numeric_dtype(block[c]):
+                conv = pd.to_numeric(block[c], errors="coerce")
+                bad = conv.isna() & block[c].notna()
+                r = int(np.flatnonzero(bad.to_numpy())[0]) if bad.any() else 0
+                raise DataError(f"{p}: row {r}, column {c!r}: not a number ({block[c].iloc[r]!r})")
+        arrays[kind] = block.to_numpy(dtype=np.float64)
+    used = {c for ks in chosen.values() for c in ks}
+    extra = {c: df[c].to_numpy() for c in cols if c not in used}
+    return arrays, {k: tuple(v) for k, v in chosen.items()}, extra
+
+
+def refuse_unknown_columns(source: str, extra: Mapping[str, Any], known: Mapping[str, Sequence[str]]) -> None:
+    """Refuse a table whose extra columns look like ``x_i`` / ``y_i`` / ``yhat_i`` columns the model lacks.
+
+    A file with more state columns than the model was trained on would otherwise be read
+    silently without them.
+
+    Raises
+    ------
+    DataError
+        Naming the columns and the ones the model knows.
+
+    Examples
+    --------
+    >>> refuse_unknown_columns("log.csv", {"x_6": None}, {"x": ["x_0", "x_1"]})  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    ipcverify.errors.DataError: log.csv: column x_6 looks like a x column but the model knows only x_0, ...
+    """
+    for kind, names in known.items():
+        pat = re.compile(rf"^{re.escape(kind)}_(\d+)$")
+        unknown = sorted((str(c) for c in extra if pat.match(str(c))), key=lambda c: (len(c), c))
+        if unknown:
+            raise DataError(
+                f"{source}: column{'s' if len(unknown) > 1 else ''} {', '.join(unknown)} look"
+                f"{'' if len(unknown) > 1 else 's'} like a {kind} column but the model knows only "
+                f"{', '.join(names)} -- drop {'them' if len(unknown) > 1 else 'it'}, or retrain and "
+                "recalibrate with them"
+            )

@@ -1,0 +1,428 @@
+"""Grouped (flight-level) calibration: statistical guarantees on correlated flights, records, refusals.
+
+Synthetic flights: flight ``g`` has its own bias ``b_g ~ N(0, SB^2)`` (wind, a miscalibrated
+sensor) shared by all its samples, plus per-sample noise ``e ~ N(0, SE^2)``, and
+``L_g ~ Uniform{10, ..., 40}`` samples. The set rule is fixed (an interval of half-width
+``s`` around ``yhat``), so the score of a sample is ``|b_g + e|`` and no training is needed.
+The true violation probabilities of a threshold ``t`` are known:
+
+* per sample (a random sample of a new flight): ``P(|N(0, SB^2 + SE^2)| > t)``, exactly;
+* per flight (any of its samples outside): ``1 - E[F_b(t)^L]`` with
+  ``F_b(t) = P(|b + e| <= t | b)``, by Gauss--Hermite quadrature over ``b`` (120 nodes; it
+  agrees with a 400,000-flight Monte Carlo to 1e-3).
+
+Every p-value of this file is compared with ``LEVEL = ALPHA / N_CHECKS`` (Bonferroni), so
+the family-wise chance that a correct implementation fails is at most ``ALPHA``. The power
+checks show that row-level calibration under-covers on the same flights (and does not when
+the flights are uncorrelated), and that the risk-control check catches a plug-in without
+the ``+1``. Proofs: proofs/group_calibration.md.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from fractions import Fraction
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from ipcverify.bounds import min_calibration_size, smallest_epsilon
+from ipcverify.calibration import (
+    CalibrationSummary,
+    GroupedCalibration,
+    calibration_from_dict,
+    group_violation_counts,
+    risk_control_threshold,
+    threshold_scores,
+)
+from ipcverify.errors import DataError, InvalidInputError, SampleSizeError
+
+SB, SE = 1.0, 0.5
+S_TOTAL = math.hypot(SB, SE)
+LENGTHS = np.arange(10, 41)
+_NODES, _W = np.polynomial.hermite_e.hermegauss(120)
+_W = _W / _W.sum()
+
+ALPHA = 1e-3
+PAC_CASES = [(150, 0.05, 0.1), (300, 0.02, 0.2)]  # (groups, epsilon, delta)
+MARGINAL_CASES = [(100, 0.1), (300, 0.05)]  # (groups, epsilon)
+# 2 per PAC case and guarantee, 3 per marginal trajectory case, 2 per risk-control case, 5 power checks
+N_CHECKS = 2 * 2 * len(PAC_CASES) + 3 * len(MARGINAL_CASES) + 2 * len(MARGINAL_CASES) + 5
+LEVEL = ALPHA / N_CHECKS
+R_PAC = 2000
+R_MARGINAL = 1000
+
+
+def _flights(rng: np.random.Generator, G: int, sb: float = SB) -> tuple[np.ndarray, np.ndarray]:
+    """Scores and flight labels of ``G`` correlated flights."""
+    lengths = rng.choice(LENGTHS, size=G)
+    runs = np.repeat(np.arange(G), lengths)
+    bias = rng.normal(0.0, sb, size=G)[runs] if sb > 0 else 0.0
+    return np.abs(bias + rng.normal(0.0, SE, size=runs.size)), runs
+
+
+def _sample_violation(t: np.ndarray, sb: float = SB) -> np.ndarray:
+    """P(a random sample of a new flight has score > t), exactly."""
+    return 2.0 * stats.norm.sf(np.asarray(t) / math.hypot(sb, SE))
+
+
+def _flight_violation(t: np.ndarray) -> np.ndarray:
+    """P(a new flight has some sample with score > t), by quadrature over the flight's bias."""
+    t = np.asarray(t, dtype=float)[:, None]
+    b = SB * _NODES[None, :]
+    inside = stats.norm.cdf((t - b) / SE) - stats.norm.cdf((-t - b) / SE)  # (T, nodes)
+    all_in = np.mean([(inside**n) @ _W for n in LENGTHS], axis=0)
+    return 1.0 - all_in
+
+
+def _fit(scores, runs, eps, delta, mode, guarantee, seed=0):
+    return GroupedCalibration.fit(
+        scores,
+        runs,
+        eps,
+        delta,
+        mode,
+        guarantee=guarantee,
+        column="run",
+        seed=seed,
+        data_hash="d",
+        network_hash="h",
+    )
+
+
+# ---------------------------------------------------------------------------------------------
+# (a) the guarantees hold at the claimed level
+
+
+def _pac_draws(G, eps, delta, guarantee, seed, sb=SB):
+    """Per draw: the grouped order statistic, its k, and the row-level PAC threshold on all rows."""
+    rng = np.random.default_rng(seed)
+    stat, scale, row_t = np.empty(R_PAC), np.empty(R_PAC), np.empty(R_PAC)
+    ks = set()
+    for r in range(R_PAC):
+        s, runs = _flights(rng, G, sb)
+        cal = _fit(s, runs, eps, delta, "pac", guarantee, seed=r)
+        stat[r], scale[r] = cal.order_statistic, cal.scale
+        ks.add(cal.k_groups)
+        row_t[r] = threshold_scores(s, eps, delta, "pac").order_statistic
+    (k,) = ks
+    return stat, scale, k, row_t
+
+
+@pytest.mark.parametrize("guarantee", ["trajectory", "sample"])
+@pytest.mark.parametrize(("G", "eps", "delta"), PAC_CASES)
+def test_pac_grouped_fraction_of_bad_calibrations_is_at_most_delta(G, eps, delta, guarantee):
+    stat, scale, k, _ = _pac_draws(G, eps, delta, guarantee, seed=3000 + G + len(guarantee))
+    truth = _flight_violation if guarantee == "trajectory" else _sample_violation
+    fail_stat = int((truth(stat) > eps).sum())
+    fail_scale = int((truth(scale) > eps).sum())
+    assert fail_scale <= fail_stat
+    # the group statistics (maxima, or one random sample per flight) are i.i.d. and continuous, so a
+    # draw is bad with probability exactly q = P(Binomial(G, eps) <= G - k) <= delta
+    q = stats.binom.cdf(G - k, G, eps)
+    assert q <= delta
+    assert stats.binom.sf(fail_stat - 1, R_PAC, delta) >= LEVEL, (
+        f"{fail_stat}/{R_PAC} bad draws, delta={delta}"
+    )
+    assert stats.binomtest(fail_stat, R_PAC, q).pvalue >= LEVEL, f"{fail_stat}/{R_PAC} bad draws, q={q:.4f}"
+
+
+def _marginal_pvalues(coverage, G, eps):
+    p_low = stats.ttest_1samp(coverage, 1 - eps, alternative="less").pvalue
+    p_high = stats.ttest_1samp(coverage, 1 - eps + 1 / (G + 1), alternative="greater").pvalue
+    return float(p_low), float(p_high)
+
+
+@pytest.mark.parametrize(("G", "eps"), MARGINAL_CASES)
+def test_marginal_trajectory_coverage_within_conformal_limits(G, eps):
+    rng = np.random.default_rng(4000 + G)
+    stat = np.empty(R_MARGINAL)
+    for r in range(R_MARGINAL):
+        s, runs = _flights(rng, G)
+        cal = _fit(s, runs, eps, 0.5, "marginal", "trajectory")
+        stat[r], k = cal.order_statistic, cal.k_groups
+    cover = 1.0 - _flight_violation(stat)  # probability that a new flight stays inside throughout
+    p_low, p_high = _marginal_pvalues(cover, G, eps)
+    assert p_low >= LEVEL, f"mean flight coverage {cover.mean():.4f} below 1 - eps"
+    assert p_high >= LEVEL, f"mean flight coverage {cover.mean():.4f} above 1 - eps + 1/(G+1)"
+    # the maxima are i.i.d. and continuous: the coverage of the k-th is exactly Beta(k, G - k + 1)
+    assert stats.kstest(cover, stats.beta(k, G - k + 1).cdf).pvalue >= LEVEL
+
+
+def _crc_risks(G, eps, seed, plug_in=False):
+    rng = np.random.default_rng(seed)
+    risk = np.empty(R_MARGINAL)
+    for r in range(R_MARGINAL):
+        s, runs = _flights(rng, G)
+        if plug_in:  # a wrong method: the empirical mean risk <= eps, without risk control's +1
+            t = _empirical_risk_threshold(s, runs, eps)
+        else:
+            t = _fit(s, runs, eps, 0.5, "marginal", "sample").order_statistic
+        risk[r] = _sample_violation(t)
+    return risk
+
+
+def _empirical_risk_threshold(s, runs, eps):
+    sizes = np.bincount(runs)
+    order = np.argsort(s)
+    mean_risk = (len(sizes) - np.cumsum(1.0 / sizes[runs[order]])) / len(sizes)
+    return s[order][np.flatnonzero(mean_risk <= eps)[0]]
+
+
+@pytest.mark.parametrize(("G", "eps"), MARGINAL_CASES)
+def test_risk_control_expected_violation_fraction_is_at_most_epsilon(G, eps):
+    risk = _crc_risks(G, eps, seed=5000 + G)
+    upper = stats.ttest_1samp(risk, eps, alternative="greater").pvalue
+    assert upper >= LEVEL, f"mean per-sample violation {risk.mean():.5f} significantly above eps={eps}"
+    # and not vacuous: E[V_new] >= eps - (2 + 1/min length) / (G + 1) (proofs/group_calibration.md)
+    floor = eps - (2 + 1 / LENGTHS.min()) / (G + 1)
+    lower = stats.ttest_1samp(risk, floor, alternative="less").pvalue
+    assert lower >= LEVEL, f"mean per-sample violation {risk.mean():.5f} significantly below {floor:.5f}"
+
+
+# ---------------------------------------------------------------------------------------------
+# (b) power: the checks catch wrong methods, and row-level calibration under-covers correlated flights
+
+
+def test_row_level_pac_under_covers_correlated_flights():
+    G, eps, delta = PAC_CASES[0]
+    _, _, _, row_t = _pac_draws(G, eps, delta, "sample", seed=77)
+    fails = int((_sample_violation(row_t) > eps).sum())
+    # a row-level PAC calibration claims at most delta bad draws; on correlated flights it has far more
+    assert stats.binom.sf(fails - 1, R_PAC, delta) < LEVEL, f"only {fails}/{R_PAC} bad draws"
+    assert fails > 2 * delta * R_PAC
+
+
+def test_row_level_pac_is_valid_when_flights_are_uncorrelated():
+    """Control for the power check: without a shared bias the same row-level calibration is valid."""
+    G, eps, delta = PAC_CASES[0]
+    _, _, _, row_t = _pac_draws(G, eps, delta, "sample", seed=78, sb=0.0)
+    fails = int((_sample_violation(row_t, sb=0.0) > eps).sum())
+    assert stats.binom.sf(fails - 1, R_PAC, delta) >= LEVEL, f"{fails}/{R_PAC} bad draws"
+
+
+def test_row_level_marginal_exceeds_its_allowed_rate_on_correlated_flights():
+    """A global marginal calibration allows its Beta(n - k + 1, k) quantile; correlated rows break it."""
+    G, eps, delta = 100, 0.1, 0.05
+    rng = np.random.default_rng(79)
+    over = 0
+    for _ in range(R_MARGINAL):
+        s, _ = _flights(rng, G)
+        t = threshold_scores(s, eps, delta, "marginal")
+        allowed = stats.beta.ppf(1 - delta, t.n - t.k + 1, t.k)
+        over += bool(_sample_violation(t.order_statistic) > allowed)
+    assert stats.binom.sf(over - 1, R_MARGINAL, delta) < LEVEL, f"only {over}/{R_MARGINAL} draws above"
+
+
+def test_row_level_threshold_breaks_the_trajectory_claim():
+    """A row-level marginal threshold at eps lets far more than eps of the flights leave their sets."""
+    G, eps = 100, 0.1
+    rng = np.random.default_rng(80)
+    row_t = [threshold_scores(_flights(rng, G)[0], eps, 0.5, "marginal").order_statistic for _ in range(200)]
+    viol = _flight_violation(np.array(row_t))
+    assert stats.ttest_1samp(viol, 2 * eps, alternative="greater").pvalue < LEVEL, f"mean {viol.mean():.3f}"
+
+
+def test_risk_control_check_catches_the_plug_in_without_plus_one():
+    G, eps = 30, 0.1
+    risk = _crc_risks(G, eps, seed=81, plug_in=True)
+    assert stats.ttest_1samp(risk, eps, alternative="greater").pvalue < LEVEL
+
+
+# ---------------------------------------------------------------------------------------------
+# (c) exact thresholds on toy data, records, protocol, refusals and messages
+
+
+def _toy(seed=0, G=60):
+    rng = np.random.default_rng(seed)
+    return _flights(rng, G)
+
+
+def test_trajectory_threshold_is_the_kth_group_maximum():
+    s, runs = _toy()
+    for mode in ("pac", "marginal"):
+        cal = _fit(s, runs, 0.1, 0.1, mode, "trajectory")
+        maxima = np.array([s[runs == g].max() for g in range(60)])
+        ref = threshold_scores(maxima, 0.1, 0.1, mode)
+        assert (cal.k_groups, cal.order_statistic, cal.scale) == (ref.k, ref.order_statistic, ref.scale)
+        assert cal.n == cal.n_rows == len(s) and cal.n_inside == int((s <= cal.order_statistic).sum())
+
+
+def test_one_sample_per_group_is_seeded_and_one_per_group():
+    s, runs = _toy()
+    a, b, c = (_fit(s, runs, 0.1, 0.1, "pac", "sample", seed=k) for k in (1, 1, 2))
+    assert a == b and a.order_statistic != c.order_statistic
+    assert a.n == a.n_groups == 60 and a.n_rows == len(s)
+    # the threshold is one of the scores, an order statistic of 60 of them, one per flight
+    assert a.order_statistic in s
+    assert a.k_groups == threshold_scores(np.arange(60.0), 0.1, 0.1, "pac").k
+
+
+def test_risk_control_matches_a_brute_force_reference():
+    rng = np.random.default_rng(5)
+    for G, eps in ((12, 0.2), (30, 0.1), (40, 0.05)):
+        runs = np.repeat(np.arange(G), rng.integers(1, 7, size=G))
+        s = np.round(rng.exponential(size=runs.size), 1)  # ties on purpose
+        t, risk = risk_control_threshold(s, runs, eps)
+        sizes = np.bincount(runs)
+
+        def risk_sum(u, sizes=sizes, runs=runs, s=s, G=G):
+            return sum(Fraction(int((s[runs == g] > u).sum()), int(sizes[g])) for g in range(G))
+
+        ok = [u for u in np.unique(s) if risk_sum(u) + 1 <= Fraction(eps) * (G + 1)]
+        assert t == ok[0] and risk == pytest.approx(float(risk_sum(t) / G), rel=1e-12)
+        cal = _fit(s, runs, eps, 0.5, "marginal", "sample")
+        assert cal.order_statistic == t and cal.risk == risk and cal.k_groups is None
+
+
+@pytest.mark.parametrize(
+    ("mode", "guarantee"),
+    [("pac", "trajectory"), ("marginal", "trajectory"), ("pac", "sample"), ("marginal", "sample")],
+)
+def test_record_round_trips_and_protocol(mode, guarantee):
+    s, runs = _toy(seed=1)
+    cal = _fit(s, runs, 0.1, 0.05, mode, guarantee, seed=4)
+    back = calibration_from_dict(json.loads(json.dumps(cal.to_dict())))
+    assert back == cal and back.to_dict() == cal.to_dict() and back.kind == "grouped"
+    x, yhat = np.zeros((5, 2)), np.zeros((5, 1))
+    assert np.array_equal(cal.scale_for(x, yhat), np.full(5, cal.scale))
+    assert np.array_equal(cal.group_index(x, yhat), np.zeros(5, dtype=np.intp))
+    (g,) = cal.groups()
+    assert (g.n, g.k, g.scale) == (cal.n, cal.n_inside, cal.scale)
+    summary = cal.summary()
+    assert isinstance(summary, CalibrationSummary)
+    d = summary.to_dict()
+    assert d["kind"] == "grouped" and d["n_groups"] == 60 and d["group_column"] == "run"
+    assert d["guarantee_kind"] == guarantee and d["group_size_min"] >= 10 and d["group_size_max"] <= 40
+    assert d["min_groups"] == min_calibration_size(0.1, 0.05, mode)
+    allowed = cal.allowed_violation_rate()
+    if (mode, guarantee) == ("marginal", "sample"):
+        assert allowed.rate is None and "no per-draw claim" in allowed.reason
+        assert d["method"] == "risk-control"
+    else:
+        assert allowed.rate is not None and "per test group" in allowed.reason
+    if mode == "pac":
+        assert allowed.rate == cal.certified_epsilon <= 0.1
+    sentence = cal.guarantee()
+    assert "60 calibration groups (by 'run')" in sentence
+    assert ("i.i.d." if mode == "pac" else "exchangeable") in sentence
+    assert ("at some sample" in sentence) == (guarantee == "trajectory")
+
+
+def test_too_few_groups_names_the_minimum_and_says_rows_do_not_help():
+    runs = np.repeat(np.arange(20), 500)  # the real log's 20 runs, 10,000 rows
+    scores = np.random.default_rng(0).random(runs.size)
+    with pytest.raises(SampleSizeError) as info:
+        _fit(scores, runs, 0.01, 0.001, "pac", "trajectory")
+    msg = str(info.value)
+    assert "20 groups of column 'run' are too few" in msg and "at least 688 groups are needed" in msg
+    assert "more rows per group do not help" in msg and "mode='marginal' (needs 99 groups)" in msg
+    assert "the smallest is 0.293" in msg
+    with pytest.raises(SampleSizeError, match=r"at least 99 groups .* the smallest is 0\.048\)$"):
+        _fit(scores, runs, 0.01, 0.001, "marginal", "sample")
+    # the suggested epsilon works
+    for mode in ("pac", "marginal"):
+        assert _fit(scores, runs, smallest_epsilon(20, 0.001, mode), 0.001, mode, "trajectory").n_groups == 20
+
+
+def test_smallest_epsilon_is_the_smallest_on_its_grid():
+    for G, delta, mode in (
+        (20, 0.001, "pac"),
+        (50, 0.1, "pac"),
+        (20, 0.1, "marginal"),
+        (7, 0.05, "marginal"),
+    ):
+        e = smallest_epsilon(G, delta, mode)
+        assert (
+            min_calibration_size(e, delta, mode) <= G < min_calibration_size(round(e - 0.001, 3), delta, mode)
+        )
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "error", "match"),
+    [
+        ({"guarantee": "row"}, InvalidInputError, "guarantee must be 'trajectory'"),
+        ({"mode": "bayes"}, InvalidInputError, "mode must be 'pac' or 'marginal'"),
+        ({"epsilon": 1.5}, InvalidInputError, "epsilon must lie strictly between 0 and 1"),
+        ({"seed": 1.5}, InvalidInputError, "seed must be an integer"),
+        ({"scores": -np.ones(600)}, InvalidInputError, "finite values >= 0"),
+        (
+            {"groups": np.arange(5)},
+            InvalidInputError,
+            "600 calibration scores but 5 labels in group column 'run'",
+        ),
+        ({"groups": np.r_[np.nan, np.ones(599)]}, DataError, "row 0 has no group label"),
+    ],
+)
+def test_fit_refuses_bad_input(kwargs, error, match):
+    args = {
+        "scores": np.ones(600),
+        "groups": np.repeat(np.arange(60), 10),
+        "epsilon": 0.1,
+        "delta": 0.1,
+        "mode": "pac",
+        "guarantee": "trajectory",
+    } | kwargs
+    with pytest.raises(error, match=match):
+        GroupedCalibration.fit(**args, column="run", data_hash="d", network_hash="h")
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "match"),
+    [
+        ("k_groups", 30, "order statistic k=30 is below"),
+        ("n_groups", 5, "n_groups=5 is below the minimum"),
+        ("n_inside", 0, "inconsistent with method"),
+        ("size_max", 9, "group sizes disagree"),
+        ("scale", -1.0, "scale must be finite"),
+        ("guarantee_kind", "row", "guarantee must be"),
+    ],
+)
+def test_inconsistent_records_are_refused(field, value, match):
+    s, runs = _toy(seed=2)
+    d = _fit(s, runs, 0.1, 0.1, "pac", "trajectory").to_dict() | {field: value}
+    with pytest.raises(InvalidInputError, match=match):
+        calibration_from_dict(d)
+
+
+def test_inconsistent_risk_control_record_is_refused():
+    s, runs = _toy(seed=2)
+    d = _fit(s, runs, 0.1, 0.1, "marginal", "sample").to_dict()
+    with pytest.raises(InvalidInputError, match=r"breaks \(G \* risk \+ 1\) / \(G \+ 1\) <= epsilon"):
+        calibration_from_dict(d | {"risk": 0.2})
+    with pytest.raises(InvalidInputError, match="needs k_groups"):
+        calibration_from_dict(_fit(s, runs, 0.1, 0.1, "pac", "trajectory").to_dict() | {"risk": 0.01})
+
+
+def test_risk_control_refuses_too_few_groups():
+    with pytest.raises(SampleSizeError, match=r"5 groups are too few .* at least 9 groups"):
+        risk_control_threshold(np.ones(10), np.repeat(np.arange(5), 2), 0.1)
+
+
+def test_group_violation_counts():
+    v = np.array([0, 1, 0, 0, 0, 0, 1, 1], dtype=bool)
+    runs = np.array(["a", "a", "b", "b", "c", "c", "d", "d"])
+    assert group_violation_counts(v, runs, "trajectory").violations == 2
+    counts = {group_violation_counts(v, runs, "sample", seed=k).violations for k in range(30)}
+    assert counts == {1, 2}  # flight d always counts, flight a half the time
+    assert group_violation_counts(v, runs, "sample", seed=3) == group_violation_counts(
+        v, runs, "sample", seed=3
+    )
+    with pytest.raises(InvalidInputError, match="8 violation flags but 3 group labels"):
+        group_violation_counts(v, ["a", "b", "c"], "trajectory")
+    with pytest.raises(InvalidInputError, match="guarantee must be"):
+        group_violation_counts(v, runs, "rows")  # type: ignore[arg-type]
+
+
+def test_grouped_calibration_survives_a_model_file(tmp_path):
+    from ipcverify.architecture import ModelConfig
+    from ipcverify.model import IPCModel, IPCNetwork
+    from ipcverify.modelio import load_model, save_model
+
+    s, runs = _toy(seed=3)
+    cal = _fit(s, runs, 0.1, 0.1, "pac", "sample", seed=9)
+    model = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=1, hidden=(4,)))).with_calibration(cal)
+    save_model(model, tmp_path / "m.pt")
+    assert load_model(tmp_path / "m.pt").calibration == cal
