@@ -158,7 +158,7 @@ def _measure_flights(
         for name, stage in stages.items():
             if need[name] <= 0:
                 continue
-            part = measure_recording(rec, stage, keep=keep)
+            part = measure_recording(rec, stage, keep=keep, limit=need[name])
             take = min(len(part.rows), need[name])
             parts[name].append(part.head(take))
             need[name] -= take
@@ -387,12 +387,17 @@ def cached_many(
     for spec in todo:
         data = fresh[spec.name]
         if spec.path is not None:
-            p = Path(spec.path)
-            atomic_write(p, lambda fh, d=data: d.to_parquet(fh, index=False))
-            text = json.dumps(_normalise(_key(spec, seed, params)), indent=1) + "\n"
-            atomic_write(p.with_suffix(".key.json"), lambda fh, t=text: fh.write(t), "w")
+            _write_cached(
+                Path(spec.path), data, json.dumps(_normalise(_key(spec, seed, params)), indent=1) + "\n"
+            )
         out[spec.name] = (data, False)
     return out
+
+
+def _write_cached(path: Path, data: pd.DataFrame, key: str) -> None:
+    """``path`` (parquet) and its ``.key.json`` sidecar, each written atomically."""
+    atomic_write(path, lambda fh: data.to_parquet(fh, index=False))
+    atomic_write(path.with_suffix(".key.json"), lambda fh: fh.write(key), "w")
 
 
 def is_cached(

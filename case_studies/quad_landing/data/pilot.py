@@ -145,8 +145,8 @@ def pilot_reference(
         pos[k] = pos[k - 1] + vel[k] * dt
         yaw[k], yaw_rate[k] = yaw[k - 1] + yr * dt, yr
     kernel = np.ones(9) / 9.0  # light smoothing of the finite-difference acceleration
-    acc = np.gradient(vel, dt, axis=0)
-    acc = np.column_stack([np.convolve(acc[:, i], kernel, mode="same") for i in range(3)])
+    raw: FloatArray = np.asarray(np.gradient(vel, dt, axis=0))
+    acc = np.column_stack([np.convolve(raw[:, i], kernel, mode="same") for i in range(3)])
 
     def ref(t: float) -> Reference:
         k = int(min(max(round(t / dt), 0), n - 1))

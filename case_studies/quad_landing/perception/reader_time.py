@@ -163,7 +163,9 @@ def measure_reader_time(
             cv2.setNumThreads(threads)
             many = np.minimum(many, _time_each(run, frames, repeat))
         cv2.setNumThreads(1)
-        big = [cv2.resize(f, (640, 480), interpolation=cv2.INTER_LINEAR) for f in frames]
+        big = [
+            np.asarray(cv2.resize(f, (640, 480), interpolation=cv2.INTER_LINEAR), np.uint8) for f in frames
+        ]
         at640 = _time_each(lambda f: run(f, K640), big, repeat)
         yuyv = np.random.default_rng(0).integers(0, 256, (240, 320, 2), dtype=np.uint8)
 

@@ -209,15 +209,15 @@ class Sizes(TomlSection):
 class AblationSizes(TomlSection):
     """Sizes of the per-configuration Table I (ablation of the error sources, sensitivity).
 
-    Every configuration learns its own buffer-1 IPC with the ``[ipc]`` recipe, calibrated at
-    ``epsilon`` (smaller calibration sets cannot certify the main ``[ipc] epsilon``).
+    Every configuration learns its own buffer-1 IPC with the ``[ipc]`` recipe, PAC-calibrated at
+    ``epsilon`` and ``delta`` (smaller calibration sets cannot certify the main ``[ipc] epsilon``).
 
     Parameters
     ----------
     n_train, n_calibration, n_pilot : int
         Training and calibration samples, and pilot test measurements per buffer size.
-    epsilon : float
-        PAC calibration target of these IPCs.
+    epsilon, delta : float
+        PAC calibration target and confidence parameter of these IPCs.
 
     Examples
     --------
@@ -232,12 +232,15 @@ class AblationSizes(TomlSection):
     n_calibration: int
     n_pilot: int
     epsilon: float
+    delta: float
 
     def __post_init__(self) -> None:
         for name in ("n_train", "n_calibration", "n_pilot"):
             check_positive(f"ablation.{name}", getattr(self, name), integer=True)
-        if not (isinstance(self.epsilon, (int, float)) and 0.0 < self.epsilon < 1.0):
-            raise ConfigError(f"ablation.epsilon must lie strictly between 0 and 1, got {self.epsilon!r}")
+        for name in ("epsilon", "delta"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and 0.0 < v < 1.0):
+                raise ConfigError(f"ablation.{name} must lie strictly between 0 and 1, got {v!r}")
 
 
 @dataclass(frozen=True, kw_only=True)

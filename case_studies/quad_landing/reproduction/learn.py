@@ -67,11 +67,18 @@ def learn_ipc(
         The calibrated model.
     """
     mc = ModelConfig(x_dim=train_data.x_dim, y_dim=train_data.y_dim, hidden=params.hidden)
-    model = train(train_data, mc, params.train, progress=progress).model
-    # the domain of validity: queries beyond the calibration inputs' coverage_quantile
-    # nearest-neighbour distance are outside it (false-alarm rate 1 - coverage_quantile)
-    alpha = 1.0 - params.coverage_quantile
-    return calibrate(model, calibration_data, params.epsilon, params.delta, mode="pac", domain_alpha=alpha)
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)  # a small MLP: one thread is fastest, and threads on a busy machine spin
+    try:
+        model = train(train_data, mc, params.train, progress=progress).model
+        # the domain of validity: queries beyond the calibration inputs' coverage_quantile
+        # nearest-neighbour distance are outside it (false-alarm rate 1 - coverage_quantile)
+        alpha = 1.0 - params.coverage_quantile
+        return calibrate(
+            model, calibration_data, params.epsilon, params.delta, mode="pac", domain_alpha=alpha
+        )
+    finally:
+        torch.set_num_threads(threads)
 
 
 def certified_epsilon(model: IPCModel) -> float:

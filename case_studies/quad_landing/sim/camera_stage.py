@@ -30,6 +30,7 @@ Examples
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import NDArray
@@ -48,10 +49,19 @@ from case_studies.quad_landing.sim.render import Renderer
 from case_studies.quad_landing.sim.timing import CameraTimingParams
 from ipcverify.errors import InvalidInputError
 
-__all__ = ["TimedCamera", "make_camera_stage", "build_camera_stage", "flight_timing", "STREAMS"]
+__all__ = [
+    "TimedCamera",
+    "make_camera_stage",
+    "build_camera_stage",
+    "flight_timing",
+    "STREAMS",
+    "OUT_OF_VIEW_PX",
+]
 
 #: Random streams of a flight's seed: camera and motion-capture clocks, reader, delivery jitter.
 STREAMS = {"clock": 101, "reader": 102, "delivery": 103}
+#: A marker more than this many pixels outside the image is not drawn (it cannot be detected).
+OUT_OF_VIEW_PX = 10.0
 
 
 def flight_timing(
@@ -126,7 +136,9 @@ class TimedCamera:
         self._pad: Pad | None = None
         self._seed = 0
         self._queue: DriverQueue | None = None
-        self._cache: tuple[int, Measurement, NDArray[np.uint8]] | None = None
+        self._cache: (
+            tuple[int, Measurement, NDArray[np.uint8] | None, Callable[[], NDArray[np.uint8]]] | None
+        ) = None
         self.last_iteration: ReaderIteration | None = None
 
     @property
@@ -170,30 +182,47 @@ class TimedCamera:
         return it
 
     def measure(self, now: float) -> Measurement:
-        """The newest reader output by ``now`` (see the module docstring); cached per iteration."""
+        """The newest reader output by ``now`` (see the module docstring); cached per iteration.
+
+        A frame whose marker lies more than :data:`OUT_OF_VIEW_PX` outside the image at its
+        reference instant is not drawn: ArUco rejects markers within 3 px of the border, so it
+        cannot be detected (the image is drawn if :meth:`image` asks for it).
+        """
         queue = self._require_queue()
         it = self.iteration(now)
         self.last_iteration = it
         if self._cache is not None and self._cache[0] == it.index:
             return self._cache[1]
-        assert self._history is not None and self._pad is not None
-        tm, p = queue.timing, self.params
-        image = render_exposed(
-            self.renderer, self.pose_at, self._pad, tm.exposure_start(it.frame), tm.exposure, tm.readout,
-            noise_key(self._seed, it.frame), max_step_px=p.max_step_px, max_subframes=p.max_subframes,
-        )  # fmt: skip
-        m = pair(self._history.state_at(it.t_state), it.t_state, it.t_ref, self.perception.estimate(image),
-                 self.pose_at(it.t_ref), camera=self.camera, renderer=self.renderer, pad=self._pad,
-                 ground_z=self.ground_z)  # fmt: skip
-        self._cache = (it.index, m, image)
+        if self._history is None or self._pad is None:
+            raise InvalidInputError("call Flight.reset(state) before measuring")
+        tm, p, pad = queue.timing, self.params, self._pad
+        shown = self.pose_at(it.t_ref)
+
+        def draw() -> NDArray[np.uint8]:
+            return render_exposed(
+                self.renderer, self.pose_at, pad, tm.exposure_start(it.frame), tm.exposure, tm.readout,
+                noise_key(self._seed, it.frame), max_step_px=p.max_step_px, max_subframes=p.max_subframes,
+            )  # fmt: skip
+
+        corners = self.renderer.marker_corners_camera(shown, pad)
+        visible = self.camera.in_view(corners, margin_px=-OUT_OF_VIEW_PX)
+        image = draw() if visible else None
+        yhat = self.perception.estimate(image) if image is not None else None
+        m = pair(self._history.state_at(it.t_state), it.t_state, it.t_ref, yhat, shown, camera=self.camera,
+                 renderer=self.renderer, pad=pad, ground_z=self.ground_z)  # fmt: skip
+        self._cache = (it.index, m, image, draw)
         queue.forget_before(now - 1.0)
         return m
 
     def image(self) -> NDArray[np.uint8]:
-        """The image of the last measurement."""
+        """The image of the last measurement (drawn now if it was skipped as out of view)."""
         if self._cache is None:
             raise InvalidInputError("no measurement yet: call measure() first")
-        return self._cache[2]
+        index, m, image, draw = self._cache
+        if image is None:
+            image = draw()
+            self._cache = (index, m, image, draw)
+        return image
 
 
 def make_camera_stage(

@@ -26,6 +26,8 @@ OpenCV convention that pixel centres are integers, so a texture's outer edge is 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
+from typing import Any
 
 import cv2
 import numpy as np
@@ -95,6 +97,7 @@ class RenderParams(TomlSection):
                 raise InvalidInputError(f"render.{name} must be in [0, 20], got {value}")
 
 
+@lru_cache(maxsize=8)
 def _pad_textures(marker: MarkerParams) -> dict[int, UInt8Image]:
     d = aruco_dictionary(marker.dictionary)
     out: dict[int, UInt8Image] = {}
@@ -105,6 +108,7 @@ def _pad_textures(marker: MarkerParams) -> dict[int, UInt8Image]:
         tex[m : m + MARKER_CELLS * cell, m : m + MARKER_CELLS * cell] = cv2.aruco.generateImageMarker(
             d, int(marker.marker_id), MARKER_CELLS * cell, None, 1
         )
+        tex.setflags(write=False)
         out[tex.shape[0]] = tex
         cell *= 2
     return out
@@ -115,6 +119,7 @@ FLOOR_HALF = 5.0
 FLOOR_PX_PER_M = 102.4
 
 
+@lru_cache(maxsize=8)
 def _floor_texture(gray: int, tiles: bool) -> UInt8Image:
     rng = np.random.default_rng(FLOOR_SEED)
     n = int(round(2 * FLOOR_HALF * FLOOR_PX_PER_M))
@@ -126,7 +131,17 @@ def _floor_texture(gray: int, tiles: bool) -> UInt8Image:
         for k in range(0, n, step):
             img[:, k : k + 2] -= 35.0
             img[k : k + 2, :] -= 35.0
-    return np.clip(img, 0, 255).astype(np.uint8)
+    out = np.clip(img, 0, 255).astype(np.uint8)
+    out.setflags(write=False)  # shared by every renderer with these settings
+    return out
+
+
+@lru_cache(maxsize=4)
+def _noise_bank(std: float, height: int, width: int) -> NDArray[np.int16]:
+    bank = np.random.default_rng(FLOOR_SEED + 1).normal(0.0, std, (NOISE_BANK, height + 64, width + 64))
+    out = np.round(bank).astype(np.int16)
+    out.setflags(write=False)
+    return out
 
 
 @dataclass(eq=False)
@@ -238,10 +253,7 @@ class Renderer:
         """The sensor-noise field of key ``key`` (grey levels, shape ``(height, width)``)."""
         p = self.camera.params
         if self._noise is None:
-            bank = np.random.default_rng(FLOOR_SEED + 1).normal(
-                0.0, self.params.noise_std, (NOISE_BANK, p.height + 64, p.width + 64)
-            )
-            self._noise = np.round(bank).astype(np.int16)
+            self._noise = _noise_bank(float(self.params.noise_std), p.height, p.width)
         i, oy, ox = key % NOISE_BANK, (key // NOISE_BANK) % 64, (key // (64 * NOISE_BANK)) % 64
         return self._noise[i, oy : oy + p.height, ox : ox + p.width]
 
@@ -282,7 +294,7 @@ class Renderer:
         ``image`` is the drawn scene, in grey levels (``uint8``, or ``float32`` for a frame
         composed from several sub-renders); the result is rounded and clipped to ``uint8``.
         """
-        img = image
+        img: NDArray[Any] = image
         if self.params.blur_sigma > 0:
             img = cv2.GaussianBlur(img, (0, 0), self.params.blur_sigma)
         if img.dtype != np.uint8:
@@ -293,4 +305,4 @@ class Renderer:
                 raise InvalidInputError(f"noise key must be >= 0, got {key}")
             noisy = img.astype(np.int16) + self.noise_field(key)
             img = np.clip(noisy, 0, 255).astype(np.uint8)
-        return img
+        return img.astype(np.uint8, copy=False)

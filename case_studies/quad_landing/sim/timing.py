@@ -198,9 +198,11 @@ class CameraTimingParams(TomlSection):
         return self.readout if self.enabled("shutter") else 0.0
 
     def _detector_seconds(self, u: float) -> float:
-        """The detector time (s on the Pi) at quantile level ``u`` in [0, 1]."""
-        grid = np.linspace(0.0, 1.0, len(self.detector_ms))
-        ms = float(np.interp(u, grid, self.detector_ms))
+        """The detector time (s on the Pi) at quantile level ``u`` in [0, 1] (linear between quantiles)."""
+        q = self.detector_ms
+        x = min(max(u, 0.0), 1.0) * (len(q) - 1)
+        i = min(int(x), len(q) - 2)
+        ms = q[i] + (x - i) * (q[i + 1] - q[i])
         return ms * 1e-3 * self.cpu_scale / self.parallel_speedup
 
     def _mean_detector_seconds(self) -> float:
