@@ -1,5 +1,5 @@
 """Command line: ``python -m case_studies.quad_landing COMMAND`` (collect, pictures, bias, reader-timing,
-reproduce, sensitivity).
+reproduce, summarize, sensitivity).
 
 Thin click wrappers over :func:`.collect.collect`, :func:`.pictures.write_pictures`,
 :func:`.bias.refinement_bias`, :func:`.reader_time.measure_reader_time`,
@@ -196,6 +196,20 @@ def sensitivity_command(out: str, quick: bool, only: str | None, jobs: int, conf
     study, timing = run_sensitivity(out, config=settings, sim_config=_config(config_path), only=names,
                                     n_jobs=jobs)  # fmt: skip
     console.print(study_markdown(study.rows) + f"\n{timing}", markup=False, highlight=False, soft_wrap=True)
+
+
+@quad.command("summarize")
+@click.argument("out", type=click.Path(file_okay=False, exists=True))
+def summarize_command(out: str) -> None:
+    """Print a reproduction's results (OUT/summary.json) as the Markdown tables the docs quote."""
+    import json
+
+    from case_studies.quad_landing.reproduction.markdown import results_markdown
+
+    path = Path(out) / "summary.json"
+    if not path.exists():
+        raise InvalidInputError(f"{path} does not exist; run reproduce --out {out} first")
+    click.echo(results_markdown(json.loads(path.read_text())))
 
 
 @quad.command("reproduce")

@@ -9,7 +9,7 @@ machine (:class:`~case_studies.quad_landing.landing.state_machine.LandingParams`
 recipe (:class:`IpcParams`), the sizes of the reproduction (:class:`Sizes`) and of its
 per-configuration Table I (:class:`AblationSizes`). Each
 section's dataclass lives beside the code that uses it. The ``[quick]`` table is an
-overlay with the same layout (``[quick.sizes]``, ``[quick.ipc]``) applied by
+overlay with the same layout (``[quick.sizes]``, ``[quick.ablation]``) applied by
 ``load_reproduce_config(quick=True)``. Unknown sections or keys are errors; nothing is
 ``eval``-ed.
 
@@ -83,7 +83,7 @@ class IpcParams(TomlSection):
     --------
     >>> ipc = IpcParams.defaults()  # [ipc] of reproduce.toml
     >>> ipc.hidden, ipc.train.epochs, ipc.epsilon
-    ((64, 128), 40, 0.002)
+    ((64, 128), 40, 0.01)
     >>> IpcParams.defaults(epochs=2).train.epochs
     2
     """
