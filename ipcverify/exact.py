@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Sequence
 from fractions import Fraction
+from itertools import repeat
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -26,7 +27,9 @@ from ipcverify.errors import InvalidInputError
 __all__ = [
     "ExactMatrix",
     "ExactVector",
+    "DYADIC_BITS",
     "decode_exact",
+    "dyadic",
     "encode_exact",
     "exact_matrix",
     "exact_vector",
@@ -46,6 +49,9 @@ ExactVector = list[Fraction]
 ExactMatrix = list[list[Fraction]]
 
 _ZERO = Fraction(0)
+#: :func:`dyadic` returns the exponent ``-DYADIC_BITS`` whenever the floats allow it.
+DYADIC_BITS = 200
+_DYADIC_SCALE = 2.0**DYADIC_BITS
 
 
 def _check_finite(values: np.ndarray, what: str) -> None:
@@ -331,3 +337,34 @@ def decode_exact(value: object) -> Fraction:
                 return Fraction(int(parts[0]), den)
         raise InvalidInputError(f"expected a rational written 'p/q' with q > 0, got {value!r}")
     raise InvalidInputError(f"expected a number or a 'p/q' string, got {type(value).__name__}")
+
+
+def dyadic(values: Iterable[float]) -> tuple[list[int], int]:
+    """Integers ``m`` and one exponent ``e`` with ``values[k] == m[k] * 2**e`` exactly (finite floats).
+
+    Every finite float is a dyadic rational, so a list of them shares one power of two:
+    products, sums and comparisons of the integers are then exact and much cheaper than
+    :class:`~fractions.Fraction` arithmetic (no gcd after every operation). Floats of
+    magnitude ``2^-148 .. 2^800`` take the fast route ``e = -200``; others the exact ratios.
+
+    Examples
+    --------
+    >>> m, e = dyadic([0.75, 2.0, -0.125, 1e-300])
+    >>> [Fraction(k) * Fraction(2) ** e for k in m] == [Fraction(v) for v in (0.75, 2.0, -0.125, 1e-300)]
+    True
+    >>> dyadic([3, 2**60 + 1])
+    ([3, 1152921504606846977], 0)
+    """
+    vals = list(values)
+    try:  # float.__mul__ refuses anything but floats; scaling by 2^200 is exact unless it overflows
+        scaled = list(map(float.__mul__, vals, repeat(_DYADIC_SCALE)))
+        if all(map(float.is_integer, scaled)):  # inf and NaN are not integers
+            return list(map(int, scaled)), -DYADIC_BITS
+    except TypeError:  # ints and other numbers: the exact ratios decide
+        pass
+    try:
+        ratios = [v.as_integer_ratio() for v in vals]
+    except (OverflowError, ValueError):
+        raise InvalidInputError("dyadic needs finite floats") from None
+    den = max(r[1] for r in ratios)
+    return [n * (den // d) for n, d in ratios], 1 - den.bit_length()
