@@ -482,7 +482,10 @@ class LandingRule:
             e = Ellipsoid(c, C)
         except SetError:  # non-finite or singular: nothing to decide
             return self.outside_domain(c, C)
-        proof = landing_decision(e, self.target)
+        try:
+            proof = landing_decision(e, self.target)
+        except OverflowError:  # a set too large for float's range (half-widths near 1e154): degenerate
+            return self.outside_domain(c, C)
         return QueryDecision(
             c, C, proof.accept, proof.turnoff.copy(), DecidedBy.EXACT, True, self.target, proof
         )

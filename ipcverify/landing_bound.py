@@ -44,8 +44,9 @@ from ipcverify.sets import SINGULAR_RCOND
 
 __all__ = ["BoundDecision", "landing_by_bound", "RANGE", "bound_target"]
 
-#: Entries of ``C`` must lie in ``[-RANGE, RANGE]`` (and the centre and ``G`` in ``[-2^600, 2^600]``):
-#: then nothing in the analysis overflows, and underflow is covered by absolute allowances.
+#: Entries of ``C`` are brought into ``[-RANGE, RANGE]`` by an exact power-of-two scaling (the centre
+#: and ``G`` must lie in ``[-2^600, 2^600]``): then nothing in the analysis overflows, and underflow
+#: is covered by absolute allowances.
 RANGE = 2.0**100
 _CENTER_RANGE = 2.0**600
 _U = 2.0**-53
@@ -59,7 +60,8 @@ _ABS_NORM = 2.0**-530  # absolute underflow allowance of a column norm
 _ABS_DET = 2.0**-960  # ... of the determinant
 _SMALLEST = 2.0**-1000  # half-widths below this are not trusted (gradual underflow)
 _BAND = (1 << 64) + 1  # sqrt_upper(q, 64) <= sqrt(q) (1 + 2^-64)
-_MAX_STEPS = 8  # floats walked from the estimate of P_z before the exact path takes over
+_MIN_TOP = 2.0**-100  # matrices whose largest entry is outside [2^-100, 2^100] are scaled first
+_NORMAL = 2.0**-1022
 _INF = math.inf
 _DYADIC_SCALE = 2.0**DYADIC_BITS
 _nextafter = math.nextafter
@@ -137,6 +139,24 @@ class _ExactZ:
         det = c * k0 + f * k1 + i * k2
         self.num, self.den2 = k0 * k0 + k1 * k1 + k2 * k2, det * det
 
+    def turnoff(self) -> float | None:
+        """``P_z`` = the smallest float ``>= c_z + sqrt_upper(h_z^2)``, or None within ``2^-64`` of a float.
+
+        An integer square root gives ``h_z`` to 130 bits: ``h_z 2^s`` lies in ``[r, r + 1)``, so
+        ``c_z + sqrt_upper`` lies in ``[c_z + r 2^-s, c_z + (r + 1)(1 + 2^-64) 2^-s]`` (``sqrt_upper``
+        exceeds ``h_z`` by at most ``2^-64`` relative). If both ends round up to the same float,
+        that float is ``P_z``.
+        """
+        num, den2 = self.num, self.den2
+        m = 130 - (num.bit_length() - den2.bit_length()) // 2
+        r = math.isqrt((num << 2 * m) // den2 if m >= 0 else num // (den2 << -2 * m))
+        s = m + self.exp  # h_z = (r + theta) 2^-s, 0 <= theta < 1
+        e = min(self.exp, -s - 64)
+        cz = self.cz << (self.exp - e)
+        low = _float_up_dyadic(cz + (r << (-s - e)), e)
+        high = _float_up_dyadic(cz + ((r + 1) * _BAND << (-s - 64 - e)), e)
+        return low if low is not None and low == high else None
+
     def compare(self, x: float, above: bool, band: bool = False) -> int:
         """The exact slack ``s = x - c_z`` (``above``) or ``c_z - x`` against ``h_z``.
 
@@ -163,40 +183,17 @@ class _ExactZ:
         return 1 if not band or lhs << 128 >= rhs * (_BAND * _BAND) else 0
 
 
-def _turnoff_exact(z: _ExactZ, t_lo: float, t_hi: float, guess: float) -> float | None:
-    """``P_z`` in ``[t_lo, t_hi]``: the first float ``f`` with ``f >= c_z + sqrt_upper(h_z^2)``.
-
-    ``sqrt_upper`` lies in ``[h_z, h_z (1 + 2^-64)]``: a float clearing ``h_z (1 + 2^-64)`` is
-    above it, one below ``h_z`` is not; in the band between, the exact path decides (None).
-    The walk starts at the float estimate ``guess`` (one or two exact tests in practice) and
-    gives up (None) after ``_MAX_STEPS`` floats.
-    """
-    f = min(max(guess, t_lo), t_hi)
-    r = z.compare(f, True, True) if f < t_hi else 1  # t_hi is above c_z + sqrt_upper by construction
-    if r == 0:
+def _float_up_dyadic(x: int, e: int) -> float | None:
+    """The smallest float ``>= x 2^e`` (None outside the normal range, where one rounding is not enough)."""
+    try:
+        f = math.ldexp(float(x), e)  # float(x) is correctly rounded; the scaling is exact if f is normal
+    except OverflowError:
         return None
-    if r > 0:  # f is high enough: walk down while the float below is too
-        for _ in range(_MAX_STEPS):
-            if f <= t_lo:
-                return f  # t_lo: the float below it is below c_z + h_lo <= c_z + h_z
-            g = _nextafter(f, -_INF)
-            r = z.compare(g, True, True)
-            if r == 0:
-                return None
-            if r < 0:
-                return f
-            f = g
-        return None
-    for _ in range(_MAX_STEPS):  # f is too low: walk up
-        f = _nextafter(f, _INF)
-        if f >= t_hi:
-            return t_hi
-        r = z.compare(f, True, True)
-        if r == 0:
-            return None
-        if r > 0:
-            return f
-    return None
+    if not _SMALLEST <= abs(f) < _INF:
+        return None if x else 0.0
+    num, den = f.as_integer_ratio()  # f = num / den; f >= x 2^e  <=>  num >= x den 2^e
+    below = num < (x * den << e) if e >= 0 else num << -e < x * den
+    return _nextafter(f, _INF) if below else f
 
 
 def landing_by_bound(
@@ -229,12 +226,22 @@ def landing_by_bound(
     True
     """
     cx, cy, cz = center
-    a, b, c, d, e, f, g, h, i = shape
-    big, small = max(shape), min(shape)
-    if not (
-        big <= RANGE and small >= -RANGE and -_CENTER_RANGE <= min(center) <= max(center) <= _CENTER_RANGE
-    ):
+    if not -_CENTER_RANGE <= min(center) <= max(center) <= _CENTER_RANGE:
         return None  # also NaN
+    big, small = max(shape), min(shape)
+    top = max(big, -small)
+    scale = 1.0  # h_i(C) = h_i(C / 2^k) / 2^k: huge or tiny matrices are scaled exactly first
+    if not _MIN_TOP <= top <= RANGE:
+        if not 0.0 < top < _INF:
+            return None  # zero, non-finite or NaN
+        k = math.frexp(top)[1]
+        scale = math.ldexp(1.0, -k)
+        scaled = [v * scale for v in shape]
+        if any(v and abs(w) < _NORMAL for v, w in zip(shape, scaled, strict=True)):
+            return None  # a dynamic range beyond the float format: scaling would round
+        a, b, c, d, e, f, g, h, i = scaled
+    else:
+        a, b, c, d, e, f, g, h, i = shape
     # cofactors K_rc (row r, column c) and the sums |p| + |q| of their two products
     p, q = e * i, f * h
     k00, a00 = p - q, abs(p) + abs(q)
@@ -267,10 +274,12 @@ def landing_by_bound(
     e1 = _N_SUM * (a01 + a11 + a21) + _N_EST * s1 + _ABS_NORM
     e2 = _N_SUM * (a02 + a12 + a22) + _N_EST * s2 + _ABS_NORM
     n0, n1, n2 = s0 + e0, s1 + e1, s2 + e2
-    hx_hi, hy_hi, hz_hi = n0 / d_lo * _UP, n1 / d_lo * _UP, n2 / d_lo * _UP
+    hx_hi, hy_hi, hz_hi = n0 / d_lo * _UP * scale, n1 / d_lo * _UP * scale, n2 / d_lo * _UP * scale
     if not (min(hx_hi, hy_hi, hz_hi) >= _SMALLEST and max(hx_hi, hy_hi, hz_hi) < _INF):
         return None  # out of the range the analysis covers
-    hx_lo, hy_lo, hz_lo = (s0 - e0) / d_hi * _DOWN, (s1 - e1) / d_hi * _DOWN, (s2 - e2) / d_hi * _DOWN
+    hx_lo = (s0 - e0) / d_hi * _DOWN * scale
+    hy_lo = (s1 - e1) / d_hi * _DOWN * scale
+    hz_lo = (s2 - e2) / d_hi * _DOWN * scale
     hx_lo = hx_lo if hx_lo >= _SMALLEST else 0.0
     hy_lo = hy_lo if hy_lo >= _SMALLEST else 0.0
     hz_lo = hz_lo if hz_lo >= _SMALLEST else 0.0
@@ -293,7 +302,7 @@ def landing_by_bound(
         pz = t_hi
     else:
         exact = _ExactZ(shape, cz)
-        pz_exact = _turnoff_exact(exact, t_lo, t_hi, cz + s2 / det)
+        pz_exact = exact.turnoff()
         if pz_exact is None:
             return None
         pz = pz_exact
@@ -313,6 +322,6 @@ def landing_by_bound(
     if 0 in faces:
         return None
     # accept only what Ellipsoid accepts: rcond >= |det| / (||C||_F ||adj C||_F) >= 2 * its minimum
-    if d_lo < 2.0 * SINGULAR_RCOND * 3.0 * max(big, -small) * (n0 + n1 + n2) * _UP:
+    if d_lo < 2.0 * SINGULAR_RCOND * 3.0 * top * scale * (n0 + n1 + n2) * _UP:
         return None
     return BoundDecision(True, pz, exact is not None)
