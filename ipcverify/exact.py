@@ -27,7 +27,6 @@ from ipcverify.errors import InvalidInputError
 __all__ = [
     "ExactMatrix",
     "ExactVector",
-    "DYADIC_BITS",
     "decode_exact",
     "dyadic",
     "encode_exact",
@@ -49,9 +48,8 @@ ExactVector = list[Fraction]
 ExactMatrix = list[list[Fraction]]
 
 _ZERO = Fraction(0)
-#: :func:`dyadic` returns the exponent ``-DYADIC_BITS`` whenever the floats allow it.
-DYADIC_BITS = 200
-_DYADIC_SCALE = 2.0**DYADIC_BITS
+#: :func:`dyadic` tries the exponents ``-100`` and then ``-200`` (small integers, cheap arithmetic).
+_DYADIC_SCALES = ((100, 2.0**100), (200, 2.0**200))
 
 
 def _check_finite(values: np.ndarray, what: str) -> None:
@@ -345,21 +343,25 @@ def dyadic(values: Iterable[float]) -> tuple[list[int], int]:
     Every finite float is a dyadic rational, so a list of them shares one power of two:
     products, sums and comparisons of the integers are then exact and much cheaper than
     :class:`~fractions.Fraction` arithmetic (no gcd after every operation). Floats of
-    magnitude ``2^-148 .. 2^800`` take the fast route ``e = -200``; others the exact ratios.
+    magnitude ``2^-48 .. 2^900`` take the fast route ``e = -100``, down to ``2^-148`` the route
+    ``e = -200``; others the exact ratios (the smallest common power of two).
 
     Examples
     --------
     >>> m, e = dyadic([0.75, 2.0, -0.125, 1e-300])
     >>> [Fraction(k) * Fraction(2) ** e for k in m] == [Fraction(v) for v in (0.75, 2.0, -0.125, 1e-300)]
     True
+    >>> dyadic([0.5, 1.0])
+    ([633825300114114700748351602688, 1267650600228229401496703205376], -100)
     >>> dyadic([3, 2**60 + 1])
     ([3, 1152921504606846977], 0)
     """
     vals = list(values)
-    try:  # float.__mul__ refuses anything but floats; scaling by 2^200 is exact unless it overflows
-        scaled = list(map(float.__mul__, vals, repeat(_DYADIC_SCALE)))
-        if all(map(float.is_integer, scaled)):  # inf and NaN are not integers
-            return list(map(int, scaled)), -DYADIC_BITS
+    try:  # float.__mul__ refuses anything but floats; scaling by 2^k is exact unless it overflows
+        for bits, scale in _DYADIC_SCALES:
+            scaled = list(map(float.__mul__, vals, repeat(scale)))
+            if all(map(float.is_integer, scaled)):  # inf and NaN are not integers
+                return list(map(int, scaled)), -bits
     except TypeError:  # ints and other numbers: the exact ratios decide
         pass
     try:

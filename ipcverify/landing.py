@@ -499,9 +499,13 @@ class LandingRule:
         return QueryDecision(c, C, worst >= -PRECHECK_MARGIN, p, DecidedBy.FLOAT_RULE, True, self.target)
 
     def outside_domain(self, center: FloatArray, shape: FloatArray) -> QueryDecision:
-        """The OUTSIDE_DOMAIN answer for a query the domain test flagged (no proof attempted)."""
-        p, _ = self._float(center, shape)
+        """The OUTSIDE_DOMAIN answer for a query the domain test flagged (no proof attempted).
+
+        Its turn-off point is the float ``[c_x, c_y, c_z + h_z]`` (``inf`` for a degenerate set).
+        """
         c, C = _arrays(center, shape)
+        p = c.copy()
+        p[2] += _half_widths_3(C)[2]
         return QueryDecision(c, C, False, p, DecidedBy.DOMAIN, False, self.target)
 
 

@@ -39,7 +39,7 @@ import math
 from collections.abc import Sequence
 from typing import NamedTuple
 
-from ipcverify.exact import DYADIC_BITS, dyadic
+from ipcverify.exact import dyadic
 from ipcverify.sets import SINGULAR_RCOND
 
 __all__ = ["BoundDecision", "landing_by_bound", "RANGE", "bound_target"]
@@ -63,7 +63,6 @@ _BAND = (1 << 64) + 1  # sqrt_upper(q, 64) <= sqrt(q) (1 + 2^-64)
 _MIN_TOP = 2.0**-100  # matrices whose largest entry is outside [2^-100, 2^100] are scaled first
 _NORMAL = 2.0**-1022
 _INF = math.inf
-_DYADIC_SCALE = 2.0**DYADIC_BITS
 _nextafter = math.nextafter
 _sqrt = math.sqrt
 
@@ -129,24 +128,29 @@ class _ExactZ:
     """``h_z`` of ``C`` in exact integers (tier 2): ``C = M 2^exp`` with ``M`` an integer matrix, so
     ``h_z^2 = num / den2 * 4^-exp`` with ``num = ||cofactor column 2 of M||^2``, ``den2 = det(M)^2``."""
 
-    __slots__ = ("cz", "czf", "den2", "exp", "num")
+    __slots__ = ("cz", "czf", "den2", "exp", "num", "unscale")
 
     def __init__(self, shape: Sequence[float], cz: float) -> None:
         ints, self.exp = dyadic([*shape, cz])
         a, b, c, d, e, f, g, h, i, self.cz = ints
         self.czf = cz
+        self.unscale = math.ldexp(1.0, -self.exp) if -1000 < self.exp < 0 else None
         k0, k1, k2 = d * h - e * g, b * g - a * h, a * e - b * d  # cofactor column 2 = row 2 of adj M
         det = c * k0 + f * k1 + i * k2
         self.num, self.den2 = k0 * k0 + k1 * k1 + k2 * k2, det * det
 
-    def turnoff(self) -> float | None:
+    def turnoff(self, t_lo: float, t_hi: float) -> float | None:
         """``P_z`` = the smallest float ``>= c_z + sqrt_upper(h_z^2)``, or None within ``2^-64`` of a float.
 
         An integer square root gives ``h_z`` to 130 bits: ``h_z 2^s`` lies in ``[r, r + 1)``, so
         ``c_z + sqrt_upper`` lies in ``[c_z + r 2^-s, c_z + (r + 1)(1 + 2^-64) 2^-s]`` (``sqrt_upper``
         exceeds ``h_z`` by at most ``2^-64`` relative). If both ends round up to the same float,
-        that float is ``P_z``.
+        that float is ``P_z``. When ``P_z`` is known to be ``t_lo`` or the next float ``t_hi``,
+        one exact comparison of ``t_lo - c_z`` with ``h_z`` decides instead.
         """
+        if t_hi == _nextafter(t_lo, _INF):
+            r = self.compare(t_lo, True, True)
+            return t_lo if r > 0 else (t_hi if r < 0 else None)
         num, den2 = self.num, self.den2
         m = 130 - (num.bit_length() - den2.bit_length()) // 2
         r = math.isqrt((num << 2 * m) // den2 if m >= 0 else num // (den2 << -2 * m))
@@ -164,9 +168,9 @@ class _ExactZ:
         0: ``band`` and ``h_z <= s < h_z (1 + 2^-64)``. ``det(M) = 0`` gives -1 (never used:
         the caller proved ``det > 0`` in float).
         """
-        scaled = x * _DYADIC_SCALE
-        n = int(scaled)
-        if n == scaled and self.exp == -DYADIC_BITS:
+        scaled = x * self.unscale if self.unscale is not None else 0.5
+        if scaled.is_integer():  # x on the same grid as C and c_z (the usual case)
+            n = int(scaled)
             diff, exp = (n - self.cz if above else self.cz - n), self.exp
         else:
             (dx, dc), exp = dyadic((x, self.czf))
@@ -302,7 +306,7 @@ def landing_by_bound(
         pz = t_hi
     else:
         exact = _ExactZ(shape, cz)
-        pz_exact = exact.turnoff()
+        pz_exact = exact.turnoff(t_lo, t_hi)
         if pz_exact is None:
             return None
         pz = pz_exact
