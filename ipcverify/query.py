@@ -155,13 +155,14 @@ class IPCQuery:
         h *= eng.in_scale
         out = eng.mlp(h)  # the engine's own MLP evaluation (1-D input: one query)
         if self._fast3:  # type: ignore[attr-defined]
-            center, flat = self._heads3(out.tolist(), ya)
+            c3, flat = self._heads3(out.tolist(), ya)
             scale: float | None = self._scale  # type: ignore[attr-defined]
             if scale is None and self.model.calibration is not None:
                 scale = float(self.model.calibration.scale_for(xa[None], ya[None])[0])
             if scale is not None:
                 flat = [v / scale for v in flat]
-            return np.array(center), np.array(flat).reshape(3, 3)
+            both = np.array(c3 + flat)  # one allocation for the centre and the matrix
+            return both[:3], both[3:].reshape(3, 3)
         n: int = self._n  # type: ignore[attr-defined]
         center = (ya if self._offset else eng.y_mean) + eng.sigma * out[:n]  # type: ignore[attr-defined]
         if self._full:  # type: ignore[attr-defined]
