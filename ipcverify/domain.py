@@ -77,24 +77,24 @@ _SCAN_MAX_NORM = 1e15  # whitened queries farther out than this go to the tree
 class _Scan:
     """All reference points in float32, to bound every squared distance at once.
 
-    ``d_j^2 = ||r_j||^2 - 2 r_j.w + ||w||^2`` is evaluated in float32 (one matrix-vector product).
-    Rounding ``r`` and ``w`` to float32 and every operation of the product and the sums (at most
-    ``D + 3`` of them, each ``<= u32 = 2^-24`` relative, ``|r.w| <= ||r|| ||w||``) changes it by at
-    most ``(D + 5) u32 (R + ||w||)^2`` with ``R = max ||r_j||``, and the ``k``-th smallest of the
-    values by no more. ``_SCAN_BOUND = 1e-5`` covers ``(D + 6) u32`` up to ``D = 161`` inputs
-    (beyond, the scan is skipped); the float64 ``R`` is rounded up by a relative ``1e-12``.
+    ``d_j^2 = ||r_j||^2 - 2 r_j.w + ||w||^2``: the first two terms are one float32 product of
+    ``(w, 1)`` with the columns ``(-2 r_j, ||r_j||^2)``. Rounding ``r``, ``||r||^2`` and ``w`` to
+    float32 and every operation of the product (``D + 1`` terms, each rounding ``<= u32 = 2^-24``
+    relative, ``|r.w| <= ||r|| ||w||``) changes the result by at most ``(D + 5) u32 (R + ||w||)^2``
+    with ``R = max ||r_j||``, and the ``k``-th smallest of the values by no more.
+    ``_SCAN_BOUND = 1e-5`` covers ``(D + 6) u32`` up to ``D = 161`` inputs (beyond, the scan is
+    skipped); the float64 ``R`` is rounded up by a relative ``1e-12``.
     """
 
-    neg2_ref_t: NDArray[np.float32]  # -2 r_j, as columns
-    sq_norms: NDArray[np.float32]  # ||r_j||^2
+    columns: NDArray[np.float32]  # (D + 1, m): -2 r_j stacked over ||r_j||^2
     max_norm: float
 
     @classmethod
     def of(cls, ref: FloatArray) -> _Scan:
         sq = np.einsum("ij,ij->i", ref, ref)
+        cols = np.concatenate([-2.0 * ref.T, sq[None, :]], axis=0)
         return cls(
-            np.ascontiguousarray((-2.0 * ref).T, dtype=np.float32),
-            sq.astype(np.float32),
+            np.ascontiguousarray(cols, dtype=np.float32),
             float(np.sqrt(sq.max())) * (1.0 + 1e-12) if len(sq) else 0.0,
         )
 
@@ -103,8 +103,10 @@ class _Scan:
         ww = float(w @ w)
         if not ww < _SCAN_MAX_NORM**2 or (len(w) + 6) * _U32 > _SCAN_BOUND:
             return None
-        d2 = w.astype(np.float32) @ self.neg2_ref_t
-        d2 += self.sq_norms
+        w1 = np.empty(len(w) + 1, dtype=np.float32)
+        w1[:-1] = w
+        w1[-1] = 1.0
+        d2 = w1 @ self.columns
         kth = float(d2.min() if k == 1 else np.partition(d2, k - 1)[k - 1]) + ww
         slack = _SCAN_BOUND * (self.max_norm + math.sqrt(ww)) ** 2
         return math.sqrt(max(kth - slack, 0.0)), math.sqrt(kth + slack)
