@@ -118,16 +118,9 @@ class CheckedEllipsoid(Ellipsoid):
         s = np.array(self.shapes, dtype=np.float64, copy=True)
         c = c[None, :] if c.ndim == 1 else c
         s = s[None, :, :] if s.ndim == 2 else s
-        if c.ndim != 2 or s.ndim != 3 or s.shape != (c.shape[0], c.shape[1], c.shape[1]) or not c.shape[1]:
-            Ellipsoid(c, s)  # raises the base class's message
-        bad_c = ~np.isfinite(c).all(axis=1)
-        if bad_c.any():
-            i = int(np.flatnonzero(bad_c)[0])
-            raise SetError(f"ellipsoid {i}: center has a non-finite entry ({c[i].tolist()})")
-        bad_s = ~np.isfinite(s).all(axis=(1, 2))
-        if bad_s.any():
-            i = int(np.flatnonzero(bad_s)[0])
-            raise SetError(f"ellipsoid {i}: shape matrix has a non-finite entry")
+        shapes_ok = c.ndim == 2 and s.ndim == 3 and s.shape == (c.shape[0], c.shape[1], c.shape[1])
+        if not (shapes_ok and c.shape[1] and np.isfinite(c).all() and np.isfinite(s).all()):
+            Ellipsoid(c, s)  # a bad shape or a non-finite entry: the base class raises its own message
         ok, rcond = nonsingular(s)
         if not ok.all():
             i = int(np.flatnonzero(~ok)[0])

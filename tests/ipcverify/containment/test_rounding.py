@@ -29,7 +29,7 @@ def _ellipsoid(rng: np.random.Generator, n: int, log_cond: float) -> Ellipsoid:
     s[0], s[-1] = 1.0, 10.0**log_cond
     C = _orth(rng, n) @ np.diag(s * 10.0 ** rng.uniform(-2, 2)) @ _orth(rng, n).T
     if rng.random() < 0.3:
-        C = np.linalg.cholesky(C.T @ C).T  # triangular: many exact zeros
+        C = np.linalg.qr(C)[1]  # triangular (R^T R = C^T C: the same set), many exact zeros
     return Ellipsoid(rng.normal(scale=3.0, size=n), C)
 
 
