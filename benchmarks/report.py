@@ -49,7 +49,7 @@ def targets(results: dict[str, Any]) -> dict[str, Any]:
         out["single_query_latency"] = _target(
             lat["single_query_ratio_to_bare_forward"],
             1.2,
-            "p50 of query -> ellipsoid -> landing decision of record (exact proof on accepts) / bare forward",
+            "p50 of query -> ellipsoid -> domain test -> landing decision of record (proven) / bare forward",
         )
         out["single_query_latency_float_decision"] = _target(
             lat["single_query_float_ratio_to_bare_forward"],
