@@ -27,7 +27,7 @@ from ipcverify.bounds import clopper_pearson_interval, clopper_pearson_lower, cl
 from ipcverify.calibration.protocol import AllowedRate, CalibrationSummary
 from ipcverify.domain import DomainReport
 from ipcverify.errors import InvalidInputError
-from ipcverify.evaluation import BinCoverage
+from ipcverify.evaluation import BinCoverage, WorstBin
 from ipcverify.theorem1 import Theorem1Result
 
 __all__ = [
@@ -298,6 +298,7 @@ class Certificate:
     train_data: DataIdentity | None
     domain: DomainReport | None = None
     theorem1_source: str = ""
+    worst_bin: WorstBin | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """The content of ``certificate.json``."""
@@ -332,6 +333,7 @@ class Certificate:
             "theorem1": t1,
             "volume": None if self.volume is None else self.volume.to_dict(),
             "coverage_by_bin": None if self.coverage is None else self.coverage.to_dict(),
+            "conditional_coverage": None if self.worst_bin is None else self.worst_bin.to_dict(),
             "domain": None if self.domain is None else self.domain.to_dict(),
             "data": {
                 "test": None if self.test_data is None else self.test_data.to_dict(),

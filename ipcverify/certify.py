@@ -45,7 +45,7 @@ from ipcverify.certificate import (
 from ipcverify.data import PerceptionDataset
 from ipcverify.domain import DomainReport
 from ipcverify.errors import InvalidInputError
-from ipcverify.evaluation import BinCoverage, coverage_by_bin
+from ipcverify.evaluation import BinCoverage, WorstBin, coverage_by_bin, worst_bin_coverage
 from ipcverify.files import atomic_write, file_sha256, write_json
 from ipcverify.lipschitz import DEFAULT_RADIUS
 from ipcverify.model import IPCModel, network_fingerprint
@@ -359,6 +359,7 @@ def certify(
         theorem1_source=t1_source,
         volume=None if tested is None else tested.volume,
         coverage=None if tested is None else tested.coverage,
+        worst_bin=None if tested is None else tested.worst_bin,
         domain=_domain(model, test_data, None if tested is None else tested.scores.violated),
         test_data=None if test_data is None else _identity(test_data, test_path),
         train_data=None if train_data is None else _identity(train_data, train_path, model),
@@ -375,6 +376,7 @@ class _Tested:
     groups: tuple[GroupTestResult, ...]
     volume: VolumeSummary
     coverage: BinCoverage
+    worst_bin: WorstBin
 
 
 def _tested(
@@ -395,6 +397,7 @@ def _tested(
             unit=f"log of volume in the units of y (dimension {model.config.y_dim})",
         ),
         coverage=coverage_by_bin(values, scores.violated, column, bins),
+        worst_bin=worst_bin_coverage(test_data.x, test_data.yhat, scores.violated, test_data.x_columns, bins),
     )
 
 

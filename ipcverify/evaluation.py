@@ -12,7 +12,7 @@ from ipcverify.data import PerceptionDataset
 from ipcverify.errors import InvalidInputError
 from ipcverify.model import IPCModel
 
-__all__ = ["Evaluation", "BinCoverage", "evaluate", "coverage_by_bin"]
+__all__ = ["Evaluation", "BinCoverage", "WorstBin", "evaluate", "coverage_by_bin", "worst_bin_coverage"]
 
 FloatArray = NDArray[np.float64]
 
@@ -105,6 +105,72 @@ def coverage_by_bin(
     return BinCoverage(
         column, tuple(float(e) for e in edges), tuple(int(c) for c in counts), tuple(int(c) for c in viol)
     )
+
+
+@dataclass(frozen=True, kw_only=True)
+class WorstBin:
+    """The lowest coverage over the quantile bins of each state column and of ``||yhat||``.
+
+    A smaller set bought by under-covering a hard region of the inputs shows here: the
+    marginal guarantee averages over inputs, this does not.
+
+    Attributes
+    ----------
+    by_column : mapping of str to (coverage, lower edge, upper edge, n)
+        The worst bin of each column.
+    column : str
+        The column whose worst bin is the lowest overall.
+    coverage : float
+        That bin's coverage (1 - its violation rate).
+    bins : int
+        Quantile bins per column.
+    """
+
+    by_column: dict[str, tuple[float, float, float, int]]
+    column: str
+    coverage: float
+    bins: int
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data."""
+        return {
+            "bins": self.bins,
+            "worst_column": self.column,
+            "worst_coverage": self.coverage,
+            "by_column": {
+                c: {"coverage": v[0], "lower": v[1], "upper": v[2], "n": v[3]}
+                for c, v in self.by_column.items()
+            },
+        }
+
+
+def worst_bin_coverage(
+    x: FloatArray, yhat: FloatArray, violated: NDArray[np.bool_], x_columns: tuple[str, ...], bins: int = 10
+) -> WorstBin:
+    """Worst-bin coverage over ``bins`` quantile bins of every state column and of ``||yhat||``.
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> x = rng.uniform(size=(1000, 1))
+    >>> bad = x[:, 0] >= np.quantile(x[:, 0], 0.9)   # every sample of the top decile fails
+    >>> w = worst_bin_coverage(x, rng.normal(size=(1000, 2)), bad, ("x_0",))
+    >>> w.column, w.coverage
+    ('x_0', 0.0)
+    """
+    columns = {name: np.asarray(x)[:, i] for i, name in enumerate(x_columns)}
+    columns["||yhat||"] = np.linalg.norm(np.asarray(yhat), axis=1)
+    worst: dict[str, tuple[float, float, float, int]] = {}
+    for name, values in columns.items():
+        cov = coverage_by_bin(values, violated, name, bins)
+        rows = [
+            (1.0 - v / c, cov.edges[i], cov.edges[min(i + 1, len(cov.edges) - 1)], c)
+            for i, (c, v) in enumerate(zip(cov.counts, cov.violations, strict=True))
+            if c
+        ]
+        worst[name] = min(rows, key=lambda r: r[0])
+    column = min(worst, key=lambda c: worst[c][0])
+    return WorstBin(by_column=worst, column=column, coverage=worst[column][0], bins=bins)
 
 
 def evaluate(

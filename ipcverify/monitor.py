@@ -536,7 +536,13 @@ def plot_monitor(
     cfg, t = result.config, result.index
     fig = Figure(figsize=(7.0, 4.2))
     ax, ax2 = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": (2, 1)})
-    ax.step(t, result.log_e_value, where="post", color="#4c72b0", label=f"violations > {cfg.epsilon:g}?")
+    ax.step(
+        t,
+        result.log_e_value,
+        where="post",
+        color="#4c72b0",
+        label=f'e-value against "violation rate <= {cfg.epsilon:.3g}"',
+    )
     ax.axhline(
         cfg.alarm_level, color="#b42318", lw=1.5, label=f"alarm level log(1/delta), delta={cfg.delta:g}"
     )

@@ -334,6 +334,18 @@ def _test_section(cert: Certificate, ev: CertifyEvidence | None) -> list[str]:
         )
         eps = None if cert.calibration is None else cert.calibration.epsilon
         parts.append(_img(plot_coverage(cert.coverage, t.delta, eps), "violation rate per bin"))
+    if cert.worst_bin is not None:
+        w = cert.worst_bin
+        wrows = "".join(
+            f"<tr><td>{html.escape(c)}</td><td>{_fmt(cov)}</td><td>[{lo:.4g}, {hi:.4g}]</td><td>{n}</td></tr>"
+            for c, (cov, lo, hi, n) in w.by_column.items()
+        )
+        parts.append(
+            f"<p>Worst-bin coverage over {w.bins} quantile bins of every state column and of ||yhat||: "
+            f"<b>{100 * w.coverage:.2f} %</b> (in a bin of <code>{html.escape(w.column)}</code>). A set that "
+            "is small because it under-covers a hard region shows here.</p>"
+            f"<table><tr><th>column</th><th>worst-bin coverage</th><th>bin</th><th>n</th></tr>{wrows}</table>"
+        )
     parts.append("<h2>Example sets</h2>")
     parts.append(
         "<p class='small'>The smallest, median and largest set of the test data, and one violated sample "

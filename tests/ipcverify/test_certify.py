@@ -226,3 +226,11 @@ def test_cli_errors(setup, run_cli, tmp_path):
         "--recalibrate", "--mondrian-column", "x_0", "--bins", "3", "--out", tmp_path / "m.pt",
     )  # fmt: skip
     assert res.code == 0 and "x_0 <" in res.stdout
+
+
+def test_the_certificate_reports_worst_bin_coverage_over_every_state_column(setup):
+    cert = certify(setup["cal_model"], setup["test"]).certificate
+    w = cert.to_dict()["conditional_coverage"]
+    assert set(w["by_column"]) == {*setup["test"].x_columns, "||yhat||"}
+    assert w["worst_coverage"] == min(v["coverage"] for v in w["by_column"].values())
+    assert 0.0 <= w["worst_coverage"] <= 1.0 - cert.test.empirical_rate + 1e-12
