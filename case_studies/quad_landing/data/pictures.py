@@ -122,7 +122,7 @@ def lag_error_picture(out: Path, *, n: int = 1500, seed: int = 0,
     ax.boxplot(errors, whis=(1, 99), showfliers=False)
     ax.set_xticks(range(1, 7), [str(k) for k in range(6)])
     ax.set(xlabel="camera buffer size (0: ideal camera)", ylabel="|yhat_C - y_C| (cm)",
-           title=f"error per buffer size: same paths, {n} samples each, whiskers 1-99 %")  # fmt: skip
+           title=f"error per buffer size ({n} samples each; whiskers 1-99 %)")  # fmt: skip
     ax.grid(axis="y", alpha=0.3)
     fig.tight_layout()
     fig.savefig(out)

@@ -17,7 +17,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-__all__ = ["table1_markdown", "ablation_markdown", "landing_markdown", "results_markdown"]
+__all__ = ["table1_markdown", "ablation_markdown", "landing_markdown", "claim_markdown", "bound_words", "results_markdown"]
 
 #: The paper's Table I (percent), for the row beside ours.
 _PAPER = {"1": 0.19, "2": 0.93, "3": 2.05, "4": 4.07, "5": 11.05}
@@ -80,6 +80,36 @@ def landing_markdown(landing: Mapping[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def claim_markdown(claim: Mapping[str, Any]) -> str:
+    """One acceptance claim in words: whether it holds and whether the sample sizes support it.
+
+    Examples
+    --------
+    >>> claim_markdown({"statement": "Table I, buffer 1: at most 1 %", "holds": True,
+    ...                 "supported": False, "detail": "3/300"})
+    'Table I, buffer 1: at most 1 % — **holds**, not established at these sample sizes (3/300)'
+    """
+    if not claim["holds"]:
+        return f"{claim['statement']} — **does not hold** ({claim['detail']})"
+    support = "established by the intervals" if claim["supported"] else "not established at these sample sizes"
+    return f"{claim['statement']} — **holds**, {support} ({claim['detail']})"
+
+
+def bound_words(bound: Mapping[str, Any]) -> str:
+    """The certified bound on unsafe landings, in words.
+
+    Examples
+    --------
+    >>> bound_words({"union_bound": 0.0798, "max_queries": 8, "epsilon": 0.009976, "refined_bound": 0.0791})
+    'P(unsafe) ≤ 7.98 % (M = 8 measurements × ε = 0.009976; refined with the measured number of measurements: 7.91 %)'
+    """
+    return (
+        f"P(unsafe) ≤ {100 * bound['union_bound']:.2f} % (M = {bound['max_queries']} measurements × "
+        f"ε = {bound['epsilon']:.4g}; refined with the measured number of measurements: "
+        f"{100 * bound['refined_bound']:.2f} %)"
+    )
+
+
 def results_markdown(summary: Mapping[str, Any]) -> str:
     """Everything the docs quote from a run: Table I, ages, ablation, landings, bound, timings."""
     parts = ["### Table I", table1_markdown(summary)]
@@ -114,13 +144,9 @@ def results_markdown(summary: Mapping[str, Any]) -> str:
     b = summary["landing"]["ipc"]["certified"]
     parts += [
         "### Certified bound",
-        f"M·ε = {b['union_bound']:.4g} (M = {b['max_queries']}, ε = {b['epsilon']:.4g}), refined "
-        f"{b['refined_bound']:.4g}",
+        bound_words(b),
         "### Claims",
-        "\n".join(
-            f"- {c['statement']}: holds {c['holds']}, supported {c['supported']} ({c['detail']})"
-            for c in summary["claims"].values()
-        ),  # fmt: skip
+        "\n".join(f"- {claim_markdown(c)}" for c in summary["claims"].values()),
         "### Timings",
         "\n".join(f"- {k}: {v:.1f} s" for k, v in summary["stage_seconds"].items()),
         f"- total {summary['runtime_seconds']} s wall, {summary.get('cpu_seconds')} CPU-s; load average "
