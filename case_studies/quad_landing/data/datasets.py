@@ -71,6 +71,7 @@ __all__ = [
     "collect_mixed_many",
     "collect_pilot_many",
     "as_dataset",
+    "FLIGHT_STRIDE",
     "cached_many",
     "cached_mixed",
     "is_cached",
@@ -79,6 +80,9 @@ __all__ = [
     "SOURCE_APPROACH",
     "SOURCE_PILOT",
 ]
+
+#: ``flight = source * FLIGHT_STRIDE + path`` (:func:`as_dataset`): a label per flight across sources.
+FLIGHT_STRIDE = 1_000_000
 
 #: Values of the ``source`` column.
 SOURCE_PATHS, SOURCE_APPROACH, SOURCE_PILOT = 0, 1, 2
@@ -302,9 +306,23 @@ def collect_mixed(
 def as_dataset(data: pd.DataFrame, source: str = "<memory>") -> PerceptionDataset:
     """The ``x_C``, ``y_C``, ``yhat_C`` columns as a :class:`~ipcverify.data.PerceptionDataset`.
 
-    The other columns (world frame, path, time, source) are kept as extra columns.
+    The other columns (world frame, path, time, source) are kept as extra columns. With
+    ``source`` and ``path`` it adds ``flight``, one label per flight or path across sources
+    (``path`` numbers each source's flights from 0): the exchangeable unit for flight-level
+    calibration and tests (``group_column="flight"``).
+
+    Examples
+    --------
+    >>> from case_studies.quad_landing.data.approach import ApproachParams
+    >>> frame = collect_mixed(6, buffer_size=1, seed=0, approach=ApproachParams.defaults(hover_points=1))
+    >>> flights = as_dataset(frame).extra["flight"]
+    >>> bool((flights == frame["source"] * FLIGHT_STRIDE + frame["path"]).all())
+    True
     """
     used = set(X_COLUMNS) | set(Y_COLUMNS) | set(YHAT_COLUMNS)
+    extra = {c: data[c].to_numpy() for c in data.columns if c not in used}
+    if "source" in extra and "path" in extra and "flight" not in extra:
+        extra["flight"] = extra["source"].astype(np.int64) * FLIGHT_STRIDE + extra["path"].astype(np.int64)
     return PerceptionDataset(
         data[list(X_COLUMNS)].to_numpy(float),
         data[list(Y_COLUMNS)].to_numpy(float),
@@ -313,7 +331,7 @@ def as_dataset(data: pd.DataFrame, source: str = "<memory>") -> PerceptionDatase
         x_columns=X_COLUMNS,
         y_columns=Y_COLUMNS,
         yhat_columns=YHAT_COLUMNS,
-        extra={c: data[c].to_numpy() for c in data.columns if c not in used},
+        extra=extra,
     )
 
 

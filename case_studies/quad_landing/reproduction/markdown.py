@@ -17,7 +17,14 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-__all__ = ["table1_markdown", "ablation_markdown", "landing_markdown", "claim_markdown", "bound_words", "results_markdown"]
+__all__ = [
+    "table1_markdown",
+    "ablation_markdown",
+    "landing_markdown",
+    "claim_markdown",
+    "bound_words",
+    "results_markdown",
+]
 
 #: The paper's Table I (percent), for the row beside ours.
 _PAPER = {"1": 0.19, "2": 0.93, "3": 2.05, "4": 4.07, "5": 11.05}
@@ -87,11 +94,11 @@ def claim_markdown(claim: Mapping[str, Any]) -> str:
     --------
     >>> claim_markdown({"statement": "Table I, buffer 1: at most 1 %", "holds": True,
     ...                 "supported": False, "detail": "3/300"})
-    'Table I, buffer 1: at most 1 % — **holds**, not established at these sample sizes (3/300)'
+    'Table I, buffer 1: at most 1 % — **holds**, not established at these sizes (3/300)'
     """
     if not claim["holds"]:
         return f"{claim['statement']} — **does not hold** ({claim['detail']})"
-    support = "established by the intervals" if claim["supported"] else "not established at these sample sizes"
+    support = "established by the intervals" if claim["supported"] else "not established at these sizes"
     return f"{claim['statement']} — **holds**, {support} ({claim['detail']})"
 
 
@@ -100,8 +107,9 @@ def bound_words(bound: Mapping[str, Any]) -> str:
 
     Examples
     --------
-    >>> bound_words({"union_bound": 0.0798, "max_queries": 8, "epsilon": 0.009976, "refined_bound": 0.0791})
-    'P(unsafe) ≤ 7.98 % (M = 8 measurements × ε = 0.009976; refined with the measured number of measurements: 7.91 %)'
+    >>> b = {"union_bound": 0.0798, "max_queries": 8, "epsilon": 0.009976, "refined_bound": 0.0791}
+    >>> bound_words(b)[:50]
+    'P(unsafe) ≤ 7.98 % (M = 8 measurements × ε = 0.0099'
     """
     return (
         f"P(unsafe) ≤ {100 * bound['union_bound']:.2f} % (M = {bound['max_queries']} measurements × "

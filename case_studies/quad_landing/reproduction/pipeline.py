@@ -58,7 +58,12 @@ from case_studies.quad_landing.reproduction.claims import evaluate_claims
 from case_studies.quad_landing.reproduction.collection import DatasetPlan, collect_plan, spec_path
 from case_studies.quad_landing.reproduction.config import ReproduceConfig, load_reproduce_config
 from case_studies.quad_landing.reproduction.figures import draw_figures
-from case_studies.quad_landing.reproduction.learn import cached_ipc, calibration_summary, certified_epsilon
+from case_studies.quad_landing.reproduction.learn import (
+    cached_ipc,
+    calibration_summary,
+    certified_epsilon,
+    flight_level_check,
+)
 from case_studies.quad_landing.reproduction.report_page import render_report
 from case_studies.quad_landing.reproduction.results import (
     PAPER_LANDING,
@@ -266,11 +271,13 @@ def _learn_ipcs(
             models[k], _ = cached_ipc(run.out_dir / "models" / f"ipc_k{k}.pt", train, cal, run.cfg.ipc)
         with run.stages.stage(f"certify IPC k={k}", 1):
             certificate = _certify(models[k], data[f"test_k{k}"], run.out_dir / "certificates" / f"ipc_k{k}")
+            flights = flight_level_check(models[k], cal, run.cfg.ipc.epsilon)
         summaries[k] = IpcSummary(
             buffer_size=k,
             calibration=calibration_summary(models[k]),
             certificate=certificate,
             n_parameters=models[k].n_parameters,
+            flight_level=flights,
         )
     return models, summaries
 

@@ -56,16 +56,19 @@ SUMMARY_VERSION = 1
 
 @dataclass(frozen=True, kw_only=True)
 class IpcSummary:
-    """One learned IPC: buffer size, calibration, test certificate and size.
+    """One learned IPC: buffer size, calibration, test certificate, size and flight-level check.
 
     ``calibration`` and ``certificate`` are the library's plain data
-    (:func:`~.learn.calibration_summary`, :func:`ipcverify.certify.certify`).
+    (:func:`~.learn.calibration_summary`, :func:`ipcverify.certify.certify`);
+    ``flight_level`` is :func:`~.learn.flight_level_check` (the same network calibrated with
+    the calibration flights as the exchangeable units).
     """
 
     buffer_size: int
     calibration: Mapping[str, Any]
     certificate: Mapping[str, Any]
     n_parameters: int
+    flight_level: Mapping[str, Any] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """``summary.json``'s ``ipc.k<buffer size>``."""
@@ -74,6 +77,7 @@ class IpcSummary:
             "calibration": dict(self.calibration),
             "certificate": dict(self.certificate),
             "n_parameters": self.n_parameters,
+            "flight_level": None if self.flight_level is None else dict(self.flight_level),
         }
 
 

@@ -60,7 +60,7 @@ def test_summary_has_the_documented_structure(quick):
     for b in ("1", "2", "3", "4", "5"):
         row = s["table1"][b]
         assert {"n", "violations", "rate", "upper", "interval", "paper_rate"} <= set(row)
-        assert row["n"] >= 300 and 0 <= row["violations"] <= row["n"]
+        assert row["n"] == s["settings"]["sizes"]["n_pilot"] and 0 <= row["violations"] <= row["n"]
         assert row["rate"] == pytest.approx(row["violations"] / row["n"])
     for side in ("ipc", "baseline"):
         land = s["landing"][side]
@@ -102,6 +102,21 @@ def test_summary_has_the_documented_structure(quick):
     assert ages["5"]["age_ms"]["median"] > ages["1"]["age_ms"]["median"] > 0
 
 
+def test_flight_level_check_is_the_risk_control_calibration(quick):
+    """The flight-level scale satisfies conformal risk control over the calibration flights, or is None
+    exactly when there are too few flights for epsilon (G < 1 / epsilon - 1)."""
+    _, s = quick
+    fl = s["ipc"]["k1"]["flight_level"]
+    eps, G = fl["epsilon"], fl["n_flights"]
+    assert 1 <= G <= fl["n_rows"] and fl["row_scale"] > 0
+    assert 0 <= fl["row_scale_mean_violation_fraction"] <= 1
+    if eps * (G + 1) < 1:
+        assert fl["flight_scale"] is None and fl["flight_mean_violation_fraction"] is None
+    else:
+        assert (G * fl["flight_mean_violation_fraction"] + 1) / (G + 1) <= eps * (1 + 1e-9)
+        assert "flight" in fl["flight_guarantee"]
+
+
 def test_report_is_one_self_contained_file(quick):
     out, s = quick
     page = (out / "report.html").read_text()
@@ -134,21 +149,22 @@ def test_the_report_as_a_person_sees_it(quick, tmp_path):
         str(CHROMIUM), "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
         "--disable-background-networking", "--disable-component-update", "--disable-sync",
         "--hide-scrollbars",
-        f"--user-data-dir={tmp_path / 'profile'}", "--window-size=1100,6000", f"--screenshot={shot}",
+        f"--user-data-dir={tmp_path / 'profile'}", "--window-size=1100,8000", f"--screenshot={shot}",
         (out / "report.html").as_uri(),
     ]  # fmt: skip
     subprocess.run(cmd, check=True, capture_output=True, timeout=120)
     im = Image.open(shot)
     im.load()
-    assert im.size == (1100, 6000)
+    assert im.size == (1100, 8000)
     gray = np.asarray(im.convert("L"), dtype=float)
     rows_with_ink = (gray < 128).any(axis=1)
     assert rows_with_ink.mean() > 0.3  # text, tables and plots cover much of the page
     assert rows_with_ink[:200].any()  # the title is at the top, not below a blank screen
-    # the embedded figures are drawn: coloured plot pixels (matplotlib's blue and orange)
+    # the embedded figures are drawn: saturated plot pixels (markers, lines, boxes); the page's
+    # text and tables are grey, so without the figures only the verdicts below are coloured
     rgb = np.asarray(im.convert("RGB")).reshape(-1, 3).astype(int)
-    blue = (rgb[:, 2] > 150) & (rgb[:, 0] < 80) & (rgb[:, 1] > 90) & (rgb[:, 1] < 150)
-    assert blue.sum() > 2000
+    coloured = (rgb.max(axis=1) - rgb.min(axis=1)) > 80
+    assert coloured.sum() > 10_000
     # the claims table's verdicts are coloured (green "yes" or red "no")
     verdict = ((rgb[:, 1] > 100) & (rgb[:, 0] < 60) & (rgb[:, 2] < 90)) | (
         (rgb[:, 0] > 150) & (rgb[:, 1] < 60) & (rgb[:, 2] < 60)
