@@ -1,7 +1,9 @@
-"""Command line: ``python -m case_studies.quad_landing {collect,pictures,bias,reproduce}``.
+"""Command line: ``python -m case_studies.quad_landing COMMAND`` (collect, pictures, bias, reader-timing,
+reproduce, summarize, sensitivity).
 
 Thin click wrappers over :func:`.collect.collect`, :func:`.pictures.write_pictures`,
-:func:`.bias.refinement_bias` and :func:`.pipeline.reproduce`. Bad input (a bad option
+:func:`.bias.refinement_bias`, :func:`.reader_time.measure_reader_time`,
+:func:`.pipeline.reproduce` and :func:`.sensitivity.run_sensitivity`. Bad input (a bad option
 value, a bad config file, an output path that cannot be written) prints one
 ``error: ...`` line and exits with status 2.
 """
@@ -62,7 +64,7 @@ def quad() -> None:
     "-k",
     type=click.IntRange(0, MAX_BUFFER_SIZE),
     default=None,
-    help="Camera buffer size k (frames of lag) "
+    help="Camera buffer size (V4L2 buffers; k frames of lag with camera_timing.model = 'frames') "
     f"[default: [collect] buffer_size of --config or defaults.toml: {_DEFAULTS['collect']['buffer_size']}].",
 )
 @click.option(
@@ -92,7 +94,7 @@ def quad() -> None:
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 def collect_command(buffer_size: int | None, n: int | None, seed: int, out: str,
                     config_path: str | None, jobs: int, quiet: bool) -> None:  # fmt: skip
-    """Fly the exploration paths and write a dataset of lagged measurements."""
+    """Fly the exploration paths and write a dataset of camera measurements."""
     from case_studies.quad_landing.data.collect import collect, write_dataset
 
     out_path = Path(out)
@@ -124,14 +126,15 @@ def collect_command(buffer_size: int | None, n: int | None, seed: int, out: str,
 @_seed_option
 @_config_option
 def pictures_command(out: str, seed: int, config_path: str | None) -> None:
-    """Write the documentation pictures (a camera frame, the paths, lag error per k)."""
+    """Write the documentation pictures (a camera frame, the paths, error per buffer size)."""
     from case_studies.quad_landing.data.pictures import write_pictures
 
     info = write_pictures(out, seed=seed, config=_config(config_path))
     frame = info["frame"]
     console.print(
-        f"wrote pictures to {out}: frame at {frame['speed']:.2f} m/s, error "
-        f"{100 * frame['error']:.1f} cm; median error by k (cm): "
+        f"wrote pictures to {out}: frame at {frame['speed']:.2f} m/s, "
+        f"image {1000 * frame['age']:.0f} ms old, "
+        f"error {100 * frame['error']:.1f} cm; median error by buffer size (cm): "
         + ", ".join(f"{k}: {100 * v:.2f}" for k, v in info["median_error_by_k"].items()),
         markup=False, highlight=False, soft_wrap=True,
     )  # fmt: skip
@@ -147,6 +150,66 @@ def bias_command(poses: int, seed: int, config_path: str | None) -> None:
 
     df = refinement_bias(poses=poses, seed=seed, config=_config(config_path))
     click.echo(df.to_string(index=False, float_format=lambda v: f"{v:.3f}"))
+
+
+@quad.command("reader-timing")
+@click.option("--frames", "n_frames", type=click.IntRange(min=10), default=400, show_default=True,
+              help="Rendered frames to time.")  # fmt: skip
+@click.option("--threads", type=click.IntRange(min=2), default=2, show_default=True,
+              help="OpenCV threads for the parallel speed-up.")  # fmt: skip
+def reader_timing_command(n_frames: int, threads: int) -> None:
+    """Time the default ArUco pipeline per frame here: the [camera_timing] numbers it gives."""
+    import numpy as np
+
+    from case_studies.quad_landing.perception.reader_time import measure_reader_time, path_frames
+
+    res = measure_reader_time(path_frames(n_frames), threads=threads)
+    lines = [
+        f"ArUco + pose, 320x240, 1 thread: median {np.median(res.detector):.3f} ms",
+        f"at 640x480: median {np.median(res.detector_640):.3f} ms",
+        f"{res.threads} threads: median {np.median(res.detector_threads):.3f} ms",
+        "[camera_timing] lines:",
+        res.toml_lines(),
+    ]
+    console.print("\n".join(lines), markup=False, highlight=False, soft_wrap=True)
+
+
+@quad.command("sensitivity")
+@click.option("--out", type=click.Path(file_okay=False), required=True,
+              help="Output directory: sensitivity.json, .md, cached data/ and models/.")  # fmt: skip
+@click.option("--quick", is_flag=True, help="The [quick.ablation] sizes.")
+@click.option("--only", default=None, help="Comma-separated variant names (the reference always runs).")
+@click.option(
+    "--jobs", "-j", type=click.IntRange(1, 1024), default=2, show_default=True, help="Worker processes."
+)
+@_config_option
+@click.option("--settings", "settings_path", type=click.Path(dir_okay=False), default=None,
+              help="TOML file overriding reproduce.toml.")  # fmt: skip
+def sensitivity_command(out: str, quick: bool, only: str | None, jobs: int, config_path: str | None,
+                        settings_path: str | None) -> None:  # fmt: skip
+    """Table I when one camera-timing parameter is changed at a time (the sensitivity table)."""
+    from case_studies.quad_landing.reproduction.config import load_reproduce_config
+    from case_studies.quad_landing.reproduction.sensitivity import run_sensitivity, study_markdown
+
+    settings = load_reproduce_config(settings_path, quick=quick)
+    names = [n.strip() for n in only.split(",")] if only else None
+    study, timing = run_sensitivity(out, config=settings, sim_config=_config(config_path), only=names,
+                                    n_jobs=jobs)  # fmt: skip
+    console.print(study_markdown(study.rows) + f"\n{timing}", markup=False, highlight=False, soft_wrap=True)
+
+
+@quad.command("summarize")
+@click.argument("out", type=click.Path(file_okay=False, exists=True))
+def summarize_command(out: str) -> None:
+    """Print a reproduction's results (OUT/summary.json) as the Markdown tables the docs quote."""
+    import json
+
+    from case_studies.quad_landing.reproduction.markdown import results_markdown
+
+    path = Path(out) / "summary.json"
+    if not path.exists():
+        raise InvalidInputError(f"{path} does not exist; run reproduce --out {out} first")
+    click.echo(results_markdown(json.loads(path.read_text())))
 
 
 @quad.command("reproduce")
@@ -203,7 +266,8 @@ def reproduce_command(out: str, quick: bool, jobs: int | None, backend: str, mc_
     ipc, base = land.ipc.monte_carlo, land.baseline.monte_carlo
     paper_ipc, paper_base = land.ipc.paper, land.baseline.paper
     bound = land.ipc.certified
-    assert bound is not None  # the IPC's landing results always carry it
+    if bound is None:  # pragma: no cover - LandingExperiment requires it
+        raise InvalidInputError("the landing results carry no certified bound")
     lines = [
         table1_text(s.table1),
         f"landing at buffer size {land.buffer_size} ({ipc.runs} Monte Carlo runs each): "

@@ -41,6 +41,8 @@ def test_cli_collect_writes_the_dataset(tmp_path, capsys):
          "unknown key"),
         (["collect", "--n", "5"], "--out"),
         (["fly"], "No such command"),
+        (["sensitivity", "--out", "{d}/s", "--only", "warp-speed"], "unknown sensitivity variants"),
+        (["reader-timing", "--frames", "3"], "--frames"),
     ],
 )  # fmt: skip
 def test_cli_bad_input_is_one_line_and_status_2(tmp_path, capsys, args, match):
@@ -50,3 +52,9 @@ def test_cli_bad_input_is_one_line_and_status_2(tmp_path, capsys, args, match):
     assert stderr.startswith("error: ") and len(stderr.strip().splitlines()) == 1
     assert match in stderr
     assert not list(tmp_path.glob("x.*"))
+
+
+def test_cli_reader_timing_prints_the_toml_lines(capsys):
+    code, stdout, _ = _run(capsys, "reader-timing", "--frames", "12")
+    assert code == 0
+    assert "detector_ms = [" in stdout and "cpu_scale = " in stdout and "parallel_speedup = " in stdout

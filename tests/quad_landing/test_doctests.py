@@ -10,13 +10,16 @@ import pytest
 #: Every module of the case study with examples, by subpackage.
 MODULES = [
     "settings",
-    "sim.camera", "sim.config", "sim.dynamics", "sim.features", "sim.flight", "sim.framebuffer",
-    "sim.frames", "sim.legs", "sim.lqr", "sim.marker", "sim.render",
-    "perception.aruco", "perception.bias",
-    "data.approach", "data.collect", "data.columns", "data.datasets", "data.paths",
+    "sim.camera", "sim.camera_stage", "sim.config", "sim.driver_queue", "sim.dynamics", "sim.exposure",
+    "sim.features", "sim.flight", "sim.framebuffer", "sim.frames", "sim.history", "sim.legs", "sim.lqr",
+    "sim.marker", "sim.measurement", "sim.render", "sim.timing",
+    "perception.aruco", "perception.bias", "perception.reader_time",
+    "data.approach", "data.collect", "data.columns", "data.datasets", "data.paths", "data.pilot",
+    "data.recording",
     "landing.contracts", "landing.runs", "landing.scenario", "landing.state_machine",
-    "reproduction.campaign", "reproduction.certified", "reproduction.claims", "reproduction.config",
-    "reproduction.figures", "reproduction.learn", "reproduction.report_page", "reproduction.table1",
+    "reproduction.campaign", "reproduction.certified", "reproduction.claims", "reproduction.collection",
+    "reproduction.config", "reproduction.figures", "reproduction.learn", "reproduction.markdown", "reproduction.report_page",
+    "reproduction.sensitivity", "reproduction.table1", "reproduction.timing_stats", "reproduction.variants",
 ]  # fmt: skip
 
 

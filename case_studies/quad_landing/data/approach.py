@@ -36,8 +36,13 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from case_studies.quad_landing.data.collect import CollectStats, PathRecord, dataset_from_records
-from case_studies.quad_landing.data.columns import FLOAT_COLUMNS, measurement_row
+from case_studies.quad_landing.data.collect import CollectStats, dataset_from_records
+from case_studies.quad_landing.data.recording import (
+    FlightRecording,
+    PathRecord,
+    measure_recording,
+    recording_of,
+)
 from case_studies.quad_landing.landing.scenario import (
     ScenarioParams,
     camera_offset_z,
@@ -58,7 +63,7 @@ from case_studies.quad_landing.sim.flight import Flight
 from case_studies.quad_landing.sim.legs import fly_leg
 from ipcverify.errors import InvalidInputError
 
-__all__ = ["ApproachParams", "APPROACH_STREAM", "fly_approach", "collect_approach"]
+__all__ = ["ApproachParams", "APPROACH_STREAM", "fly_approach", "record_approach", "collect_approach"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -158,58 +163,36 @@ class ApproachParams(TomlSection):
 APPROACH_STREAM = 71
 
 
-class _Recorder:
-    """Measures every ``every`` frames and keeps the rows with a detection."""
+class _Sampler:
+    """Notes the flight time every ``every`` frames (the instants the collector measures at)."""
 
     def __init__(self, flight: Flight, every: int) -> None:
         self.flight, self.every, self.frame = flight, every, 0
-        self.rows: list[np.ndarray] = []
         self.times: list[float] = []
-        self.outcomes: list[int] = []
 
     def __call__(self) -> None:
         self.frame += 1
-        if self.frame % self.every:
-            return
-        m = self.flight.measure()
-        if m.yhat_c is None:
-            self.outcomes.append(2 if m.pad_in_view else 1)
-            return
-        self.outcomes.append(0)
-        self.rows.append(measurement_row(m))
-        self.times.append(m.time)
+        if self.frame % self.every == 0:
+            self.times.append(self.flight.time)
 
 
-def fly_approach(flight: Flight, index: int, *, seed: int, params: ApproachParams) -> PathRecord:
-    """Fly approach flight ``index`` and record a measurement every ``params.sample_every`` frames.
+def record_approach(flight: Flight, index: int, *, seed: int, params: ApproachParams) -> FlightRecording:
+    """Fly approach flight ``index`` and keep it with its sampling instants (every ``sample_every`` frames).
 
-    Parameters
-    ----------
-    flight : Flight
-        The simulator (its buffer size is used; its pad is replaced by the flight's).
-    index, seed : int
-        Which flight; it depends on nothing else.
-    params : ApproachParams
-        Ranges of the transit and the hover points.
-
-    Returns
-    -------
-    PathRecord
-        Rows in the :data:`.columns.FLOAT_COLUMNS`, their times, the
-        outcome code of every measurement (0 detected, 1 marker outside the lagged image,
-        2 missed in view) and the time flown.
+    The flight does not depend on the camera: the transit stops a random time after the
+    pad is geometrically in view. Measure it with :func:`.recording.measure_recording`.
     """
     cfg = flight.config
     sc = draw_scenario(index, seed=seed, params=params.scenario(), config=cfg, stream=APPROACH_STREAM)
     rng = scenario_rng(seed, index, APPROACH_STREAM + 1)
     flight.reset(sc.start, sc.pad, seed=sc.noise_seed)
-    rec = _Recorder(flight, params.sample_every)
+    rec = _Sampler(flight, params.sample_every)
     extra = float(rng.uniform(*params.extra_transit))
     stop_at: float | None = None
     while flight.time < sc.transit_time + params.leg_timeout:
         flight.step(sc.reference)
         rec()
-        if stop_at is None and flight.pad_in_view():  # geometric, so the path is the same for every k
+        if stop_at is None and flight.pad_in_view():  # geometric, so the path is the same for every camera
             stop_at = flight.time + extra
         if stop_at is not None and flight.time >= stop_at - 1e-9:
             break
@@ -234,13 +217,29 @@ def fly_approach(flight: Flight, index: int, *, seed: int, params: ApproachParam
             dwell=float(rng.uniform(*params.dwell)),
             on_frame=rec,
         )
-    return PathRecord(
-        index=int(index),
-        rows=np.array(rec.rows).reshape(-1, len(FLOAT_COLUMNS)),
-        times=np.array(rec.times),
-        outcomes=np.array(rec.outcomes, dtype=np.int8),
-        flight_time=flight.time,
-    )
+    return recording_of(flight, index=index, sample_times=rec.times)
+
+
+def fly_approach(flight: Flight, index: int, *, seed: int, params: ApproachParams) -> PathRecord:
+    """Fly approach flight ``index`` and record a measurement every ``params.sample_every`` frames.
+
+    Parameters
+    ----------
+    flight : Flight
+        The simulator (its buffer size is used; its pad is replaced by the flight's).
+    index, seed : int
+        Which flight; it depends on nothing else.
+    params : ApproachParams
+        Ranges of the transit and the hover points.
+
+    Returns
+    -------
+    PathRecord
+        Rows in the :data:`.columns.FLOAT_COLUMNS`, their times, the
+        outcome code of every measurement (0 detected, 1 marker outside the lagged image,
+        2 missed in view) and the time flown.
+    """
+    return measure_recording(record_approach(flight, index, seed=seed, params=params), flight.camera_stage)
 
 
 def collect_approach(

@@ -25,8 +25,14 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from case_studies.quad_landing.data.columns import FLOAT_COLUMNS, measurement_row
+from case_studies.quad_landing.data.columns import FLOAT_COLUMNS
 from case_studies.quad_landing.data.paths import TEMPLATES, ExplorationPath, fit_to_view, make_path
+from case_studies.quad_landing.data.recording import (
+    FlightRecording,
+    PathRecord,
+    measure_recording,
+    recording_of,
+)
 from case_studies.quad_landing.sim.config import SimConfig, load_config
 from case_studies.quad_landing.sim.flight import Flight
 from case_studies.quad_landing.sim.framebuffer import check_buffer_size
@@ -39,6 +45,7 @@ __all__ = [
     "dataset_from_records",
     "collect",
     "fly_path",
+    "record_path",
     "path_rng",
     "write_dataset",
     "start_state",
@@ -123,40 +130,6 @@ def pad_outline_world(config: SimConfig) -> np.ndarray:
     return config.pad.world_from_marker().apply(config.marker.pad_outline())
 
 
-@dataclass(frozen=True, eq=False)
-class PathRecord:
-    """What flying one exploration path produced (see :func:`fly_path`).
-
-    Attributes
-    ----------
-    index : int
-        Path index (seeds the path and its sensor noise).
-    rows : ndarray, shape (m, 36)
-        One row per detection, the :data:`.columns.FLOAT_COLUMNS`.
-    times : ndarray, shape (m,)
-        Flight time of each detection (s).
-    outcomes : ndarray of int8
-        One code per measurement, in order: 0 detected, 1 missed with the marker (partly)
-        outside the lagged image, 2 missed although it was inside.
-    flight_time : float
-        Time flown on the path, warm-up included (s).
-    """
-
-    index: int
-    rows: np.ndarray
-    times: np.ndarray
-    outcomes: np.ndarray
-    flight_time: float
-
-    def head(self, samples: int) -> PathRecord:
-        """The first ``samples`` rows, with the measurements up to the last of them."""
-        if samples >= len(self.rows):
-            return self
-        last = int(np.flatnonzero(self.outcomes == 0)[samples - 1]) if samples else -1
-        return PathRecord(self.index, self.rows[:samples], self.times[:samples],
-                          self.outcomes[: last + 1], self.flight_time)  # fmt: skip
-
-
 def dataset_from_records(
     parts: Sequence[PathRecord], *, buffer_size: int, seed: int, started: float
 ) -> tuple[pd.DataFrame, CollectStats]:
@@ -168,6 +141,7 @@ def dataset_from_records(
     data = pd.DataFrame(np.vstack([r.rows for r in parts]), columns=list(FLOAT_COLUMNS))
     data["path"] = np.concatenate([np.full(len(r.rows), r.index, np.int64) for r in parts])
     data["t"] = np.concatenate([r.times for r in parts])
+    data["age"] = np.concatenate([r.ages for r in parts])
     stats = CollectStats(
         buffer_size=int(buffer_size),
         seed=int(seed),
@@ -191,20 +165,12 @@ def path_rng(seed: int, index: int) -> np.random.Generator:
     return np.random.default_rng([int(seed), int(index)])
 
 
-def fly_path(flight: Flight, index: int, seed: int, limit: int | None = None) -> PathRecord:
-    """Fly exploration path ``index`` and record a measurement every ``sample_every`` frames.
+def record_path(flight: Flight, index: int, seed: int) -> FlightRecording:
+    """Fly exploration path ``index`` (warm-up included) and keep it with its sampling instants.
 
-    Parameters
-    ----------
-    flight : Flight
-        The simulator (its config and buffer size are used).
-    index : int
-        Path index: the template is ``TEMPLATES[index % 5]``; parameters and sensor noise
-        come from :func:`path_rng`.
-    seed : int
-        Collection seed.
-    limit : int, optional
-        Stop after this many detections.
+    The instants are every ``sample_every`` camera frames after ``warmup_time``
+    (``[collect]`` of the flight's configuration). Nothing is measured: see
+    :func:`.recording.measure_recording`.
     """
     cfg = flight.config
     params = cfg.collect
@@ -215,28 +181,30 @@ def fly_path(flight: Flight, index: int, seed: int, limit: int | None = None) ->
     flight.reset(start_state(path), seed=int(rng.integers(2**31)))
     fps = cfg.camera.fps
     warmup = int(round(params.warmup_time * fps))
-    rows: list[np.ndarray] = []
-    times: list[float] = []
-    outcomes: list[int] = []
-    for frame in flight.follow(path, warmup / fps + path.duration):
-        if frame <= warmup or (frame - warmup) % params.sample_every:
-            continue
-        m = flight.measure()
-        if m.yhat_c is None:
-            outcomes.append(2 if m.pad_in_view else 1)
-            continue
-        outcomes.append(0)
-        rows.append(measurement_row(m))
-        times.append(m.time)
-        if limit is not None and len(rows) >= limit:
-            break
-    return PathRecord(
-        index=index,
-        rows=np.array(rows).reshape(-1, len(FLOAT_COLUMNS)),
-        times=np.array(times),
-        outcomes=np.array(outcomes, dtype=np.int8),
-        flight_time=flight.time,
-    )
+    times = [
+        flight.time
+        for frame in flight.follow(path, warmup / fps + path.duration)
+        if frame > warmup and (frame - warmup) % params.sample_every == 0
+    ]
+    return recording_of(flight, index=index, sample_times=times)
+
+
+def fly_path(flight: Flight, index: int, seed: int, limit: int | None = None) -> PathRecord:
+    """Fly exploration path ``index`` and record a measurement every ``sample_every`` frames.
+
+    Parameters
+    ----------
+    flight : Flight
+        The simulator (its config and camera are used).
+    index : int
+        Path index: the template is ``TEMPLATES[index % 5]``; parameters and sensor noise
+        come from :func:`path_rng`.
+    seed : int
+        Collection seed.
+    limit : int, optional
+        Stop after this many detections.
+    """
+    return measure_recording(record_path(flight, index, seed), flight.camera_stage, limit=limit)
 
 
 _WORKER_FLIGHT: Flight | None = None

@@ -9,14 +9,16 @@ Columns (float64 unless noted), in order (:data:`DATASET_COLUMNS`):
 * ``xw_0 .. xw_11`` — world-frame state ``[p, v, roll, pitch, yaw, omega]``;
 * ``yw_0 .. yw_2``, ``yhatw_0 .. yhatw_2`` — true and perceived pad centre in W, the
   perceived one moved with the *current* camera pose, as on the vehicle;
-* ``path`` (int), ``t`` — path (or flight) index and time on it (s).
+* ``path`` (int), ``t`` — path (or flight) index and the time of the paired state on it (s);
+* ``age`` — how much older the image is than the paired state (s): a diagnostic of the
+  camera's timing, not an input of the IPC (the paper's vehicle does not know it).
 
 The reproduction's datasets add ``source`` (:mod:`case_studies.quad_landing.data.datasets`).
 
 Examples
 --------
->>> len(DATASET_COLUMNS), FLOAT_COLUMNS[-1], DATASET_COLUMNS[-2:]
-(38, 'yhatw_2', ('path', 't'))
+>>> len(DATASET_COLUMNS), FLOAT_COLUMNS[-1], DATASET_COLUMNS[-3:]
+(39, 'yhatw_2', ('path', 't', 'age'))
 """
 
 from __future__ import annotations
@@ -78,7 +80,7 @@ FLOAT_COLUMNS: tuple[str, ...] = (
     X_COLUMNS + Y_COLUMNS + YHAT_COLUMNS + XW_COLUMNS + YW_COLUMNS + YHATW_COLUMNS
 )
 #: All dataset columns, in order.
-DATASET_COLUMNS: tuple[str, ...] = FLOAT_COLUMNS + ("path", "t")
+DATASET_COLUMNS: tuple[str, ...] = FLOAT_COLUMNS + ("path", "t", "age")
 
 
 def measurement_row(m: Measurement) -> NDArray[np.float64]:

@@ -1,9 +1,9 @@
 """The issue's acceptance claims, each with what the numbers show and what they establish.
 
-Every :class:`Claim` has ``holds`` (the point statement on the observed counts),
-``supported`` (what the sample sizes can establish at the report's confidence,
-Clopper--Pearson) and ``detail`` (the numbers behind it). :func:`evaluate_claims` reads
-them off Table I and the landing experiment.
+Every :class:`Claim` has a ``statement`` in words (what the report prints), ``holds`` (the
+point statement on the observed counts), ``supported`` (what the sample sizes can establish
+at the report's confidence, Clopper--Pearson) and ``detail`` (the numbers behind it).
+:func:`evaluate_claims` reads them off Table I and the landing experiment.
 """
 
 from __future__ import annotations
@@ -26,17 +26,37 @@ class Claim:
 
     Examples
     --------
-    >>> Claim(holds=True, supported=False, detail="30/30 safe").to_dict()
-    {'holds': True, 'supported': False, 'detail': '30/30 safe'}
+    >>> Claim(holds=True, supported=False, detail="30/30 safe", statement="IPC: all safe").to_dict()
+    {'holds': True, 'supported': False, 'detail': '30/30 safe', 'statement': 'IPC: all safe'}
     """
 
     holds: bool
     supported: bool
     detail: str
+    statement: str = ""
 
     def to_dict(self) -> dict[str, bool | str]:
         """``summary.json``'s ``claims.<name>``."""
-        return {"holds": self.holds, "supported": self.supported, "detail": self.detail}
+        return {"holds": self.holds, "supported": self.supported, "detail": self.detail,
+                "statement": self.statement}  # fmt: skip
+
+
+def _rate_claim(table: Table1, b: int, low: float, high: float, statement: str) -> Claim:
+    """``low <= rate(b) <= high`` on the point; supported if the row's CP interval lies inside."""
+    if b not in table.buffers:
+        return Claim(holds=False, supported=False, detail=f"Table I has no row for buffer size {b}",
+                     statement=statement)  # fmt: skip
+    r = table.row(b)
+    lo, hi = r.interval
+    return Claim(
+        holds=low <= r.rate <= high,
+        supported=low <= lo and hi <= high,
+        detail=(
+            f"{r.violations}/{r.n} = {r.rate:.2%}, two-sided CP interval [{lo:.2%}, {hi:.2%}] "
+            f"(simultaneous {r.confidence:.0%} over the rows)"
+        ),
+        statement=statement,
+    )
 
 
 def _table1_claims(table: Table1) -> dict[str, Claim]:
@@ -47,11 +67,17 @@ def _table1_claims(table: Table1) -> dict[str, Claim]:
             holds=b1.rate <= 0.01,
             supported=b1.upper <= 0.01,
             detail=f"rate {b1.rate:.4%}, one-sided CP upper bound {b1.upper:.4%} (n = {b1.n})",
+            statement="Table I, buffer 1: at most 1 %",
         ),
         "table1_rates_rising": Claim(
             holds=rising.strict,
             supported=rising.separated,
             detail="point rates strictly increasing; 'supported' = simultaneous CP intervals do not overlap",
+            statement="Table I rises with the buffer size",
+        ),
+        "table1_buffer2_at_most_10pct": _rate_claim(table, 2, 0.0, 0.10, "Table I, buffer 2: at most 10 %"),
+        "table1_buffer5_between_2_and_30pct": _rate_claim(
+            table, 5, 0.02, 0.30, "Table I, buffer 5: between 2 % and 30 %"
         ),
     }
 
@@ -61,6 +87,7 @@ def _ipc_claims(landing: LandingExperiment) -> dict[str, Claim]:
     n, lo_safe = mc.runs, mc.safe_lower
     established = lo_safe is not None and lo_safe >= 0.99
     note = "" if established else f" ({n} runs cannot establish >= 99 % unless (nearly) all are safe)"
+    up = mc.unsafe_upper
     return {
         "ipc_safe_99pct_monte_carlo": Claim(
             holds=mc.safe >= 0.99 * n,
@@ -69,11 +96,19 @@ def _ipc_claims(landing: LandingExperiment) -> dict[str, Claim]:
                 f"{mc.safe}/{n} safe, {mc.unsafe} unsafe, {mc.aborted} aborted; one-sided 95 % "
                 f"lower bound of the safe rate {_num(lo_safe, '.4f')}" + note
             ),
+            statement=f"Landing at buffer {landing.buffer_size}, IPC: at least 99 % of Monte Carlo runs safe",
+        ),
+        "ipc_unsafe_at_most_1pct_monte_carlo": Claim(
+            holds=mc.unsafe <= 0.01 * n,
+            supported=up is not None and up <= 0.01,
+            detail=f"{mc.unsafe}/{n} unsafe; one-sided 95 % CP upper bound {_num(up, '.4f')}",
+            statement=f"Landing at buffer {landing.buffer_size}, IPC: at most 1 % of Monte Carlo runs unsafe",
         ),
         "ipc_safe_all_paper_runs": Claim(
             holds=paper.safe == paper.runs,
             supported=paper.safe == paper.runs,
             detail=f"{paper.safe}/{paper.runs} safe ({paper.unsafe} unsafe, {paper.aborted} aborted)",
+            statement=f"Landing at buffer {landing.buffer_size}, IPC: every paper-style run safe",
         ),
     }
 
@@ -90,6 +125,7 @@ def _baseline_claim(landing: LandingExperiment) -> Claim:
             f"two-sided interval [{lo:.3f}, {hi:.3f}]; paper runs: {paper.unsafe}/"
             f"{paper.runs} unsafe (paper: 9/10)"
         ),
+        statement=f"Landing at buffer {landing.buffer_size}, baseline: unsafe in most Monte Carlo runs",
     )
 
 
@@ -105,6 +141,7 @@ def _certified_claim(landing: LandingExperiment) -> Claim:
             f"{rate:.4g} ({ev.unsafe}/{ev.runs}); 'supported' = the CP lower bound of the unsafe rate "
             "does not exceed the refined bound"
         ),
+        statement="The certified bound on unsafe landings is at least the observed rate",
     )
 
 
@@ -125,8 +162,9 @@ def evaluate_claims(table: Table1, landing: LandingExperiment) -> dict[str, Clai
     Returns
     -------
     dict of str to Claim
-        ``table1_buffer1_at_most_1pct``, ``table1_rates_rising``,
-        ``ipc_safe_99pct_monte_carlo``, ``ipc_safe_all_paper_runs``,
+        ``table1_buffer1_at_most_1pct``, ``table1_rates_rising``, ``table1_buffer2_at_most_10pct``,
+        ``table1_buffer5_between_2_and_30pct``, ``ipc_safe_99pct_monte_carlo``,
+        ``ipc_unsafe_at_most_1pct_monte_carlo``, ``ipc_safe_all_paper_runs``,
         ``baseline_unsafe_in_most_runs``, ``certified_bound_at_least_empirical``.
     """
     return {

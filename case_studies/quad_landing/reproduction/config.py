@@ -3,11 +3,13 @@
 The simulator's settings stay in ``defaults.toml`` (:mod:`case_studies.quad_landing.sim.config`);
 this file holds what the reproduction adds: landing scenarios
 (:class:`~case_studies.quad_landing.landing.scenario.ScenarioParams`), approach-flight data
-(:class:`~case_studies.quad_landing.data.approach.ApproachParams`), the landing state
+(:class:`~case_studies.quad_landing.data.approach.ApproachParams`), the pilot model of the
+test flights (:class:`~case_studies.quad_landing.data.pilot.PilotParams`), the landing state
 machine (:class:`~case_studies.quad_landing.landing.state_machine.LandingParams`), the IPC
-recipe (:class:`IpcParams`) and the sizes of the reproduction (:class:`Sizes`). Each
+recipe (:class:`IpcParams`), the sizes of the reproduction (:class:`Sizes`) and of its
+per-configuration Table I (:class:`AblationSizes`). Each
 section's dataclass lives beside the code that uses it. The ``[quick]`` table is an
-overlay with the same layout (``[quick.sizes]``, ``[quick.ipc]``) applied by
+overlay with the same layout (``[quick.sizes]``, ``[quick.ablation]``) applied by
 ``load_reproduce_config(quick=True)``. Unknown sections or keys are errors; nothing is
 ``eval``-ed.
 
@@ -29,6 +31,7 @@ from pathlib import Path
 from typing import Any
 
 from case_studies.quad_landing.data.approach import ApproachParams
+from case_studies.quad_landing.data.pilot import PilotParams
 from case_studies.quad_landing.landing.scenario import ScenarioParams
 from case_studies.quad_landing.landing.state_machine import LandingParams
 from case_studies.quad_landing.settings import (
@@ -44,7 +47,8 @@ from case_studies.quad_landing.sim.framebuffer import MAX_BUFFER_SIZE
 from ipcverify.errors import InvalidInputError
 from ipcverify.training import TrainConfig
 
-__all__ = ["IpcParams", "Sizes", "ReproduceConfig", "load_reproduce_config", "REPRODUCE_SECTIONS"]
+__all__ = ["IpcParams", "Sizes", "AblationSizes", "ReproduceConfig", "load_reproduce_config",
+           "REPRODUCE_SECTIONS"]  # fmt: skip
 
 
 def _train_fields() -> dict[str, dataclasses.Field[Any]]:
@@ -79,7 +83,7 @@ class IpcParams(TomlSection):
     --------
     >>> ipc = IpcParams.defaults()  # [ipc] of reproduce.toml
     >>> ipc.hidden, ipc.train.epochs, ipc.epsilon
-    ((64, 128), 40, 0.002)
+    ((64, 128), 40, 0.01)
     >>> IpcParams.defaults(epochs=2).train.epochs
     2
     """
@@ -149,13 +153,17 @@ class Sizes(TomlSection):
     Parameters
     ----------
     n_train, n_calibration, n_test : int
-        Samples of the training and calibration sets (per IPC) and of each test set.
+        Samples of the training and calibration sets and of the held-out test set (per IPC).
+    n_pilot : int
+        Table I: pilot test measurements per buffer size.
     buffers : tuple of int
         Buffer sizes of Table I.
     paper_runs, mc_runs : int
         Landing runs: the paper-style experiment and the Monte Carlo campaign.
-    buffer1_runs : int
-        Runs of the buffer-1 landing (the lag control experiment); 0 skips it.
+    extra_landing_buffer : int
+        A second landing experiment at this buffer size, with an IPC learned there.
+    extra_landing_runs : int
+        Its Monte Carlo runs per contract; 0 skips it.
 
     Examples
     --------
@@ -169,15 +177,22 @@ class Sizes(TomlSection):
     n_train: int
     n_calibration: int
     n_test: int
+    n_pilot: int
     buffers: tuple[int, ...]
     paper_runs: int
     mc_runs: int
-    buffer1_runs: int
+    extra_landing_buffer: int
+    extra_landing_runs: int
 
     def __post_init__(self) -> None:
-        for name in ("n_train", "n_calibration", "n_test", "paper_runs", "mc_runs"):
+        for name in ("n_train", "n_calibration", "n_test", "n_pilot", "paper_runs", "mc_runs"):
             check_positive(f"sizes.{name}", getattr(self, name), integer=True)
-        check_positive("sizes.buffer1_runs", self.buffer1_runs, integer=True, allow_zero=True)
+        check_positive("sizes.extra_landing_runs", self.extra_landing_runs, integer=True, allow_zero=True)
+        e = self.extra_landing_buffer
+        if isinstance(e, bool) or not isinstance(e, int) or not 1 <= e <= MAX_BUFFER_SIZE:
+            raise ConfigError(
+                f"sizes.extra_landing_buffer must be an integer in [1, {MAX_BUFFER_SIZE}], got {e!r}"
+            )
         b = tuple(self.buffers)
         if (
             not b
@@ -188,6 +203,44 @@ class Sizes(TomlSection):
         if 1 not in b:
             raise ConfigError("sizes.buffers must include 1, the buffer size the Table I IPC is learned at")
         object.__setattr__(self, "buffers", tuple(sorted(b)))
+
+
+@dataclass(frozen=True, kw_only=True)
+class AblationSizes(TomlSection):
+    """Sizes of the per-configuration Table I (ablation of the error sources, sensitivity).
+
+    Every configuration learns its own buffer-1 IPC with the ``[ipc]`` recipe, PAC-calibrated at
+    ``epsilon`` and ``delta`` (smaller calibration sets cannot certify the main ``[ipc] epsilon``).
+
+    Parameters
+    ----------
+    n_train, n_calibration, n_pilot : int
+        Training and calibration samples, and pilot test measurements per buffer size.
+    epsilon, delta : float
+        PAC calibration target and confidence parameter of these IPCs.
+
+    Examples
+    --------
+    >>> AblationSizes.defaults().epsilon  # [ablation] of reproduce.toml
+    0.01
+    """
+
+    toml_file = REPRODUCE_PATH
+    toml_section = "ablation"
+
+    n_train: int
+    n_calibration: int
+    n_pilot: int
+    epsilon: float
+    delta: float
+
+    def __post_init__(self) -> None:
+        for name in ("n_train", "n_calibration", "n_pilot"):
+            check_positive(f"ablation.{name}", getattr(self, name), integer=True)
+        for name in ("epsilon", "delta"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and 0.0 < v < 1.0):
+                raise ConfigError(f"ablation.{name} must lie strictly between 0 and 1, got {v!r}")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -203,9 +256,11 @@ class ReproduceConfig:
 
     scenario: ScenarioParams
     approach: ApproachParams
+    pilot: PilotParams
     landing: LandingParams
     ipc: IpcParams
     sizes: Sizes
+    ablation: AblationSizes
     quick: bool = False
 
     def as_dict(self) -> dict[str, Any]:
@@ -216,7 +271,8 @@ class ReproduceConfig:
 
 #: The sections of ``reproduce.toml`` and their dataclasses.
 REPRODUCE_SECTIONS: dict[str, type[TomlSection]] = {
-    cls.toml_section: cls for cls in (ScenarioParams, ApproachParams, LandingParams, IpcParams, Sizes)
+    cls.toml_section: cls
+    for cls in (ScenarioParams, ApproachParams, PilotParams, LandingParams, IpcParams, Sizes, AblationSizes)
 }
 
 

@@ -7,8 +7,12 @@
 * :func:`plot_table1` — Table I with Clopper--Pearson intervals beside the paper's numbers.
 * :func:`plot_trajectories` — a few runs in 3-D.
 * :func:`plot_coverage` — nearest-neighbour distances of closed-loop queries vs test data.
+* :func:`plot_ablation` — Table I of every error source alone and removed, beside the paper's.
+* :func:`plot_ages` — how old the test images are at each buffer size.
 
-:func:`figure_png` renders a figure to PNG bytes with the Agg canvas.
+Every figure that shows where the motors were cut draws the target region ``G`` around the
+pad at the origin. :func:`figure_png` renders a figure to PNG bytes with the Agg canvas;
+:func:`draw_figures` draws all of a reproduction's.
 
 Examples
 --------
@@ -26,6 +30,7 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
+import pandas as pd
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
@@ -33,9 +38,21 @@ from matplotlib.patches import Rectangle
 
 from case_studies.quad_landing.landing.runs import LandingRun, Outcome
 from case_studies.quad_landing.landing.state_machine import LandingParams
-from case_studies.quad_landing.reproduction.table1 import Table1
+from case_studies.quad_landing.reproduction.table1 import PAPER_TABLE1, Table1
+from case_studies.quad_landing.reproduction.variants import SOURCE_LABELS, VariantStudy, VariantTable
+from case_studies.quad_landing.sim.timing import SOURCES
 
-__all__ = ["figure_png", "plot_topview", "plot_campaign", "plot_table1", "plot_trajectories", "plot_coverage"]
+__all__ = [
+    "figure_png",
+    "plot_topview",
+    "plot_campaign",
+    "plot_table1",
+    "plot_trajectories",
+    "plot_coverage",
+    "plot_ablation",
+    "plot_ages",
+    "draw_figures",
+]
 
 _COLORS = [
     "#1f77b4",
@@ -117,6 +134,7 @@ def plot_topview(ipc: Sequence[LandingRun], baseline: Sequence[LandingRun]) -> F
             ax.scatter(off[0], off[1], marker="x", s=60, color=_color(i), lw=1.8, zorder=4)
             zoom.scatter(100 * off[0], 100 * off[1], marker="x", s=80, color=_color(i), lw=2.0, zorder=4)
     ax.scatter([0], [0], marker="s", s=60, color="black", zorder=6)
+    _g_box(ax, scale=1.0)
     ax.set_aspect("equal")
     ax.set_xlabel("x - y_x (m)")
     ax.set_ylabel("y - y_y (m)")
@@ -135,6 +153,7 @@ def plot_topview(ipc: Sequence[LandingRun], baseline: Sequence[LandingRun]) -> F
             label="IPC measurement (size ~ ellipsoid)",
         ),
         Line2D([], [], marker="s", ls="", color="black", label="pad"),
+        Line2D([], [], ls="--", color="black", label="G around the pad"),
     ]
     ax.legend(handles=handles, loc="best", fontsize=8)
     _g_box(zoom)
@@ -237,9 +256,9 @@ def plot_table1(table: Table1) -> Figure:
     ax.set_yscale("log")
     ax.set_ylim(floor, 1.0)
     ax.set_xticks(ks)
-    ax.set_xlabel("camera buffer size (frames of lag)")
+    ax.set_xlabel("camera buffer size (V4L2 buffers)")
     ax.set_ylabel("violation rate of the buffer-1 IPC")
-    ax.set_title("Table I: the contract holds where it was learned")
+    ax.set_title("Table I: the IPC learned at buffer size 1, tested at 1-5")
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8, loc="lower right")
     fig.tight_layout()
@@ -263,10 +282,17 @@ def plot_trajectories(ipc: Sequence[LandingRun], baseline: Sequence[LandingRun],
                 o = run.cut_position - run.pad
                 ax.scatter([o[0]], [o[1]], [o[2]], color=c, s=80, marker=m)
     ax.scatter([0], [0], [0], color="black", marker="s", s=40)
+    g = LandingParams.defaults().target
+    xs, ys = (
+        [g.lower[0], g.upper[0], g.upper[0], g.lower[0], g.lower[0]],
+        [g.lower[1], g.lower[1], g.upper[1], g.upper[1], g.lower[1]],
+    )
+    for z in (g.lower[2], g.upper[2]):
+        ax.plot(xs, ys, [z] * 5, color="black", ls="--", lw=0.8)
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     ax.set_zlabel("z (m)")
-    ax.set_title("3-D paths: IPC (solid, dots = measurements) vs baseline (dashed)")
+    ax.set_title("3-D paths: IPC (solid, dots = measurements) vs baseline (dashed); G dashed at the pad")
     return fig
 
 
@@ -294,3 +320,92 @@ def plot_coverage(coverage: Mapping[str, Any]) -> Figure:
     ax.legend(fontsize=8)
     fig.tight_layout()
     return fig
+
+
+#: Colours of the error sources in the ablation figure (the same in both panels).
+_SOURCE_COLORS = dict(zip(SOURCES, _COLORS, strict=False))
+
+
+def _rates(row: VariantTable, floor: float) -> tuple[list[int], list[float]]:
+    ks = list(row.table.buffers)
+    return ks, [max(row.table.row(k).rate, floor) for k in ks]
+
+
+def plot_ablation(study: VariantStudy) -> Figure:
+    """Table I of each error source alone (left) and removed (right), with all sources and the paper.
+
+    Rates of zero are drawn at the bottom of the log axis. "Alone" means the driver queue plus
+    that source: without the queue the buffer size changes nothing.
+    """
+    fig = Figure(figsize=(11, 5.4))
+    axes = fig.subplots(1, 2, sharey=True)
+    floor = 1e-3
+    ref = {r.name: r for r in study.rows if r.group == "reference"}
+    for ax, group, title in ((axes[0], "alone", "each source alone (with the driver queue)"),
+                             (axes[1], "removed", "each source removed (all others on)")):  # fmt: skip
+        for r in study.rows:
+            if r.group != group:
+                continue
+            source = r.name.split("+")[-1].removeprefix("no-")
+            ks, v = _rates(r, floor)
+            label = SOURCE_LABELS.get(source, r.label) if source != "queue" else "driver queue"
+            ax.plot(ks, v, "o-", color=_SOURCE_COLORS.get(source, "gray"), lw=1.2, ms=4, label=label)
+        if "all" in ref:
+            ks, v = _rates(ref["all"], floor)
+            ax.plot(ks, v, "k-", lw=2.4, label="all sources")
+        if "frames" in ref:
+            ks, v = _rates(ref["frames"], floor)
+            ax.plot(ks, v, "k:", lw=1.6, label="previous model (fixed b-frame lag)")
+        paper = sorted(PAPER_TABLE1.items())
+        ax.plot([k for k, _ in paper], [p for _, p in paper], "s--", color="#ff7f0e", lw=1.6, label="paper")
+        ax.set_yscale("log")
+        ax.set_ylim(floor * 0.8, 1.0)
+        ax.set_xticks(range(1, 6))
+        ax.set_xlabel("camera buffer size")
+        ax.set_title(title, fontsize=10)
+        ax.grid(alpha=0.3, which="both")
+    axes[0].set_ylabel("violation rate (rates of 0 at the bottom)")
+    handles, labels = axes[1].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=4, fontsize=8, frameon=False)
+    fig.tight_layout(rect=(0.0, 0.14, 1.0, 1.0))
+    return fig
+
+
+def plot_ages(frames: Mapping[str, pd.DataFrame], buffers: Sequence[int], period_ms: float) -> Figure:
+    """How much older each test image is than the state paired with it, per buffer size."""
+    fig = Figure(figsize=(6.4, 3.8))
+    ax = fig.subplots()
+    data = [1e3 * frames[f"pilot_k{b}"]["age"].to_numpy(float) for b in buffers]
+    ax.boxplot(data, positions=list(buffers), whis=(5, 95), showfliers=True, flierprops={"markersize": 2})
+    for j in range(1, 7):
+        ax.axhline(j * period_ms, color="gray", lw=0.6, ls=":")
+    ax.set_xlabel("camera buffer size")
+    ax.set_ylabel("image age (ms); dotted: camera periods")
+    ax.set_title("age of the test images (box: quartiles, whiskers: 5-95 %)")
+    ax.grid(alpha=0.3, axis="y")
+    fig.tight_layout()
+    return fig
+
+
+def draw_figures(
+    table: Table1,
+    ablation: VariantStudy,
+    paper_ipc: Sequence[LandingRun],
+    paper_baseline: Sequence[LandingRun],
+    mc_ipc: Sequence[LandingRun],
+    mc_baseline: Sequence[LandingRun],
+    coverage: Mapping[str, Any],
+    frames: Mapping[str, pd.DataFrame],
+    buffers: Sequence[int],
+    period_ms: float = 1e3 / 60.0,
+) -> dict[str, bytes]:
+    """Every figure of a reproduction as PNG bytes, by name."""
+    return {
+        "table1": figure_png(plot_table1(table)),
+        "ablation": figure_png(plot_ablation(ablation)),
+        "ages": figure_png(plot_ages(frames, buffers, period_ms)),
+        "topview": figure_png(plot_topview(paper_ipc, paper_baseline)),
+        "campaign": figure_png(plot_campaign(mc_ipc, mc_baseline)),
+        "trajectories": figure_png(plot_trajectories(paper_ipc, paper_baseline)),
+        "coverage": figure_png(plot_coverage(coverage)),
+    }

@@ -2,18 +2,20 @@
 
 :func:`reproduce` runs, with progress bars:
 
-1. **Data** (cached in ``OUT/data``, collected in parallel processes): training and
-   calibration sets at buffer size 1 and at the landing buffer size, and test sets at every
-   Table I buffer size on shared paths (:mod:`.datasets`: exploration paths plus approach
-   flights).
-2. **IPCs** (cached in ``OUT/models``): the paper's network trained at buffer size 1 (Table I)
-   and at the landing buffer size, each PAC-calibrated on its own calibration set
-   (:mod:`.learn`) and certified on its test set (:func:`ipcverify.certify.certify`,
-   written to ``OUT/certificates``).
-3. **Table I** (:mod:`.table1`).
-4. **Landing**: the paper-style runs (10 random pads) and the Monte Carlo campaign, each with
-   the learned IPC and with the trivial baseline on the same scenarios (:mod:`.campaign`),
-   and the buffer-1 control experiment.
+1. **Data** (cached in ``OUT/data``, collected in parallel processes, each flight flown once
+   and measured with every camera that needs it, :mod:`.collection`): training, calibration
+   and held-out test sets at buffer size 1 (and at the extra landing buffer size), the pilot
+   test sets of Table I at every buffer size, and the same for every camera variant of the
+   ablation (:mod:`.variants`).
+2. **IPCs** (cached in ``OUT/models``): the paper's network trained and PAC-calibrated at buffer
+   size 1 (:mod:`.learn`) and certified on its held-out test set
+   (:func:`ipcverify.certify.certify`, written to ``OUT/certificates``); likewise at the extra
+   landing buffer size.
+3. **Table I** on the pilot test flights (:mod:`.table1`), and the **ablation**: Table I of every
+   camera variant, each with its own buffer-1 IPC (:mod:`.variants`).
+4. **Landing at buffer size 1** (the paper's setting): the paper-style runs (10 random pads) and
+   the Monte Carlo campaign, each with the learned IPC and with the trivial baseline on the
+   same scenarios (:mod:`.campaign`); the same at the extra buffer size if asked for.
 5. **Certified vs empirical** (:mod:`.certified`): the bound on the unsafe-landing probability,
    the empirical rate with its interval, the closed loop's own violations and coverage.
 6. ``OUT/summary.json`` and the self-contained ``OUT/report.html`` (:mod:`.report_page`),
@@ -22,11 +24,6 @@
 The claims the issue asks for are evaluated (:mod:`.claims`) with the statistics that
 support them (or do not). The results are frozen dataclasses (:mod:`.results`);
 ``summary.json`` is :meth:`.results.ReproductionSummary.to_dict`.
-
-:func:`reproduce` is a short pipeline; each step is a function of its own:
-:func:`_collect_datasets`, :func:`_learn_ipcs`, :func:`.table1.table1`,
-:func:`_fly_campaigns`, :func:`_judge_landing`, :func:`_draw_figures`, then
-:func:`_summarize` and :func:`_write`.
 """
 
 from __future__ import annotations
@@ -34,6 +31,7 @@ from __future__ import annotations
 import dataclasses
 import os
 import platform
+import resource
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -41,34 +39,31 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import joblib
+import pandas as pd
 import torch
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-from case_studies.quad_landing.data.approach import ApproachParams
-from case_studies.quad_landing.data.datasets import as_dataset, cached_mixed, is_cached
+from case_studies.quad_landing.data.datasets import DatasetSpec
 from case_studies.quad_landing.landing.contracts import Contract, LearnedContract, TrivialContract
 from case_studies.quad_landing.landing.runs import LandingRun
 from case_studies.quad_landing.reproduction.campaign import default_jobs, run_campaign, summarize
 from case_studies.quad_landing.reproduction.certified import (
-    CertifiedBound,
     certified_bound,
     closed_loop_violations,
     coverage_check,
     unsafe_vs_certified,
 )
 from case_studies.quad_landing.reproduction.claims import evaluate_claims
+from case_studies.quad_landing.reproduction.collection import DatasetPlan, collect_plan, spec_path
 from case_studies.quad_landing.reproduction.config import ReproduceConfig, load_reproduce_config
-from case_studies.quad_landing.reproduction.figures import (
-    figure_png,
-    plot_campaign,
-    plot_coverage,
-    plot_table1,
-    plot_topview,
-    plot_trajectories,
+from case_studies.quad_landing.reproduction.figures import draw_figures
+from case_studies.quad_landing.reproduction.learn import (
+    cached_ipc,
+    calibration_summary,
+    certified_epsilon,
+    flight_level_check,
 )
-from case_studies.quad_landing.reproduction.learn import cached_ipc, calibration_summary, certified_epsilon
 from case_studies.quad_landing.reproduction.report_page import render_report
 from case_studies.quad_landing.reproduction.results import (
     PAPER_LANDING,
@@ -78,7 +73,14 @@ from case_studies.quad_landing.reproduction.results import (
     LandingExperiment,
     ReproductionSummary,
 )
-from case_studies.quad_landing.reproduction.table1 import Table1, table1
+from case_studies.quad_landing.reproduction.table1 import table1
+from case_studies.quad_landing.reproduction.timing_stats import camera_timing_summary, table1_protocol
+from case_studies.quad_landing.reproduction.variants import (
+    VariantStudy,
+    ablation_variants,
+    plan_variants,
+    variant_tables,
+)
 from case_studies.quad_landing.sim.config import SimConfig, load_config
 from ipcverify.data import PerceptionDataset
 from ipcverify.errors import InvalidInputError
@@ -88,9 +90,11 @@ from ipcverify.model import IPCModel
 __all__ = ["SEEDS", "PAPER_LANDING", "REPORT_DELTA", "ReproduceResult", "reproduce"]
 
 #: Seeds of the datasets and campaigns (different seeds: disjoint paths, flights, pads).
-SEEDS = {"train": 0, "calibration": 1, "test": 2, "paper": 10, "monte_carlo": 11, "buffer1": 12}
+SEEDS = {"train": 0, "calibration": 1, "test": 2, "pilot": 3, "paper": 10, "monte_carlo": 11}
 #: Confidence parameter of the reported intervals (two-sided 95 %).
 REPORT_DELTA = 0.05
+#: Name prefix of the ablation's datasets and models.
+ABLATION_PREFIX = "abl-"
 
 
 @dataclass(frozen=True)
@@ -107,7 +111,7 @@ class _Stages:
 
     def __init__(self, show: bool, console: Console | None) -> None:
         self.progress = Progress(
-            TextColumn("{task.description:<34}"),
+            TextColumn("{task.description:<38}"),
             BarColumn(),
             MofNCompleteColumn(),
             TimeElapsedColumn(),
@@ -139,54 +143,61 @@ class _Run:
     stages: _Stages
 
     @property
+    def jobs(self) -> int:
+        """Worker processes for collection, ablation and campaigns."""
+        return 1 if self.backend == "sequential" else (self.n_jobs or default_jobs())
+
+    @property
     def landing_buffer(self) -> int:
-        """The buffer size of the landing runs (``[landing] buffer_size``)."""
+        """The buffer size of the landing runs (``[landing] buffer_size``: the paper's 1)."""
         return self.cfg.landing.buffer_size
 
     @property
-    def ipc_buffers(self) -> list[int]:
-        """Buffer sizes an IPC is learned at: 1 (Table I) and the landing's."""
-        return sorted({1, self.landing_buffer})
+    def extra_buffer(self) -> int | None:
+        """The extra landing experiment's buffer size, or None when it is skipped."""
+        sizes = self.cfg.sizes
+        if not sizes.extra_landing_runs or sizes.extra_landing_buffer == self.landing_buffer:
+            return None
+        return sizes.extra_landing_buffer
 
     @property
-    def test_buffers(self) -> list[int]:
-        """Buffer sizes with a test set: Table I's and the landing's."""
-        return sorted({*self.cfg.sizes.buffers, self.landing_buffer})
-
-
-@dataclass(frozen=True)
-class _DatasetSpec:
-    """One dataset of the reproduction: name, size, buffer size and seed."""
-
-    name: str
-    n: int
-    buffer_size: int
-    seed: int
-
-    def path(self, out_dir: Path) -> Path:
-        return out_dir / "data" / f"{self.name}.parquet"
+    def ipc_buffers(self) -> list[int]:
+        """Buffer sizes an IPC is learned at: 1 (Table I), the landing's, the extra one's."""
+        extra = {self.extra_buffer} if self.extra_buffer is not None else set()
+        return sorted({1, self.landing_buffer} | extra)
 
 
 @dataclass(frozen=True)
 class _Flights:
-    """The landing runs of every campaign (the buffer-1 ones None when skipped)."""
+    """The landing runs at one buffer size: paper-style and Monte Carlo, both contracts."""
 
+    buffer_size: int
     paper_ipc: tuple[LandingRun, ...]
     paper_baseline: tuple[LandingRun, ...]
     mc_ipc: tuple[LandingRun, ...]
     mc_baseline: tuple[LandingRun, ...]
-    buffer1_ipc: tuple[LandingRun, ...] | None
-    buffer1_baseline: tuple[LandingRun, ...] | None
 
 
-def _machine() -> dict[str, Any]:
+def _machine(load_start: tuple[float, float, float]) -> dict[str, Any]:
+    """Where it ran, and how busy the machine was (other work slows every stage down)."""
     return {
         "cpu_count": os.cpu_count(),
         "cores_available": default_jobs(),
         "platform": platform.platform(),
         "python": platform.python_version(),
         "torch": torch.__version__,
+        "load_average_start": list(load_start),
+        "load_average_end": list(os.getloadavg()),
     }
+
+
+def _cpu_seconds() -> float:
+    """CPU time of this process and of its finished worker processes (the reusable pool is shut down)."""
+    from joblib.externals.loky import get_reusable_executor
+
+    get_reusable_executor().shutdown(wait=True)
+    own, children = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return round(own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime, 1)
 
 
 def _start(
@@ -206,54 +217,32 @@ def _start(
     return _Run(cfg, sim, out_dir, n_jobs, backend, stages)
 
 
-def _dataset_specs(run: _Run) -> list[_DatasetSpec]:
-    """Test sets at every test buffer size; training and calibration sets at every IPC's."""
-    sizes = run.cfg.sizes
-    specs = [_DatasetSpec(f"test_k{b}", sizes.n_test, b, SEEDS["test"]) for b in run.test_buffers]
+def _plan(run: _Run) -> DatasetPlan:
+    """Every dataset: the IPCs' training, calibration and test sets, Table I's pilot sets, the ablation's."""
+    plan, sizes, out = DatasetPlan(), run.cfg.sizes, run.out_dir
+
+    def add(kind: str, part: str, n: int, k: int) -> None:
+        name = f"{part}_k{k}"
+        plan.add(kind, SEEDS[part], DatasetSpec(name, run.sim, k, n, spec_path(out, name)))
+
     for k in run.ipc_buffers:
-        specs += [
-            _DatasetSpec(f"train_k{k}", sizes.n_train, k, SEEDS["train"]),
-            _DatasetSpec(f"calibration_k{k}", sizes.n_calibration, k, SEEDS["calibration"]),
-        ]
-    return specs
+        add("mixed", "train", sizes.n_train, k)
+        add("mixed", "calibration", sizes.n_calibration, k)
+        add("mixed", "test", sizes.n_test, k)
+    for b in sizes.buffers:
+        add("pilot", "pilot", sizes.n_pilot, b)
+    plan_variants(plan, ablation_variants(run.sim), prefix=ABLATION_PREFIX, sizes=run.cfg.ablation,
+                  buffers=sizes.buffers, seeds=SEEDS, out_dir=out)  # fmt: skip
+    return plan
 
 
-def _collect_one(path: Path, n: int, k: int, seed: int, approach: ApproachParams, sim: SimConfig) -> int:
-    """Collect one dataset into the cache (a joblib task; OpenCV single-threaded per process)."""
-    import cv2
-
-    cv2.setNumThreads(1)
-    cached_mixed(path, n, buffer_size=k, seed=seed, approach=approach, config=sim)
-    return n
-
-
-def _collect_datasets(run: _Run) -> dict[str, PerceptionDataset]:
-    """Step 1: collect the datasets not yet cached (in parallel, largest first), then load all."""
-    specs, approach, sim = _dataset_specs(run), run.cfg.approach, run.sim
-    todo = [
-        s
-        for s in specs
-        if not is_cached(
-            s.path(run.out_dir), s.n, buffer_size=s.buffer_size, seed=s.seed, approach=approach, config=sim
-        )
-    ]
-    todo.sort(key=lambda s: -s.n)  # largest first: better balance across workers
-    jobs = 1 if run.backend == "sequential" else (run.n_jobs or default_jobs())
-    with run.stages.stage(f"collect {len(todo)} datasets ({jobs} jobs)", sum(s.n for s in todo)) as bar:
-        tasks = (
-            joblib.delayed(_collect_one)(s.path(run.out_dir), s.n, s.buffer_size, s.seed, approach, sim)
-            for s in todo
-        )
-        parallel = joblib.Parallel(n_jobs=min(jobs, max(1, len(todo))), return_as="generator_unordered")
-        for done in parallel(tasks):
-            bar(done)
-    data = {}
-    for s in specs:
-        df, _ = cached_mixed(
-            s.path(run.out_dir), s.n, buffer_size=s.buffer_size, seed=s.seed, approach=approach, config=sim
-        )
-        data[s.name] = as_dataset(df, source=f"{s.name}.parquet")
-    return data
+def _collect_datasets(run: _Run) -> tuple[dict[str, PerceptionDataset], dict[str, pd.DataFrame]]:
+    """Step 1: collect the datasets not yet cached (flights flown once per task), then load all."""
+    plan = _plan(run)
+    total = sum(s.n for s in plan.specs)
+    with run.stages.stage(f"collect {len(plan.specs)} datasets ({run.jobs} jobs)", total) as bar:
+        return collect_plan(plan, approach=run.cfg.approach, pilot=run.cfg.pilot, config=run.sim,
+                            jobs=run.jobs, progress=bar)  # fmt: skip
 
 
 def _certify(model: IPCModel, test: PerceptionDataset, out_dir: Path) -> dict[str, Any]:
@@ -282,13 +271,26 @@ def _learn_ipcs(
             models[k], _ = cached_ipc(run.out_dir / "models" / f"ipc_k{k}.pt", train, cal, run.cfg.ipc)
         with run.stages.stage(f"certify IPC k={k}", 1):
             certificate = _certify(models[k], data[f"test_k{k}"], run.out_dir / "certificates" / f"ipc_k{k}")
+            flights = flight_level_check(models[k], cal, run.cfg.ipc.epsilon)
         summaries[k] = IpcSummary(
             buffer_size=k,
             calibration=calibration_summary(models[k]),
             certificate=certificate,
             n_parameters=models[k].n_parameters,
+            flight_level=flights,
         )
     return models, summaries
+
+
+def _ablation(run: _Run, data: dict[str, PerceptionDataset], frames: dict[str, pd.DataFrame]) -> VariantStudy:
+    """Step 3b: Table I of every camera variant, each with its own buffer-1 IPC."""
+    variants = ablation_variants(run.sim)
+    with run.stages.stage(f"ablation: {len(variants)} IPCs + Table I", len(variants)):
+        return variant_tables(
+            variants, prefix=ABLATION_PREFIX, datasets=data, frames=frames, ipc=run.cfg.ipc,
+            sizes=run.cfg.ablation, buffers=run.cfg.sizes.buffers, out_dir=run.out_dir, jobs=run.jobs,
+            delta=REPORT_DELTA,
+        )  # fmt: skip
 
 
 def _campaign(
@@ -311,42 +313,17 @@ def _campaign(
     return tuple(runs)
 
 
-def _fly_campaigns(run: _Run, models: dict[int, IPCModel]) -> _Flights:
-    """Step 4: paper-style and Monte Carlo runs of both contracts, and the buffer-1 control."""
-    sizes, k = run.cfg.sizes, run.landing_buffer
-    ipc, base = LearnedContract(models[k]), TrivialContract()
-    paper_ipc = _campaign(run, "paper runs: IPC", ipc, sizes.paper_runs, SEEDS["paper"], k)
-    paper_base = _campaign(run, "paper runs: baseline", base, sizes.paper_runs, SEEDS["paper"], k)
-    mc_ipc = _campaign(run, "Monte Carlo: IPC", ipc, sizes.mc_runs, SEEDS["monte_carlo"], k)
-    mc_base = _campaign(run, "Monte Carlo: baseline", base, sizes.mc_runs, SEEDS["monte_carlo"], k)
-    b1_ipc = b1_base = None
-    if sizes.buffer1_runs and k != 1:
-        b1_ipc = _campaign(
-            run, "buffer 1: IPC", LearnedContract(models[1]), sizes.buffer1_runs, SEEDS["buffer1"], 1
-        )
-        b1_base = _campaign(run, "buffer 1: baseline", base, sizes.buffer1_runs, SEEDS["buffer1"], 1)
-    return _Flights(paper_ipc, paper_base, mc_ipc, mc_base, b1_ipc, b1_base)
-
-
-def _landing_checks(
-    run: _Run, model: IPCModel, data: dict[str, PerceptionDataset], flights: _Flights
-) -> tuple[CertifiedBound, dict[str, Any], dict[str, Any]]:
-    """The certified bound on unsafe landings, the coverage check and the closed loop's violations."""
-    k, delta = run.landing_buffer, REPORT_DELTA
-    with run.stages.stage("certified bound and coverage", 1):
-        eps = certified_epsilon(model)
-        queries = [sum(q.detected for q in r.queries) for r in flights.mc_ipc]
-        max_queries = run.cfg.landing.max_measurements
-        bound = certified_bound(eps, run.cfg.ipc.delta, max_queries=max_queries, queries_per_run=queries)
-        coverage = coverage_check(
-            model,
-            data[f"calibration_k{k}"],
-            data[f"test_k{k}"],
-            [*flights.mc_ipc, *flights.paper_ipc],
-            delta=delta,
-        )
-        loop = closed_loop_violations(flights.mc_ipc, eps, delta)
-    return bound, coverage, loop
+def _fly_campaigns(run: _Run, model: IPCModel, k: int, mc_runs: int) -> _Flights:
+    """Step 4: paper-style and Monte Carlo runs of both contracts at buffer size ``k``."""
+    sizes, ipc, base = run.cfg.sizes, LearnedContract(model), TrivialContract()
+    at = f" (buffer {k})"
+    return _Flights(
+        buffer_size=k,
+        paper_ipc=_campaign(run, "paper runs: IPC" + at, ipc, sizes.paper_runs, SEEDS["paper"], k),
+        paper_baseline=_campaign(run, "paper runs: baseline" + at, base, sizes.paper_runs, SEEDS["paper"], k),
+        mc_ipc=_campaign(run, "Monte Carlo: IPC" + at, ipc, mc_runs, SEEDS["monte_carlo"], k),
+        mc_baseline=_campaign(run, "Monte Carlo: baseline" + at, base, mc_runs, SEEDS["monte_carlo"], k),
+    )
 
 
 def _judge_landing(
@@ -357,8 +334,15 @@ def _judge_landing(
     Returns the landing experiment and the full coverage check (with the distances the
     coverage figure draws).
     """
-    bound, coverage, loop = _landing_checks(run, model, data, flights)
-    delta = REPORT_DELTA
+    k, delta = flights.buffer_size, REPORT_DELTA
+    with run.stages.stage(f"certified bound and coverage (buffer {k})", 1):
+        eps = certified_epsilon(model)
+        queries = [sum(q.detected for q in r.queries) for r in flights.mc_ipc]
+        bound = certified_bound(eps, run.cfg.ipc.delta, max_queries=run.cfg.landing.max_measurements,
+                                queries_per_run=queries)  # fmt: skip
+        coverage = coverage_check(model, data[f"calibration_k{k}"], data[f"test_k{k}"],
+                                  [*flights.mc_ipc, *flights.paper_ipc], delta=delta)  # fmt: skip
+        loop = closed_loop_violations(flights.mc_ipc, eps, delta)
     ipc = ContractResults(
         monte_carlo=summarize(flights.mc_ipc, delta),
         runs=flights.mc_ipc,
@@ -374,7 +358,7 @@ def _judge_landing(
         paper_runs=flights.paper_baseline,
     )
     landing = LandingExperiment(
-        buffer_size=run.landing_buffer,
+        buffer_size=k,
         tracking_tolerance=run.cfg.landing.tracking_tolerance,
         max_measurements=run.cfg.landing.max_measurements,
         ipc=ipc,
@@ -385,64 +369,14 @@ def _judge_landing(
     return landing, coverage
 
 
-def _control(flights: _Flights) -> ControlExperiment | None:
-    """The buffer-1 control experiment, if it was flown."""
-    if flights.buffer1_ipc is None or flights.buffer1_baseline is None:
-        return None
-    return ControlExperiment(
-        buffer_size=1,
-        ipc=summarize(flights.buffer1_ipc, REPORT_DELTA),
-        baseline=summarize(flights.buffer1_baseline, REPORT_DELTA),
-    )
-
-
 def _write_bytes(path: Path, data: bytes) -> None:
     atomic_write(path, lambda fh: fh.write(data))
 
 
-def _draw_figures(run: _Run, table: Table1, flights: _Flights, coverage: dict[str, Any]) -> dict[str, bytes]:
-    """Step 6: the figures as PNG bytes, also written to ``OUT/figures``."""
-    with run.stages.stage("figures and report", 1):
-        figs = {
-            "topview": figure_png(plot_topview(flights.paper_ipc, flights.paper_baseline)),
-            "campaign": figure_png(plot_campaign(flights.mc_ipc, flights.mc_baseline)),
-            "table1": figure_png(plot_table1(table)),
-            "trajectories": figure_png(plot_trajectories(flights.paper_ipc, flights.paper_baseline)),
-            "coverage": figure_png(plot_coverage(coverage)),
-        }
-        for name, png in figs.items():
-            _write_bytes(run.out_dir / "figures" / f"{name}.png", png)
-    return figs
-
-
-def _summarize(
-    run: _Run,
-    ipcs: dict[int, IpcSummary],
-    table: Table1,
-    landing: LandingExperiment,
-    control: ControlExperiment | None,
-    started: float,
-) -> ReproductionSummary:
-    """Everything found, with the claims and the timings (:class:`.results.ReproductionSummary`)."""
-    return ReproductionSummary(
-        quick=run.cfg.quick,
-        settings=run.cfg,
-        seeds=SEEDS,
-        ipcs=ipcs,
-        table1=table,
-        landing=landing,
-        landing_buffer1=control,
-        claims=evaluate_claims(table, landing),
-        machine=_machine(),
-        jobs=run.n_jobs or default_jobs(),
-        backend=run.backend,
-        stage_seconds=dict(run.stages.seconds),
-        runtime_seconds=round(time.perf_counter() - started, 1),
-    )
-
-
 def _write(run: _Run, summary: ReproductionSummary, figures: dict[str, bytes]) -> ReproduceResult:
-    """``OUT/summary.json`` (the library's JSON encoder) and the report page rendered from it."""
+    """``OUT/summary.json`` (the library's JSON encoder), the figures and the report page."""
+    for name, png in figures.items():
+        _write_bytes(run.out_dir / "figures" / f"{name}.png", png)
     summary_path, report_path = run.out_dir / "summary.json", run.out_dir / "report.html"
     content = json_data(summary)
     write_json(summary_path, content, indent=1)
@@ -476,7 +410,7 @@ def reproduce(
     sim_config : SimConfig, optional
         The simulator (default: ``defaults.toml``).
     n_jobs : int, optional
-        Parallel workers for the landing campaigns (default: all cores).
+        Parallel workers (default: all cores).
     backend : {"loky", "sequential", "ray"}
         joblib backend of the campaigns (:mod:`.campaign`).
     progress : bool
@@ -489,15 +423,49 @@ def reproduce(
     ReproduceResult
         The :class:`.results.ReproductionSummary` and the paths of the files written.
     """
-    started = time.perf_counter()
+    started, load_start = time.perf_counter(), os.getloadavg()
+    cpu_start = _cpu_seconds()
     cfg = config or load_reproduce_config(quick=quick)
     run = _start(out, cfg, sim_config or load_config(), n_jobs, backend, _Stages(progress, console))
+    delta, sizes = REPORT_DELTA, cfg.sizes
     with run.stages.progress:
-        data = _collect_datasets(run)
+        data, frames = _collect_datasets(run)
         models, ipcs = _learn_ipcs(run, data)
-        table = table1(models[1], {b: data[f"test_k{b}"] for b in cfg.sizes.buffers}, REPORT_DELTA)
-        flights = _fly_campaigns(run, models)
-        landing, coverage = _judge_landing(run, models[run.landing_buffer], data, flights)
-        figures = _draw_figures(run, table, flights, coverage)
-    summary = _summarize(run, ipcs, table, landing, _control(flights), started)
+        table = table1(models[1], {b: data[f"pilot_k{b}"] for b in sizes.buffers}, delta)
+        ablation = _ablation(run, data, frames)
+        k = run.landing_buffer
+        flights = _fly_campaigns(run, models[k], k, sizes.mc_runs)
+        landing, coverage = _judge_landing(run, models[k], data, flights)
+        extra = None
+        if run.extra_buffer is not None:
+            e = run.extra_buffer
+            extra_flights = _fly_campaigns(run, models[e], e, sizes.extra_landing_runs)
+            extra, _ = _judge_landing(run, models[e], data, extra_flights)
+        with run.stages.stage("figures and report", 1):
+            figures = draw_figures(table, ablation, flights.paper_ipc, flights.paper_baseline, flights.mc_ipc,
+                                   flights.mc_baseline, coverage, frames, sizes.buffers)  # fmt: skip
+    summary = ReproductionSummary(
+        quick=cfg.quick,
+        settings=cfg,
+        seeds=SEEDS,
+        ipcs=ipcs,
+        table1=table,
+        landing=landing,
+        landing_buffer1=ControlExperiment(
+            buffer_size=k, ipc=landing.ipc.monte_carlo, baseline=landing.baseline.monte_carlo
+        )
+        if k == 1
+        else None,  # fmt: skip
+        landing_buffer3=extra,
+        ablation=ablation,
+        camera_timing=camera_timing_summary(run.sim, frames, sizes.buffers),
+        table1_protocol=table1_protocol(cfg, frames),
+        claims=evaluate_claims(table, landing),
+        machine=_machine(load_start),
+        jobs=run.jobs,
+        backend=run.backend,
+        stage_seconds=dict(run.stages.seconds),
+        runtime_seconds=round(time.perf_counter() - started, 1),
+        cpu_seconds=round(_cpu_seconds() - cpu_start, 1),
+    )
     return _write(run, summary, figures)

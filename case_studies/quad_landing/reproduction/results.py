@@ -10,11 +10,13 @@ never renamed or removed.
 * :class:`ContractResults` — one contract's landings: the Monte Carlo campaign and the
   paper-style runs (:class:`~.campaign.CampaignSummary` each, and the runs), with the
   certified bound for the IPC (:class:`~.certified.CertifiedBound`).
-* :class:`LandingExperiment` — both contracts at the landing buffer size, the closed
-  loop's own violations and the coverage check.
-* :class:`ControlExperiment` — the same landing at buffer size 1.
-* :class:`ReproductionSummary` — all of it, Table I (:class:`~.table1.Table1`) and the
-  claims (:class:`~.claims.Claim`).
+* :class:`LandingExperiment` — both contracts at one buffer size, the closed loop's own
+  violations and the coverage check: ``landing`` is the paper's buffer size 1,
+  ``landing_buffer3`` the extra experiment at buffer size 3 (None when skipped).
+* :class:`ControlExperiment` — ``landing_buffer1``: the Monte Carlo counts at buffer size 1
+  (since the landing runs at buffer size 1, the same runs as ``landing``).
+* :class:`ReproductionSummary` — all of it, Table I (:class:`~.table1.Table1`), the ablation
+  (:class:`~.variants.VariantStudy`), the camera timing and the claims (:class:`~.claims.Claim`).
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ from case_studies.quad_landing.reproduction.certified import CertifiedBound, Emp
 from case_studies.quad_landing.reproduction.claims import Claim
 from case_studies.quad_landing.reproduction.config import ReproduceConfig
 from case_studies.quad_landing.reproduction.table1 import PAPER_TABLE1, Table1
+from case_studies.quad_landing.reproduction.variants import VariantStudy
 from ipcverify.errors import InvalidInputError
 
 __all__ = [
@@ -53,16 +56,19 @@ SUMMARY_VERSION = 1
 
 @dataclass(frozen=True, kw_only=True)
 class IpcSummary:
-    """One learned IPC: buffer size, calibration, test certificate and size.
+    """One learned IPC: buffer size, calibration, test certificate, size and flight-level check.
 
     ``calibration`` and ``certificate`` are the library's plain data
-    (:func:`~.learn.calibration_summary`, :func:`ipcverify.certify.certify`).
+    (:func:`~.learn.calibration_summary`, :func:`ipcverify.certify.certify`);
+    ``flight_level`` is :func:`~.learn.flight_level_check` (the same network calibrated with
+    the calibration flights as the exchangeable units).
     """
 
     buffer_size: int
     calibration: Mapping[str, Any]
     certificate: Mapping[str, Any]
     n_parameters: int
+    flight_level: Mapping[str, Any] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """``summary.json``'s ``ipc.k<buffer size>``."""
@@ -71,6 +77,7 @@ class IpcSummary:
             "calibration": dict(self.calibration),
             "certificate": dict(self.certificate),
             "n_parameters": self.n_parameters,
+            "flight_level": None if self.flight_level is None else dict(self.flight_level),
         }
 
 
@@ -169,7 +176,7 @@ class LandingExperiment:
 
 @dataclass(frozen=True, kw_only=True)
 class ControlExperiment:
-    """The lag control: the same landing at ``buffer_size`` (1), IPC and baseline."""
+    """The Monte Carlo counts of the landing at ``buffer_size`` (1), IPC and baseline."""
 
     buffer_size: int
     ipc: CampaignSummary
@@ -201,15 +208,22 @@ class ReproductionSummary:
     table1 : Table1
         Table I.
     landing : LandingExperiment
-        The landing at the landing buffer size.
+        The landing at the landing buffer size (the paper's 1).
     landing_buffer1 : ControlExperiment or None
-        The buffer-1 control (None if skipped).
+        The buffer-1 Monte Carlo counts (the same runs as ``landing`` at buffer size 1).
+    landing_buffer3 : LandingExperiment or None
+        The extra landing experiment (buffer size 3, IPC learned there), None if skipped.
+    ablation : VariantStudy
+        Table I of every camera variant (error sources alone and removed).
+    camera_timing, table1_protocol : mapping
+        The timing parameters, image ages and errors per buffer size; how Table I was tested.
     claims : mapping of str to Claim
         The acceptance claims (:func:`~.claims.evaluate_claims`).
     machine, jobs, backend
         Where and how it ran.
-    stage_seconds, runtime_seconds
-        How long it took.
+    stage_seconds, runtime_seconds, cpu_seconds
+        How long it took: per stage and in total (wall clock), and the CPU time of this process
+        and its worker processes (what the run costs whatever else the machine is doing).
     """
 
     quick: bool
@@ -219,12 +233,17 @@ class ReproductionSummary:
     table1: Table1
     landing: LandingExperiment
     landing_buffer1: ControlExperiment | None
+    landing_buffer3: LandingExperiment | None
+    ablation: VariantStudy
+    camera_timing: Mapping[str, Any]
+    table1_protocol: Mapping[str, Any]
     claims: Mapping[str, Claim]
     machine: Mapping[str, Any]
     jobs: int
     backend: str
     stage_seconds: Mapping[str, float]
     runtime_seconds: float
+    cpu_seconds: float
 
     def to_dict(self) -> dict[str, Any]:
         """The content of ``summary.json`` (every key it has always had)."""
@@ -240,10 +259,15 @@ class ReproductionSummary:
             "table1_rising": self.table1.rising().to_dict(),
             "landing": self.landing.to_dict(),
             "landing_buffer1": None if self.landing_buffer1 is None else self.landing_buffer1.to_dict(),
+            "landing_buffer3": None if self.landing_buffer3 is None else self.landing_buffer3.to_dict(),
+            "ablation": self.ablation.to_dict(),
+            "camera_timing": dict(self.camera_timing),
+            "table1_protocol": dict(self.table1_protocol),
             "machine": dict(self.machine),
             "jobs": self.jobs,
             "backend": self.backend,
             "claims": {name: claim.to_dict() for name, claim in self.claims.items()},
             "stage_seconds": dict(self.stage_seconds),
             "runtime_seconds": self.runtime_seconds,
+            "cpu_seconds": self.cpu_seconds,
         }

@@ -31,6 +31,7 @@ from case_studies.quad_landing.sim.dynamics import QuadParams
 from case_studies.quad_landing.sim.lqr import LqrParams, SettleParams
 from case_studies.quad_landing.sim.marker import MarkerParams, Pad
 from case_studies.quad_landing.sim.render import RenderParams
+from case_studies.quad_landing.sim.timing import CameraTimingParams
 
 __all__ = ["SimParams", "CollectParams", "SimConfig", "load_config", "SIM_SECTIONS"]
 
@@ -140,6 +141,7 @@ class SimConfig:
     pad: Pad
     render: RenderParams
     detector: DetectorParams
+    camera_timing: CameraTimingParams
     paths: PathParams
     collect: CollectParams
 
@@ -153,6 +155,13 @@ class SimConfig:
         lo, hi = np.asarray(self.sim.workspace_min), np.asarray(self.sim.workspace_max)
         if np.any(self.pad.position < lo) or np.any(self.pad.position > hi):
             raise ConfigError(f"pad.position {self.pad.position.tolist()} is outside the workspace")
+
+    @property
+    def sensor_render(self) -> RenderParams:
+        """``[render]`` as the camera uses it: no sensor noise when the noise source is off."""
+        if self.camera_timing.enabled("noise"):
+            return self.render
+        return dataclasses.replace(self.render, noise_std=0.0)
 
     @property
     def substeps(self) -> int:
@@ -181,6 +190,7 @@ SIM_SECTIONS: dict[str, type[TomlSection]] = {
         Pad,
         RenderParams,
         DetectorParams,
+        CameraTimingParams,
         PathParams,
         CollectParams,
     )

@@ -1,11 +1,13 @@
-"""The closed-loop simulator: quadrotor, LQR, camera with a lagging frame buffer, ArUco.
+"""The closed-loop simulator: quadrotor, LQR, a camera with its timing, ArUco.
 
 :class:`Flight` is the library entry point for anything that flies: data collection
-(:mod:`.collect`) and a landing state machine. Time advances in whole camera frames;
-each frame runs ``physics_rate / fps`` RK4 steps of the CasADi model with the LQR
-evaluated at every step, then the camera captures an image of the current state into
-the frame buffer. A :meth:`Flight.measure` reads the buffer (an image ``k`` frames old)
-and pairs it with the *current* state, as on the real vehicle.
+(:mod:`.collect`) and a landing state machine. Time advances in whole camera frames of
+the simulator's clock; each frame runs ``physics_rate / fps`` RK4 steps of the CasADi
+model with the LQR evaluated at every step and appends the state to the flight's
+:class:`.history.StateHistory`. A :meth:`Flight.measure` asks the camera stage
+(:func:`.camera_stage.make_camera_stage`, chosen by ``[camera_timing]``) for the image the
+application has now — with the timing model, the frame the reader loop last processed,
+exposed on the camera's own clock — and the motion-capture state paired with it.
 
 Examples
 --------
@@ -33,17 +35,18 @@ from numpy.typing import ArrayLike, NDArray
 from case_studies.quad_landing.data.paths import ExplorationPath
 from case_studies.quad_landing.perception.aruco import ArucoPerception
 from case_studies.quad_landing.sim.camera import Camera
+from case_studies.quad_landing.sim.camera_stage import make_camera_stage
 from case_studies.quad_landing.sim.config import SimConfig, load_config
 from case_studies.quad_landing.sim.dynamics import rk4_step
-from case_studies.quad_landing.sim.features import camera_frame_state
-from case_studies.quad_landing.sim.framebuffer import Frame, FrameBuffer
 from case_studies.quad_landing.sim.frames import Pose, wrap_angle
+from case_studies.quad_landing.sim.history import StateHistory
 from case_studies.quad_landing.sim.lqr import HoverLqr, Reference, SettleParams
 from case_studies.quad_landing.sim.marker import Pad
+from case_studies.quad_landing.sim.measurement import Measurement
 from case_studies.quad_landing.sim.render import Renderer
 from ipcverify.errors import InvalidInputError
 
-__all__ = ["Flight", "Measurement", "FlyResult", "LandingResult"]
+__all__ = ["Flight", "Measurement", "FlyResult", "LandingResult"]  # Measurement: from .measurement
 
 FloatArray = NDArray[np.float64]
 ReferenceLike = Reference | Callable[[float], Reference] | None
@@ -68,55 +71,6 @@ class _BufferedFunction:
         return self._res[0].copy()
 
 
-@dataclass(frozen=True, eq=False)
-class Measurement:
-    """One lagged camera measurement paired with the current state.
-
-    Attributes
-    ----------
-    time : float
-        Time of the measurement (s).
-    capture_time : float
-        When the image used was captured (``time - k / fps``).
-    state : ndarray, shape (12,)
-        Current world-frame state (the motion-capture state).
-    x_c : ndarray, shape (12,)
-        Current state in the camera frame (see :mod:`.features`).
-    y_c : ndarray, shape (3,)
-        True pad centre in the current camera frame (m).
-    yhat_c : ndarray, shape (3,) or None
-        Perceived pad centre from the lagged image, or None without a detection.
-    world_from_camera : Pose
-        ``T_WC`` at the current state: ``y_W = R y_C + t``.
-    pad_in_view : bool
-        Whether the marker was entirely inside the (lagged) image that was used.
-    """
-
-    time: float
-    capture_time: float
-    state: FloatArray
-    x_c: FloatArray
-    y_c: FloatArray
-    yhat_c: FloatArray | None
-    world_from_camera: Pose
-    pad_in_view: bool
-
-    @property
-    def detected(self) -> bool:
-        """True if the marker was detected."""
-        return self.yhat_c is not None
-
-    @property
-    def y_w(self) -> FloatArray:
-        """True pad centre in W."""
-        return self.world_from_camera.apply(self.y_c)
-
-    @property
-    def yhat_w(self) -> FloatArray | None:
-        """Perceived pad centre moved to W with the current camera pose, or None."""
-        return None if self.yhat_c is None else self.world_from_camera.apply(self.yhat_c)
-
-
 @dataclass(frozen=True)
 class FlyResult:
     """Outcome of :meth:`Flight.fly_to`: settled or not, and the time taken (s)."""
@@ -136,18 +90,19 @@ class LandingResult:
 
 
 class Flight:
-    """A simulated quadrotor flight with a lagged camera over a landing pad.
+    """A simulated quadrotor flight with a camera over a landing pad.
 
     Parameters
     ----------
     config : SimConfig, optional
         Defaults from ``defaults.toml`` when omitted.
     buffer_size : int
-        Camera buffer size ``k`` (frames of lag). The flight's only source of it: data
-        collection passes ``[collect] buffer_size`` (or its ``buffer_size`` argument), a
-        landing run ``[landing] buffer_size``.
+        Camera buffer size: the number of V4L2 buffers of the timing model (or ``k``
+        frames of lag with ``[camera_timing] model = "frames"``; 0 is an ideal camera). The
+        flight's only source of it: data collection passes ``[collect] buffer_size`` (or
+        its ``buffer_size`` argument), a landing run ``[landing] buffer_size``.
     seed : int
-        Seeds the sensor noise.
+        Seeds the sensor noise and the camera's timing draws.
 
     Notes
     -----
@@ -158,15 +113,20 @@ class Flight:
 
     def __init__(self, config: SimConfig | None = None, *, buffer_size: int, seed: int = 0) -> None:
         self.config = load_config() if config is None else config
-        self.buffer = FrameBuffer(buffer_size)
         self.camera = Camera(self.config.camera)
-        self.renderer = Renderer(self.camera, self.config.marker, self.config.render)
+        self.renderer = Renderer(self.camera, self.config.marker, self.config.sensor_render)
         self.perception = ArucoPerception(self.camera, self.config.marker, self.config.detector)
+        self.camera_stage = make_camera_stage(
+            self.config.camera_timing, buffer_size, self.camera, self.renderer, self.perception,
+            self.config.sim.ground_z,
+        )  # fmt: skip
+        self.history = StateHistory()
         self.controller = HoverLqr.design(self.config.quad, self.config.lqr)
         self.dt = 1.0 / self.config.sim.physics_rate
         self.step_function = rk4_step(self.config.quad, self.dt)
         self._step = _BufferedFunction(self.step_function)
         self._rng = np.random.default_rng(seed)
+        self._sensor_seed = 0
         self.pad: Pad = self.config.pad
         self._state: FloatArray | None = None
         self._time = 0.0
@@ -176,8 +136,13 @@ class Flight:
     # ------------------------------------------------------------------ state
     @property
     def buffer_size(self) -> int:
-        """Frames of camera lag ``k``."""
-        return self.buffer.size
+        """The camera buffer size."""
+        return self.camera_stage.buffer_size
+
+    @property
+    def sensor_seed(self) -> int:
+        """This flight's sensor seed (noise and camera timing), drawn at :meth:`reset`."""
+        return self._sensor_seed
 
     @property
     def state(self) -> FloatArray:
@@ -203,9 +168,10 @@ class Flight:
     def reset(self, state: ArrayLike, pad: Pad | None = None, *, seed: int | None = None) -> None:
         """Start a flight at ``state`` (12,) with the pad at ``pad`` (unchanged if None).
 
-        The frame buffer is filled with images of the start state, motors are on and
-        the reference is to hold the start position and heading. ``seed`` re-seeds the
-        sensor noise.
+        The state history starts with ``state`` at ``t = 0`` (before it, the vehicle is taken
+        to have been moving with the start velocity), the camera starts its flight, motors
+        are on and the reference is to hold the start position and heading. ``seed``
+        re-seeds the sensor noise and the camera's timing draws.
         """
         x = np.array(state, dtype=np.float64).reshape(-1)
         if x.shape != (12,) or not np.all(np.isfinite(x)):
@@ -222,7 +188,10 @@ class Flight:
         self._time = 0.0
         self.motors_on = True
         self._reference = Reference(x[:3], np.zeros(3), float(x[8]))
-        self.buffer.fill(self._capture())
+        self.history = StateHistory()
+        self.history.append(0.0, x)
+        self._sensor_seed = int(self._rng.integers(2**31))
+        self.camera_stage.begin(self.history, self.pad, self._sensor_seed)
 
     def _check_in_workspace(self, p: FloatArray, what: str) -> None:
         lo = np.asarray(self.config.sim.workspace_min)
@@ -238,13 +207,6 @@ class Flight:
         """``T_WC`` at ``state`` (default: the current state)."""
         return self.camera.world_from_camera(self._require_state() if state is None else state)
 
-    def _capture(self) -> Frame:
-        x = self._require_state().copy()
-        camera_from_world = self.camera_pose(x).inverse()
-        pad = self.pad
-        key = int(self._rng.integers(2**31))  # this frame's noise, fixed at capture
-        return Frame(self._time, x, render=lambda: self.renderer.render(camera_from_world, pad, key))
-
     def pad_in_view(self, state: ArrayLike | None = None, margin_px: float = 0.0) -> bool:
         """True if the whole white pad would be inside the image at ``state`` (default: now).
 
@@ -256,8 +218,8 @@ class Flight:
         return self.camera.in_view(outline, margin_px=margin_px)
 
     def latest_image(self) -> NDArray[np.uint8]:
-        """The newest captured image (the current state's, without lag)."""
-        return self.buffer.newest().image
+        """An image of the current state (no lag, no motion blur) with this flight's sensor noise."""
+        return self.renderer.render(self.camera_pose().inverse(), self.pad, self._sensor_seed)
 
     # ------------------------------------------------------------------ motion
     def _advance(self, p_ref: FloatArray, v_ref: FloatArray, ff: FloatArray, yaw_ref: FloatArray) -> None:
@@ -284,7 +246,7 @@ class Flight:
                 f"simulation diverged at t = {self._time:.3f} s; check the configuration"
             )
         self._state = x
-        self.buffer.capture(self._capture())
+        self.history.append(self._time, x)
 
     def step(self, reference: ReferenceLike = None) -> None:
         """Advance one camera frame, tracking ``reference`` (a Reference or ``t -> Reference``).
@@ -407,21 +369,10 @@ class Flight:
 
     # ------------------------------------------------------------------ perception
     def measure(self) -> Measurement:
-        """Read the (lagged) frame buffer, run ArUco, and pair it with the current state."""
-        x = self._require_state().copy()
-        frame = self.buffer.read()
-        yhat = self.perception.estimate(frame.image)
-        x_c, T_WC = camera_frame_state(x, self.camera, self.config.sim.ground_z)
-        y_c = T_WC.inverse().apply(self.pad.position)
-        corners = self.renderer.marker_corners_camera(self.camera_pose(frame.state).inverse(),
-                                                      self.pad)  # fmt: skip
-        return Measurement(
-            time=self._time,
-            capture_time=frame.time,
-            state=x,
-            x_c=x_c,
-            y_c=y_c,
-            yhat_c=yhat,
-            world_from_camera=T_WC,
-            pad_in_view=self.camera.in_view(corners),
-        )
+        """The measurement the application has now: the camera stage's image, detected, paired.
+
+        With the timing model the paired state is the motion-capture sample the reader loop
+        read; with the fixed lag it is the current state.
+        """
+        self._require_state()
+        return self.camera_stage.measure(self._time)

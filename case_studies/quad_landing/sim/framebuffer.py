@@ -1,23 +1,41 @@
-"""The camera's frame buffer: the source of the perception lag.
+"""The previous camera model: a fixed lag of ``k`` frame periods (``[camera_timing] model = "frames"``).
 
-The camera captures a frame at every tick (60 Hz). A driver buffer of size ``k`` keeps
-frames in order, so the frame the application reads at a control step was captured
-``k`` ticks earlier — rendered from the state of ``k`` frame periods ago — while the
-motion-capture state used with it is the current one. ``k = 0`` is an ideal camera
-(the frame of the current state), used as a no-lag reference.
+The camera captures a frame at every tick of the simulator's 60 Hz clock, rendered from
+the state at that tick; a buffer of ``k`` frames makes the frame the application reads at
+a tick the one captured ``k`` ticks earlier, paired with the *current* state. Before the
+flight the buffer is full of the start state's frame. ``k = 0`` is an ideal camera (the
+current state's frame), used as a no-lag reference whatever the model.
+
+This is the model the case study started with; the camera-timing model
+(:class:`.camera_stage.TimedCamera`) replaced it as the default.
+
+Examples
+--------
+>>> from case_studies.quad_landing import Flight, hover_state, load_config
+>>> cfg = load_config(overrides={"camera_timing": {"model": "frames"}})
+>>> flight = Flight(cfg, buffer_size=2, seed=0)
+>>> flight.reset(hover_state((0.0, 0.0, 1.2)))
+>>> for _ in range(5):
+...     flight.step()
+>>> m = flight.measure()
+>>> round(m.time - m.capture_time, 6) == round(2 / 60, 6)
+True
 """
 
 from __future__ import annotations
 
-from collections import deque
-from collections.abc import Callable
-
 import numpy as np
 from numpy.typing import NDArray
 
+from case_studies.quad_landing.perception.aruco import ArucoPerception
+from case_studies.quad_landing.sim.camera import Camera
+from case_studies.quad_landing.sim.history import StateHistory
+from case_studies.quad_landing.sim.marker import Pad
+from case_studies.quad_landing.sim.measurement import Measurement, pair
+from case_studies.quad_landing.sim.render import Renderer
 from ipcverify.errors import InvalidInputError
 
-__all__ = ["Frame", "FrameBuffer", "MAX_BUFFER_SIZE", "check_buffer_size"]
+__all__ = ["FrameLagCamera", "MAX_BUFFER_SIZE", "check_buffer_size", "noise_key"]
 
 #: Largest buffer size accepted (frames).
 MAX_BUFFER_SIZE = 30
@@ -31,100 +49,88 @@ def check_buffer_size(size: int) -> int:
     >>> check_buffer_size(3)
     3
     """
-    if int(size) != size or not 0 <= size <= MAX_BUFFER_SIZE:
+    if isinstance(size, bool) or int(size) != size or not 0 <= size <= MAX_BUFFER_SIZE:
         raise InvalidInputError(
             f"buffer size must be an integer in [0, {MAX_BUFFER_SIZE}] frames, got {size}"
         )
     return int(size)
 
 
-class Frame:
-    """One captured frame: capture time (s), the state it shows, and its image.
-
-    The image is either given or drawn by ``render()`` on first access and then kept.
-    ``render`` must depend only on what was fixed at capture (the state and the noise
-    draw), so a lazily drawn frame has exactly the pixels an eagerly drawn one would;
-    frames that are never read are simply never drawn.
+def noise_key(seed: int, frame: int) -> int:
+    """The sensor-noise key of camera frame ``frame`` of a flight seeded ``seed`` (>= 0).
 
     Examples
     --------
-    >>> f = Frame(0.0, np.zeros(12), render=lambda: np.zeros((2, 2), np.uint8))
-    >>> f.image.shape
-    (2, 2)
+    >>> noise_key(7, -3) == noise_key(7, -3), noise_key(7, 1) != noise_key(7, 2)
+    (True, True)
     """
-
-    __slots__ = ("time", "state", "_image", "_render")
-
-    def __init__(
-        self,
-        time: float,
-        state: NDArray[np.float64],
-        image: NDArray[np.uint8] | None = None,
-        render: Callable[[], NDArray[np.uint8]] | None = None,
-    ) -> None:
-        if (image is None) == (render is None):
-            raise InvalidInputError("give a Frame either an image or a render function")
-        self.time = float(time)
-        self.state = state
-        self._image = image
-        self._render = render
-
-    @property
-    def image(self) -> NDArray[np.uint8]:
-        """The frame's image (drawn now if it was not yet)."""
-        if self._image is None:
-            assert self._render is not None
-            self._image = self._render()
-            self._render = None
-        return self._image
+    return (int(seed) * 7919 + int(frame)) % (2**31)
 
 
-class FrameBuffer:
-    """A FIFO of the last ``size + 1`` captured frames; :meth:`read` returns the oldest.
+class FrameLagCamera:
+    """The ``k``-frame lag (see the module docstring).
 
     Parameters
     ----------
-    size : int
-        Buffer size ``k`` in frames (0 = no lag).
-
-    Examples
-    --------
-    >>> buf = FrameBuffer(2)
-    >>> img = np.zeros((2, 2), np.uint8)
-    >>> for i in range(5):
-    ...     buf.capture(Frame(float(i), np.zeros(12), img))
-    >>> buf.read().time  # captured 2 ticks before the newest (t = 4)
-    2.0
+    buffer_size : int
+        ``k``, frames of lag (0: no lag).
+    camera, renderer, perception
+        The simulator's camera, renderer and detector.
+    ground_z : float
+        Floor height in W (m).
     """
 
-    def __init__(self, size: int) -> None:
-        self.size = check_buffer_size(size)
-        self._frames: deque[Frame] = deque(maxlen=self.size + 1)
+    def __init__(
+        self,
+        buffer_size: int,
+        camera: Camera,
+        renderer: Renderer,
+        perception: ArucoPerception,
+        ground_z: float,
+    ) -> None:
+        self._k = check_buffer_size(buffer_size)
+        self.camera, self.renderer, self.perception, self.ground_z = camera, renderer, perception, ground_z
+        self._history: StateHistory | None = None
+        self._pad: Pad | None = None
+        self._seed = 0
+        self._cache: tuple[int, float, Measurement, NDArray[np.uint8]] | None = None
 
-    def capture(self, frame: Frame) -> None:
-        """Add the newest frame; the oldest beyond ``size + 1`` frames is dropped."""
-        self._frames.append(frame)
+    @property
+    def buffer_size(self) -> int:
+        """``k``."""
+        return self._k
 
-    def fill(self, frame: Frame) -> None:
-        """Empty the buffer and fill it with copies of ``frame`` (a still start)."""
-        self._frames.clear()
-        for _ in range(self.size + 1):
-            self._frames.append(frame)
+    def begin(self, history: StateHistory, pad: Pad, seed: int) -> None:
+        """Start a flight (the buffer holds the start state's frame)."""
+        self._history, self._pad, self._seed, self._cache = history, pad, int(seed), None
 
-    def read(self) -> Frame:
-        """The frame captured ``size`` ticks before the newest one."""
-        if len(self._frames) < self.size + 1:
-            raise InvalidInputError(
-                f"the frame buffer holds {len(self._frames)} of {self.size + 1} frames; "
-                "call fill() (Flight.reset does) before reading"
-            )
-        return self._frames[0]
+    def _tick_image(self, tick: int, t: float) -> NDArray[np.uint8]:
+        history, pad = self._require()
+        T_CW = self.camera.world_from_camera(history.state_at(t)).inverse()
+        return self.renderer.render(T_CW, pad, noise_key(self._seed, max(tick, 0)))
 
-    def newest(self) -> Frame:
-        """The most recently captured frame."""
-        if not self._frames:
-            raise InvalidInputError("the frame buffer is empty; call fill() first")
-        return self._frames[-1]
+    def _require(self) -> tuple[StateHistory, Pad]:
+        if self._history is None or self._pad is None:
+            raise InvalidInputError("call Flight.reset(state) before measuring")
+        return self._history, self._pad
 
-    def __len__(self) -> int:
-        return len(self._frames)
+    def measure(self, now: float) -> Measurement:
+        """The frame captured ``k`` ticks before ``now``, paired with the state at ``now``."""
+        history, pad = self._require()
+        fps = self.camera.params.fps
+        tick = int(round(now * fps)) - self._k
+        if self._cache is not None and self._cache[0] == tick and self._cache[1] == now:
+            return self._cache[2]
+        t_cap = now - self._k / fps if tick >= 0 else history.start
+        image = self._tick_image(tick, t_cap)
+        shown = self.camera.world_from_camera(history.state_at(t_cap)).inverse()
+        m = pair(history.state_at(now), now, t_cap, self.perception.estimate(image), shown,
+                 camera=self.camera, renderer=self.renderer, pad=pad, ground_z=self.ground_z)  # fmt: skip
+        self._cache = (tick, now, m, image)
+        return m
+
+    def image(self) -> NDArray[np.uint8]:
+        """The image of the last measurement."""
+        if self._cache is None:
+            raise InvalidInputError("no measurement yet: call measure() first")
+        return self._cache[3]

@@ -10,6 +10,11 @@ A camera frame is drawn in three steps:
    that maps its corners to their pinhole projections;
 3. optical blur (Gaussian) and sensor noise (Gaussian, in grey levels).
 
+The steps are public (:meth:`Renderer.draw_floor`, :meth:`Renderer.draw_pad`,
+:meth:`Renderer.sensor_effects`) so that an exposure can be composed from several
+geometry-only sub-renders before the sensor effects are applied once
+(:mod:`case_studies.quad_landing.sim.exposure`).
+
 The pad texture is kept as a pyramid of exact powers of two per cell; the level drawn
 is the largest not bigger than the projected pad, so bilinear sampling only magnifies
 and marker edges stay sharp and unbiased (no aliasing). Texture coordinates use the
@@ -21,6 +26,8 @@ OpenCV convention that pixel centres are integers, so a texture's outer edge is 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
+from typing import Any
 
 import cv2
 import numpy as np
@@ -90,6 +97,7 @@ class RenderParams(TomlSection):
                 raise InvalidInputError(f"render.{name} must be in [0, 20], got {value}")
 
 
+@lru_cache(maxsize=8)
 def _pad_textures(marker: MarkerParams) -> dict[int, UInt8Image]:
     d = aruco_dictionary(marker.dictionary)
     out: dict[int, UInt8Image] = {}
@@ -100,6 +108,7 @@ def _pad_textures(marker: MarkerParams) -> dict[int, UInt8Image]:
         tex[m : m + MARKER_CELLS * cell, m : m + MARKER_CELLS * cell] = cv2.aruco.generateImageMarker(
             d, int(marker.marker_id), MARKER_CELLS * cell, None, 1
         )
+        tex.setflags(write=False)
         out[tex.shape[0]] = tex
         cell *= 2
     return out
@@ -110,6 +119,7 @@ FLOOR_HALF = 5.0
 FLOOR_PX_PER_M = 102.4
 
 
+@lru_cache(maxsize=8)
 def _floor_texture(gray: int, tiles: bool) -> UInt8Image:
     rng = np.random.default_rng(FLOOR_SEED)
     n = int(round(2 * FLOOR_HALF * FLOOR_PX_PER_M))
@@ -121,7 +131,17 @@ def _floor_texture(gray: int, tiles: bool) -> UInt8Image:
         for k in range(0, n, step):
             img[:, k : k + 2] -= 35.0
             img[k : k + 2, :] -= 35.0
-    return np.clip(img, 0, 255).astype(np.uint8)
+    out = np.clip(img, 0, 255).astype(np.uint8)
+    out.setflags(write=False)  # shared by every renderer with these settings
+    return out
+
+
+@lru_cache(maxsize=4)
+def _noise_bank(std: float, height: int, width: int) -> NDArray[np.int16]:
+    bank = np.random.default_rng(FLOOR_SEED + 1).normal(0.0, std, (NOISE_BANK, height + 64, width + 64))
+    out = np.round(bank).astype(np.int16)
+    out.setflags(write=False)
+    return out
 
 
 @dataclass(eq=False)
@@ -168,7 +188,12 @@ class Renderer:
         """Marker corners in C, shape (4, 3), in ArUco order."""
         return camera_from_world.compose(pad.world_from_marker()).apply(self.marker.object_points())
 
-    def _draw_floor(self, img: UInt8Image, camera_from_world: Pose) -> None:
+    def draw_floor(self, img: UInt8Image, camera_from_world: Pose) -> None:
+        """Warp the floor texture seen from ``camera_from_world`` into ``img`` (full frame, in place).
+
+        Nothing is drawn (``img`` keeps its grey) when the floor plane does not fill the view
+        (horizon in view) or the texture does not reach the image corners.
+        """
         if self._floor is None:
             return
         p = self.camera.params
@@ -195,7 +220,15 @@ class Renderer:
             borderMode=cv2.BORDER_TRANSPARENT,
         )  # fmt: skip
 
-    def _draw_pad(self, img: UInt8Image, camera_from_world: Pose, pad: Pad) -> None:
+    def draw_pad(
+        self, img: UInt8Image, camera_from_world: Pose, pad: Pad, origin: tuple[int, int] = (0, 0)
+    ) -> None:
+        """Warp the pad texture into ``img`` (in place), whose pixel ``(0, 0)`` is image pixel ``origin``.
+
+        ``img`` may be a window of the frame (a region of interest around the pad); the pad
+        is drawn as it would be in the full frame. Nothing is drawn if part of the pad is
+        behind the camera.
+        """
         corners_c = self.pad_corners_camera(camera_from_world, pad)
         if np.any(corners_c[:, 2] < 0.05):
             return  # (part of) the pad is behind the camera: not drawn
@@ -209,20 +242,18 @@ class Renderer:
         tex = self._textures[size]
         n = size - 0.5
         src = np.array([[-0.5, -0.5], [n, -0.5], [n, n], [-0.5, n]], np.float32)
-        H = cv2.getPerspectiveTransform(src, uv.astype(np.float32))
-        p = self.camera.params
+        shifted = uv - np.asarray(origin, dtype=np.float64)
+        H = cv2.getPerspectiveTransform(src, shifted.astype(np.float32))
         cv2.warpPerspective(
-            tex, H, (p.width, p.height), dst=img, flags=cv2.INTER_LINEAR,
+            tex, H, (img.shape[1], img.shape[0]), dst=img, flags=cv2.INTER_LINEAR,
             borderMode=cv2.BORDER_TRANSPARENT,
         )  # fmt: skip
 
-    def _noise_field(self, key: int) -> NDArray[np.int16]:
+    def noise_field(self, key: int) -> NDArray[np.int16]:
+        """The sensor-noise field of key ``key`` (grey levels, shape ``(height, width)``)."""
         p = self.camera.params
         if self._noise is None:
-            bank = np.random.default_rng(FLOOR_SEED + 1).normal(
-                0.0, self.params.noise_std, (NOISE_BANK, p.height + 64, p.width + 64)
-            )
-            self._noise = np.round(bank).astype(np.int16)
+            self._noise = _noise_bank(float(self.params.noise_std), p.height, p.width)
         i, oy, ox = key % NOISE_BANK, (key // NOISE_BANK) % 64, (key // (64 * NOISE_BANK)) % 64
         return self._noise[i, oy : oy + p.height, ox : ox + p.width]
 
@@ -245,16 +276,33 @@ class Renderer:
         -------
         ndarray of uint8, shape (height, width)
         """
+        img = self.blank()
+        self.draw_floor(img, camera_from_world)
+        self.draw_pad(img, camera_from_world, pad)
+        return self.sensor_effects(img, noise)
+
+    def blank(self) -> UInt8Image:
+        """A frame of the floor's mean grey (what :meth:`draw_floor` draws on)."""
         p = self.camera.params
-        img = np.full((p.height, p.width), self.params.floor_gray, np.uint8)
-        self._draw_floor(img, camera_from_world)
-        self._draw_pad(img, camera_from_world, pad)
+        return np.full((p.height, p.width), self.params.floor_gray, np.uint8)
+
+    def sensor_effects(
+        self, image: UInt8Image | NDArray[np.float32], noise: np.random.Generator | int
+    ) -> UInt8Image:
+        """Optical blur, then sensor noise (``noise``: a generator or a key, as in :meth:`render`).
+
+        ``image`` is the drawn scene, in grey levels (``uint8``, or ``float32`` for a frame
+        composed from several sub-renders); the result is rounded and clipped to ``uint8``.
+        """
+        img: NDArray[Any] = image
         if self.params.blur_sigma > 0:
             img = cv2.GaussianBlur(img, (0, 0), self.params.blur_sigma)
+        if img.dtype != np.uint8:
+            img = np.clip(np.rint(img), 0, 255).astype(np.uint8)
         if self.params.noise_std > 0:
             key = int(noise.integers(2**31)) if isinstance(noise, np.random.Generator) else noise
             if key < 0:
                 raise InvalidInputError(f"noise key must be >= 0, got {key}")
-            noisy = img.astype(np.int16) + self._noise_field(key)
+            noisy = img.astype(np.int16) + self.noise_field(key)
             img = np.clip(noisy, 0, 255).astype(np.uint8)
-        return img
+        return img.astype(np.uint8, copy=False)

@@ -59,9 +59,16 @@ def test_same_seed_same_data_and_paths_do_not_depend_on_n(small):
 def test_paths_are_shared_across_buffer_sizes(small):
     data, _ = small
     other, _ = collect(40, buffer_size=0, seed=4, config=SHORT)
-    # same path 0, same sampling instants, same states; only yhat differs
-    cols = [c for c in DATASET_COLUMNS if not c.startswith("yhat")]
-    pd.testing.assert_frame_equal(other[cols], data.iloc[:40][cols])
+    # same path 0 and sampling instants: with no lag the image shows the paired state, with
+    # two buffers an older one; the paired states are motion-capture samples of the same flight
+    assert (other["age"] == 0).all() and (data["age"].iloc[:40] > 0).all()
+    assert (other["path"] == data["path"].iloc[:40]).all()
+    gap = np.abs(other["t"].to_numpy() - data["t"].iloc[:40].to_numpy())
+    assert gap.max() < 0.1  # the motion capture sample paired is at most a few reader periods old
+    frames = SHORT.replace(camera_timing={"model": "frames"})
+    lagged, _ = collect(40, buffer_size=2, seed=4, config=frames)
+    cols = [c for c in DATASET_COLUMNS if not c.startswith("yhat") and c != "age"]
+    pd.testing.assert_frame_equal(other[cols], lagged[cols])  # the fixed lag pairs the current state
 
 
 def test_the_buffer_size_reaches_the_simulator_from_one_place(small):

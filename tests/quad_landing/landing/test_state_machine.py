@@ -151,7 +151,7 @@ def test_new_waypoint_inside_the_ellipsoid_keeps_the_position():
 
 
 def test_unsafe_runs_have_a_violated_accepted_query(baseline_runs):
-    """Corollary 1 on the baseline at the landing buffer size (it lands unsafely often)."""
+    """Corollary 1 on the baseline with five camera buffers (it lands unsafely often)."""
     assert any(r.outcome is Outcome.UNSAFE for r in baseline_runs)
     for r in baseline_runs:
         assert r.n_queries == 1 and r.queries[0].accepted  # the baseline trusts its first measurement

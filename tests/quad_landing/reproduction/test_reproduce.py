@@ -1,28 +1,41 @@
-"""``python -m case_studies.quad_landing reproduce --quick``: the summary's structure and the paper's claims.
+"""``python -m case_studies.quad_landing reproduce --quick``: the summary's structure, the claims, the page.
 
 The claims are checked as far as the quick sizes can support them (Clopper--Pearson, one-sided
-at the stated confidence; the family of checks below is small and each uses delta <= 0.05):
+at the stated confidence; the family of checks below is small and each uses delta <= 0.05).
+What the simulation must show whatever its parameters:
 
-* Table I: the buffer-1 rate is not significantly above 1 %; lag hurts (every larger buffer's
-  rate is significantly above buffer 1's) and the rate never falls significantly as the
-  buffer grows.
-* Landing: no unsafe IPC landing in any run and all 10 paper-style runs safe; the IPC's safe
-  rate is not significantly below 99 %; the baseline is unsafe in most runs (lower bound
-  above 1/2).
+* Table I: the buffer-1 rate is not significantly above 1 %; the rate never falls
+  significantly as the buffer grows, and buffer 5's is significantly above buffer 1's.
+* Ablation: without the driver queue the buffer size changes nothing (every row's rate is
+  within its interval of buffer 1's); the previous fixed-lag model has the cliff at buffer 2.
+* Landing at buffer size 1: no unsafe IPC landing in any run and all 10 paper-style runs
+  safe; the IPC's safe rate is not significantly below 99 %.
 * The certified bound is at least the empirical unsafe rate and is not contradicted by it.
+
+Whether the baseline fails in most runs and whether Table I's rates fall in the issue's
+ranges are reported as claims (holds / supported) and not asserted: they depend on
+camera-timing parameters that are sourced, not fitted (docs/case_study.md).
+
+The report page is rendered in headless Chromium (Debian's ``/usr/bin/chromium``, installed
+by CI) and the screenshot checked for what a reader sees.
 """
 
 from __future__ import annotations
 
 import json
 import re
+import subprocess
+from pathlib import Path
 
+import numpy as np
 import pytest
+from PIL import Image
 
 from case_studies.quad_landing.cli import main
 from ipcverify.bounds import clopper_pearson_lower, clopper_pearson_upper
 
 DELTA = 0.05
+CHROMIUM = Path("/usr/bin/chromium")
 pytestmark = pytest.mark.slow
 
 
@@ -47,7 +60,7 @@ def test_summary_has_the_documented_structure(quick):
     for b in ("1", "2", "3", "4", "5"):
         row = s["table1"][b]
         assert {"n", "violations", "rate", "upper", "interval", "paper_rate"} <= set(row)
-        assert row["n"] >= 300 and 0 <= row["violations"] <= row["n"]
+        assert row["n"] == s["settings"]["sizes"]["n_pilot"] and 0 <= row["violations"] <= row["n"]
         assert row["rate"] == pytest.approx(row["violations"] / row["n"])
     for side in ("ipc", "baseline"):
         land = s["landing"][side]
@@ -62,31 +75,101 @@ def test_summary_has_the_documented_structure(quick):
     assert set(s) >= {
         "format", "version", "quick", "settings", "seeds", "paper", "ipc", "table1", "table1_rising",
         "landing", "landing_buffer1", "machine", "jobs", "backend", "claims", "stage_seconds",
-        "runtime_seconds",
+        "runtime_seconds", "landing_buffer3", "ablation", "camera_timing", "table1_protocol",
     }  # fmt: skip
     assert set(s["landing"]) >= {
         "buffer_size", "tracking_tolerance", "max_measurements", "ipc", "baseline", "closed_loop", "coverage",
     }  # fmt: skip
+    assert s["landing"]["buffer_size"] == 1  # the paper's setting
     assert set(s["claims"]) == {
-        "table1_buffer1_at_most_1pct", "table1_rates_rising", "ipc_safe_99pct_monte_carlo",
+        "table1_buffer1_at_most_1pct", "table1_rates_rising", "table1_buffer2_at_most_10pct",
+        "table1_buffer5_between_2_and_30pct", "ipc_safe_99pct_monte_carlo",
+        "ipc_unsafe_at_most_1pct_monte_carlo",
         "ipc_safe_all_paper_runs", "baseline_unsafe_in_most_runs", "certified_bound_at_least_empirical",
     }  # fmt: skip
-    assert all(set(c) == {"holds", "supported", "detail"} for c in s["claims"].values())
-    assert set(s["ipc"]) == {"k1", "k3"} and set(s["landing_buffer1"]) == {"buffer_size", "ipc", "baseline"}
+    assert all(set(c) == {"holds", "supported", "detail", "statement"} for c in s["claims"].values())
+    assert all(c["statement"] and "_" not in c["statement"] for c in s["claims"].values())
+    assert set(s["ipc"]) == {"k1"} and s["landing_buffer3"] is None  # --quick skips the buffer-3 landing
+    b1 = s["landing_buffer1"]
+    assert set(b1) == {"buffer_size", "ipc", "baseline"} and b1["ipc"]["runs"] == s["landing"]["ipc"]["runs"]
     assert 0 < s["landing"]["ipc"]["certified_unsafe_bound"] <= 1
     assert s["landing"]["coverage"]["shift_detected"] in (True, False)
     assert s["quick"] is True and s["runtime_seconds"] > 0
+    rows = s["ablation"]["rows"]
+    assert {"all", "queue", "frames", "no-queue", "no-stalls", "queue+blur"} <= set(rows)
+    assert all(set(r["table1"]) == {"1", "2", "3", "4", "5"} for r in rows.values())
+    ages = s["camera_timing"]["per_buffer"]
+    assert ages["5"]["age_ms"]["median"] > ages["1"]["age_ms"]["median"] > 0
+
+
+def test_flight_level_check_is_the_risk_control_calibration(quick):
+    """The flight-level scale satisfies conformal risk control over the calibration flights, or is None
+    exactly when there are too few flights for epsilon (G < 1 / epsilon - 1)."""
+    _, s = quick
+    fl = s["ipc"]["k1"]["flight_level"]
+    eps, G = fl["epsilon"], fl["n_flights"]
+    assert 1 <= G <= fl["n_rows"] and fl["row_scale"] > 0
+    assert 0 <= fl["row_scale_mean_violation_fraction"] <= 1
+    if eps * (G + 1) < 1:
+        assert fl["flight_scale"] is None and fl["flight_mean_violation_fraction"] is None
+    else:
+        assert (G * fl["flight_mean_violation_fraction"] + 1) / (G + 1) <= eps * (1 + 1e-9)
+        assert "flight" in fl["flight_guarantee"]
 
 
 def test_report_is_one_self_contained_file(quick):
-    out, _ = quick
+    out, s = quick
     page = (out / "report.html").read_text()
     assert page.startswith("<!DOCTYPE html>")
-    assert not re.search(r"""(src|href)=["'](?!data:)""", page)  # nothing fetched from elsewhere
-    assert page.count("data:image/png;base64,") >= 4
-    for name in ("table1", "topview", "campaign", "trajectories", "coverage"):
+    # nothing fetched from elsewhere; the one link is to summary.json beside the page
+    assert re.findall(r"""(?:src|href)=["'](?!data:)([^"']*)""", page) == ["summary.json"]
+    names = ("table1", "ablation", "ages", "topview", "campaign", "trajectories", "coverage")
+    assert page.count("data:image/png;base64,") == len(names)
+    for name in names:
         assert (out / "figures" / f"{name}.png").stat().st_size > 1000
     assert (out / "certificates" / "ipc_k1" / "certificate.json").exists()
+    # a results section: claims in words, every table with a header, no JSON dump
+    for claim in s["claims"].values():
+        assert claim["statement"] in page.replace("&#x27;", "'")
+    assert "table1_buffer1" not in page and "<pre>" not in page and '"settings"' not in page
+    for table in re.findall(r"<table>.*?</table>", page, flags=re.S):
+        head = re.search(r"<thead><tr>(.*?)</tr></thead>", table, flags=re.S)
+        assert head is not None
+        cells = re.findall(r"<th[^>]*>(.*?)</th>", head.group(1))
+        assert cells and all(re.sub(r"<[^>]+>", "", h).strip() for h in cells)
+
+
+def test_the_report_as_a_person_sees_it(quick, tmp_path):
+    """Headless Chromium renders the page: text, tables and figures fill it; the top shows the title."""
+    if not CHROMIUM.exists():
+        pytest.fail("the report screenshot test needs Debian's chromium: apt-get install -y chromium")
+    out, _ = quick
+    shot = tmp_path / "shot.png"
+    cmd = [
+        str(CHROMIUM), "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+        "--disable-background-networking", "--disable-component-update", "--disable-sync",
+        "--hide-scrollbars",
+        f"--user-data-dir={tmp_path / 'profile'}", "--window-size=1100,8000", f"--screenshot={shot}",
+        (out / "report.html").as_uri(),
+    ]  # fmt: skip
+    subprocess.run(cmd, check=True, capture_output=True, timeout=120)
+    im = Image.open(shot)
+    im.load()
+    assert im.size == (1100, 8000)
+    gray = np.asarray(im.convert("L"), dtype=float)
+    rows_with_ink = (gray < 128).any(axis=1)
+    assert rows_with_ink.mean() > 0.3  # text, tables and plots cover much of the page
+    assert rows_with_ink[:200].any()  # the title is at the top, not below a blank screen
+    # the embedded figures are drawn: saturated plot pixels (markers, lines, boxes); the page's
+    # text and tables are grey, so without the figures only the verdicts below are coloured
+    rgb = np.asarray(im.convert("RGB")).reshape(-1, 3).astype(int)
+    coloured = (rgb.max(axis=1) - rgb.min(axis=1)) > 80
+    assert coloured.sum() > 10_000
+    # the claims table's verdicts are coloured (green "yes" or red "no")
+    verdict = ((rgb[:, 1] > 100) & (rgb[:, 0] < 60) & (rgb[:, 2] < 90)) | (
+        (rgb[:, 0] > 150) & (rgb[:, 1] < 60) & (rgb[:, 2] < 60)
+    )
+    assert verdict.sum() > 200
 
 
 def test_table1_claims(quick):
@@ -95,13 +178,22 @@ def test_table1_claims(quick):
     k, n = t["1"]["violations"], t["1"]["n"]
     assert clopper_pearson_lower(k, n, DELTA) <= 0.01
     up1 = clopper_pearson_upper(k, n, DELTA)
-    for b in ("2", "3", "4", "5"):
-        assert clopper_pearson_lower(t[b]["violations"], t[b]["n"], DELTA) > up1  # lag hurts
+    assert clopper_pearson_lower(t["5"]["violations"], t["5"]["n"], DELTA) > up1  # more buffers hurt
     for a, b in (("1", "2"), ("2", "3"), ("3", "4"), ("4", "5")):
         # no significant decrease from one buffer size to the next
         assert clopper_pearson_upper(t[b]["violations"], t[b]["n"], DELTA) >= clopper_pearson_lower(
             t[a]["violations"], t[a]["n"], DELTA
         )
+
+
+def test_the_ablation_explains_where_the_dependence_on_the_buffer_size_comes_from(quick):
+    _, s = quick
+    rows = s["ablation"]["rows"]
+    flat = rows["no-queue"]["table1"]  # without the queue the buffer size changes nothing
+    lo, hi = flat["1"]["interval"]
+    assert all(lo <= flat[b]["rate"] <= hi for b in ("2", "3", "4", "5"))
+    cliff = rows["frames"]["table1"]  # the previous model: a fixed b-frame lag jumps at b = 2
+    assert cliff["2"]["interval"][0] > rows["frames"]["table1"]["1"]["interval"][1]
 
 
 def test_landing_claims(quick):
@@ -110,7 +202,9 @@ def test_landing_claims(quick):
     assert ipc["unsafe"] == 0 and ipc["paper_runs"]["unsafe"] == 0
     assert ipc["paper_runs"]["safe"] == ipc["paper_runs"]["runs"] == 10
     assert clopper_pearson_upper(ipc["safe"], ipc["runs"], DELTA) >= 0.99
-    assert clopper_pearson_lower(base["unsafe"], base["runs"], DELTA) > 0.5
+    assert base["runs"] == ipc["runs"] and s["claims"]["baseline_unsafe_in_most_runs"]["holds"] == (
+        base["unsafe"] > 0.5 * base["runs"]
+    )
     # every accepted landing decision of the IPC re-verified exactly
     assert all(
         r["certificate_verified"] for r in ipc["paper_runs"]["runs_detail"] if r["turnoff"] is not None
