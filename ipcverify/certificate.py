@@ -7,6 +7,7 @@ layout of ``certificate.json`` (written with the one JSON encoder of
 * :class:`CertificateStatus` -- the verdict, whose text says what to do next;
 * :class:`TestResult` -- violations on fresh test data and exact binomial bounds;
 * :class:`Consistency` -- does the test data contradict the calibration's claim?
+* :class:`GroupTest` -- the test counted per group (flight, run): valid for correlated rows;
 * :class:`ModelIdentity`, :class:`DataIdentity`, :class:`VolumeSummary` -- provenance and size;
 * :class:`Certificate` -- all of the above plus the calibration summary and Theorem 1;
 * :class:`CertifyEvidence`, :class:`CertifyResult` -- the per-sample arrays behind it.
@@ -24,7 +25,7 @@ from numpy.typing import NDArray
 
 import ipcverify
 from ipcverify.bounds import clopper_pearson_interval, clopper_pearson_lower, clopper_pearson_upper
-from ipcverify.calibration.protocol import AllowedRate, CalibrationSummary
+from ipcverify.calibration.protocol import GROUP_UNITS, AllowedRate, CalibrationSummary, GroupUnit
 from ipcverify.domain import DomainReport
 from ipcverify.errors import InvalidInputError
 from ipcverify.evaluation import BinCoverage, WorstBin
@@ -36,6 +37,7 @@ __all__ = [
     "TestResult",
     "GroupTestResult",
     "Consistency",
+    "GroupTest",
     "ModelIdentity",
     "DataIdentity",
     "VolumeSummary",
@@ -218,6 +220,114 @@ class Consistency:
 
 
 @dataclass(frozen=True, kw_only=True)
+class GroupTest:
+    """The test counted per group (flight, run): one Bernoulli per test group, valid for correlated rows.
+
+    A row-level Clopper--Pearson bound assumes independent rows; rows of one flight are
+    correlated, so it can be far too narrow. Counting one statistic per group
+    (:func:`~ipcverify.calibration.grouped.group_violation_counts`) gives ``n_groups`` i.i.d.
+    Bernoulli draws when the test groups are i.i.d., whatever the dependence within a group
+    (``proofs/group_calibration.md`` section 6). Built by
+    :func:`ipcverify.certify.group_test_step`.
+
+    Attributes
+    ----------
+    column : str
+        The test data's group column.
+    n_groups, n_rows : int
+        Test groups and test rows.
+    seed : int
+        Seeds the choice of one sample per group (``sample``).
+    trajectory : TestResult
+        Groups with any violation: bounds on the probability that a new group leaves its sets
+        somewhere.
+    sample : TestResult
+        Groups whose one randomly chosen sample violates: bounds on the expected share of a new
+        group's samples outside their sets (a random sample of a random group).
+    compared_unit : {"trajectory", "sample"} or None
+        The count checked against the calibration's allowed rate (None: not checked).
+    consistency : Consistency
+        That check (the same rule as the row-level one).
+
+    Examples
+    --------
+    >>> t = TestResult.from_counts(1, 30, 0.01, "groups of run (any violation)")
+    >>> s = TestResult.from_counts(0, 30, 0.01, "groups of run (one random sample each)")
+    >>> g = GroupTest(column="run", n_groups=30, n_rows=600, seed=0, trajectory=t, sample=s,
+    ...               compared_unit=None, consistency=Consistency(checked=False, reason="no calibration"))
+    >>> g.to_dict()["trajectory"]["violations"], round(g.to_dict()["sample"]["upper_bound"], 3)
+    (1, 0.142)
+    """
+
+    __test__ = False  # not a pytest test class
+
+    column: str
+    n_groups: int
+    n_rows: int
+    seed: int
+    trajectory: TestResult
+    sample: TestResult
+    compared_unit: GroupUnit | None
+    consistency: Consistency
+
+    def __post_init__(self) -> None:
+        if not (2 <= self.n_groups <= self.n_rows) or self.trajectory.n != self.n_groups != self.sample.n:
+            raise InvalidInputError(
+                f"a group test needs 2 <= n_groups <= n_rows and both counts over n_groups; got "
+                f"n_groups={self.n_groups}, n_rows={self.n_rows}"
+            )
+        if self.sample.violations > self.trajectory.violations:
+            raise InvalidInputError(
+                "a group whose random sample violates has a violation: sample <= trajectory"
+            )
+        if self.compared_unit is not None and self.compared_unit not in GROUP_UNITS:
+            raise InvalidInputError(
+                f"compared_unit must be one of {GROUP_UNITS} or None; got {self.compared_unit!r}"
+            )
+
+    @property
+    def compared(self) -> TestResult | None:
+        """The count checked against the calibration (None if none was)."""
+        if self.compared_unit is None:
+            return None
+        return self.trajectory if self.compared_unit == "trajectory" else self.sample
+
+    def sentence(self) -> str:
+        """What the group counts say, in one or two sentences."""
+        t, s = self.trajectory, self.sample
+        conf = f"{1 - t.delta:.6g}"
+        text = (
+            f"Counted per group of {self.column!r} ({self.n_groups} test groups, {self.n_rows} rows; "
+            "valid if the test groups are i.i.d., whatever the correlation within a group): with confidence "
+            f"{conf}, a random sample of a new group violates with probability at most {s.upper_bound:.4g} "
+            f"({s.violations} of {s.n} randomly chosen samples outside), and a new group leaves its sets "
+            f"somewhere with probability at most {t.upper_bound:.4g} ({t.violations} of {t.n} groups)."
+        )
+        c = self.consistency
+        if c.checked and not c.consistent:
+            text += (
+                f" The group-level {self.compared_unit} count CONTRADICTS the calibration: its lower bound "
+                f"{c.test_lower_bound:.4g} exceeds the allowed rate {c.allowed_rate:.4g}."
+            )
+        return text
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{column, n_groups, n_rows, seed, trajectory, sample, compared_unit, consistency, statement}``."""
+        return {
+            "column": self.column,
+            "n_groups": self.n_groups,
+            "n_rows": self.n_rows,
+            "seed": self.seed,
+            "trajectory": self.trajectory.to_dict(),
+            "sample": self.sample.to_dict(),
+            "compared_unit": self.compared_unit,
+            "consistency": self.consistency.to_dict(),
+            "statement": self.sentence(),
+            "assumption": "test groups i.i.d. from deployment; rows within a group may be correlated",
+        }
+
+
+@dataclass(frozen=True, kw_only=True)
 class ModelIdentity:
     """Which model was certified: file, fingerprints, architecture, parameter count."""
 
@@ -299,6 +409,7 @@ class Certificate:
     domain: DomainReport | None = None
     theorem1_source: str = ""
     worst_bin: WorstBin | None = None
+    group_test: GroupTest | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """The content of ``certificate.json``."""
@@ -335,6 +446,7 @@ class Certificate:
             "coverage_by_bin": None if self.coverage is None else self.coverage.to_dict(),
             "conditional_coverage": None if self.worst_bin is None else self.worst_bin.to_dict(),
             "domain": None if self.domain is None else self.domain.to_dict(),
+            "group_test": None if self.group_test is None else self.group_test.to_dict(),
             "data": {
                 "test": None if self.test_data is None else self.test_data.to_dict(),
                 "train": None if self.train_data is None else self.train_data.to_dict(),

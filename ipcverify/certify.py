@@ -11,6 +11,10 @@
    deployment distribution and were not used to train, select or calibrate the model.
    If the test data contradicts the calibration claim (its lower bound exceeds what
    the calibration allows), the status says so.
+   With a group column (flights, runs; ``group_column=``, or the column of a flight-level
+   calibration), the test is also counted per group
+   (:func:`ipcverify.group_test.group_test_step`): valid when the test groups are i.i.d.,
+   whatever the correlation of the rows within a group, which the row-level bound assumes away.
 3. **Theorem 1** of the paper, with both Lipschitz constants; computed only when the
    training data is given, reported as vacuous when it is.
 
@@ -37,6 +41,7 @@ from ipcverify.certificate import (
     CertifyResult,
     Consistency,
     DataIdentity,
+    GroupTest,
     GroupTestResult,
     ModelIdentity,
     TestResult,
@@ -47,6 +52,7 @@ from ipcverify.domain import DomainReport
 from ipcverify.errors import InvalidInputError
 from ipcverify.evaluation import BinCoverage, WorstBin, coverage_by_bin, worst_bin_coverage
 from ipcverify.files import atomic_write, file_sha256, write_json
+from ipcverify.group_test import group_test_step
 from ipcverify.lipschitz import DEFAULT_RADIUS
 from ipcverify.model import IPCModel, network_fingerprint
 from ipcverify.modelio import load_data_for_model, load_model
@@ -178,14 +184,16 @@ def test_results(
     return test, tuple(groups)
 
 
-def _status(cal: Calibration | None, consistency: Consistency, tested: bool) -> CertificateStatus:
+def _status(cal: Calibration | None, checks: tuple[Consistency, ...], tested: bool) -> CertificateStatus:
+    """No calibration / untested; CONTRADICTED if any check fails; UNCHECKED if none was possible."""
     if cal is None:
         return CertificateStatus.NOT_CALIBRATED
     if not tested:
         return CertificateStatus.UNTESTED
-    if not consistency.checked:
+    done = [c for c in checks if c.checked]
+    if not done:
         return CertificateStatus.UNCHECKED
-    return CertificateStatus.CERTIFIED if consistency.consistent else CertificateStatus.CONTRADICTED
+    return CertificateStatus.CERTIFIED if all(c.consistent for c in done) else CertificateStatus.CONTRADICTED
 
 
 def theorem1_step(
@@ -205,8 +213,22 @@ def theorem1_step(
     return theorem1(model, stats, delta, radius=radius), "", "statistics stored at training time"
 
 
-def statement(cal: Calibration | None, test: TestResult | None, status: CertificateStatus) -> str:
-    """Step 5: the certificate's statement in plain words."""
+def statement(
+    cal: Calibration | None,
+    test: TestResult | None,
+    status: CertificateStatus,
+    group_test: GroupTest | None = None,
+) -> str:
+    """Step 5: the certificate's statement in plain words (with the group-level test, if any)."""
+    text = _statement(cal, test, status)
+    if group_test is None:
+        return text
+    if test is not None and test.unit == "samples":
+        text += " The row-level bound assumes independent rows; rows of one group are correlated."
+    return text + " " + group_test.sentence()
+
+
+def _statement(cal: Calibration | None, test: TestResult | None, status: CertificateStatus) -> str:
     if test is None:
         if cal is None:
             return "No calibration certificate and no test data: nothing is guaranteed about this model."
@@ -287,6 +309,7 @@ def certify(
     delta: float | None = None,
     bin_column: str | None = None,
     bins: int = 10,
+    group_column: str | None = None,
     lipschitz_radius: float = DEFAULT_RADIUS,
     model_path: PathLike | None = None,
     test_path: PathLike | None = None,
@@ -312,6 +335,10 @@ def certify(
         Column for conditional coverage (default: the first ``x`` column).
     bins : int
         Number of quantile bins of that column.
+    group_column : str, optional
+        A column of the test data naming each row's group (flight, run): adds the test counted
+        per group (:func:`ipcverify.group_test.group_test_step`), valid for correlated rows.
+        Default: the column of a flight-level calibration, if the test data has it.
     lipschitz_radius : float
         Parameter-ball radius of the sound Lipschitz bound (Theorem 1).
     model_path, test_path, train_path : path-like, optional
@@ -321,7 +348,8 @@ def certify(
     ------
     InvalidInputError
         If dimensions disagree, the test data is the calibration or training data,
-        or the calibration belongs to a different network.
+        the calibration belongs to a different network, or the group column is missing from
+        the test data, has one group only, or is given without test data.
 
     Examples
     --------
@@ -336,19 +364,25 @@ def certify(
     ('CERTIFIED', 2000)
     """
     delta = check_inputs(model, test_data, train_data, delta)
+    if group_column is not None and test_data is None:
+        raise InvalidInputError(f"group column {group_column!r} needs test data to count per group (--data)")
     cal = model.calibration
-    tested = _tested(model, test_data, delta, bin_column, bins) if test_data is not None else None
+    tested = (
+        _tested(model, test_data, delta, bin_column, bins, group_column) if test_data is not None else None
+    )
     test = None if tested is None else tested.test
+    group_test = None if tested is None else tested.group_test
     consistency = (
         Consistency(checked=False, reason="no test data")
         if test is None
         else Consistency.check(None if cal is None else cal.allowed_violation_rate(), test)
     )
-    status = _status(cal, consistency, tested is not None)
+    checks = (consistency,) if group_test is None else (consistency, group_test.consistency)
+    status = _status(cal, checks, tested is not None)
     t1, t1_reason, t1_source = theorem1_step(model, train_data, delta, lipschitz_radius)
     cert = Certificate(
         status=status,
-        statement=statement(cal, test, status),
+        statement=statement(cal, test, status, group_test),
         model=_model_identity(model, model_path),
         calibration=None if cal is None else cal.summary(),
         test=test,
@@ -361,6 +395,7 @@ def certify(
         coverage=None if tested is None else tested.coverage,
         worst_bin=None if tested is None else tested.worst_bin,
         domain=_domain(model, test_data, None if tested is None else tested.scores.violated),
+        group_test=group_test,
         test_data=None if test_data is None else _identity(test_data, test_path),
         train_data=None if train_data is None else _identity(train_data, train_path, model),
     )
@@ -377,14 +412,21 @@ class _Tested:
     volume: VolumeSummary
     coverage: BinCoverage
     worst_bin: WorstBin
+    group_test: GroupTest | None
 
 
 def _tested(
-    model: IPCModel, test_data: PerceptionDataset, delta: float, bin_column: str | None, bins: int
+    model: IPCModel,
+    test_data: PerceptionDataset,
+    delta: float,
+    bin_column: str | None,
+    bins: int,
+    group_column: str | None,
 ) -> _Tested:
-    """Steps 2-3 on the test data: scores, test bounds, set volumes, conditional coverage."""
+    """Steps 2-3 on the test data: scores, test bounds (per row and per group), volumes, coverage."""
     scores = score_test_set(model, test_data)
     test, groups = test_results(model.calibration, test_data, scores.violated, delta)
+    group_test = group_test_step(model.calibration, test_data, scores.violated, delta, group_column)
     column = bin_column or test_data.x_columns[0]
     values = np.asarray(test_data.column(column), dtype=float)
     return _Tested(
@@ -398,6 +440,7 @@ def _tested(
         ),
         coverage=coverage_by_bin(values, scores.violated, column, bins),
         worst_bin=worst_bin_coverage(test_data.x, test_data.yhat, scores.violated, test_data.x_columns, bins),
+        group_test=group_test,
     )
 
 
@@ -432,6 +475,7 @@ def certify_files(
     delta: float | None = None,
     bin_column: str | None = None,
     bins: int = 10,
+    group_column: str | None = None,
     lipschitz_radius: float = DEFAULT_RADIUS,
 ) -> CertifyResult:
     """Load a model file and data files, :func:`certify`, and :func:`write_certificate` (the CLI's call)."""
@@ -445,6 +489,7 @@ def certify_files(
         delta=delta,
         bin_column=bin_column,
         bins=bins,
+        group_column=group_column,
         lipschitz_radius=lipschitz_radius,
         model_path=model_path,
         test_path=test_path,

@@ -25,7 +25,7 @@ from matplotlib.figure import Figure
 
 from ipcverify.bounds import clopper_pearson_interval
 from ipcverify.calibration.protocol import CalibrationSummary
-from ipcverify.certificate import Certificate, CertificateStatus, CertifyEvidence, CertifyResult
+from ipcverify.certificate import Certificate, CertificateStatus, CertifyEvidence, CertifyResult, Consistency
 from ipcverify.evaluation import BinCoverage
 
 __all__ = [
@@ -316,14 +316,9 @@ def _test_section(cert: Certificate, ev: CertifyEvidence | None) -> list[str]:
         ("median log-volume", cert.volume.median_log),
     ]
     parts.append(_table(rows))
-    cons = cert.consistency
-    if cons.checked:
-        verdict = "consistent" if cons.consistent else "CONTRADICTS the calibration"
-        parts.append(
-            f"<p>Consistency check: test lower bound {cons.test_lower_bound:.4g} vs. allowed rate "
-            f"{cons.allowed_rate:.4g}: <b>{verdict}</b>. <span class='small'>{html.escape(cons.rule)}"
-            "</span></p>"
-        )
+    if cert.consistency.checked:
+        parts.append(_consistency_line("Consistency check: test", cert.consistency))
+    parts += _group_test_part(cert)
     parts.append(_img(plot_scores(ev, cert.calibration is not None), "histogram of normalised test scores"))
     if cert.coverage is not None:
         parts.append("<h2>Conditional coverage</h2>")
@@ -353,6 +348,55 @@ def _test_section(cert: Certificate, ev: CertifyEvidence | None) -> list[str]:
         "still lie inside some, or even all, of its 2-D shadows.</p>"
     )
     parts.append(_img(plot_projections(ev), "projections of example ellipsoids"))
+    return parts
+
+
+def _consistency_line(label: str, cons: Consistency) -> str:
+    """One paragraph: the test lower bound against the allowed rate, the verdict and the rule."""
+    verdict = "consistent" if cons.consistent else "CONTRADICTS the calibration"
+    return (
+        f"<p>{html.escape(label)} lower bound {cons.test_lower_bound:.4g} vs. allowed rate "
+        f"{cons.allowed_rate:.4g}: <b>{verdict}</b>. <span class='small'>{html.escape(cons.rule)}</span></p>"
+    )
+
+
+def _group_test_part(cert: Certificate) -> list[str]:
+    """The flight-level table: the test counted per group, both statistics, and what was compared."""
+    g = cert.group_test
+    if g is None:
+        return []
+    parts = [f"<h3>Counted per group of <code>{html.escape(g.column)}</code> (flights, runs)</h3>"]
+    if cert.test is not None and cert.test.unit == "samples":
+        parts.append(
+            "<p>The row-level interval above assumes <b>independent rows</b>. Rows of one flight are "
+            "correlated, so it can be far too narrow. The counts below use one statistic per group and are "
+            "valid when the test groups are i.i.d., whatever the correlation within a group.</p>"
+        )
+    rows = ""
+    for unit, label, res in (
+        ("trajectory", "any violation in the group", g.trajectory),
+        ("sample", "one random sample of the group (seeded)", g.sample),
+    ):
+        mark = "compared with the calibration" if g.compared_unit == unit else "reported"
+        rows += (
+            f"<tr><td>{html.escape(label)}</td><td>{_fmt(res.violations)} / {_fmt(res.n)}</td>"
+            f"<td>{_fmt(res.empirical_rate)}</td><td>{_fmt(res.upper_bound)}</td>"
+            f"<td>[{res.interval[0]:.4g}, {res.interval[1]:.4g}]</td><td>{mark}</td></tr>"
+        )
+    conf = f"{1 - g.trajectory.delta:.6g}"
+    parts.append(
+        f"<table><tr><th>statistic per group</th><th>violations / groups</th><th>rate</th>"
+        f"<th>upper bound ({conf})</th><th>two-sided interval ({conf})</th><th>role</th></tr>{rows}</table>"
+    )
+    c = g.consistency
+    if c.checked:
+        parts.append(_consistency_line(f"Group-level consistency ({g.compared_unit} count):", c))
+    else:
+        parts.append(f"<p class='small'>Not compared with the calibration: {html.escape(c.reason)}.</p>")
+    parts.append(
+        f"<p class='small'>{g.n_groups:,} test groups, {g.n_rows:,} rows; the random sample of each group "
+        f"is drawn with seed {g.seed}. Proof: proofs/group_calibration.md, section 6.</p>"
+    )
     return parts
 
 

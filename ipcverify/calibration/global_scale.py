@@ -111,6 +111,10 @@ class GlobalCalibration:
         """Rows: the claim is about a new sample."""
         return row_counts(violated)
 
+    def group_claim(self) -> None:
+        """None: the claim is about a new sample (a row), not about groups of rows."""
+        return None
+
     def summary(self) -> CalibrationSummary:
         """The typed record (``k``, ``scale`` and ``order_statistic`` as details)."""
         t = self.threshold

@@ -36,7 +36,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy import stats
 
 from ipcverify.bounds import CalibrationMode, min_calibration_size, smallest_epsilon
-from ipcverify.calibration.protocol import AllowedRate, CalibrationSummary, GroupInfo, TestCounts
+from ipcverify.calibration.protocol import AllowedRate, CalibrationSummary, GroupClaim, GroupInfo, TestCounts
 from ipcverify.calibration.threshold import (
     MIN_SCALE,
     SCALE_MARGIN,
@@ -59,7 +59,7 @@ __all__ = [
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.intp]
-GuaranteeKind = Literal["trajectory", "sample"]
+GuaranteeKind = Literal["trajectory", "sample"]  # = protocol.GroupUnit
 #: The two guarantees: every sample of a new group inside (trajectory), or a per-sample rate.
 GUARANTEES = ("trajectory", "sample")
 #: Relative slack when a stored risk-control record is re-checked (its mean risk is a rounded float).
@@ -413,6 +413,10 @@ class GroupedCalibration:
         return TestCounts(
             violations=counts.violations, n=counts.n_groups, unit=f"groups of {self.column} ({what})"
         )
+
+    def group_claim(self) -> GroupClaim:
+        """The claim is about groups of ``column``, one statistic (``guarantee_kind``, ``seed``) each."""
+        return GroupClaim(column=self.column, unit=self.guarantee_kind, seed=self.seed)
 
     def summary(self) -> CalibrationSummary:
         """The typed record; groups, sizes, the guarantee kind and the method are in ``details``."""

@@ -200,6 +200,10 @@ class MondrianCalibration:
         """Rows: the claim is about a new sample."""
         return row_counts(violated)
 
+    def group_claim(self) -> None:
+        """None: the claim is about a new sample (a row), not about groups of rows."""
+        return None
+
     def summary(self) -> CalibrationSummary:
         """The typed record (per-group ``k``, ``scale`` and records as details)."""
         return CalibrationSummary(

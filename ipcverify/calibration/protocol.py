@@ -13,6 +13,8 @@ ONNX export, reports and the case study use only the :class:`Calibration` protoc
 * :meth:`~Calibration.test_counts` -- how test data checks the calibration's claim: the
   violations counted in the unit the claim is about (samples, or whole groups), as
   :class:`TestCounts`;
+* :meth:`~Calibration.group_claim` -- for a claim about groups (flights, runs), their column,
+  the per-group statistic and its seed, as :class:`GroupClaim` (None for a claim about rows);
 * :meth:`~Calibration.summary` -- one typed record (:class:`CalibrationSummary`), the
   ``calibration`` block of ``certificate.json``;
 * :meth:`~Calibration.guarantee`, :meth:`~Calibration.to_dict`.
@@ -26,7 +28,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Any, Literal, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -35,9 +37,23 @@ from ipcverify.bounds import CalibrationMode
 from ipcverify.data import PerceptionDataset
 from ipcverify.errors import InvalidInputError
 
-__all__ = ["Calibration", "GroupInfo", "AllowedRate", "CalibrationSummary", "TestCounts", "row_counts"]
+__all__ = [
+    "Calibration",
+    "GroupInfo",
+    "AllowedRate",
+    "CalibrationSummary",
+    "TestCounts",
+    "GroupClaim",
+    "GroupUnit",
+    "GROUP_UNITS",
+    "row_counts",
+]
 
 FloatArray = NDArray[np.float64]
+#: The statistic of one group: any of its samples violates, or one random sample of it does.
+GroupUnit = Literal["trajectory", "sample"]
+#: The two group statistics.
+GROUP_UNITS: tuple[GroupUnit, ...] = ("trajectory", "sample")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -125,6 +141,38 @@ class TestCounts:
     def to_dict(self) -> dict[str, Any]:
         """Plain data."""
         return {"violations": self.violations, "n": self.n, "unit": self.unit}
+
+
+@dataclass(frozen=True, kw_only=True)
+class GroupClaim:
+    """What a claim about groups (flights, runs) is about, so that test data can be counted alike.
+
+    Attributes
+    ----------
+    column : str
+        The data column naming each sample's group.
+    unit : {"trajectory", "sample"}
+        The statistic of a group: any of its samples outside its set, or one sample drawn at
+        random (seeded) from it outside.
+    seed : int
+        Seeds the choice of one sample per group (``unit="sample"``).
+
+    Examples
+    --------
+    >>> GroupClaim(column="run", unit="sample", seed=0).unit
+    'sample'
+    """
+
+    column: str
+    unit: GroupUnit
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.unit not in GROUP_UNITS or not self.column:
+            raise InvalidInputError(
+                f"a group claim needs a column name and a unit in {GROUP_UNITS}; got {self.column!r}, "
+                f"{self.unit!r}"
+            )
 
 
 def row_counts(violated: NDArray[np.bool_]) -> TestCounts:
@@ -262,6 +310,10 @@ class Calibration(Protocol):
 
     def test_counts(self, violated: NDArray[np.bool_], test_data: PerceptionDataset) -> TestCounts:
         """The test data's violations counted in the unit of this calibration's claim."""
+        ...
+
+    def group_claim(self) -> GroupClaim | None:
+        """The groups this calibration's claim is about (None: the claim is about rows)."""
         ...
 
     def summary(self) -> CalibrationSummary:

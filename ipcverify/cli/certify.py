@@ -155,6 +155,12 @@ def calibrate_cmd(
 @click.option("--bin-column", default=None, help="Column for conditional coverage (default: first x column).")
 @click.option("--bins", default=10, show_default=True, type=int)
 @click.option(
+    "--group-column",
+    default=None,
+    help="Column of the test data naming flights/runs: also count the test per group (valid for "
+    "correlated rows). Default: a flight-level calibration's column.",
+)
+@click.option(
     "--lipschitz-radius",
     default=DEFAULT_RADIUS,
     show_default=True,
@@ -169,10 +175,13 @@ def certify_cmd(
     delta: float | None,
     bin_column: str | None,
     bins: int,
+    group_column: str | None,
     lipschitz_radius: float,
 ) -> None:
     """Certify MODEL on fresh test data: write DIR/certificate.json and DIR/report.html.
 
+    With --group-column COL the test is also counted per group of COL (flights, runs): the
+    row-level bound assumes independent rows, the per-group one only i.i.d. groups.
     Exits with status 1 if the test data contradicts the calibration's claim.
     """
     res = certify_files(
@@ -183,6 +192,7 @@ def certify_cmd(
         delta=delta,
         bin_column=bin_column,
         bins=bins,
+        group_column=group_column,
         lipschitz_radius=lipschitz_radius,
     )
     cert = res.certificate
@@ -204,6 +214,13 @@ def certify_cmd(
             f"{t.violations}/{t.n} = {t.empirical_rate:.4%}; "
             f"upper bound {t.upper_bound:.4%} (confidence {1 - t.delta:g})",
         )
+    g = cert.group_test
+    if g is not None:
+        for label, r in (("per group: one sample", g.sample), ("per group: any violation", g.trajectory)):
+            table.add_row(
+                f"{label} ({g.column})",
+                f"{r.violations}/{r.n} groups = {r.empirical_rate:.4%}; upper bound {r.upper_bound:.4%}",
+            )
     if cert.volume is not None:
         table.add_row("mean log-volume", f"{cert.volume.mean_log:.4g}")
     if cert.domain is not None:
