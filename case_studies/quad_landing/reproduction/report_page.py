@@ -354,6 +354,14 @@ def _extra_landing(summary: Mapping[str, Any]) -> str:
     )
 
 
+def _flights_out(group_test: Mapping[str, Any] | None) -> str:
+    """``k/G`` held-out flights with at least one sample outside its set, or a dash."""
+    if not group_test:
+        return "—"
+    t = group_test["trajectory"]
+    return f"{t['violations']}/{t['n']}"
+
+
 def _ipcs(summary: Mapping[str, Any]) -> str:
     rows = []
     for info in (summary.get("ipc") or {}).values():
@@ -366,6 +374,7 @@ def _ipcs(summary: Mapping[str, Any]) -> str:
             _e(f"{c['mode']}, ε {c['epsilon']:g}, δ {c['delta']:g}, n {c['n']}"),
             _num(c["certified_epsilon"]),
             _e(cert["status"]), _e(f"{cert['test']['violations']}/{cert['test']['n']}"),
+            _e(_flights_out(cert.get("group_test"))),
             _e(f"{fl['row_scale']:.3g}" if fl else "—"), _e(by_flight),
         ])  # fmt: skip
     if not rows:
@@ -380,8 +389,8 @@ def _ipcs(summary: Mapping[str, Any]) -> str:
     )
     return "<h2>5. The learned IPCs</h2>" + _table(
         ["IPC", "parameters", "calibration", "certified ε", "certificate", "held-out violations",
-         "scale (rows)", "scale (flights)"], rows,
-        "Table 8. The IPCs and their certificates (ipcverify certify on held-out data).", text=(0, 2, 4, 7),
+         "held-out flights with a violation", "scale (rows)", "scale (flights)"], rows,
+        "Table 8. The IPCs and their certificates (ipcverify certify on held-out data).", text=(0, 2, 4, 8),
     ) + note  # fmt: skip
 
 

@@ -115,6 +115,12 @@ def test_flight_level_check_is_the_risk_control_calibration(quick):
     else:
         assert (G * fl["flight_mean_violation_fraction"] + 1) / (G + 1) <= eps * (1 + 1e-9)
         assert "flight" in fl["flight_guarantee"]
+    # the certificate counts held-out violations per flight too: a flight whose random sample
+    # violates has a violation, so the 'any violation' count bounds the 'one sample' count
+    gt = s["ipc"]["k1"]["certificate"]["group_test"]
+    assert gt["column"] == "flight" and gt["n_rows"] == s["settings"]["sizes"]["n_test"]
+    assert 1 <= gt["n_groups"] <= gt["n_rows"]
+    assert gt["sample"]["violations"] <= gt["trajectory"]["violations"] <= gt["n_groups"]
 
 
 def test_report_is_one_self_contained_file(quick):
