@@ -23,7 +23,7 @@ Examples
 >>> from ipcverify.model import IPCModel, IPCNetwork
 >>> from ipcverify.sets import Box
 >>> G = Box([-0.05, -0.05, 0.0], [0.05, 0.05, 0.05])
->>> q = IPCQuery(IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(8,)))), G)
+>>> q = IPCQuery(IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(8,), param="cholesky"))), G)
 >>> center, shape = q.ellipsoid(np.zeros(2), np.zeros(3))
 >>> center.shape, shape.shape
 ((3,), (3, 3))
@@ -44,6 +44,7 @@ from ipcverify.architecture import LOGDIAG_CLAMP
 from ipcverify.errors import InvalidInputError, SetError
 from ipcverify.inference import InferenceEngine
 from ipcverify.landing import LandingRule, QueryDecision
+from ipcverify.lowrank_engine import LowRankEngine
 from ipcverify.model import IPCModel
 from ipcverify.sets import Box
 
@@ -75,7 +76,7 @@ class IPCQuery:
     >>> import numpy as np
     >>> from ipcverify.architecture import ModelConfig
     >>> from ipcverify.model import IPCModel, IPCNetwork
-    >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(8,))))
+    >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(8,), param="cholesky")))
     >>> c, C = IPCQuery(m, Box([-1.0, -1.0, 0.0], [1.0, 1.0, 1.0])).ellipsoid([0.0, 1.0], [0.1, 0.2, 0.3])
     >>> bool(np.allclose(C, m.predict([0.0, 1.0], [0.1, 0.2, 0.3]).shapes[0]))
     True
@@ -90,7 +91,7 @@ class IPCQuery:
             raise InvalidInputError(f"IPCQuery needs an IPCModel; got {type(self.model).__name__}")
         if not isinstance(self.target, Box) or self.target.dim != 3:
             raise SetError("the landing target must be a 3-D Box")
-        eng: InferenceEngine = self.model.engine
+        eng = self.model.engine
         cal = self.model.calibration
         groups = None if cal is None else cal.groups()
         # one calibrated group: a constant scale, looked up once instead of per query
@@ -103,8 +104,11 @@ class IPCQuery:
         object.__setattr__(self, "_n", cfg.y_dim)
         object.__setattr__(self, "_full", cfg.param == "full")
         object.__setattr__(self, "_offset", cfg.center == "offset")
-        object.__setattr__(self, "_flat_tril", eng.tril_rows * cfg.y_dim + eng.tril_cols)
-        object.__setattr__(self, "_flat_diag", np.arange(cfg.y_dim) * (cfg.y_dim + 1))
+        # the low-rank ensemble's engine has its own one-query path (all members at once)
+        object.__setattr__(self, "_lowrank", eng if isinstance(eng, LowRankEngine) else None)
+        if isinstance(eng, InferenceEngine):
+            object.__setattr__(self, "_flat_tril", eng.tril_rows * cfg.y_dim + eng.tril_cols)
+            object.__setattr__(self, "_flat_diag", np.arange(cfg.y_dim) * (cfg.y_dim + 1))
 
     # ----------------------------------------------------------------- ellipsoid
     def _inputs(self, x: ArrayLike, yhat: ArrayLike) -> tuple[FloatArray, FloatArray]:
@@ -130,6 +134,8 @@ class IPCQuery:
             If ``x`` or ``yhat`` has the wrong shape or a non-finite entry.
         """
         xa, ya = self._inputs(x, yhat)
+        if self._lowrank is not None:  # type: ignore[attr-defined]
+            return self._lowrank_ellipsoid(xa, ya)
         eng: InferenceEngine = self._engine  # type: ignore[attr-defined]
         n: int = self._n  # type: ignore[attr-defined]
         z = np.concatenate((xa, ya))
@@ -148,6 +154,19 @@ class IPCQuery:
             flat[self._flat_diag] = np.exp(np.minimum(np.maximum(diag, -LOGDIAG_CLAMP), LOGDIAG_CLAMP))  # type: ignore[attr-defined]
             L = flat.reshape(n, n)
         shape = L * eng.inv_sigma
+        scale: float | None = self._scale  # type: ignore[attr-defined]
+        if scale is not None:
+            shape /= scale
+        elif self.model.calibration is not None:
+            shape /= float(self.model.calibration.scale_for(xa[None], ya[None])[0])
+        return center, shape
+
+    def _lowrank_ellipsoid(self, xa: FloatArray, ya: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """:meth:`ellipsoid` for the low-rank ensemble: its engine's one-query path, then the calibration."""
+        if not (np.isfinite(xa).all() and np.isfinite(ya).all()):
+            raise InvalidInputError("x and yhat must be finite")
+        eng: LowRankEngine = self._lowrank  # type: ignore[attr-defined]
+        center, shape = eng.single(xa, ya)
         scale: float | None = self._scale  # type: ignore[attr-defined]
         if scale is not None:
             shape /= scale

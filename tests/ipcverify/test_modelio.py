@@ -74,7 +74,7 @@ def test_future_version(tmp_path):
 
 
 def test_damaged_state_dict(tmp_path):
-    m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(4,))))
+    m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(4,), param="cholesky")))
     p = tmp_path / "m.pt"
     save_model(m, p)
     payload = torch.load(p, weights_only=True)
@@ -85,7 +85,7 @@ def test_damaged_state_dict(tmp_path):
 
 
 def test_non_finite_weights(tmp_path):
-    m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(4,))))
+    m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(4,), param="cholesky")))
     p = tmp_path / "m.pt"
     save_model(m, p)
     payload = torch.load(p, weights_only=True)
@@ -96,7 +96,7 @@ def test_non_finite_weights(tmp_path):
 
 
 def test_save_is_atomic(tmp_path, monkeypatch):
-    m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(4,))))
+    m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(4,), param="cholesky")))
     p = tmp_path / "m.pt"
     save_model(m, p)
     before = p.read_bytes()

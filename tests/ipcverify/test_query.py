@@ -124,7 +124,7 @@ def test_bad_queries_are_refused_with_a_message(trained, x, yhat, match):
 
 
 def test_landing_needs_three_dimensions():
-    q = IPCQuery(IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=2, hidden=(4,)))), G)
+    q = IPCQuery(IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=2, hidden=(4,), param="cholesky"))), G)
     assert q.ellipsoid(np.zeros(2), np.zeros(2))[1].shape == (2, 2)
     with pytest.raises(SetError, match="needs a 3-D ellipsoid"):
         q.decide(np.zeros(2), np.zeros(2))
