@@ -266,9 +266,12 @@ def toy_check(seed: int = 0, n: int = 4000, m: int = 400) -> dict[str, Any]:
 
 
 def diagnose_recipes(
-    recipes: tuple[str, ...] = ("v1", "tight"), n: int = 5000, seeds: int = 2, laws: tuple[str, ...] = ("gauss", "t4")
+    recipes: tuple[str, ...] = ("v1", "tight"),
+    n: int = 5000,
+    seeds: int = 2,
+    laws: tuple[str, ...] = ("gauss", "t4"),
 ) -> dict[str, Any]:
-    """Train each recipe (``seeds`` training seeds), PAC-calibrate it and diagnose it on the known-oracle data.
+    """Train each recipe (``seeds`` seeds), PAC-calibrate it and diagnose it on the known-oracle data.
 
     Data seeds 2000 / 2001 / 2002 (train / calibration / test), the seeds the research
     branch diagnosed the old default on. Returns ``{law: {recipe: [run, ...]}}``.
@@ -295,7 +298,9 @@ def diagnose_recipes(
                 th = cm.require_calibration().groups()[0]
                 sets = cm.predict(te.x, te.yhat)
                 d = diagnose(sets, orc, 0.99, pac_k=th.k, pac_n=th.n)
-                runs.append({**d.to_dict(), "coverage": float(sets.contains(te.y).mean()), "train_seconds": secs})
+                runs.append(
+                    {**d.to_dict(), "coverage": float(sets.contains(te.y).mean()), "train_seconds": secs}
+                )
                 print(f"{law} {recipe} seed {seed}: {d.summary()}", flush=True)
             res[law][recipe] = runs
     return res
@@ -322,7 +327,10 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         if a.out is not None:
             write_json(a.out, r)
         return r
-    res = {"settings": {"n": a.n, "seeds": a.seeds, "epsilon": 0.01, "delta": 0.001}, **diagnose_recipes(n=a.n, seeds=a.seeds)}
+    res = {
+        "settings": {"n": a.n, "seeds": a.seeds, "epsilon": 0.01, "delta": 0.001},
+        **diagnose_recipes(n=a.n, seeds=a.seeds),
+    }
     write_json(a.out or OUT, res)
     return res
 

@@ -128,7 +128,9 @@ def _outer(v: FloatArray) -> FloatArray:
     return np.einsum("bi,bj->bij", v, v)
 
 
-def make_hetlag(n: int, seed: int, law: str = "gauss", shift: float = 0.0) -> tuple[PerceptionDataset, Oracle]:
+def make_hetlag(
+    n: int, seed: int, law: str = "gauss", shift: float = 0.0
+) -> tuple[PerceptionDataset, Oracle]:
     """``n`` samples of the known-oracle heteroscedastic lagged-perception law, and their oracle.
 
     Examples

@@ -45,73 +45,57 @@ def lowrank_nodes(
 
     cfg = eng.config
     n, k = cfg.y_dim, cfg.members
+    nu = n * (n + 1)
     i64 = np.int64
-    width = eng.first_weight.shape[2] - n - n * n
+    width = eng.first_weight.shape[2] - nu
     act = {"relu": "Relu", "tanh": "Tanh", "elu": "Elu"}[cfg.activation]
 
     def piece(src: str, start: int, stop: int, name: str, axis: int = -1) -> str:
-        return node(
-            "Slice",
-            [
-                src,
-                const(f"{name}_start", [start], i64),
-                const(f"{name}_stop", [stop], i64),
-                const(f"{name}_axis", [axis], i64),
-            ],
-            name,
-        )
+        bounds = [const(f"{name}_start", [start], i64), const(f"{name}_stop", [stop], i64)]
+        return node("Slice", [src, *bounds, const(f"{name}_axis", [axis], i64)], name)
 
-    lin = node(
-        "Add",
-        [node("MatMul", [z, const("lin_weight", eng.lin_weight)], "lin_mm"), const("lin_bias", eng.lin_bias)],
-        "lin",
-    )
+    lin_mm = node("MatMul", [z, const("lin_weight", eng.lin_weight)], "lin_mm")
+    lin = node("Add", [lin_mm, const("lin_bias", eng.lin_bias)], "lin")
     first = node("MatMul", [z, const("W0", eng.first_weight)], "matmul0")  # (K, B, ·)
     first = node("Add", [first, const("b0", eng.first_bias)], "linear0")
     h = node(act, [piece(first, 0, width, "hidden_in0")], "hidden0")
-    skip = piece(first, width, width + n, "center_skip")
-    fskip = piece(first, width + n, width + n + n * n, "factor_skip")
+    skip = piece(first, width, width + nu, "skip_u")
     last = len(eng.weights) - 1
     for i, (w, b) in enumerate(zip(eng.weights, eng.biases, strict=True)):
-        h = node(
-            "Add",
-            [node("MatMul", [h, const(f"W{i + 1}", w)], f"matmul{i + 1}"), const(f"b{i + 1}", b)],
-            f"linear{i + 1}",
-        )
+        mm = node("MatMul", [h, const(f"W{i + 1}", w)], f"matmul{i + 1}")
+        h = node("Add", [mm, const(f"b{i + 1}", b)], f"linear{i + 1}")
         if i < last:
             h = node(act, [h], f"hidden{i + 1}")
-    offset = node("Add", [piece(h, 0, n, "o_net"), skip], "o")  # (K, B, n)
-    log_diag = node(
-        "Clip", [piece(h, n, 2 * n, "h_raw"), const("lo", -LOGDIAG_CLAMP), const("hi", LOGDIAG_CLAMP)], "h"
-    )
-    factor = node("Add", [piece(h, 2 * n, 2 * n + n * n, "v_net"), fskip], "v_flat")
-    factor = node("Reshape", [factor, const("v_shape", [k, -1, n, n], i64)], "V")
-    mean = node("ReduceMean", [offset], "o_mean", axes=[0], keepdims=0)  # (B, n)
-    dev = node("Sub", [offset, mean], "o_dev")
-    cols = node(
-        "Concat",
-        [factor, node("Unsqueeze", [dev, const("ax_last", [-1], i64)], "dev_col")],
-        "columns",
-        axis=-1,
-    )  # (K, B, n, n + 1)
-    outer = node("MatMul", [cols, node("Transpose", [cols], "columns_t", perm=[0, 1, 3, 2])], "outer")
-    spread = node(
+    # every member's U = [V | o] (n x (n + 1)) and log-diagonal h, in the engine's layout
+    u_flat = node("Add", [piece(h, 0, nu, "u_net"), skip], "u_flat")
+    U = node("Reshape", [u_flat, const("u_shape", [k, -1, n, n + 1], i64)], "U")
+    offset = piece(U, n, n + 1, "o")  # (K, B, n, 1)
+    mean = node(
         "Div",
         [
-            node("ReduceSum", [outer, const("ax0", [0], i64)], "outer_sum", keepdims=0),
+            node("ReduceSum", [offset, const("ax0", [0], i64)], "o_sum", keepdims=0),
             const("members", float(k)),
         ],
-        "spread",
+        "o_mean",
+    )  # (B, n, 1)
+    dev = node("Sub", [offset, mean], "o_dev")
+    cols = node("Concat", [piece(U, 0, n, "V"), dev], "columns", axis=-1)  # (K, B, n, n + 1)
+    cols = node("Transpose", [cols], "columns_t", perm=[1, 2, 0, 3])  # (B, n, K, n + 1)
+    cols = node("Reshape", [cols, const("cols_shape", [-1, n, k * (n + 1)], i64)], "columns_flat")
+    outer = node("MatMul", [cols, node("Transpose", [cols], "columns_flat_t", perm=[0, 2, 1])], "outer")
+    spread = node("Div", [outer, "members"], "spread")  # (B, n, n)
+    log_var = node(
+        "Clip", [piece(h, nu, nu + n, "h_raw"), const("lo", -LOGDIAG_CLAMP), const("hi", LOGDIAG_CLAMP)], "h"
     )
+    var = node("Exp", [node("Mul", [log_var, const("two", 2.0)], "h2")], "var")
+    var = node("Div", [node("ReduceSum", [var, "ax0"], "var_sum", keepdims=0), "members"], "var_mean")
     diag = node(
-        "ReduceMean",
-        [node("Exp", [node("Mul", [log_diag, const("two", 2.0)], "h2")], "var")],
-        "var_mean",
-        axes=[0],
-        keepdims=0,
+        "Mul",
+        [node("Unsqueeze", [var, const("ax_last", [-1], i64)], "var_col"), const("eye", np.eye(n))],
+        "diag",
     )
-    diag = node("Mul", [node("Unsqueeze", [diag, "ax_last"], "var_col"), const("eye", np.eye(n))], "diag")
     cov = node("Add", [spread, diag], "Sigma")  # (B, n, n)
+    mean = node("Squeeze", [mean, "ax_last"], "o_mean_flat")  # (B, n)
 
     rows_of_sigma = [
         node("Gather", [cov, const(f"row_index{i}", i, i64)], f"Sigma_row{i}", axis=1) for i in range(n)

@@ -24,7 +24,10 @@ def data():
     return make_lagged_perception(1500, seed=0), make_lagged_perception(1000, seed=1)
 
 
-@pytest.fixture(scope="module", params=[("cholesky", "offset"), ("full", "raw"), ("cholesky", "raw")])
+@pytest.fixture(
+    scope="module",
+    params=[("lowrank", "offset"), ("cholesky", "offset"), ("full", "raw"), ("cholesky", "raw")],
+)
 def trained(request, data):
     param, center = request.param
     mc = ModelConfig(x_dim=6, y_dim=3, hidden=(16, 16), param=param, center=center)
