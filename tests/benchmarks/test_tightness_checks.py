@@ -1,4 +1,4 @@
-"""Seeded checks of the tightness tools: the diagnosis finds planted errors; the default beats the global set."""
+"""Seeded checks of the tightness tools: the diagnosis finds planted errors; the default beats the global."""
 
 from __future__ import annotations
 
