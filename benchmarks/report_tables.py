@@ -16,6 +16,7 @@ __all__ = [
     "tightness_table",
     "before_after_table",
     "diagnosis_table",
+    "diagnosis_runs_table",
     "shift_table",
     "targets_table",
 ]
@@ -129,6 +130,29 @@ def diagnosis_table(tightness: dict[str, Any]) -> list[str]:
                 f"{fmt(st['rms_whitened_bias'])} | {fmt(st['sd_log_rel_scale'])} | "
                 f"{fmt(st['aspect_misfit'])} |"
             )
+    return lines
+
+
+def diagnosis_runs_table(diagnosis: dict[str, Any]) -> list[str]:
+    """``benchmarks/diagnosis_results.json``: each recipe's diagnosis per law and training seed."""
+    lines = [
+        "| law | recipe | seed | × oracle (1 − ε) | centre | shape | calibration | PAC margin "
+        "| RMS whitened centre bias | sd log size | aspect misfit | coverage |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for law, recipes in diagnosis.items():
+        if law == "settings":
+            continue
+        for recipe, runs in recipes.items():
+            for seed, d in enumerate(runs):
+                sym, st = d["factors_symmetric"], d["stats"]
+                lines.append(
+                    f"| {law} | `{recipe}` | {seed} | {fmt(d['volume_ratio_to_oracle'])} | "
+                    f"{fmt(sym['centre'])} | {fmt(sym['shape'])} | {fmt(sym['calibration'])} | "
+                    f"{fmt(d['factors']['pac_margin'])} | {fmt(st['rms_whitened_bias'])} | "
+                    f"{fmt(st['sd_log_rel_scale'])} | {fmt(st['aspect_misfit'])} | "
+                    f"{100 * d['coverage']:.2f} % |"
+                )
     return lines
 
 
