@@ -8,15 +8,20 @@ ONNX Runtime limited to **one thread**:
   inside one ``torch.inference_mode()`` block entered outside the timing loop (the
   cheapest torch call there is; no normalisation, no set, no decision).
 * ``ellipsoid`` -- :meth:`ipcverify.query.IPCQuery.ellipsoid`: (x, yhat) -> calibrated (c, C).
-* ``decide_float`` -- query -> ellipsoid -> float landing decision (not a proof).
-* ``decide`` -- query -> ellipsoid -> landing decision of record (float pre-check,
-  exact proof on every accept), over the test split's queries in order: the path the
-  landing controller runs. Also split into its rejecting and accepting queries.
+* ``decide_float`` -- query -> ellipsoid -> domain test -> float landing decision (not a proof).
+* ``decide`` -- query -> ellipsoid -> domain test -> landing decision of record (float64 with a
+  rigorous rounding bound, exact arithmetic inside the band: every answer proven), over the
+  test split's queries in order: the path the landing controller runs. Also over the same
+  queries shuffled (``decide_shuffled``: no frame-to-frame coherence for the domain test's
+  cache), and split by answer: accepted, rejected inside the domain, outside the domain.
 * ``onnx_float64`` / ``onnx_float32`` -- ONNX Runtime on the exported graph, (1, d) inputs.
 
 Each is timed call by call in interleaved rounds; p50 and p99 are taken per round and
-the median (and min/max) over rounds is reported. Batch throughput is queries per
-second of ``model.predict`` (validated ``Ellipsoid``), the bare float64 engine arrays,
+the median (and min/max) over rounds is reported, with both ratios to the bare forward.
+``fast_path`` reports how the landing decisions of the test split were reached
+(:func:`ipcverify.landing_bound.landing_by_bound`: float bound alone, exact integer turn-off
+height, or the exact rational fallback). Batch throughput is queries per second of
+``model.predict`` (validated ``Ellipsoid``), the bare float64 engine arrays,
 ONNX Runtime (float64 and float32) and the bare torch forward, all single-threaded;
 ``engine_arrays_blas_default_threads`` repeats the engine with NumPy's BLAS at one thread
 per core (its default), which on 2 shared cores is far slower for mid-sized batches.
@@ -36,6 +41,7 @@ import torch
 from benchmarks.common import spread, time_calls
 from case_studies.quad_landing.landing.state_machine import LandingParams
 from ipcverify.data import PerceptionDataset
+from ipcverify.landing_bound import landing_by_bound
 from ipcverify.model import IPCModel
 from ipcverify.query import IPCQuery
 
@@ -63,6 +69,34 @@ def _onnx_sessions(model: IPCModel, folder: Path) -> dict[str, Any]:
     return out
 
 
+def _fast_path_shares(q: IPCQuery, xs: np.ndarray, ys: np.ndarray, in_domain: np.ndarray) -> dict[str, Any]:
+    """How the landing decisions of these queries' sets are reached (every query, and in the domain)."""
+    lower, upper = q.target.lower.tolist(), q.target.upper.tolist()
+    tiers = []
+    for x, y in zip(xs, ys, strict=True):
+        c, C = q.ellipsoid(x, y)
+        r = landing_by_bound(c.tolist(), C.ravel().tolist(), lower, upper)
+        tiers.append(
+            "exact_rational" if r is None else ("exact_integer_height" if r.exact_turnoff else "float_bound")
+        )
+    t = np.array(tiers)
+
+    def shares(mask: np.ndarray) -> dict[str, Any]:
+        n = int(mask.sum())
+        return {"queries": n, **{k: float((t[mask] == k).mean()) if n else None for k in _TIERS}}
+
+    return {
+        "all_queries": shares(np.ones(len(t), dtype=bool)),
+        "in_domain_queries": shares(in_domain),
+        "note": "float_bound: decided by tier 1 alone; exact_integer_height: P_z (or a z face) needed exact "
+        "integers (a few microseconds); exact_rational: a margin in the rounding band, decided by "
+        "landing_decision (about a millisecond) -- the fallback rate",
+    }
+
+
+_TIERS = ("float_bound", "exact_integer_height", "exact_rational")
+
+
 def single_query(
     model: IPCModel,
     queries: PerceptionDataset,
@@ -78,8 +112,14 @@ def single_query(
     m = len(xs)
     z = ((np.hstack([xs, ys]) - eng.in_mean) * eng.in_scale).astype(np.float32)
     zt = [torch.from_numpy(z[i : i + 1].copy()) for i in range(min(m, 256))]
-    accepts = np.array([q.decide(xs[i], ys[i]).accept for i in range(m)])
-    acc_idx, rej_idx = np.flatnonzero(accepts), np.flatnonzero(~accepts)
+    decisions = [q.decide(xs[i], ys[i]) for i in range(m)]
+    verdicts = np.array([d.verdict.name for d in decisions])
+    groups = {
+        "accepting": np.flatnonzero(verdicts == "ACCEPT"),
+        "rejecting": np.flatnonzero(verdicts == "REJECT"),
+        "outside_domain": np.flatnonzero(verdicts == "OUTSIDE_DOMAIN"),
+    }
+    shuffled = np.random.default_rng(0).permutation(m)
 
     def cycler(fn: Any, idx: np.ndarray) -> Any:
         state = {"i": 0}
@@ -98,10 +138,10 @@ def single_query(
         paths["ellipsoid"] = cycler(lambda j: q.ellipsoid(xs[j], ys[j]), np.arange(m))
         paths["decide_float"] = cycler(lambda j: q.decide_float(xs[j], ys[j]), np.arange(m))
         paths["decide"] = cycler(lambda j: q.decide(xs[j], ys[j]), np.arange(m))
-        if len(rej_idx):
-            paths["decide_rejecting_queries"] = cycler(lambda j: q.decide(xs[j], ys[j]), rej_idx)
-        if len(acc_idx):
-            paths["decide_accepting_queries"] = cycler(lambda j: q.decide(xs[j], ys[j]), acc_idx)
+        paths["decide_shuffled"] = cycler(lambda j: q.decide(xs[j], ys[j]), shuffled)
+        for name, idx in groups.items():
+            if len(idx):
+                paths[f"decide_{name}_queries"] = cycler(lambda j: q.decide(xs[j], ys[j]), idx)
         paths["model_predict_one"] = cycler(
             lambda j: model.predict(xs[j : j + 1], ys[j : j + 1]), np.arange(m)
         )
@@ -116,20 +156,26 @@ def single_query(
         p99: dict[str, list[float]] = {k: [] for k in paths}
         for _ in range(rounds):
             for name, fn in paths.items():
-                n_calls = calls if "accepting" not in name and name != "decide" else max(calls // 5, 200)
-                t = time_calls(fn, n_calls) * 1e6
+                t = time_calls(fn, calls) * 1e6
                 p50[name].append(float(np.median(t)))
                 p99[name].append(float(np.quantile(t, 0.99)))
     out: dict[str, Any] = {
         "unit": "microseconds per query",
         "torch_threads": torch.get_num_threads(),
         "queries": m,
-        "accept_fraction": float(accepts.mean()),
+        "accept_fraction": float((verdicts == "ACCEPT").mean()),
+        "verdict_fractions": {k: float(len(v) / m) for k, v in groups.items()},
         "paths": {k: {"p50": spread(p50[k]), "p99": spread(p99[k])} for k in paths},
+        "fast_path": _fast_path_shares(q, xs, ys, verdicts != "OUTSIDE_DOMAIN"),
+        "decided_by_in_domain": {
+            k: int(sum(d.decided_by.name == k and d.in_domain for d in decisions)) for k in ("BOUND", "EXACT")
+        },
     }
-    bare = out["paths"]["bare_forward"]["p50"]["median"]
+    bare = out["paths"]["bare_forward"]
     for k in paths:
-        out["paths"][k]["p50_ratio_to_bare_forward"] = out["paths"][k]["p50"]["median"] / bare
+        r = out["paths"][k]
+        r["p50_ratio_to_bare_forward"] = r["p50"]["median"] / bare["p50"]["median"]
+        r["p99_ratio_to_bare_forward"] = r["p99"]["median"] / bare["p99"]["median"]
     return out
 
 
@@ -229,5 +275,11 @@ def bench_latency(
         result["batch_throughput"] = batch_throughput(model, queries, sizes, onnx)
     sq = result["single_query"]["paths"]
     result["single_query_ratio_to_bare_forward"] = sq["decide"]["p50_ratio_to_bare_forward"]
+    result["single_query_p99_ratio_to_bare_forward"] = sq["decide"]["p99_ratio_to_bare_forward"]
     result["single_query_float_ratio_to_bare_forward"] = sq["decide_float"]["p50_ratio_to_bare_forward"]
+    bt = result["batch_throughput"]["paths"]
+    result["batch_predict_ratio_to_bare_forward"] = {
+        str(b): bt["model_predict"][str(b)]["median"] / bt["bare_torch_forward"][str(b)]["median"]
+        for b in sizes
+    }
     return result

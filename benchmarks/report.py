@@ -23,6 +23,7 @@ TRAIN_SECONDS = 10.0
 
 
 def _target(value: float | None, limit: float, what: str, at_least: bool = False) -> dict[str, Any]:
+    """``value <= limit`` (or ``>= limit`` with ``at_least``); None when not measured."""
     if value is None:
         return {"what": what, "value": None, "limit": limit, "met": None, "at_least": at_least}
     met = value >= limit if at_least else value <= limit
@@ -122,13 +123,26 @@ def targets(results: dict[str, Any]) -> dict[str, Any]:
         out["single_query_latency"] = _target(
             lat["single_query_ratio_to_bare_forward"],
             1.2,
-            "p50 of query -> ellipsoid -> landing decision of record (exact proof on accepts) / bare forward",
+            "p50 of query -> ellipsoid -> domain test -> landing decision of record (proven) / bare forward",
         )
         out["single_query_latency_float_decision"] = _target(
             lat["single_query_float_ratio_to_bare_forward"],
             1.2,
             "p50 of query -> ellipsoid -> float landing decision (not a proof) / bare forward",
         )
+        out["single_query_latency_p99"] = _target(
+            lat.get("single_query_p99_ratio_to_bare_forward"),
+            2.0,
+            "p99 of the landing decision of record / p99 of the bare forward",
+        )
+        for size, ratio in lat.get("batch_predict_ratio_to_bare_forward", {}).items():
+            if int(size) >= 10_000:
+                out[f"batch_predict_{size}"] = _target(
+                    ratio,
+                    0.8,
+                    f"model.predict throughput / bare torch forward throughput at {int(size):,} queries",
+                    at_least=True,
+                )
     return out
 
 
@@ -175,14 +189,37 @@ def render_markdown(results: dict[str, Any]) -> str:
             f"{100 * sq['accept_fraction']:.1f} % are accepted for landing). µs per query, median over "
             "rounds of the per-round p50 / p99; torch and ONNX Runtime with 1 thread.",
             "",
-            "| path | p50 µs | p99 µs | p50 / bare forward |",
-            "|---|---|---|---|",
+            "| path | p50 µs | p99 µs | p50 / bare forward | p99 / bare forward |",
+            "|---|---|---|---|---|",
         ]
         for path, r in sq["paths"].items():
+            p99_ratio = r.get("p99_ratio_to_bare_forward")
             lines.append(
                 f"| {path} | {r['p50']['median']:.1f} | {r['p99']['median']:.1f} | "
-                f"{r['p50_ratio_to_bare_forward']:.2f} |"
+                f"{r['p50_ratio_to_bare_forward']:.2f} | "
+                + ("–" if p99_ratio is None else f"{p99_ratio:.2f}")
+                + " |"
             )
+        if "verdict_fractions" in sq:
+            vf = sq["verdict_fractions"]
+            lines += [
+                "",
+                f"Answers over the split: {100 * vf['accepting']:.1f} % accept, "
+                f"{100 * vf['rejecting']:.1f} % reject, "
+                f"{100 * vf['outside_domain']:.1f} % outside the domain of validity.",
+            ]
+        if "fast_path" in sq:
+            lines += ["", "How the landing decisions were reached (shares of queries):", ""]
+            lines += ["| queries | n | float bound | exact integer height | exact rational (fallback) |"]
+            lines += ["|---|---|---|---|---|"]
+            for key in ("all_queries", "in_domain_queries"):
+                f = sq["fast_path"][key]
+                if not f["queries"]:
+                    continue
+                lines.append(
+                    f"| {key.replace('_', ' ')} | {f['queries']} | {100 * f['float_bound']:.1f} % | "
+                    f"{100 * f['exact_integer_height']:.1f} % | {100 * f['exact_rational']:.2f} % |"
+                )
         bt = lat["batch_throughput"]
         names = list(bt["paths"])
         lines += [
@@ -196,6 +233,14 @@ def render_markdown(results: dict[str, Any]) -> str:
             lines.append(
                 f"| {b:,} | " + " | ".join(f"{bt['paths'][k][str(b)]['median']:,.0f}" for k in names) + " |"
             )
+        ratios = lat.get("batch_predict_ratio_to_bare_forward")
+        if ratios:
+            lines += [
+                "",
+                "model.predict / bare torch forward: "
+                + ", ".join(f"{float(r):.2f} at {int(b):,}" for b, r in ratios.items())
+                + ".",
+            ]
         if "onnx_check" in lat:
             chk = lat["onnx_check"]
 

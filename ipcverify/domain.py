@@ -64,6 +64,52 @@ EIGEN_FLOOR = 1e-6
 #: Level of the one-sided binomial test behind "far more queries outside than false alarms explain".
 WELL_ABOVE_LEVEL = 1e-3
 METHOD = "conformal k-nearest-neighbour distance on whitened (x, yhat), leave-one-out threshold"
+#: contains_one answers from a cached or float32 distance only this far (relative) from the threshold.
+_ABOVE, _BELOW = 1.0 + 1e-9, 1.0 - 1e-9
+_STEP_SLACK = 1.0 + 1e-12  # covers the rounding of a 15-ish-term float64 distance
+#: Rounding bound of the float32 scan, per unit of (max ||r|| + ||w||)^2: (D + 6) u32 suffices (_Scan).
+_SCAN_BOUND = 1e-5
+_U32 = 2.0**-24
+_SCAN_MAX_NORM = 1e15  # whitened queries farther out than this go to the tree
+
+
+@dataclass(frozen=True, eq=False)
+class _Scan:
+    """All reference points in float32, to bound every squared distance at once.
+
+    ``d_j^2 = ||r_j||^2 - 2 r_j.w + ||w||^2``: the first two terms are one float32 product of
+    ``(w, 1)`` with the columns ``(-2 r_j, ||r_j||^2)``. Rounding ``r``, ``||r||^2`` and ``w`` to
+    float32 and every operation of the product (``D + 1`` terms, each rounding ``<= u32 = 2^-24``
+    relative, ``|r.w| <= ||r|| ||w||``) changes the result by at most ``(D + 5) u32 (R + ||w||)^2``
+    with ``R = max ||r_j||``, and the ``k``-th smallest of the values by no more.
+    ``_SCAN_BOUND = 1e-5`` covers ``(D + 6) u32`` up to ``D = 161`` inputs (beyond, the scan is
+    skipped); the float64 ``R`` is rounded up by a relative ``1e-12``.
+    """
+
+    columns: NDArray[np.float32]  # (D + 1, m): -2 r_j stacked over ||r_j||^2
+    max_norm: float
+
+    @classmethod
+    def of(cls, ref: FloatArray) -> _Scan:
+        sq = np.einsum("ij,ij->i", ref, ref)
+        cols = np.concatenate([-2.0 * ref.T, sq[None, :]], axis=0)
+        return cls(
+            np.ascontiguousarray(cols, dtype=np.float32),
+            float(np.sqrt(sq.max())) * (1.0 + 1e-12) if len(sq) else 0.0,
+        )
+
+    def kth(self, w: FloatArray, k: int) -> tuple[float, float] | None:
+        """Lower and upper bounds of the ``k``-th smallest distance ``||r_j - w||`` (None: too far out)."""
+        ww = float(w @ w)
+        if not ww < _SCAN_MAX_NORM**2 or (len(w) + 6) * _U32 > _SCAN_BOUND:
+            return None
+        w1 = np.empty(len(w) + 1, dtype=np.float32)
+        w1[:-1] = w
+        w1[-1] = 1.0
+        d2 = w1 @ self.columns
+        kth = float(d2.min() if k == 1 else np.partition(d2, k - 1)[k - 1]) + ww
+        slack = _SCAN_BOUND * (self.max_norm + math.sqrt(ww)) ** 2
+        return math.sqrt(max(kth - slack, 0.0)), math.sqrt(kth + slack)
 
 
 def _stack(x: ArrayLike, yhat: ArrayLike) -> FloatArray:
@@ -112,6 +158,8 @@ class DomainModel:
     method: str = METHOD
     _tree: Any = field(default=None, init=False, repr=False)
     _wt: Any = field(default=None, init=False, repr=False)
+    _scan: Any = field(default=None, init=False, repr=False)
+    _last: Any = field(default=None, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         mean = np.array(self.mean, dtype=np.float64)
@@ -134,6 +182,8 @@ class DomainModel:
             object.__setattr__(self, name, value)
         object.__setattr__(self, "_tree", cKDTree(ref))
         object.__setattr__(self, "_wt", np.ascontiguousarray(w.T))
+        object.__setattr__(self, "_scan", _Scan.of(ref))
+        object.__setattr__(self, "_last", [None])
 
     # ------------------------------------------------------------------- fitting
     @classmethod
@@ -220,15 +270,43 @@ class DomainModel:
     def contains_one(self, z: FloatArray) -> bool:
         """One query given as the concatenated 1-D ``(x, yhat)`` (the single-query path).
 
-        Asks the tree only whether ``k`` calibration inputs lie within the threshold, which
-        is cheaper than finding the exact distance.
+        The answer of :meth:`contains` for this query alone (the ``k``-th neighbour distance, as
+        the tree computes it, is at most the threshold; a larger batch's matrix product may whiten
+        a query an ulp differently), reached cheaply in three steps:
+
+        1. the ``k``-th neighbour distance is 1-Lipschitz in the query, so the previous query's
+           distance ``d'`` decides when ``|d' - threshold|`` exceeds the step ``||w - w'||`` (a
+           control loop's queries move little between frames);
+        2. otherwise a float32 scan of all references, ``||r||^2 - 2 r.w + ||w||^2``, decides when
+           its rigorous rounding bound (``_Scan``) clears the threshold;
+        3. otherwise the tree decides, by the very computation of :meth:`contains`.
+
+        Steps 1 and 2 answer only with a relative margin of ``1e-9`` to the threshold, a million
+        times the rounding of the tree's own distance, so the answer is always :meth:`contains`'s.
         """
-        if not np.isfinite(z).all():
+        if not math.isfinite(z @ z) and not np.isfinite(z).all():  # z @ z: one cheap call when finite
             return False
-        # the bound is a strict "<" in the tree: one float above the threshold keeps "<=" semantics
-        bound = math.nextafter(self.threshold, math.inf)
-        d, _ = self._tree.query((z - self.mean) @ self._wt, k=self.k, distance_upper_bound=bound)
-        return bool(np.max(d) <= self.threshold)
+        w = (z - self.mean) @ self._wt
+        t = self.threshold
+        last = self._last[0]
+        if last is not None:  # step 1
+            w_prev, d_lo, d_hi = last
+            step = math.dist(w.tolist(), w_prev) * _STEP_SLACK
+            if d_lo - step > t * _ABOVE:
+                return False
+            if d_hi + step < t * _BELOW:
+                return True
+        scan = self._scan.kth(w, self.k)  # step 2: (lower, upper) bounds of the k-th distance, or None
+        if scan is not None:
+            d_lo, d_hi = scan
+            inside = d_hi < t * _BELOW
+            if inside or d_lo > t * _ABOVE:
+                self._last[0] = (w.tolist(), d_lo, d_hi)
+                return inside
+        # step 3: exactly the computation of distance() (a bounded tree query can differ by an ulp)
+        d, _ = self._tree.query(self._whiten(z[None]), k=[self.k])
+        self._last[0] = None
+        return bool(float(d[0, 0]) <= t)
 
     # ------------------------------------------------------------- reporting
     def report(

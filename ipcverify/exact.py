@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Sequence
 from fractions import Fraction
+from itertools import repeat
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -27,6 +28,7 @@ __all__ = [
     "ExactMatrix",
     "ExactVector",
     "decode_exact",
+    "dyadic",
     "encode_exact",
     "exact_matrix",
     "exact_vector",
@@ -46,6 +48,8 @@ ExactVector = list[Fraction]
 ExactMatrix = list[list[Fraction]]
 
 _ZERO = Fraction(0)
+#: :func:`dyadic` tries the exponents ``-100`` and then ``-200`` (small integers, cheap arithmetic).
+_DYADIC_SCALES = ((100, 2.0**100), (200, 2.0**200))
 
 
 def _check_finite(values: np.ndarray, what: str) -> None:
@@ -331,3 +335,38 @@ def decode_exact(value: object) -> Fraction:
                 return Fraction(int(parts[0]), den)
         raise InvalidInputError(f"expected a rational written 'p/q' with q > 0, got {value!r}")
     raise InvalidInputError(f"expected a number or a 'p/q' string, got {type(value).__name__}")
+
+
+def dyadic(values: Iterable[float]) -> tuple[list[int], int]:
+    """Integers ``m`` and one exponent ``e`` with ``values[k] == m[k] * 2**e`` exactly (finite floats).
+
+    Every finite float is a dyadic rational, so a list of them shares one power of two:
+    products, sums and comparisons of the integers are then exact and much cheaper than
+    :class:`~fractions.Fraction` arithmetic (no gcd after every operation). Floats of
+    magnitude ``2^-48 .. 2^900`` take the fast route ``e = -100``, down to ``2^-148`` the route
+    ``e = -200``; others the exact ratios (the smallest common power of two).
+
+    Examples
+    --------
+    >>> m, e = dyadic([0.75, 2.0, -0.125, 1e-300])
+    >>> [Fraction(k) * Fraction(2) ** e for k in m] == [Fraction(v) for v in (0.75, 2.0, -0.125, 1e-300)]
+    True
+    >>> dyadic([0.5, 1.0])
+    ([633825300114114700748351602688, 1267650600228229401496703205376], -100)
+    >>> dyadic([3, 2**60 + 1])
+    ([3, 1152921504606846977], 0)
+    """
+    vals = list(values)
+    try:  # float.__mul__ refuses anything but floats; scaling by 2^k is exact unless it overflows
+        for bits, scale in _DYADIC_SCALES:
+            scaled = list(map(float.__mul__, vals, repeat(scale)))
+            if all(map(float.is_integer, scaled)):  # inf and NaN are not integers
+                return list(map(int, scaled)), -bits
+    except TypeError:  # ints and other numbers: the exact ratios decide
+        pass
+    try:
+        ratios = [v.as_integer_ratio() for v in vals]
+    except (OverflowError, ValueError):
+        raise InvalidInputError("dyadic needs finite floats") from None
+    den = max(r[1] for r in ratios)
+    return [n * (den // d) for n, d in ratios], 1 - den.bit_length()

@@ -17,8 +17,13 @@ import torch
 from numpy.typing import NDArray
 
 from ipcverify.architecture import LOGDIAG_CLAMP, ModelConfig
+from ipcverify.errors import InvalidInputError
 
-__all__ = ["InferenceEngine"]
+__all__ = ["CHUNK", "InferenceEngine"]
+
+#: Rows evaluated together by :meth:`InferenceEngine.batch`: their hidden layers (512 x 128 float64,
+#: 0.5 MB) stay in the CPU cache; measured fastest among 256 .. 4096 on the benchmark machine.
+CHUNK = 512
 
 FloatArray = NDArray[np.float64]
 
@@ -98,24 +103,46 @@ class InferenceEngine:
                 z = self._activation(z)
         return z
 
-    def batch(self, x: FloatArray, yhat: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """Centres (B, n) and shape matrices (B, n, n) for validated float64 inputs."""
+    def batch(
+        self, x: FloatArray, yhat: FloatArray, chunk: int | None = None
+    ) -> tuple[FloatArray, FloatArray]:
+        """Centres (B, n) and shape matrices (B, n, n) for validated float64 inputs.
+
+        Rows are evaluated ``chunk`` at a time (default :data:`CHUNK`): the hidden layers of a
+        chunk stay in the CPU cache, and the results are written straight into the output
+        arrays. Every row is computed by the same operations whatever the chunk (only the
+        matrix products' summation order may differ, in the last bits).
+        """
         n = self.config.y_dim
-        z = np.concatenate([x, yhat], axis=1)
-        z -= self.in_mean
-        z *= self.in_scale
-        out = self.mlp(z)
-        o, s = out[:, :n], out[:, n:]
-        base = yhat if self.config.center == "offset" else self.y_mean
-        center = base + self.sigma * o
-        if self.config.param == "full":
-            L = s.reshape(-1, n, n)
-        else:
-            L = np.zeros((len(s), n, n))
-            vals = s.copy()
-            vals[:, self.diag_pos] = np.exp(np.clip(vals[:, self.diag_pos], -LOGDIAG_CLAMP, LOGDIAG_CLAMP))
-            L[:, self.tril_rows, self.tril_cols] = vals
-        return center, L * self.inv_sigma
+        size = CHUNK if chunk is None else int(chunk)
+        if size < 1:
+            raise InvalidInputError(f"chunk must be a positive number of rows; got {chunk!r}")
+        rows = len(x)
+        centers = np.empty((rows, n))
+        shapes = np.zeros((rows, n * n))
+        base_all = yhat if self.config.center == "offset" else None
+        full = self.config.param == "full"
+        flat = self.tril_rows * n + self.tril_cols
+        col_scale = self.inv_sigma[self.tril_cols]
+        for start in range(0, rows, size):
+            sl = slice(start, start + size)
+            z = np.concatenate([x[sl], yhat[sl]], axis=1)
+            z -= self.in_mean
+            z *= self.in_scale
+            out = self.mlp(z)
+            c = centers[sl]
+            np.multiply(self.sigma, out[:, :n], out=c)
+            c += self.y_mean if base_all is None else base_all[sl]
+            s = out[:, n:]
+            if full:
+                shapes[sl] = (s.reshape(-1, n, n) * self.inv_sigma).reshape(-1, n * n)
+            else:
+                diag = s[:, self.diag_pos]
+                np.exp(np.clip(diag, -LOGDIAG_CLAMP, LOGDIAG_CLAMP, out=diag), out=diag)
+                s[:, self.diag_pos] = diag
+                s *= col_scale
+                shapes[sl][:, flat] = s
+        return centers, shapes.reshape(rows, n, n)
 
     def single(self, x: FloatArray, yhat: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Centre (n,) and shape matrix (n, n) for one query given as 1-D float64 arrays."""

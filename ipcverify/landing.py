@@ -11,9 +11,12 @@ One decision rule, two precisions:
 
 * :func:`landing_slack` is the float rule -- the relative slack of every face of the test,
   for one ellipsoid or a whole batch; :func:`landing_accept_float` applies it to batches.
-* :class:`LandingRule` is the decision of record for one ellipsoid: the float rule rejects
-  clear misses at once (rejecting is always safe: the controller measures again); anything
-  else is decided by the exact :func:`landing_decision`, so every accept carries a proof.
+* :class:`LandingRule` is the decision of record for one ellipsoid. It is decided in float64
+  with a rigorous bound on the rounding error (:func:`ipcverify.landing_bound.landing_by_bound`,
+  ``proofs/float_landing.md``): the same accept/reject and the same turn-off point as the
+  exact :func:`landing_decision`, at the cost of a few microseconds; only when a margin lies
+  inside its rounding band does the exact rational proof decide. Either way every answer is
+  proven, and an accept's exact certificate is at hand (:attr:`QueryDecision.proof`).
 
 :func:`landing_decision` proves exactly the statement the controller relies on,
 ``P - y in G`` for all ``y in E``, i.e. ``E`` is inside the box ``{P} + (-G) =
@@ -58,12 +61,14 @@ from ipcverify.containment import (
     prove_closed_form,
     verify,
 )
-from ipcverify.errors import SetError
+from ipcverify.errors import IPCVerifyError, SetError
 from ipcverify.exact import exact_vector, float_down, float_up, sqnorm, sqrt_upper
+from ipcverify.landing_bound import bound_target, landing_by_bound
 from ipcverify.sets import Box, Ellipsoid
 
 __all__ = [
     "PRECHECK_MARGIN",
+    "DecidedBy",
     "LandingDecision",
     "LandingRule",
     "QueryDecision",
@@ -77,9 +82,9 @@ __all__ = [
 
 FloatArray = NDArray[np.float64]
 
-#: Relative margin by which the float rule must fail before a query is rejected without the
-#: exact proof (anything closer goes to :func:`landing_decision`); also the float rule's
-#: tolerance, so that the z face, which touches ``P`` by construction, is not lost to rounding.
+#: Tolerance of the float rule (:func:`landing_slack`, :meth:`LandingRule.decide_float`, not a
+#: proof): relative slacks down to ``-PRECHECK_MARGIN`` count as fitting, so that the z face,
+#: which touches ``P`` by construction, is not lost to rounding.
 PRECHECK_MARGIN = 1e-9
 
 
@@ -198,7 +203,7 @@ def landing_decision(ellipsoid: Ellipsoid, target: Box) -> LandingDecision:
     _check_target(target)
     ex = ExactEllipsoid.of(ellipsoid)
     p = _turnoff(ex)
-    cert = prove_closed_form(ellipsoid, _offset_box(p, target), ex)
+    cert = prove_closed_form(ellipsoid, _offset_box(p, target), ex, fast=False)
     return LandingDecision(cert.status is Status.PROVEN, p, cert, target)
 
 
@@ -316,6 +321,22 @@ class Verdict(Enum):
     )
 
 
+class DecidedBy(Enum):
+    """How a :class:`QueryDecision` was reached."""
+
+    BOUND = (
+        "float64 margins beyond their rigorous rounding bound (exact integers for the turn-off height "
+        "when needed): a proof, see proofs/float_landing.md"
+    )
+    EXACT = "exact rational arithmetic (landing_decision): a proof, with its certificate"
+    FLOAT_RULE = "the float rule alone (decide_float): not a proof"
+    DOMAIN = "nothing decided: the query is outside the domain of validity or its set is degenerate"
+
+
+class FastPathError(IPCVerifyError):
+    """The exact proof disagrees with a decision of the float-bound fast path (a bug: please report)."""
+
+
 @dataclass(frozen=True, eq=False, slots=True)
 class QueryDecision:
     """The landing answer for one ellipsoid.
@@ -327,34 +348,41 @@ class QueryDecision:
     shape : ndarray, shape (3, 3)
         Its shape matrix ``C`` (``E = {y : ||C (y - c)|| <= 1}``).
     accept : bool
-        Land on this measurement. From :meth:`LandingRule.decide` it is True only if
-        ``proof`` is an exact PROVEN landing decision.
+        Land on this measurement. From :meth:`LandingRule.decide` it is True only if the
+        ellipsoid provably fits (:attr:`decided_by` BOUND or EXACT).
     turnoff : ndarray, shape (3,)
-        Turn-off point ``P``: the exact one (``P_z`` rounded up) when ``proof`` is
-        given, else the float ``[c_x, c_y, c_z + h_z]``.
-    proof : LandingDecision or None
-        The exact decision, when it was computed (the float rule did not reject clearly).
+        Turn-off point ``P``: from :meth:`LandingRule.decide` the exact decision's (``P_z``
+        rounded up), else the float ``[c_x, c_y, c_z + h_z]``.
+    decided_by : DecidedBy
+        How the answer was reached (BOUND and EXACT are proofs).
     in_domain : bool
         The query lies inside the contract's domain of validity (and its set is not degenerate).
         A query outside is never accepted.
+    target : Box or None
+        The target ``G`` decided against (needed to produce :attr:`proof` on demand).
+    exact : LandingDecision or None
+        The exact decision, when it has been computed (see :attr:`proof`).
     proven : bool
-        ``accept`` is backed by an exact proof.
+        ``accept`` is backed by a proof.
     """
 
     center: FloatArray
     shape: FloatArray
     accept: bool
     turnoff: FloatArray
-    proof: LandingDecision | None = None
+    decided_by: DecidedBy
     in_domain: bool = True
+    target: Box | None = None
+    exact: LandingDecision | None = None
     proven: bool = field(init=False)
 
     def __post_init__(self) -> None:
-        if self.proof is not None and self.accept != self.proof.accept:
-            raise SetError("a decision with a proof must accept exactly when the proof does")
+        if self.exact is not None and self.accept != self.exact.accept:
+            raise SetError("a decision with an exact proof must accept exactly when the proof does")
         if self.accept and not self.in_domain:
             raise SetError("a query outside the domain of validity is never accepted")
-        object.__setattr__(self, "proven", bool(self.accept and self.proof is not None))
+        proof_kind = self.decided_by is DecidedBy.BOUND or self.decided_by is DecidedBy.EXACT
+        object.__setattr__(self, "proven", bool(self.accept and proof_kind))
 
     @property
     def verdict(self) -> Verdict:
@@ -363,15 +391,40 @@ class QueryDecision:
             return Verdict.OUTSIDE_DOMAIN
         return Verdict.ACCEPT if self.accept else Verdict.REJECT
 
+    @property
+    def proof(self) -> LandingDecision | None:
+        """The exact decision with its certificate (:func:`landing_decision`), or None.
+
+        Always available for a proven accept: computed on first access (about a millisecond)
+        when the float-bound path decided, and checked to agree with it (accept and turn-off
+        point). For a reject, only when the exact path decided it.
+
+        Raises
+        ------
+        FastPathError
+            If the exact proof disagrees with the fast path's decision (never expected).
+        """
+        if self.exact is None and self.proven and self.target is not None:
+            exact = landing_decision(Ellipsoid(self.center, self.shape), self.target)
+            if exact.accept != self.accept or not np.array_equal(exact.turnoff, self.turnoff):
+                raise FastPathError(
+                    f"the exact proof ({exact.accept}, P = {exact.turnoff.tolist()}) disagrees with the "
+                    f"float-bound decision ({self.accept}, P = {self.turnoff.tolist()}) for c = "
+                    f"{self.center.tolist()}, C = {self.shape.tolist()}: please report this as a bug"
+                )
+            object.__setattr__(self, "exact", exact)
+        return self.exact
+
 
 @dataclass(frozen=True, eq=False)
 class LandingRule:
     """The landing decision of record for one ellipsoid, against the caller's target ``G``.
 
-    :meth:`decide` applies the float rule (:func:`landing_slack`) and rejects when the
-    ellipsoid misses the target by more than :data:`PRECHECK_MARGIN` (relative); otherwise
-    the exact :func:`landing_decision` decides, so every accept is exactly proven.
-    :meth:`decide_float` is the float rule alone (fast, **not a proof**).
+    :meth:`decide` decides ``E ⊆ [P - G.upper, P - G.lower]`` in float64 with a rigorous
+    bound on the rounding error (:func:`~ipcverify.landing_bound.landing_by_bound`): the same
+    answer and turn-off point as the exact :func:`landing_decision`; a margin inside its
+    rounding band (rare) is decided by :func:`landing_decision` itself. Every answer is
+    proven. :meth:`decide_float` is the float rule alone (fast, **not a proof**).
 
     Parameters
     ----------
@@ -383,22 +436,23 @@ class LandingRule:
     >>> import numpy as np
     >>> rule = LandingRule(Box([-0.05, -0.05, 0.0], [0.05, 0.05, 0.05]))
     >>> d = rule.decide(np.zeros(3), np.diag([40.0, 40.0, 80.0]))
-    >>> d.accept, d.proven, d.turnoff.tolist()
-    (True, True, [0.0, 0.0, 0.0125])
-    >>> rule.decide(np.zeros(3), np.diag([10.0, 40.0, 80.0])).proof is None  # clear reject
-    True
+    >>> d.accept, d.proven, d.decided_by.name, d.turnoff.tolist()
+    (True, True, 'BOUND', [0.0, 0.0, 0.0125])
+    >>> d.proof.certificate.status.name          # the exact certificate, on demand
+    'PROVEN'
+    >>> rule.decide(np.zeros(3), np.diag([10.0, 40.0, 80.0])).verdict.name
+    'REJECT'
     """
 
     target: Box
 
     def __post_init__(self) -> None:
         _check_target(self.target)
+        lower, upper = tuple(self.target.lower.tolist()), tuple(self.target.upper.tolist())
+        object.__setattr__(self, "_bounds", (lower, upper) if bound_target(lower, upper) else None)
 
     def _float(self, center: FloatArray, shape: FloatArray) -> tuple[FloatArray, float]:
-        c = np.asarray(center, dtype=np.float64)
-        C = np.asarray(shape, dtype=np.float64)
-        if c.shape != (3,) or C.shape != (3, 3):
-            raise SetError(f"the landing decision needs a 3-D ellipsoid; got {c.shape} and {C.shape}")
+        c, C = _arrays(center, shape)
         h = _half_widths_3(C)
         worst = float(landing_slack(c, h, self.target).min())
         p = c.copy()
@@ -406,26 +460,58 @@ class LandingRule:
         return p, (worst if math.isfinite(worst) else -math.inf)
 
     def decide(self, center: FloatArray, shape: FloatArray) -> QueryDecision:
-        """Float rule, then the exact proof unless the float rule rejects clearly.
+        """The decision of record: float64 with a rigorous rounding bound, else the exact proof.
 
-        A degenerate set (singular or non-finite shape matrix) is answered OUTSIDE_DOMAIN.
+        A degenerate set (singular -- by the rule of :class:`~ipcverify.sets.Ellipsoid` -- or
+        non-finite shape matrix) is answered OUTSIDE_DOMAIN.
         """
-        p, worst = self._float(center, shape)
-        if not np.isfinite(p).all():
-            return QueryDecision(center, shape, False, p, in_domain=False)
-        if worst < -PRECHECK_MARGIN:
-            return QueryDecision(center, shape, False, p)
-        proof = landing_decision(Ellipsoid(center, shape), self.target)
-        return QueryDecision(center, shape, proof.accept, proof.turnoff.copy(), proof)
+        c, C = _arrays(center, shape)
+        bounds = self._bounds  # type: ignore[attr-defined]
+        if bounds is not None:
+            cl = c.tolist()
+            r = landing_by_bound(cl, C.ravel().tolist(), *bounds)
+            if r is not None:
+                p = np.array((cl[0], cl[1], r.turnoff_z))
+                return QueryDecision(c, C, r.accept, p, DecidedBy.BOUND, True, self.target)
+        return self.decide_exact(c, C)
+
+    def decide_exact(self, center: FloatArray, shape: FloatArray) -> QueryDecision:
+        """The exact rational decision alone (:func:`landing_decision`), as a :class:`QueryDecision`."""
+        c, C = _arrays(center, shape)
+        try:
+            e = Ellipsoid(c, C)
+        except SetError:  # non-finite or singular: nothing to decide
+            return self.outside_domain(c, C)
+        try:
+            proof = landing_decision(e, self.target)
+        except OverflowError:  # a set too large for float's range (half-widths near 1e154): degenerate
+            return self.outside_domain(c, C)
+        return QueryDecision(
+            c, C, proof.accept, proof.turnoff.copy(), DecidedBy.EXACT, True, self.target, proof
+        )
 
     def decide_float(self, center: FloatArray, shape: FloatArray) -> QueryDecision:
         """The float rule alone: accept iff every relative slack is ``>= -PRECHECK_MARGIN``."""
         p, worst = self._float(center, shape)
         if not np.isfinite(p).all():
-            return QueryDecision(center, shape, False, p, in_domain=False)
-        return QueryDecision(center, shape, worst >= -PRECHECK_MARGIN, p)
+            return self.outside_domain(center, shape)
+        c, C = _arrays(center, shape)
+        return QueryDecision(c, C, worst >= -PRECHECK_MARGIN, p, DecidedBy.FLOAT_RULE, True, self.target)
 
     def outside_domain(self, center: FloatArray, shape: FloatArray) -> QueryDecision:
-        """The OUTSIDE_DOMAIN answer for a query the domain test flagged (no proof attempted)."""
-        p, _ = self._float(center, shape)
-        return QueryDecision(center, shape, False, p, in_domain=False)
+        """The OUTSIDE_DOMAIN answer for a query the domain test flagged (no proof attempted).
+
+        Its turn-off point is the float ``[c_x, c_y, c_z + h_z]`` (``inf`` for a degenerate set).
+        """
+        c, C = _arrays(center, shape)
+        p = c.copy()
+        p[2] += _half_widths_3(C)[2]
+        return QueryDecision(c, C, False, p, DecidedBy.DOMAIN, False, self.target)
+
+
+def _arrays(center: FloatArray, shape: FloatArray) -> tuple[FloatArray, FloatArray]:
+    c = np.asarray(center, dtype=np.float64)
+    C = np.asarray(shape, dtype=np.float64)
+    if c.shape != (3,) or C.shape != (3, 3):
+        raise SetError(f"the landing decision needs a 3-D ellipsoid; got {c.shape} and {C.shape}")
+    return c, C

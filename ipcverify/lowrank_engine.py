@@ -22,6 +22,8 @@ import torch
 from numpy.typing import NDArray
 
 from ipcverify.architecture import LOGDIAG_CLAMP, ModelConfig
+from ipcverify.errors import InvalidInputError
+from ipcverify.inference import CHUNK
 from ipcverify.lowrank import LowRankEnsemble
 
 __all__ = ["LowRankEngine", "cholesky_lower", "lower_inverse", "cholesky_inverse_small"]
@@ -240,23 +242,35 @@ class LowRankEngine:
         first += self.first_bias
         return self._moments(self._outputs(first))
 
-    def batch(self, x: FloatArray, yhat: FloatArray) -> tuple[FloatArray, FloatArray]:
+    def batch(
+        self, x: FloatArray, yhat: FloatArray, chunk: int | None = None
+    ) -> tuple[FloatArray, FloatArray]:
         """Centres (B, n) and shape matrices (B, n, n) for validated float64 inputs.
 
-        An input so far from the training data that the covariance overflows gives a
-        non-finite set, not a floating-point exception: :meth:`ipcverify.model.IPCModel.predict`
-        reports it as a degenerate set outside the domain, and the query path answers
-        OUTSIDE_DOMAIN.
+        Rows are evaluated ``chunk`` at a time (default :data:`ipcverify.inference.CHUNK`), so
+        the members' hidden layers stay in the CPU cache; every row gets the same operations
+        whatever the chunk. An input so far from the training data that the covariance
+        overflows gives a non-finite set, not a floating-point exception:
+        :meth:`ipcverify.model.IPCModel.predict` reports it as a degenerate set outside the
+        domain, and the query path answers OUTSIDE_DOMAIN.
         """
-        z = np.concatenate([x, yhat], axis=1)
-        z -= self.in_mean
-        z *= self.in_scale
-        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-            mean, cov = self.combined(z)
-            center = yhat + z @ self.lin_weight + self.lin_bias + self.sigma * mean
-            shape = lower_inverse(cholesky_lower(cov))
-            shape *= self.inv_sigma
-        return center, shape
+        size = CHUNK if chunk is None else int(chunk)
+        if size < 1:
+            raise InvalidInputError(f"chunk must be a positive number of rows; got {chunk!r}")
+        n = self.config.y_dim
+        centers, shapes = np.empty((len(x), n)), np.empty((len(x), n, n))
+        for start in range(0, len(x), size):
+            sl = slice(start, start + size)
+            z = np.concatenate([x[sl], yhat[sl]], axis=1)
+            z -= self.in_mean
+            z *= self.in_scale
+            with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+                mean, cov = self.combined(z)
+                centers[sl] = yhat[sl] + z @ self.lin_weight + self.lin_bias + self.sigma * mean
+                shape = lower_inverse(cholesky_lower(cov))
+                shape *= self.inv_sigma
+            shapes[sl] = shape
+        return centers, shapes
 
     def single(self, x: FloatArray, yhat: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Centre (n,) and shape matrix (n, n) for one query given as 1-D float64 arrays.

@@ -37,6 +37,7 @@ from ipcverify.errors import InvalidInputError, SetError
 from ipcverify.inference import InferenceEngine
 from ipcverify.lowrank import LowRankEnsemble
 from ipcverify.lowrank_engine import LowRankEngine
+from ipcverify.nonsingular import checked_ellipsoid
 from ipcverify.sets import Ellipsoid
 
 __all__ = ["IPCNetwork", "IPCModel", "Network", "build_network", "engine_for", "network_fingerprint"]
@@ -250,31 +251,27 @@ class IPCModel:
             raise InvalidInputError("x and yhat must be finite")
         return xa, ya
 
-    def raw_arrays(self, x: Any, yhat: Any, batch_size: int = 65536) -> tuple[FloatArray, FloatArray]:
+    def raw_arrays(self, x: Any, yhat: Any, batch_size: int | None = None) -> tuple[FloatArray, FloatArray]:
         """Uncalibrated centres (B, n) and shapes (B, n, n), evaluated in float64.
 
         All of ipcverify evaluates a trained model through this one path (the
         float64 engine of :mod:`ipcverify.inference`), so calibration, certificates
-        and the controller see exactly the same sets.
+        and the controller see exactly the same sets. ``batch_size`` rows are evaluated
+        together (default :data:`ipcverify.inference.CHUNK`, which keeps them in cache).
         """
         xa, ya = self._check(x, yhat)
-        n = self.config.y_dim
-        if len(xa) <= batch_size:
-            return self._engine.batch(xa, ya)  # type: ignore[attr-defined,no-any-return]
-        parts = [
-            self._engine.batch(xa[i : i + batch_size], ya[i : i + batch_size])  # type: ignore[attr-defined]
-            for i in range(0, len(xa), batch_size)
-        ]
-        if not parts:
-            return np.zeros((0, n)), np.zeros((0, n, n))
-        return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
+        return self._engine.batch(xa, ya, batch_size)  # type: ignore[attr-defined,no-any-return]
 
     def predict_raw(self, x: Any, yhat: Any) -> Ellipsoid:
         """The network's own sets, ignoring any calibration."""
-        return Ellipsoid(*self.raw_arrays(x, yhat))
+        return checked_ellipsoid(*self.raw_arrays(x, yhat))
 
     def predict(self, x: Any, yhat: Any) -> Ellipsoid:
         """The contract's sets: calibrated if the model carries a calibration.
+
+        The shapes are divided by the calibration's scales (as :meth:`Ellipsoid.scaled` does)
+        and validated once, by the cheap equivalent of the SVD test
+        (:func:`ipcverify.nonsingular.checked_ellipsoid`).
 
         Parameters
         ----------
@@ -282,14 +279,16 @@ class IPCModel:
         yhat : array_like, shape (B, n) or (n,)
         """
         xa, ya = self._check(x, yhat)
-        centers, shapes = self.raw_arrays(xa, ya)
+        centers, shapes = self._engine.batch(xa, ya)  # type: ignore[attr-defined]
+        if self.calibration is not None:
+            f = np.asarray(self.calibration.scale_for(xa, ya), dtype=np.float64)
+            if f.shape != (len(xa),) or not (np.isfinite(f).all() and (f > 0).all()):
+                raise SetError("calibration scale factors must be finite and > 0, one per query")
+            shapes /= f[:, None, None]
         try:
-            sets = Ellipsoid(centers, shapes)
+            return checked_ellipsoid(centers, shapes)
         except SetError as exc:
             raise SetError(_out_of_domain_message(str(exc), self.domain, xa, ya)) from None
-        if self.calibration is not None:
-            sets = sets.scaled(self.calibration.scale_for(xa, ya))
-        return sets
 
     def raw_scores(self, x: Any, y: Any, yhat: Any) -> FloatArray:
         """Uncalibrated scores ``g = ||C (y - c)||`` (B,) in float64."""

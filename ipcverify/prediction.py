@@ -35,7 +35,7 @@ from ipcverify.errors import InvalidInputError
 from ipcverify.files import atomic_write
 from ipcverify.model import IPCModel
 from ipcverify.monitor import MonitorResult, ViolationMonitor
-from ipcverify.sets import SINGULAR_RCOND
+from ipcverify.nonsingular import nonsingular
 
 __all__ = ["LogMonitoring", "Predictions", "monitor_log", "predict_sets", "write_predictions"]
 
@@ -78,8 +78,12 @@ class Predictions:
         return int((~self.in_domain).sum())
 
 
-def predict_sets(model: IPCModel, inputs: PerceptionInputs, chunk: int = 65536) -> Predictions:
+def predict_sets(model: IPCModel, inputs: PerceptionInputs, chunk: int | None = None) -> Predictions:
     """The model's sets for every query, with the domain test applied.
+
+    The sets come from :meth:`IPCModel.raw_arrays` (``chunk`` rows at a time; default: the engine's
+    cache-sized chunk), scaled by the calibration in place; the singular test is
+    :func:`ipcverify.nonsingular.nonsingular` (the SVD test, settled cheaply where it can be).
 
     Raises
     ------
@@ -94,13 +98,11 @@ def predict_sets(model: IPCModel, inputs: PerceptionInputs, chunk: int = 65536) 
         )
     centers, shapes = model.raw_arrays(inputs.x, inputs.yhat, batch_size=chunk)
     if model.calibration is not None:
-        shapes = shapes / model.calibration.scale_for(inputs.x, inputs.yhat)[:, None, None]
+        shapes /= model.calibration.scale_for(inputs.x, inputs.yhat)[:, None, None]
     finite = np.asarray(np.isfinite(shapes).all(axis=(1, 2)) & np.isfinite(centers).all(axis=1))
     singular = np.asarray(~finite, dtype=np.bool_)
-    if finite.any():
-        sv = np.linalg.svd(shapes[finite], compute_uv=False)
-        rcond = sv[:, -1] / np.maximum(sv[:, 0], np.finfo(float).tiny)
-        singular[np.flatnonzero(finite)] = ~(rcond >= SINGULAR_RCOND)
+    if finite.any():  # the SVD test of Ellipsoid, with an SVD only where a cheap bound does not settle it
+        singular[np.flatnonzero(finite)] = ~nonsingular(shapes[finite])[0]
     report = None
     if model.domain is None:
         distance = np.full(len(centers), np.nan)

@@ -8,12 +8,15 @@ per-call overhead as the sound answer allows:
   (:mod:`ipcverify.inference`, the same weights and the same arithmetic as
   :meth:`~ipcverify.model.IPCModel.predict`) on one query and applies the
   calibration. No :class:`~ipcverify.sets.Ellipsoid` is built, so there is no
-  validation SVD on the hot path; the returned centre and shape are plain arrays.
+  validation SVD on the hot path; the inputs are checked once, and for ``n = 3`` with the
+  Cholesky head the output heads are plain float arithmetic. The returned centre and shape
+  are plain arrays.
 * :meth:`IPCQuery.decide` turns the ellipsoid (optionally moved to another frame by the
   caller's ``transform``) into the landing decision of record of
-  :class:`ipcverify.landing.LandingRule` against the caller's target box ``G``: clear
-  misses are rejected at once (rejecting is always safe: the controller measures again),
-  **every accept is backed by an exact proof** (Proposition 1, ``proofs/proposition1.md``).
+  :class:`ipcverify.landing.LandingRule` against the caller's target box ``G``, after the
+  model's domain test (:meth:`ipcverify.domain.DomainModel.contains_one`). **Every answer is
+  proven** (Proposition 1, ``proofs/proposition1.md``): in float64 with a rigorous rounding
+  bound (``proofs/float_landing.md``), or, inside the rounding band, in exact arithmetic.
 * :meth:`IPCQuery.decide_float` is the float rule alone: fast in every case, **not a proof**.
 
 Examples
@@ -34,6 +37,7 @@ Examples
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -102,25 +106,39 @@ class IPCQuery:
         object.__setattr__(self, "_scale", scale)
         object.__setattr__(self, "_d", cfg.x_dim)
         object.__setattr__(self, "_n", cfg.y_dim)
+        object.__setattr__(self, "_shapes", ((cfg.x_dim,), (cfg.y_dim,)))
         object.__setattr__(self, "_full", cfg.param == "full")
         object.__setattr__(self, "_offset", cfg.center == "offset")
         # the low-rank ensemble's engine has its own one-query path (all members at once)
         object.__setattr__(self, "_lowrank", eng if isinstance(eng, LowRankEngine) else None)
+        object.__setattr__(self, "_fast3", False)
         if isinstance(eng, InferenceEngine):
             object.__setattr__(self, "_flat_tril", eng.tril_rows * cfg.y_dim + eng.tril_cols)
             object.__setattr__(self, "_flat_diag", np.arange(cfg.y_dim) * (cfg.y_dim + 1))
+            # n = 3 with the Cholesky head: the heads in plain floats (see _heads3)
+            if cfg.y_dim == 3 and cfg.param != "full":
+                object.__setattr__(self, "_fast3", True)
+                object.__setattr__(
+                    self,
+                    "_consts",
+                    (eng.sigma.tolist(), eng.inv_sigma.tolist(), eng.y_mean.tolist(), LOGDIAG_CLAMP),
+                )
 
     # ----------------------------------------------------------------- ellipsoid
-    def _inputs(self, x: ArrayLike, yhat: ArrayLike) -> tuple[FloatArray, FloatArray]:
+    def _inputs(self, x: ArrayLike, yhat: ArrayLike) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Checked 1-D float64 ``x``, ``yhat`` and their concatenation (the model's input row)."""
         xa = np.asarray(x, dtype=np.float64)
         ya = np.asarray(yhat, dtype=np.float64)
-        d, n = self._d, self._n  # type: ignore[attr-defined]
-        if xa.shape != (d,) or ya.shape != (n,):
+        if (xa.shape, ya.shape) != self._shapes:  # type: ignore[attr-defined]
+            d, n = self._d, self._n  # type: ignore[attr-defined]
             raise InvalidInputError(
                 f"one query needs x of shape ({d},) and yhat of shape ({n},); got {xa.shape} and "
                 f"{ya.shape} (use IPCModel.predict for batches)"
             )
-        return xa, ya
+        z = np.concatenate((xa, ya))
+        if not math.isfinite(z @ z) and not np.isfinite(z).all():  # z @ z: one cheap call when finite
+            raise InvalidInputError("x and yhat must be finite")
+        return xa, ya, z
 
     def ellipsoid(self, x: ArrayLike, yhat: ArrayLike) -> tuple[FloatArray, FloatArray]:
         """Centre (n,) and calibrated shape matrix (n, n) for one query.
@@ -133,38 +151,44 @@ class IPCQuery:
         InvalidInputError
             If ``x`` or ``yhat`` has the wrong shape or a non-finite entry.
         """
-        xa, ya = self._inputs(x, yhat)
+        return self._sets(*self._inputs(x, yhat))
+
+    def _sets(self, xa: FloatArray, ya: FloatArray, z: FloatArray) -> tuple[FloatArray, FloatArray]:
         if self._lowrank is not None:  # type: ignore[attr-defined]
-            return self._lowrank_ellipsoid(xa, ya)
+            return self._lowrank_sets(xa, ya)
         eng: InferenceEngine = self._engine  # type: ignore[attr-defined]
+        h = z - eng.in_mean
+        h *= eng.in_scale
+        out = eng.mlp(h)  # the engine's own MLP evaluation (1-D input: one query)
+        if self._fast3:  # type: ignore[attr-defined]
+            c3, flat = self._heads3(out.tolist(), ya)
+            scale: float | None = self._scale  # type: ignore[attr-defined]
+            if scale is None and self.model.calibration is not None:
+                scale = float(self.model.calibration.scale_for(xa[None], ya[None])[0])
+            if scale is not None:
+                flat = [v / scale for v in flat]
+            both = np.array(c3 + flat)  # one allocation for the centre and the matrix
+            return both[:3], both[3:].reshape(3, 3)
         n: int = self._n  # type: ignore[attr-defined]
-        z = np.concatenate((xa, ya))
-        if not np.isfinite(z).all():
-            raise InvalidInputError("x and yhat must be finite")
-        z -= eng.in_mean
-        z *= eng.in_scale
-        out = eng.mlp(z)  # the engine's own MLP evaluation (1-D input: one query)
         center = (ya if self._offset else eng.y_mean) + eng.sigma * out[:n]  # type: ignore[attr-defined]
         if self._full:  # type: ignore[attr-defined]
             L = out[n:].reshape(n, n)
         else:
-            flat = np.zeros(n * n)
-            flat[self._flat_tril] = out[n:]  # type: ignore[attr-defined]
+            flat_l = np.zeros(n * n)
+            flat_l[self._flat_tril] = out[n:]  # type: ignore[attr-defined]
             diag = out[n:][eng.diag_pos]
-            flat[self._flat_diag] = np.exp(np.minimum(np.maximum(diag, -LOGDIAG_CLAMP), LOGDIAG_CLAMP))  # type: ignore[attr-defined]
-            L = flat.reshape(n, n)
+            flat_l[self._flat_diag] = np.exp(np.minimum(np.maximum(diag, -LOGDIAG_CLAMP), LOGDIAG_CLAMP))  # type: ignore[attr-defined]
+            L = flat_l.reshape(n, n)
         shape = L * eng.inv_sigma
-        scale: float | None = self._scale  # type: ignore[attr-defined]
-        if scale is not None:
-            shape /= scale
+        cal_scale: float | None = self._scale  # type: ignore[attr-defined]
+        if cal_scale is not None:
+            shape /= cal_scale
         elif self.model.calibration is not None:
             shape /= float(self.model.calibration.scale_for(xa[None], ya[None])[0])
         return center, shape
 
-    def _lowrank_ellipsoid(self, xa: FloatArray, ya: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """:meth:`ellipsoid` for the low-rank ensemble: its engine's one-query path, then the calibration."""
-        if not (np.isfinite(xa).all() and np.isfinite(ya).all()):
-            raise InvalidInputError("x and yhat must be finite")
+    def _lowrank_sets(self, xa: FloatArray, ya: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """:meth:`_sets` for the low-rank ensemble: its engine's one-query path, then the calibration."""
         eng: LowRankEngine = self._lowrank  # type: ignore[attr-defined]
         center, shape = eng.single(xa, ya)
         scale: float | None = self._scale  # type: ignore[attr-defined]
@@ -174,24 +198,36 @@ class IPCQuery:
             shape /= float(self.model.calibration.scale_for(xa[None], ya[None])[0])
         return center, shape
 
+    def _heads3(self, out: list[float], ya: FloatArray) -> tuple[list[float], list[float]]:
+        """Centre and row-major ``L diag(1/sigma)`` for n = 3, Cholesky head, in plain floats.
+
+        The same operations as :meth:`InferenceEngine.batch` (``base + sigma o``; ``exp`` of the
+        clamped diagonal; ``L_ij / sigma_j``); only ``math.exp`` may differ from NumPy's ``exp``
+        in the last bit.
+        """
+        o0, o1, o2, l00, l10, l11, l20, l21, l22 = out
+        (s0, s1, s2), (i0, i1, i2), y_mean, clamp = self._consts  # type: ignore[attr-defined]
+        b0, b1, b2 = ya.tolist() if self._offset else y_mean  # type: ignore[attr-defined]
+        center = [b0 + s0 * o0, b1 + s1 * o1, b2 + s2 * o2]
+        e00 = math.exp(min(max(l00, -clamp), clamp))
+        e11 = math.exp(min(max(l11, -clamp), clamp))
+        e22 = math.exp(min(max(l22, -clamp), clamp))
+        return center, [e00 * i0, 0.0, 0.0, l10 * i0, e11 * i1, 0.0, l20 * i0, l21 * i1, e22 * i2]
+
     # ------------------------------------------------------------------ decision
     def _ellipsoid_in_frame(
         self, x: ArrayLike, yhat: ArrayLike, transform: Transform | None
-    ) -> tuple[FloatArray, FloatArray]:
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
         if self._n != 3:  # type: ignore[attr-defined]
             raise SetError(f"the landing decision needs a 3-D ellipsoid; this model has n = {self._n}")  # type: ignore[attr-defined]
-        center, shape = self.ellipsoid(x, yhat)
-        return (center, shape) if transform is None else transform(center, shape)
-
-    def _in_domain(self, x: ArrayLike, yhat: ArrayLike) -> bool:
-        domain = self.model.domain
-        if domain is None:
-            return True
-        xa, ya = self._inputs(x, yhat)
-        return domain.contains_one(np.concatenate((xa, ya)))
+        xa, ya, z = self._inputs(x, yhat)
+        center, shape = self._sets(xa, ya, z)
+        if transform is not None:
+            center, shape = transform(center, shape)
+        return center, shape, z
 
     def decide(self, x: ArrayLike, yhat: ArrayLike, transform: Transform | None = None) -> QueryDecision:
-        """Query -> ellipsoid (-> ``transform``) -> landing decision; every accept is exactly proven.
+        """Query -> ellipsoid (-> ``transform``) -> landing decision; every answer is proven.
 
         Parameters
         ----------
@@ -204,18 +240,20 @@ class IPCQuery:
         Returns
         -------
         QueryDecision
-            ``accept`` is True only when :func:`~ipcverify.landing.landing_decision`
-            PROVES that the turn-off point is safe for every ``y`` in the ellipsoid. A query
-            the model's domain test flags (or whose set is degenerate) is answered
-            ``verdict = OUTSIDE_DOMAIN``, never accepted.
+            The decision of :meth:`ipcverify.landing.LandingRule.decide`: ``accept`` is True only
+            when the turn-off point is proven safe for every ``y`` in the ellipsoid (float64 with
+            a rigorous rounding bound, or exact rational arithmetic). A query the model's domain
+            test flags (or whose set is degenerate) is answered ``verdict = OUTSIDE_DOMAIN``,
+            never accepted.
 
         Raises
         ------
         SetError
             If the model's ``n`` is not 3 (the landing target is 3-D).
         """
-        center, shape = self._ellipsoid_in_frame(x, yhat, transform)
-        if not self._in_domain(x, yhat):
+        center, shape, z = self._ellipsoid_in_frame(x, yhat, transform)
+        domain = self.model.domain
+        if domain is not None and not domain.contains_one(z):
             return self.rule.outside_domain(center, shape)
         return self.rule.decide(center, shape)
 
@@ -227,8 +265,9 @@ class IPCQuery:
         The rule of :func:`~ipcverify.landing.landing_slack`; near the threshold it may
         differ from the exact decision. Use :meth:`decide` when the answer steers the vehicle.
         """
-        center, shape = self._ellipsoid_in_frame(x, yhat, transform)
-        if not self._in_domain(x, yhat):
+        center, shape, z = self._ellipsoid_in_frame(x, yhat, transform)
+        domain = self.model.domain
+        if domain is not None and not domain.contains_one(z):
             return self.rule.outside_domain(center, shape)
         return self.rule.decide_float(center, shape)
 

@@ -9,6 +9,8 @@ per job:
 * :mod:`~ipcverify.containment.geometry` -- exact rational geometry and witnesses;
 * :mod:`~ipcverify.containment.io` -- the JSON formats of sets and problems;
 * :mod:`~ipcverify.containment.margin` -- float slacks for whole batches (not proofs);
+* :mod:`~ipcverify.containment.rounding` -- the same slacks with rigorous rounding bounds
+  (a slack beyond its bound is a proof; the closed form tries them first);
 * :mod:`~ipcverify.containment.closed_form`, :mod:`~ipcverify.containment.socp`,
   :mod:`~ipcverify.containment.sdp` -- the provers, behind :func:`prove`.
 
@@ -57,12 +59,14 @@ from ipcverify.containment.geometry import ExactEllipsoid
 from ipcverify.containment.io import problem_from_dict, set_from_dict, set_to_dict
 from ipcverify.containment.margin import contained_float, support_slack
 from ipcverify.containment.prove import prove, prove_batch
+from ipcverify.containment.rounding import SlackBounds, support_slack_bounds
 from ipcverify.containment.status import Method, Status
 
 __all__ = [
     "ContainmentCertificate",
     "ExactEllipsoid",
     "Method",
+    "SlackBounds",
     "Status",
     "Verification",
     "certificate_from_dict",
@@ -74,5 +78,6 @@ __all__ = [
     "set_from_dict",
     "set_to_dict",
     "support_slack",
+    "support_slack_bounds",
     "verify",
 ]

@@ -80,6 +80,24 @@ def test_the_float64_engine_matches_the_torch_network(cfg):
         np.testing.assert_allclose(Ci, C[i], rtol=1e-12, atol=1e-13 * np.abs(C[i]).max())
 
 
+@pytest.mark.parametrize("chunk", [1, 7, 64, 10_000])
+def test_chunked_batches_give_the_same_sets_through_the_model(chunk):
+    cfg = CONFIGS[0]
+    model = IPCModel(_random_network(cfg, seed=4, scale=0.5))
+    x, yhat = _inputs(cfg, 130, seed=5)
+    c, C = model.engine.batch(x, yhat, chunk=130)
+    cc, CC = model.raw_arrays(x, yhat, batch_size=chunk)
+    np.testing.assert_allclose(cc, c, rtol=1e-13, atol=1e-14)
+    np.testing.assert_allclose(CC, C, rtol=1e-12, atol=1e-13 * np.abs(C).max())
+
+
+def test_a_chunk_below_one_row_is_refused_with_a_message():
+    eng = LowRankEngine.from_network(_random_network(CONFIGS[0]))
+    x, yhat = _inputs(CONFIGS[0], 3)
+    with pytest.raises(InvalidInputError, match="chunk must be a positive number of rows; got 0"):
+        eng.batch(x, yhat, chunk=0)
+
+
 def test_moment_matching_is_the_mixtures_mean_and_covariance():
     cfg = ModelConfig(x_dim=2, y_dim=3, hidden=(6,), members=4)
     net = _random_network(cfg, seed=4, scale=0.7)

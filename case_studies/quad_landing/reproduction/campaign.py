@@ -11,11 +11,12 @@ Backends
 --------
 * ``"loky"`` (default): processes on this machine, ``n_jobs`` of them (default: all cores).
 * ``"sequential"``: in this process (debugging, tiny campaigns).
-* ``"ray"``: joblib's Ray backend (``pip install 'ipcverify[ray]'``). Connect to a cluster
-  first, e.g. ``ray.init(address="auto")`` or ``RAY_ADDRESS=... ``; without a cluster
-  :func:`run_campaign` starts a local Ray instance. Each task needs the ``ipcverify``
-  package (with ``case_studies``) importable on the workers: install it in the cluster's
-  image or pass ``runtime_env={"py_modules": [...]}`` to ``ray.init``.
+* ``"ray"``: the same tasks through joblib's Ray backend (``pip install 'ipcverify[ray]'``).
+  :func:`run_campaign` connects to the cluster at ``address`` (or ``RAY_ADDRESS``, e.g.
+  ``ray://head:10001`` or ``auto``) unless Ray is already initialised, and starts a local
+  instance when neither is given. Each task needs the ``ipcverify`` package (with
+  ``case_studies``) importable on the workers: install it in the cluster's image or pass
+  ``runtime_env={"py_modules": [...]}`` to ``ray.init``. See ``docs/ray.md``.
 
 Examples
 --------
@@ -87,7 +88,7 @@ def _fly_chunk(
     return out
 
 
-def _ray_backend() -> None:
+def _ray_backend(address: str | None) -> None:
     try:
         import ray
         from ray.util.joblib import register_ray
@@ -97,7 +98,9 @@ def _ray_backend() -> None:
         ) from None
     register_ray()
     if not ray.is_initialized():
-        ray.init(address=os.environ.get("RAY_ADDRESS"), include_dashboard=False, log_to_driver=False)
+        ray.init(
+            address=address or os.environ.get("RAY_ADDRESS"), include_dashboard=False, log_to_driver=False
+        )
 
 
 def _chunks(n: int, n_tasks: int) -> list[list[int]]:
@@ -117,6 +120,7 @@ def run_campaign(
     backend: str = "loky",
     chunks_per_job: int = 4,
     progress: Callable[[int], None] | None = None,
+    address: str | None = None,
 ) -> list[LandingRun]:
     """Fly scenarios ``0 .. n_runs - 1`` of campaign ``seed`` with ``contract``.
 
@@ -140,6 +144,8 @@ def run_campaign(
         Tasks per worker (smaller tasks balance better; each builds a simulator).
     progress : callable, optional
         Called with the number of runs finished, as chunks complete.
+    address : str, optional
+        Ray only: the cluster to connect to (default ``RAY_ADDRESS``; neither: a local instance).
 
     Returns
     -------
@@ -172,7 +178,7 @@ def run_campaign(
         consume(_fly_chunk(c, *args) for c in chunks)
     else:
         if backend == "ray":
-            _ray_backend()
+            _ray_backend(address)
         # joblib's Ray backend cannot stream results: progress then arrives at the end
         return_as = "list" if backend == "ray" else "generator_unordered"
         with joblib.parallel_backend(backend, n_jobs=jobs):

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import importlib.util
-
 import numpy as np
 import pytest
 
@@ -87,10 +85,8 @@ def test_summarize_counts_outcomes(sequential):
 
 
 @pytest.mark.slow
-@pytest.mark.skipif(
-    importlib.util.find_spec("ray") is None, reason="Ray is an optional extra: pip install 'ipcverify[ray]'"
-)
 def test_ray_backend_on_a_local_instance_gives_the_same_runs(sequential):
+    """Ray is in the dev extra, so this runs in the README's test command (a local instance, 2 CPUs)."""
     import ray
 
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, ignore_reinit_error=True)
@@ -101,6 +97,31 @@ def test_ray_backend_on_a_local_instance_gives_the_same_runs(sequential):
     finally:
         ray.shutdown()
     assert _key(runs) == _key(sequential)
+
+
+def test_ray_backend_connects_to_the_given_address(monkeypatch):
+    """--address (or RAY_ADDRESS) reaches ray.init when Ray is not yet initialised."""
+    import ray
+
+    seen = {}
+
+    class StopError(Exception):
+        pass
+
+    def fake_init(address=None, **kwargs):
+        seen["address"] = address
+        raise StopError
+
+    monkeypatch.setattr(ray, "is_initialized", lambda: False)
+    monkeypatch.setattr(ray, "init", fake_init)
+    kw = {"seed": 0, "sim_config": CFG, "scenario": SCEN, "landing": LAND, "backend": "ray"}
+    with pytest.raises(StopError):
+        run_campaign(TrivialContract(), 1, address="ray://head:10001", **kw)
+    assert seen["address"] == "ray://head:10001"
+    monkeypatch.setenv("RAY_ADDRESS", "auto")
+    with pytest.raises(StopError):
+        run_campaign(TrivialContract(), 1, **kw)
+    assert seen["address"] == "auto"
 
 
 def test_ray_backend_without_ray_says_how_to_install(monkeypatch):

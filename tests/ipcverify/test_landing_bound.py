@@ -1,0 +1,264 @@
+"""The float-bound landing decision against the exact rational one (proofs/float_landing.md).
+
+Every case is decided twice: by :func:`ipcverify.landing_bound.landing_by_bound` (float64 with a
+rigorous rounding bound, exact integers for an ambiguous turn-off height) and by the exact
+:func:`ipcverify.landing.landing_decision` (Fractions). Whenever the fast path answers, its
+accept/reject and its turn-off height must be the exact ones; it may decline (None) only near
+a tie. Five strategies, 11,000 derandomized examples in all:
+
+* random ellipsoids (rotations, semi-axes 1 mm .. 1 m, condition numbers up to 1e8, camera- and
+  world-frame heights, the paper's G and random boxes);
+* near ties: the critical face scaled to a relative margin of +-1e-1 .. +-1e-15;
+* exact ties built from dyadic numbers (touching faces, ``c_z + h_z`` exactly a float), then
+  nudged by one ulp;
+* the network's shapes (lower-triangular ``L diag(1/sigma)``) and their world-frame rotations,
+  decided end to end by :class:`ipcverify.landing.LandingRule` (fast path plus fallback);
+* degenerate and extreme inputs (singular, ``|C_ij|`` up to 1e120 and down to 1e-200).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from ipcverify.containment import Status
+from ipcverify.errors import SetError
+from ipcverify.landing import DecidedBy, LandingRule, check_landing, landing_decision
+from ipcverify.landing_bound import RANGE, bound_target, landing_by_bound
+from ipcverify.sets import Box, Ellipsoid
+
+PAPER_G = Box([-0.05, -0.05, 0.0], [0.05, 0.05, 0.05])
+SEEDS = st.integers(0, 2**32 - 1)
+
+
+def _rotation(rng: np.random.Generator) -> np.ndarray:
+    q, r = np.linalg.qr(rng.standard_normal((3, 3)))
+    return q * np.sign(np.diag(r))
+
+
+def _target(rng: np.random.Generator, kind: int) -> Box:
+    if kind == 0:
+        return PAPER_G
+    lower = -rng.uniform(0.0, 0.2, 3)
+    if kind == 2:
+        lower[2] = rng.uniform(-0.05, 0.05)  # G.lower_z of either sign: the z face is no longer a tie
+    return Box(lower, lower + rng.uniform(1e-3, 0.2, 3))
+
+
+def _center(rng: np.random.Generator, frame: int) -> np.ndarray:
+    scale = [(0.05, 0.05, 0.01), (0.5, 0.5, 1.5), (30.0, 30.0, 30.0)][frame]
+    c = rng.normal(scale=scale)
+    if frame == 1:
+        c[2] = abs(c[2]) + 0.9  # camera frame: the pad about 1-3 m ahead
+    return c
+
+
+def _shape(rng: np.random.Generator, log_cond: float) -> np.ndarray:
+    semi = 10.0 ** rng.uniform(-3.0, -1.0, 3)
+    semi[rng.integers(3)] *= 10.0**-log_cond
+    return _rotation(rng) @ np.diag(1.0 / semi) @ _rotation(rng).T
+
+
+def _exact(c: np.ndarray, C: np.ndarray, G: Box):
+    """The exact decision, or None where the exact path refuses (degenerate set, G too narrow)."""
+    try:
+        return landing_decision(Ellipsoid(c, C), G)
+    except (SetError, OverflowError):  # OverflowError: half-widths beyond float's range (not exact-safe)
+        return None
+
+
+def _check(c: np.ndarray, C: np.ndarray, G: Box):
+    """Both decisions; the fast one, if any, must equal the exact one. Returns (fast, exact)."""
+    fast = landing_by_bound(c.tolist(), C.ravel().tolist(), G.lower.tolist(), G.upper.tolist())
+    exact = _exact(c, C, G)
+    if fast is not None:
+        if exact is None:  # the exact path refuses: the fast path may only reject
+            assert not fast.accept
+        else:
+            assert fast.accept == exact.accept
+            assert fast.turnoff_z == exact.turnoff[2]
+    return fast, exact
+
+
+def _critical_scale(c: np.ndarray, C: np.ndarray, G: Box) -> float:
+    """The factor s such that E(c, s C) touches its box (float estimate of the tie)."""
+    h = Ellipsoid(c, C).half_widths()[0]
+    w = G.upper - G.lower
+    return float(max(2 * h[0] / w[0], 2 * h[1] / w[1], 2 * h[2] / w[2]))
+
+
+# --------------------------------------------------------------------- strategies
+@settings(derandomize=True, max_examples=3500, deadline=None)
+@given(
+    seed=SEEDS,
+    log_cond=st.sampled_from([0.0, 1.0, 4.0, 8.0]),
+    frame=st.integers(0, 2),
+    kind=st.integers(0, 2),
+)
+def test_random_ellipsoids_agree_with_the_exact_decision(seed, log_cond, frame, kind):
+    rng = np.random.default_rng(seed)
+    _check(_center(rng, frame), _shape(rng, log_cond), _target(rng, kind))
+
+
+@settings(derandomize=True, max_examples=3000, deadline=None)
+@given(
+    seed=SEEDS,
+    digits=st.integers(1, 15),
+    sign=st.sampled_from([-1.0, 1.0]),
+    log_cond=st.sampled_from([0.0, 2.0, 8.0]),
+    frame=st.integers(0, 1),
+    kind=st.integers(0, 2),
+)
+def test_near_ties_agree_with_the_exact_decision(seed, digits, sign, log_cond, frame, kind):
+    """The critical face at a relative margin of +-10^-digits, down to a few ulps."""
+    rng = np.random.default_rng(seed)
+    c, C, G = _center(rng, frame), _shape(rng, log_cond), _target(rng, kind)
+    C = C * (_critical_scale(c, C, G) * (1.0 + sign * 10.0**-digits))
+    fast, exact = _check(c, C, G)
+    if digits <= 6 and log_cond == 0.0 and exact is not None:
+        assert fast is not None  # well away from the tie the bound always decides
+
+
+def _ulp_nudge(rng: np.random.Generator, a: np.ndarray) -> np.ndarray:
+    steps = rng.integers(-1, 2, a.shape)
+    out = a.copy()
+    for idx in zip(*np.nonzero(steps), strict=True):
+        out[idx] = math.nextafter(float(out[idx]), math.inf * float(steps[idx]))
+    return out
+
+
+@settings(derandomize=True, max_examples=2000, deadline=None)
+@given(
+    seed=SEEDS,
+    ex=st.lists(st.integers(-8, -3), min_size=3, max_size=3),
+    cz=st.sampled_from([0.0, 1.0, 1.5, -0.25, 0.75, 3.0]),
+    nudge=st.sampled_from(["none", "shape", "center", "both"]),
+    triangular=st.booleans(),
+)
+def test_exact_ties_agree_with_the_exact_decision(seed, ex, cz, nudge, triangular):
+    """Dyadic half-widths that touch the box exactly, c_z + h_z exactly a float; then ulp nudges."""
+    rng = np.random.default_rng(seed)
+    h = np.array([2.0**e for e in ex])  # half-widths, exact floats
+    G = Box([-h[0], -h[1], 0.0], [h[0], h[1], 2 * h[2]])  # every face touches exactly
+    C = np.diag(1.0 / h)
+    if triangular:  # same set, different matrix: C^T C unchanged under an exact signed permutation
+        C = C[rng.permutation(3)] * rng.choice([-1.0, 1.0], 3)[:, None]
+    c = np.array([rng.choice([0.0, 0.5, -1.25]), rng.choice([0.0, 2.0]), cz])
+    if nudge in ("shape", "both"):
+        C = _ulp_nudge(rng, C)
+    if nudge in ("center", "both"):
+        c = _ulp_nudge(rng, c)
+    fast, exact = _check(c, C, G)
+    if nudge == "none" and exact is not None:
+        assert exact.accept and (fast is None or fast.accept)  # touching is containment
+
+
+@settings(derandomize=True, max_examples=1500, deadline=None)
+@given(seed=SEEDS, world=st.booleans(), kind=st.integers(0, 2), tight=st.booleans())
+def test_the_rule_decides_network_shapes_like_the_exact_proof(seed, world, kind, tight):
+    """End to end (fast path, then the exact fallback): same accept and turn-off point, every time."""
+    rng = np.random.default_rng(seed)
+    L = np.tril(rng.normal(scale=0.3, size=(3, 3)))
+    L[np.diag_indices(3)] = np.exp(rng.uniform(-0.5, 0.5, 3))
+    C = L * (1.0 / rng.uniform(0.004, 0.02, 3))  # L diag(1/sigma), as the engine builds it
+    c = _center(rng, 0 if world else 1)
+    if world:
+        C = C @ _rotation(rng).T  # the camera-to-world map of the case study
+    G = _target(rng, kind)
+    if tight:
+        C = C * (_critical_scale(c, C, G) * (1.0 + rng.choice([-1.0, 1.0]) * 10.0 ** -rng.uniform(3, 15)))
+    rule = LandingRule(G)
+    d = rule.decide(c, C)
+    exact = _exact(c, C, G)
+    if exact is None:
+        assert not d.accept
+        return
+    assert d.accept == exact.accept and np.array_equal(d.turnoff, exact.turnoff)
+    assert d.decided_by in (DecidedBy.BOUND, DecidedBy.EXACT)
+    if d.accept and seed % 16 == 0:  # the certificate on demand re-verifies exactly
+        assert check_landing(d.proof).status is Status.PROVEN
+
+
+@settings(derandomize=True, max_examples=1000, deadline=None)
+@given(
+    seed=SEEDS,
+    log_scale=st.sampled_from([-200.0, -120.0, -30.0, 30.0, 100.0, 120.0]),
+    singular=st.booleans(),
+)
+def test_extreme_and_singular_shapes_are_never_misjudged(seed, log_scale, singular):
+    rng = np.random.default_rng(seed)
+    C = _shape(rng, 0.0) * 10.0**log_scale
+    if singular:
+        C[2] = C[0] * rng.choice([0.0, 1.0, 2.0])  # rank 2 (or a zero row)
+    c = _center(rng, 1)
+    G = Box(-(10.0 ** rng.uniform(-3, 3, 3)), 10.0 ** rng.uniform(-3, 3, 3))
+    fast, exact = _check(c, C, G)
+    if singular:
+        assert fast is None or not fast.accept
+    elif exact is not None and np.abs(C).max() > RANGE:
+        assert fast is not None  # scaled exactly by a power of two, then decided
+    d = LandingRule(G).decide(c, C)
+    assert d.accept == (exact is not None and exact.accept)
+
+
+# --------------------------------------------------------------------- examples
+def test_the_rule_reports_how_it_decided():
+    rule = LandingRule(PAPER_G)
+    fast = rule.decide(np.array([0.0, 0.0, 1.0]), np.diag([40.0, 40.0, 80.0]))
+    assert fast.decided_by is DecidedBy.BOUND and fast.proven and fast.exact is None
+    assert fast.proof is not None and fast.proof.accept and fast.exact is fast.proof  # computed once
+    tie = rule.decide(np.array([0.0, 0.0, 1.0]), np.diag([20.0, 40.0, 80.0]))  # x face touches
+    assert tie.decided_by is DecidedBy.EXACT and tie.exact is not None
+    assert rule.decide_float(np.zeros(3), np.eye(3)).decided_by is DecidedBy.FLOAT_RULE
+    degenerate = rule.decide(np.zeros(3), np.diag([1.0, 1.0, 0.0]))
+    assert degenerate.decided_by is DecidedBy.DOMAIN and degenerate.verdict.name == "OUTSIDE_DOMAIN"
+
+
+def test_nearly_singular_sets_are_never_accepted_and_never_an_error():
+    rule = LandingRule(PAPER_G)
+    huge = rule.decide(np.zeros(3), np.diag([1e3, 1e3, 1e-12]))  # 1e12 tall: provably too tall
+    assert huge.verdict.name == "REJECT" and huge.decided_by is DecidedBy.BOUND
+    thin = np.diag([1e3, 1e3, 1e16])  # fits G, but reciprocal condition number 1e-13: not an Ellipsoid
+    d = rule.decide(np.array([0.0, 0.0, 1.0]), thin)
+    assert d.verdict.name == "OUTSIDE_DOMAIN" and not d.accept
+
+
+def test_a_target_narrower_than_a_float_spacing_still_says_so():
+    G = Box([1e-20, 0.0, 0.0], [2e-20, 1.0, 1.0])  # P_x - G is inside one float gap below 1e6
+    with pytest.raises(SetError, match="narrower than one float spacing"):
+        LandingRule(G).decide(np.array([1e6, 0.0, 0.0]), np.eye(3) * 1e3)
+
+
+def test_targets_out_of_range_go_to_the_exact_path():
+    assert not bound_target((-1e300, 0.0, 0.0), (1.0, 1.0, 1.0))
+    rule = LandingRule(Box([-1e300, -1.0, 0.0], [1.0, 1.0, 1.0]))
+    d = rule.decide(np.zeros(3), np.eye(3) * 10.0)
+    assert d.decided_by is DecidedBy.EXACT and d.accept
+
+
+def test_the_fast_path_agrees_with_its_own_certificate_on_demand():
+    rng = np.random.default_rng(5)
+    rule = LandingRule(PAPER_G)
+    checked = 0
+    for _ in range(40):
+        c, C = _center(rng, 1), _shape(rng, 0.0) * 0.7
+        d = rule.decide(c, C)
+        if d.accept and d.decided_by is DecidedBy.BOUND:
+            assert check_landing(d.proof).status is Status.PROVEN
+            checked += 1
+    assert checked > 5
+
+
+def test_a_turnoff_height_within_2_to_the_minus_100_of_a_float_is_left_to_the_exact_path():
+    """h_z = 2^-4 sqrt(1 + p^2) lies about 2^-104 (relative) below the float 2^-4 (1 + 2^-52)."""
+    p = math.nextafter(2.0**-25.5, 0.0)
+    C = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [p, 0.0, 16.0]])
+    c = np.array([0.0, 0.0, 0.0])
+    fast, exact = _check(c, C, Box([-2.0, -2.0, 0.0], [2.0, 2.0, 1.0]))
+    assert exact is not None and exact.turnoff[2] == 2.0**-4 * (1 + 2.0**-52)
+    d = LandingRule(Box([-2.0, -2.0, 0.0], [2.0, 2.0, 1.0])).decide(c, C)
+    assert np.array_equal(d.turnoff, exact.turnoff) and d.accept == exact.accept
