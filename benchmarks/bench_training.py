@@ -11,7 +11,6 @@ not a timed test.
 
 from __future__ import annotations
 
-import json
 import os
 import statistics
 import time
@@ -21,7 +20,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from benchmarks.common import blas_single_thread, machine_info
+from benchmarks.common import blas_single_thread, machine_info, write_json
 from benchmarks.datasets import load_splits
 from ipcverify.training import TrainConfig, train
 
@@ -67,7 +66,7 @@ def main(repeats: int = 3, datasets: tuple[str, ...] = ("synthetic", "quad_landi
                 f"{name:13s} {recipe:6s} wall median {med:.2f} s (min {min(wall):.2f}, max {max(wall):.2f}), "
                 f"CPU {statistics.median(cpu):.2f} s, epochs {epochs}, finite={finite}"
             )
-    OUT.write_text(json.dumps(results, indent=2) + "\n")
+    write_json(OUT, results)
     return results
 
 

@@ -34,7 +34,7 @@ from benchmarks.report_tables import (
     targets_table,
 )
 
-__all__ = ["BLOCK", "render_blocks", "replace_blocks", "demo_block", "main"]
+__all__ = ["BLOCK", "DOCUMENTS", "load_results", "render_blocks", "replace_blocks", "demo_block", "main"]
 
 ROOT = Path(__file__).resolve().parent.parent
 HERE = Path(__file__).resolve().parent
@@ -165,6 +165,11 @@ def _summary(results: dict[str, Any]) -> list[str]:
     return lines
 
 
+def load_results() -> tuple[dict[str, Any], dict[str, Any] | None, dict[str, Any] | None]:
+    """The committed ``results.json``, ``training_results.json`` and ``diagnosis_results.json``."""
+    return _load("results.json"), _load("training_results.json"), _load("diagnosis_results.json")
+
+
 def render_blocks(
     results: dict[str, Any], training: dict[str, Any] | None, diagnosis: dict[str, Any] | None = None
 ) -> dict[str, str]:
@@ -232,9 +237,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--demo", action="store_true", help="also rerun `ipcverify demo` and paste its output")
     ap.add_argument("--check", action="store_true", help="report out-of-date blocks, write nothing")
     a = ap.parse_args(argv)
-    blocks = render_blocks(
-        _load("results.json"), _load("training_results.json"), _load("diagnosis_results.json")
-    )
+    blocks = render_blocks(*load_results())
     if a.demo:
         blocks["demo"] = demo_block()
     stale = []

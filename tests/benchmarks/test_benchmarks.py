@@ -11,6 +11,7 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from benchmarks.bench_tightness import METHODS  # noqa: E402
+from benchmarks.readme import DOCUMENTS, load_results, render_blocks, replace_blocks  # noqa: E402
 from benchmarks.report import targets  # noqa: E402
 from benchmarks.run import RunConfig, run  # noqa: E402
 
@@ -47,6 +48,17 @@ def test_quick_run_writes_every_required_key(tmp_path):
     assert "| method | calibrated | mean volume |" in md and "UNCALIBRATED" in md
     assert "Before and after" in md and "diagnosis against the oracle" in md and "Under shift" in md
     assert (tmp_path / "plot.png").stat().st_size > 1000
+    # the documents' generated blocks render from any run's results, and only their bodies change
+    blocks = render_blocks(res, None)
+    assert {"bench-summary", "bench-table", "before-after", "diagnosis", "shift", "targets"} <= set(blocks)
+    doc = (
+        "a\n<!-- BEGIN generated:targets (python -m benchmarks.readme) -->\nold\n"
+        "<!-- END generated:targets -->\nb"
+    )
+    new, changed = replace_blocks(doc, blocks)
+    assert changed == ["targets"] and blocks["targets"] in new and "old" not in new
+    assert new.startswith("a\n<!-- BEGIN") and new.endswith("<!-- END generated:targets -->\nb")
+    assert replace_blocks(new, blocks)[1] == []
 
 
 def _fake(ipc, gm, mapie, ratio, float_ratio):
@@ -106,3 +118,12 @@ def test_targets_are_computed_from_the_numbers():
     missing = targets(_fake(ipc=1.0, gm=1.5, mapie=None, ratio=2.0, float_ratio=1.0))
     assert missing["quad_ipc_vs_mapie"]["met"] is None
     assert not missing["quad_ipc_vs_global_mahalanobis"]["met"]
+
+
+def test_the_documents_numbers_are_the_committed_results():
+    """README.md and docs/benchmarks.md hold exactly what ``python -m benchmarks.readme`` pastes."""
+    blocks = render_blocks(*load_results())
+    for doc in DOCUMENTS:
+        text = doc.read_text(encoding="utf-8")
+        assert replace_blocks(text, blocks)[1] == [], f"{doc.name}: run python -m benchmarks.readme"
+        assert "READING_" not in text
