@@ -1,6 +1,6 @@
 """The benchmark suite in one command: speed and tightness of ipcverify against its peers.
 
-Run from the repository root (about 15 minutes on 2 shared cores; the first run also
+Run from the repository root (about 9 minutes on 2 shared cores; the first run also
 flies the quad-landing data, about 1 minute, cached in ``benchmarks/.cache/``)::
 
     pip install -e ".[bench,onnx]"
@@ -15,7 +15,7 @@ on the known-oracle data, the oracle; with the volume diagnosis), ``shift``
 (:mod:`benchmarks.bench_shift`: violation rates of the old and new default under covariate
 shift and on held-out runs / time segments of the real log), ``latency``
 (:mod:`benchmarks.bench_latency`), ``cost`` (:mod:`benchmarks.bench_cost`) and ``targets``
-(the issues' targets, computed from the numbers above, never typed in). About 15 minutes
+(the issues' targets, computed from the numbers above, never typed in). About 9 minutes
 on 2 shared cores.
 """
 

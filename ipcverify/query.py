@@ -9,7 +9,8 @@ per-call overhead as the sound answer allows:
   :meth:`~ipcverify.model.IPCModel.predict`) on one query and applies the
   calibration. No :class:`~ipcverify.sets.Ellipsoid` is built, so there is no
   validation SVD on the hot path; the inputs are checked once, and for ``n = 3`` with the
-  Cholesky head the output heads are plain float arithmetic. The returned centre and shape
+  Cholesky head the output heads are plain float arithmetic (the default ensemble's engine,
+  :mod:`ipcverify.lowrank_engine`, has its own one-query path). The returned centre and shape
   are plain arrays.
 * :meth:`IPCQuery.decide` turns the ellipsoid (optionally moved to another frame by the
   caller's ``transform``) into the landing decision of record of
