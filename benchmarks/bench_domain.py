@@ -218,7 +218,10 @@ def room_change(df: pd.DataFrame) -> dict[str, Any]:
     df = df.sort_values(["method", "run", "t"], kind="stable")
     first, early = df["t"] < df["t"].median(), df["run"] < 5
     held = first & ~early & (df["run"] >= 8)
-    model = train(_dataset(df[first & early], "train"), train_config=TrainConfig(seed=0)).model
+    # the committed domain_results.json was measured with the recipe "v1" (the default before "tight")
+    model = train(
+        _dataset(df[first & early], "train"), train_config=TrainConfig.recipe("v1", seed=0), recipe="v1"
+    ).model
     contract = calibrate(model, _dataset(df[first & ~early & ~held], "calibration"), 0.01, 0.001)
     out: dict[str, Any] = {"certified_epsilon": contract.require_calibration().summary().certified_epsilon}
     for name, mask in (("held_out_runs", held), ("second_half", ~first & ~early)):

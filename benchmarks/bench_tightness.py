@@ -1,25 +1,36 @@
-"""Tightness: set volume at matched certified coverage, and coverage on held-out data.
+"""Tightness: set volume at matched certified coverage, against the peers and the oracle.
 
-Every method is fitted on the same training split, calibrated on the same calibration
-split with the same ``(epsilon, delta, mode)`` through ipcverify's order statistic
-(:func:`ipcverify.calibration.threshold_scores`, PAC by default), then measured on the
-same test split:
+Every calibrated method is fitted on the same training split, calibrated on the same
+calibration split with the same ``(epsilon, delta, mode)`` through ipcverify's order
+statistic (:func:`ipcverify.calibration.threshold_scores`, PAC by default), then measured
+on the same test split:
 
-* ``ipc`` -- ipcverify's IPC with its default settings, calibrated.
+* ``ipc`` -- ipcverify's IPC with its default recipe (``"tight"``), calibrated.
+* ``ipc_v1`` -- the recipe ``"v1"``: ipcverify's default before ``"tight"`` (Cholesky head,
+  hinge alpha = 1, 20 epochs), calibrated.
+* ``ipc_paper`` -- the recipe ``"paper"`` (the paper's head and loss), calibrated.
 * ``global_mahalanobis`` -- one residual-covariance ellipsoid for every input
   (:class:`ipcverify.baselines.GlobalMahalanobis`; Johnstone & Cox 2021, Messoudi et al. 2022).
 * ``bonferroni_box`` -- per-axis intervals at ``epsilon / n``
   (:class:`ipcverify.baselines.BonferroniBox`; what puncc and MAPIE users build).
 * ``mapie_multivariate`` -- MAPIE 1.6's ``MultivariateResidualNormalisedScore``
   (:mod:`benchmarks.peers`), if ``mapie==1.6.0`` is installed.
-* ``raw_ipc`` -- **uncalibrated**: the paper's IPC as published, i.e. trained with the
-  paper's objective settings (alpha = 0.1, lambda = 0.01, 20 epochs, (64, 128), Adam 1e-3)
-  and used without calibration; its coverage is whatever the network gives.
-* ``raw_ipc_paper_head`` -- **uncalibrated**, and also with the paper's output head
-  (centre predicted outright, nine free shape entries: ``center="raw"``, ``param="full"``).
+* ``oracle`` -- on data with a known conditional law (:mod:`benchmarks.oracle_data`): the
+  true conditional ellipsoids, radius from the **same PAC order statistic** on the
+  calibration split (the oracle's own scores). ``oracle_exact`` -- the same sets at
+  exactly conditional coverage ``1 - epsilon`` (closed-form volume; no calibration, so no
+  finite-sample margin: the PAC order statistic costs even the oracle a factor).
+* ``raw_ipc`` -- **uncalibrated**: the paper's IPC as published (Cholesky head, alpha = 0.1,
+  lambda = 0.01, 20 epochs, Adam 1e-3) used without calibration; ``raw_ipc_paper_head`` --
+  **uncalibrated**, also with the paper's head (the ``ipc_paper`` network, raw).
 
-Volumes are in the units of y cubed (m^3 for both datasets). Training is repeated over
-seeds (the learned methods); the baselines are deterministic.
+Per method: mean and median volume (units of y cubed), coverage, worst-bin coverage over
+10 quantile bins of every state column and of ``||yhat||``
+(:func:`ipcverify.evaluation.worst_bin_coverage`), training seconds, and the mean-volume
+ratios to the global ellipsoid, MAPIE and the oracle (PAC and exact). On oracle data the
+ellipsoidal methods of the first seed are diagnosed (:func:`benchmarks.diagnose_tightness.diagnose`).
+Learned methods are repeated over training seeds (medians and spread); the baselines are
+deterministic.
 """
 
 from __future__ import annotations
@@ -33,38 +44,65 @@ import numpy as np
 
 from benchmarks.common import spread
 from benchmarks.datasets import Splits
+from benchmarks.diagnose_tightness import diagnose
 from benchmarks.peers import MAPIE_VERSION, fit_mapie_multivariate, mapie_available
 from ipcverify.architecture import ModelConfig
 from ipcverify.baselines import fit_bonferroni_box, fit_global_mahalanobis
 from ipcverify.bounds import CalibrationMode
 from ipcverify.calibrate import calibrate
+from ipcverify.calibration import threshold_scores
+from ipcverify.data import PerceptionDataset
+from ipcverify.evaluation import worst_bin_coverage
 from ipcverify.model import IPCModel
+from ipcverify.sets import Ellipsoid
 from ipcverify.training import TrainConfig, train
 
-__all__ = ["METHODS", "PAPER_TRAIN", "measure", "bench_tightness"]
+__all__ = ["METHODS", "ORACLE_METHODS", "RECIPE_METHODS", "measure", "bench_tightness", "worst_bin_allowance"]
 
-#: Methods in report order.
+#: Methods in report order (the oracle rows only on data with a known law).
 METHODS: tuple[str, ...] = (
     "ipc",
+    "ipc_v1",
+    "ipc_paper",
     "global_mahalanobis",
     "bonferroni_box",
     "mapie_multivariate",
+    "oracle",
+    "oracle_exact",
     "raw_ipc",
     "raw_ipc_paper_head",
 )
-#: The paper's training settings (Sun, Yang and Mitra: hinge margin and weight as first released).
-PAPER_TRAIN: dict[str, Any] = {"alpha": 0.1, "lam": 0.01, "epochs": 20, "lr": 1e-3, "batch_size": 64}
+ORACLE_METHODS: tuple[str, ...] = ("oracle", "oracle_exact")
+#: The calibrated IPC rows and the recipe each one trains.
+RECIPE_METHODS: dict[str, str] = {"ipc": "tight", "ipc_v1": "v1", "ipc_paper": "paper"}
+#: Bins of the worst-bin coverage.
+BINS = 10
 
 
-def measure(sets: Any, y: np.ndarray) -> dict[str, float]:
-    """Mean and median volume, mean log-volume and coverage of a batch of sets."""
+def worst_bin_allowance(epsilon: float, n_test: int, bins: int = BINS) -> float:
+    """Two binomial standard deviations of one bin's coverage at ``1 - epsilon`` ("binomial noise").
+
+    Examples
+    --------
+    >>> round(worst_bin_allowance(0.01, 5000), 4)
+    0.0089
+    """
+    return 2.0 * float(np.sqrt(epsilon * (1.0 - epsilon) / (n_test / bins)))
+
+
+def measure(sets: Any, test: PerceptionDataset) -> dict[str, Any]:
+    """Mean / median volume, mean log-volume, coverage and worst-bin coverage of a batch of sets."""
     logv = np.asarray(sets.log_volume(), dtype=np.float64)
     vol = np.exp(logv)
+    covered = np.asarray(sets.contains(test.y))
+    worst = worst_bin_coverage(test.x, test.yhat, ~covered, test.x_columns, BINS)
     return {
         "mean_volume": float(vol.mean()),
         "median_volume": float(np.median(vol)),
         "mean_log_volume": float(logv.mean()),
-        "coverage": float(np.mean(sets.contains(y))),
+        "coverage": float(covered.mean()),
+        "worst_bin_coverage": float(worst.coverage),
+        "worst_bin_column": worst.column,
     }
 
 
@@ -74,12 +112,77 @@ def _timed(fn: Callable[[], Any]) -> tuple[Any, float]:
     return out, time.perf_counter() - t0
 
 
-def _summarise(runs: list[dict[str, float]], extra: dict[str, Any]) -> dict[str, Any]:
+def _summarise(runs: list[dict[str, Any]], extra: dict[str, Any]) -> dict[str, Any]:
     keys = [k for k in runs[0] if isinstance(runs[0][k], float)]
     out: dict[str, Any] = {k: statistics.median(r[k] for r in runs) for k in keys}
     out["spread"] = {k: spread([r[k] for r in runs]) for k in keys}
+    out["worst_bin_columns"] = [r["worst_bin_column"] for r in runs]
+    for r in runs:
+        if "diagnosis" in r:
+            out["diagnosis"] = r["diagnosis"]
     out.update(extra)
     return out
+
+
+def _diagnosis(sets: Ellipsoid, splits: Splits, k: int, n: int, epsilon: float) -> dict[str, Any]:
+    if splits.test_oracle is None:
+        return {}
+    return {"diagnosis": diagnose(sets, splits.test_oracle, 1.0 - epsilon, pac_k=k, pac_n=n).to_dict()}
+
+
+def _recipe_runs(
+    splits: Splits, seeds: int, epsilon: float, delta: float, mode: CalibrationMode
+) -> tuple[dict[str, list[dict[str, Any]]], IPCModel]:
+    """The calibrated IPC of each recipe and the two uncalibrated paper rows, over training seeds."""
+    tr, cal, te = splits.train, splits.calibration, splits.test
+    runs: dict[str, list[dict[str, Any]]] = {
+        m: [] for m in (*RECIPE_METHODS, "raw_ipc", "raw_ipc_paper_head")
+    }
+    first: IPCModel | None = None
+    for seed in range(seeds):
+        for method, recipe in RECIPE_METHODS.items():
+            tc = TrainConfig.recipe(recipe, seed=seed)
+            model, t_train = _timed(
+                lambda tc=tc, recipe=recipe: train(tr, train_config=tc, recipe=recipe).model
+            )
+            calibrated, t_cal = _timed(
+                lambda model=model: calibrate(model, cal, epsilon, delta, mode, domain_alpha=None)
+            )
+            first = first or calibrated
+            sets = calibrated.predict(te.x, te.yhat)
+            rec = {**measure(sets, te), "train_seconds": t_train, "calibrate_seconds": t_cal}
+            if seed == 0 and method != "ipc_paper":
+                group = calibrated.require_calibration().groups()[0]
+                rec.update(_diagnosis(sets, splits, group.k, group.n, epsilon))
+            runs[method].append(rec)
+            if method == "ipc_paper":
+                runs["raw_ipc_paper_head"].append(measure(model.predict_raw(te.x, te.yhat), te))
+        head = ModelConfig.recipe("v1", x_dim=tr.x_dim, y_dim=tr.y_dim)
+        paper = train(tr, head, TrainConfig.recipe("paper", seed=seed)).model
+        runs["raw_ipc"].append(measure(paper.predict_raw(te.x, te.yhat), te))
+    if first is None:
+        raise ValueError("seeds must be >= 1")
+    return runs, first
+
+
+def _oracle_rows(splits: Splits, epsilon: float, delta: float, mode: CalibrationMode) -> dict[str, Any]:
+    cal_o, te_o, te = splits.calibration_oracle, splits.test_oracle, splits.test
+    if cal_o is None or te_o is None:
+        return {}
+    t = threshold_scores(cal_o.scores(splits.calibration.y), epsilon, delta, mode)
+    pac = te_o.sets(t.scale)
+    exact = te_o.sets(te_o.radius(1.0 - epsilon))
+    note = f"the true conditional law ({te_o.law}); "
+    return {
+        "oracle": _summarise(
+            [{**measure(pac, te), **_diagnosis(pac, splits, t.k, t.n, epsilon)}],
+            {"calibrated": True, "note": note + "radius from the same PAC order statistic"},
+        ),
+        "oracle_exact": _summarise(
+            [measure(exact, te)],
+            {"calibrated": False, "note": note + "exact conditional coverage 1 - epsilon at every input"},
+        ),
+    }
 
 
 def bench_tightness(
@@ -88,7 +191,7 @@ def bench_tightness(
     delta: float = 0.001,
     mode: CalibrationMode = "pac",
     seeds: int = 3,
-    mapie_epochs: int = 20,
+    mapie_epochs: int = 60,
     mapie_seeds: int | None = None,
 ) -> tuple[dict[str, Any], IPCModel]:
     """Fit, calibrate and measure every method on one dataset.
@@ -96,58 +199,44 @@ def bench_tightness(
     Returns
     -------
     results : dict
-        ``{method: {mean_volume, median_volume, coverage, mean_log_volume, spread, ...}}``.
+        ``{method: {mean_volume, median_volume, coverage, worst_bin_coverage, spread, ...}}``.
     ipc : IPCModel
-        The calibrated IPC of the first seed (for the latency and cost benchmarks).
+        The calibrated default IPC of the first seed (for the latency and cost benchmarks).
     """
     tr, cal, te = splits.train, splits.calibration, splits.test
-    x_dim, y_dim = tr.x_dim, tr.y_dim
     common = {"epsilon": epsilon, "delta": delta, "mode": mode, "calibration_n": len(cal), "test_n": len(te)}
+    runs, first_ipc = _recipe_runs(splits, seeds, epsilon, delta, mode)
     res: dict[str, Any] = {}
-    runs: dict[str, list[dict[str, float]]] = {m: [] for m in METHODS}
-    first_ipc: IPCModel | None = None
-    for seed in range(seeds):
-        model, t_train = _timed(lambda seed=seed: train(tr, train_config=TrainConfig(seed=seed)).model)
-        calibrated, t_cal = _timed(lambda model=model: calibrate(model, cal, epsilon, delta, mode))
-        first_ipc = first_ipc or calibrated
-        runs["ipc"].append(
-            {
-                **measure(calibrated.predict(te.x, te.yhat), te.y),
-                "train_seconds": t_train,
-                "calibrate_seconds": t_cal,
-            }
-        )
-        paper = train(tr, train_config=TrainConfig(seed=seed, **PAPER_TRAIN)).model
-        runs["raw_ipc"].append(measure(paper.predict_raw(te.x, te.yhat), te.y))
-        head = ModelConfig(x_dim=x_dim, y_dim=y_dim, center="raw", param="full")
-        paper_head = train(tr, head, TrainConfig(seed=seed, **PAPER_TRAIN)).model
-        runs["raw_ipc_paper_head"].append(measure(paper_head.predict_raw(te.x, te.yhat), te.y))
-    assert first_ipc is not None
-    defaults = TrainConfig()
-    res["ipc"] = _summarise(
-        runs["ipc"],
-        {
-            **common,
-            "calibrated": True,
-            "settings": {"alpha": defaults.alpha, "lam": defaults.lam, "epochs": defaults.epochs},
-        },
+    for method, recipe in RECIPE_METHODS.items():
+        tc = TrainConfig.recipe(recipe)
+        settings = {"recipe": recipe, "loss": tc.loss, "epochs": tc.epochs, "alpha": tc.alpha, "lam": tc.lam}
+        res[method] = _summarise(runs[method], {**common, "calibrated": True, "settings": settings})
+    gm = fit_global_mahalanobis(tr).calibrate(cal, epsilon, delta, mode)
+    gm_sets = gm.predict(te.x, te.yhat)
+    gm_rec = measure(gm_sets, te)
+    if gm.threshold is not None:
+        gm_rec.update(_diagnosis(gm_sets, splits, gm.threshold.k, gm.threshold.n, epsilon))
+    res["global_mahalanobis"] = _summarise([gm_rec], {**common, "calibrated": True})
+    box = fit_bonferroni_box(tr).calibrate(cal, epsilon, delta, mode)
+    res["bonferroni_box"] = _summarise(
+        [measure(box.predict(te.x, te.yhat), te)], {**common, "calibrated": True}
     )
-    for name, fit in (("global_mahalanobis", fit_global_mahalanobis), ("bonferroni_box", fit_bonferroni_box)):
-        base = fit(tr).calibrate(cal, epsilon, delta, mode)
-        res[name] = _summarise([measure(base.predict(te.x, te.yhat), te.y)], {**common, "calibrated": True})
     if mapie_available() is None:
         res["mapie_multivariate"] = {
             "skipped": f"mapie=={MAPIE_VERSION} is not installed (pip install -e '.[bench]')",
         }
     else:
+        mruns = []
         for seed in range(seeds if mapie_seeds is None else mapie_seeds):
             fitted, t_fit = _timed(lambda seed=seed: fit_mapie_multivariate(tr, mapie_epochs, seed=seed))
             peer = fitted.calibrate(cal, epsilon, delta, mode)
-            runs["mapie_multivariate"].append(
-                {**measure(peer.predict(te.x, te.yhat), te.y), "train_seconds": t_fit}
-            )
+            sets = peer.predict(te.x, te.yhat)
+            rec = {**measure(sets, te), "train_seconds": t_fit}
+            if seed == 0 and peer.threshold is not None:
+                rec.update(_diagnosis(sets, splits, peer.threshold.k, peer.threshold.n, epsilon))
+            mruns.append(rec)
         res["mapie_multivariate"] = _summarise(
-            runs["mapie_multivariate"],
+            mruns,
             {
                 **common,
                 "calibrated": True,
@@ -155,17 +244,36 @@ def bench_tightness(
                 "calibration": "MAPIE's score; radius from ipcverify's order statistic (benchmarks/peers.py)",
             },
         )
+    res.update(_oracle_rows(splits, epsilon, delta, mode))
+    paper = {
+        "recipe": "paper (raw_ipc: Cholesky head)",
+        **{k: getattr(TrainConfig.recipe("paper"), k) for k in ("alpha", "lam", "epochs")},
+    }
     for name in ("raw_ipc", "raw_ipc_paper_head"):
         res[name] = _summarise(
             runs[name],
             {
                 "calibrated": False,
                 "note": "UNCALIBRATED: coverage not matched, no certificate",
-                "settings": PAPER_TRAIN,
+                "settings": paper,
             },
         )
-    gm = res["global_mahalanobis"]["mean_volume"]
-    for r in res.values():
-        if "mean_volume" in r:
-            r["mean_volume_ratio_to_global_mahalanobis"] = r["mean_volume"] / gm
+    _ratios(res)
     return res, first_ipc
+
+
+def _ratios(res: dict[str, Any]) -> None:
+    """Mean-volume ratios of every row to the references that exist on this dataset."""
+    refs = {
+        "global_mahalanobis": "mean_volume_ratio_to_global_mahalanobis",
+        "mapie_multivariate": "mean_volume_ratio_to_mapie",
+        "oracle": "mean_volume_ratio_to_oracle",
+        "oracle_exact": "mean_volume_ratio_to_oracle_exact",
+    }
+    for ref, key in refs.items():
+        base = res.get(ref, {}).get("mean_volume")
+        if base is None:
+            continue
+        for r in res.values():
+            if "mean_volume" in r:
+                r[key] = r["mean_volume"] / base

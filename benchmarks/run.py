@@ -1,6 +1,6 @@
 """The benchmark suite in one command: speed and tightness of ipcverify against its peers.
 
-Run from the repository root (about 5 minutes on 2 shared cores; the first run also
+Run from the repository root (about 9 minutes on 2 shared cores; the first run also
 flies the quad-landing data, about 1 minute, cached in ``benchmarks/.cache/``)::
 
     pip install -e ".[bench,onnx]"
@@ -10,9 +10,13 @@ It writes ``benchmarks/results.json`` (every number), ``benchmarks/results.md`` 
 tables) and ``docs/img/bench_tightness.png``. ``--quick`` runs everything on tiny sizes
 (a smoke test of the harness; its numbers mean nothing) and writes to ``--out``.
 
-Sections: ``latency`` (:mod:`benchmarks.bench_latency`), ``cost``
-(:mod:`benchmarks.bench_cost`), ``tightness`` (:mod:`benchmarks.bench_tightness`) and
-``targets`` (issue 7's targets, computed from the numbers above, never typed in).
+Sections: ``tightness`` (:mod:`benchmarks.bench_tightness`: every method against MAPIE and,
+on the known-oracle data, the oracle; with the volume diagnosis), ``shift``
+(:mod:`benchmarks.bench_shift`: violation rates of the old and new default under covariate
+shift and on held-out runs / time segments of the real log), ``latency``
+(:mod:`benchmarks.bench_latency`), ``cost`` (:mod:`benchmarks.bench_cost`) and ``targets``
+(the issues' targets, computed from the numbers above, never typed in). About 9 minutes
+on 2 shared cores.
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ import torch
 
 from benchmarks.bench_cost import bench_cost
 from benchmarks.bench_latency import BATCH_SIZES, bench_latency
+from benchmarks.bench_shift import bench_shift
 from benchmarks.bench_tightness import bench_tightness
 from benchmarks.common import blas_single_thread, machine_info, write_json
 from benchmarks.datasets import CACHE, DATASETS, load_splits
@@ -56,6 +61,9 @@ class RunConfig:
     batch_sizes: tuple[int, ...] = BATCH_SIZES
     cost_repeats: int = 3
     sdp_count: int = 60
+    shift_n: int = 5000
+    shift_seeds: int = 2
+    shift_real_log: bool = True
 
     def __post_init__(self) -> None:
         if min(self.n_train, self.n_calibration, self.n_test, self.seeds, self.mapie_seeds) < 1:
@@ -78,6 +86,9 @@ class RunConfig:
             batch_sizes=(1, 100),
             cost_repeats=1,
             sdp_count=3,
+            shift_n=300,
+            shift_seeds=1,
+            shift_real_log=False,
         )
 
 
@@ -119,6 +130,8 @@ def run(
         results["tightness"][name] = tight
         models[name] = (ipc, splits, load_s)
         print(f"[{time.perf_counter() - t_start:6.1f} s] tightness on {name} done", flush=True)
+    results["shift"] = bench_shift(cfg.shift_n, cfg.shift_seeds, cfg.shift_real_log, cfg.epsilon, cfg.delta)
+    print(f"[{time.perf_counter() - t_start:6.1f} s] shift study done", flush=True)
     lat_name = "quad_landing" if "quad_landing" in models else datasets[0]
     ipc, splits, _ = models[lat_name]
     results["latency"] = {

@@ -112,7 +112,7 @@ def calibrate(
     >>> from ipcverify.synthetic import make_lagged_perception
     >>> from ipcverify.model import IPCNetwork
     >>> from ipcverify.architecture import ModelConfig
-    >>> net = IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(8,)))
+    >>> net = IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(8,), param="cholesky"))
     >>> cal = calibrate(IPCModel(net), make_lagged_perception(1000, seed=1), 0.05, 0.01)
     >>> cal.calibration.groups()[0].k, cal.domain.alpha
     (966, 0.01)

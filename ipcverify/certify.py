@@ -53,7 +53,7 @@ from ipcverify.errors import InvalidInputError
 from ipcverify.evaluation import BinCoverage, WorstBin, coverage_by_bin, worst_bin_coverage
 from ipcverify.files import atomic_write, file_sha256, write_json
 from ipcverify.group_test import group_test_step
-from ipcverify.lipschitz import DEFAULT_RADIUS
+from ipcverify.lipschitz import DEFAULT_RADIUS, theorem1_unavailable
 from ipcverify.model import IPCModel, network_fingerprint
 from ipcverify.modelio import load_data_for_model, load_model
 from ipcverify.report import render_report
@@ -202,8 +202,13 @@ def theorem1_step(
     """Step 4: Theorem 1 and where its training terms came from, or the reason it was not computed.
 
     From the training data if given, else from the statistics :func:`ipcverify.training.train`
-    stored in the model file.
+    stored in the model file. For an architecture without a derived Lipschitz bound (the
+    default low-rank ensemble) the reason is returned instead: the PAC certificate does
+    not depend on Theorem 1.
     """
+    unavailable = theorem1_unavailable(model)
+    if unavailable is not None:
+        return None, unavailable, ""
     if train_data is not None:
         return theorem1(model, train_data, delta, radius=radius), "", "training data"
     stored = model.metadata.get("training_statistics")
@@ -357,7 +362,7 @@ def certify(
     >>> from ipcverify.model import IPCNetwork
     >>> from ipcverify.architecture import ModelConfig
     >>> from ipcverify.calibrate import calibrate
-    >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(8,))))
+    >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(8,), param="cholesky")))
     >>> m = calibrate(m, make_lagged_perception(2000, seed=1), epsilon=0.05, delta=0.01)
     >>> res = certify(m, make_lagged_perception(2000, seed=2))
     >>> res.certificate.status.name, res.certificate.test.n

@@ -100,9 +100,10 @@ class _Scan:
 
     def kth(self, w: FloatArray, k: int) -> tuple[float, float] | None:
         """Lower and upper bounds of the ``k``-th smallest distance ``||r_j - w||`` (None: too far out)."""
-        ww = float(w @ w)
-        if not ww < _SCAN_MAX_NORM**2 or (len(w) + 6) * _U32 > _SCAN_BOUND:
+        norm = math.hypot(*w.tolist())  # scaled internally: a far-out query cannot overflow here
+        if not norm < _SCAN_MAX_NORM or (len(w) + 6) * _U32 > _SCAN_BOUND:
             return None
+        ww = norm * norm
         w1 = np.empty(len(w) + 1, dtype=np.float32)
         w1[:-1] = w
         w1[-1] = 1.0
@@ -284,7 +285,9 @@ class DomainModel:
         Steps 1 and 2 answer only with a relative margin of ``1e-9`` to the threshold, a million
         times the rounding of the tree's own distance, so the answer is always :meth:`contains`'s.
         """
-        if not math.isfinite(z @ z) and not np.isfinite(z).all():  # z @ z: one cheap call when finite
+        # one cheap sum in Python floats when finite (it cannot raise: a huge finite row sums to
+        # inf, and then the exact test decides)
+        if not math.isfinite(sum(z.tolist())) and not np.isfinite(z).all():
             return False
         w = (z - self.mean) @ self._wt
         t = self.threshold

@@ -2,9 +2,12 @@
 
 The exported graph maps ``x`` (B, d) and ``yhat`` (B, n) to ``center`` (B, n) and
 ``shape`` (B, n, n), the contract's ellipsoids ``E(c, C) = {y : ||C (y - c)|| <= 1}``,
-with exactly the operations of :mod:`ipcverify.inference`: input standardisation,
-the MLP, the centre head and the shape head (Cholesky diagonal ``exp(clip(., -12, 12))``
-or the full matrix), then ``C / scale`` for a calibrated model.
+with exactly the operations of the float64 engine: for the paper's heads
+(:mod:`ipcverify.inference`) input standardisation, the MLP, the centre head and the shape
+head (Cholesky diagonal ``exp(clip(., -12, 12))`` or the full matrix); for the default
+low-rank ensemble (:mod:`ipcverify.lowrank_engine`) the members' stacked MLPs, the moment
+matching and a Cholesky factorisation written out entry by entry
+(:mod:`ipcverify.export_lowrank`). Then ``C / scale`` for a calibrated model.
 
 * ``dtype="float64"`` (default) evaluates in float64 like the reference engine, so the
   exported sets are the calibrated sets up to the summation order of the matrix
@@ -25,7 +28,7 @@ Examples
 >>> import os, tempfile
 >>> from ipcverify.model import IPCModel, IPCNetwork
 >>> from ipcverify.architecture import ModelConfig
->>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(8,))))
+>>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(8,), param="cholesky")))
 >>> info = export_onnx(m, os.path.join(tempfile.mkdtemp(), "ipc.onnx"))  # doctest: +SKIP
 >>> info.calibrated  # doctest: +SKIP
 False
@@ -45,7 +48,9 @@ from numpy.typing import NDArray
 import ipcverify
 from ipcverify.architecture import LOGDIAG_CLAMP
 from ipcverify.errors import InvalidInputError
+from ipcverify.export_lowrank import lowrank_nodes
 from ipcverify.files import atomic_write
+from ipcverify.inference import InferenceEngine
 from ipcverify.model import IPCModel, network_fingerprint
 
 __all__ = ["OPSET", "ExportInfo", "OnnxCheck", "build_onnx", "export_onnx", "check_onnx", "onnx_session"]
@@ -158,6 +163,53 @@ def build_onnx(model: IPCModel, dtype: Dtype = "float64") -> Any:
     z = node("Concat", ["x", "yhat"], "inputs", axis=1)
     z = node("Sub", [z, const("in_mean", eng.in_mean)], "centred")
     z = node("Mul", [z, const("in_scale", eng.in_scale)], "standardised")
+    if isinstance(eng, InferenceEngine):
+        _paper_head_nodes(eng, z, node, const, scale)
+    else:
+        lowrank_nodes(eng, z, node, const, scale, np_t)
+    graph = helper.make_graph(
+        nodes,
+        "ipcverify_ipc",
+        [
+            helper.make_tensor_value_info("x", elem, ["B", d]),
+            helper.make_tensor_value_info("yhat", elem, ["B", n]),
+        ],
+        [
+            helper.make_tensor_value_info("center", elem, ["B", n]),
+            helper.make_tensor_value_info("shape", elem, ["B", n, n]),
+        ],
+        initializer=inits,
+    )
+    proto = helper.make_model(
+        graph,
+        opset_imports=[helper.make_opsetid("", OPSET)],
+        producer_name="ipcverify",
+        producer_version=ipcverify.__version__,
+    )
+    proto.ir_version = min(proto.ir_version, 8)
+    meta = {
+        "x_dim": str(d),
+        "y_dim": str(n),
+        "param": cfg.param,
+        "center": cfg.center,
+        "members": str(cfg.members),
+        "dtype": dtype,
+        "network_hash": network_fingerprint(model.network),
+        "calibrated": "true" if scale is not None else "false",
+        "sets": "E(c, C) = {y : ||C (y - c)|| <= 1}; outputs center (B, n) and C = shape (B, n, n)",
+    }
+    if scale is not None and model.calibration is not None:
+        c = model.calibration
+        meta.update(scale=repr(scale), mode=c.mode, epsilon=repr(c.epsilon), delta=repr(c.delta), n=str(c.n))
+    helper.set_model_props(proto, meta)
+    onnx.checker.check_model(proto)
+    return proto
+
+
+def _paper_head_nodes(eng: InferenceEngine, z: str, node: Any, const: Any, scale: float | None) -> None:
+    """The nodes from the standardised inputs ``z`` to ``center`` and ``shape`` for the paper's heads."""
+    cfg = eng.config
+    n = cfg.y_dim
     act = {"relu": "Relu", "tanh": "Tanh", "elu": "Elu"}[cfg.activation]
     last = len(eng.weights) - 1
     for i, (w, b) in enumerate(zip(eng.weights, eng.biases, strict=True)):
@@ -189,42 +241,6 @@ def build_onnx(model: IPCModel, dtype: Dtype = "float64") -> Any:
     else:
         raw = node("Mul", [L, const("inv_sigma", eng.inv_sigma)], "raw_shape")
         node("Div", [raw, const("scale", scale)], "shape")
-    graph = helper.make_graph(
-        nodes,
-        "ipcverify_ipc",
-        [
-            helper.make_tensor_value_info("x", elem, ["B", d]),
-            helper.make_tensor_value_info("yhat", elem, ["B", n]),
-        ],
-        [
-            helper.make_tensor_value_info("center", elem, ["B", n]),
-            helper.make_tensor_value_info("shape", elem, ["B", n, n]),
-        ],
-        initializer=inits,
-    )
-    proto = helper.make_model(
-        graph,
-        opset_imports=[helper.make_opsetid("", OPSET)],
-        producer_name="ipcverify",
-        producer_version=ipcverify.__version__,
-    )
-    proto.ir_version = min(proto.ir_version, 8)
-    meta = {
-        "x_dim": str(d),
-        "y_dim": str(n),
-        "param": cfg.param,
-        "center": cfg.center,
-        "dtype": dtype,
-        "network_hash": network_fingerprint(model.network),
-        "calibrated": "true" if scale is not None else "false",
-        "sets": "E(c, C) = {y : ||C (y - c)|| <= 1}; outputs center (B, n) and C = shape (B, n, n)",
-    }
-    if scale is not None and model.calibration is not None:
-        c = model.calibration
-        meta.update(scale=repr(scale), mode=c.mode, epsilon=repr(c.epsilon), delta=repr(c.delta), n=str(c.n))
-    helper.set_model_props(proto, meta)
-    onnx.checker.check_model(proto)
-    return proto
 
 
 def export_onnx(model: IPCModel, path: str | os.PathLike[str], dtype: Dtype = "float64") -> ExportInfo:

@@ -44,7 +44,7 @@ class InferenceEngine:
     >>> import numpy as np
     >>> from ipcverify.model import IPCNetwork
     >>> from ipcverify.architecture import ModelConfig
-    >>> net = IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(8,)))
+    >>> net = IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(8,), param="cholesky"))
     >>> eng = InferenceEngine.from_network(net)
     >>> c, C = eng.batch(np.zeros((4, 2)), np.zeros((4, 3)))
     >>> c.shape, C.shape

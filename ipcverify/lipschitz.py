@@ -16,6 +16,11 @@ Theorem 1 of the paper needs ``L_g``. Two numbers are computed, and labelled:
 
 Only the network's trainable parameters (the MLP ``body``) count as ``theta``;
 the normalisation buffers are fixed statistics of the training data.
+
+Both are derived for one MLP with the paper's heads (``"cholesky"``, ``"full"``). For the
+default recipe's network -- the low-rank head (a Cholesky factor of a sum), the linear
+centre stage and the ensemble's moment matching -- no bound is derived yet:
+:func:`theorem1_unavailable` says so, and these functions refuse such models.
 """
 
 from __future__ import annotations
@@ -45,6 +50,8 @@ __all__ = [
     "per_sample_gradient_norms",
     "empirical_lipschitz",
     "sound_lipschitz",
+    "theorem1_unavailable",
+    "Theorem1UnavailableError",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -54,6 +61,46 @@ DEFAULT_RADIUS = 0.1
 #: Relative safety margin on the sound bound (float64 rounding in norms and SVDs).
 FLOAT_MARGIN = 1e-6
 _SVD_MARGIN = 1e-9
+
+
+class Theorem1UnavailableError(InvalidInputError):
+    """Theorem 1 (its Lipschitz constant) is not derived for the model's architecture."""
+
+
+def theorem1_unavailable(model: IPCModel) -> str | None:
+    """Why the Lipschitz constants (hence Theorem 1) cannot be computed for ``model``; None if they can.
+
+    Examples
+    --------
+    >>> from ipcverify.model import build_network
+    >>> from ipcverify.architecture import ModelConfig
+    >>> theorem1_unavailable(IPCModel(build_network(ModelConfig.recipe("v1", x_dim=2, y_dim=3)))) is None
+    True
+    >>> default = IPCModel(build_network(ModelConfig(x_dim=2, y_dim=3)))
+    >>> print(theorem1_unavailable(default))  # doctest: +ELLIPSIS
+    not available for this architecture: ...
+    """
+    if isinstance(model.network, IPCNetwork):
+        return None
+    cfg = model.config
+    parts = ["the low-rank covariance head"]
+    if cfg.linear_center:
+        parts.append("a linear centre stage")
+    if cfg.members > 1:
+        parts.append(f"an ensemble of {cfg.members} networks")
+    return (
+        "not available for this architecture: the sound Lipschitz bound of Theorem 1 (proofs/lipschitz.md) "
+        "is derived for one network with the paper's 'cholesky' or 'full' head, and this model has "
+        f"{', '.join(parts)}, for which no bound is derived. The PAC calibration certificate does not depend "
+        "on it; train with --recipe v1 to get Theorem 1"
+    )
+
+
+def _require_supported(model: IPCModel) -> IPCNetwork:
+    reason = theorem1_unavailable(model)
+    if reason is not None or not isinstance(model.network, IPCNetwork):
+        raise Theorem1UnavailableError(reason or "unsupported network")
+    return model.network
 
 
 @dataclass(frozen=True)
@@ -195,7 +242,7 @@ def per_sample_gradient_norms(
     Examples
     --------
     >>> from ipcverify.architecture import ModelConfig
-    >>> net = IPCNetwork(ModelConfig(x_dim=2, y_dim=2, hidden=(4,)))
+    >>> net = IPCNetwork(ModelConfig(x_dim=2, y_dim=2, hidden=(4,), param="cholesky"))
     >>> per_sample_gradient_norms(net, np.ones((3, 2)), np.ones((3, 2)), np.zeros((3, 2))).shape
     (3,)
     """
@@ -229,13 +276,13 @@ def empirical_lipschitz(
     >>> from ipcverify.synthetic import make_lagged_perception
     >>> from ipcverify.model import IPCNetwork
     >>> from ipcverify.architecture import ModelConfig
-    >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(8,))))
+    >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(8,), param="cholesky")))
     >>> est = empirical_lipschitz(m, make_lagged_perception(100, seed=0))
     >>> est.value > 0, est.n_samples
     (True, 100)
     """
     norms = per_sample_gradient_norms(
-        model.network, data.x, data.y, data.yhat, chunk_size=chunk_size, dtype=dtype
+        _require_supported(model), data.x, data.y, data.yhat, chunk_size=chunk_size, dtype=dtype
     )
     if not np.isfinite(norms).all():
         raise InvalidInputError("a per-sample gradient is not finite; the network output overflowed")
@@ -284,7 +331,7 @@ def sound_lipschitz(
     >>> from ipcverify.synthetic import make_lagged_perception
     >>> from ipcverify.model import IPCNetwork
     >>> from ipcverify.architecture import ModelConfig
-    >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(8,))))
+    >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(8,), param="cholesky")))
     >>> ds = make_lagged_perception(100, seed=0)
     >>> sound_lipschitz(m, ds).value >= empirical_lipschitz(m, ds).value
     True
@@ -293,7 +340,7 @@ def sound_lipschitz(
         raise InvalidInputError(f"radius must be finite and >= 0; got {radius!r}")
     if isinstance(box, PerceptionDataset):
         box = DataBox.from_dataset(box)
-    net = model.network
+    net = _require_supported(model)
     cfg = net.config
     if box.x_lo.shape != (cfg.x_dim,) or box.y_lo.shape != (cfg.y_dim,):
         raise InvalidInputError(

@@ -7,10 +7,15 @@ model. The raw output is split into a centre head and a shape head:
 * centre ``offset`` (default): ``c = yhat + sigma * o``; centre ``raw``:
   ``c = mu_y + sigma * o`` where ``o`` is the network's centre output and
   ``sigma`` the per-dimension scale of the residual ``y - yhat`` (stored).
-* shape ``cholesky`` (default): ``L`` lower-triangular with diagonal
+* shape ``cholesky``: ``L`` lower-triangular with diagonal
   ``exp(clamp(l_ii, -12, 12))``, so ``log det(C^T C)`` is finite and cheap;
   shape ``full``: the paper's ``n^2`` raw entries. Either way
   ``C = L diag(1 / sigma)``, i.e. ``||C (y - c)|| = ||L ((y - c) / sigma)||``.
+
+That is :class:`IPCNetwork`, the network of the recipes ``"v1"`` and ``"paper"``. The
+default recipe's network, the low-rank head and its ensemble, is
+:class:`~ipcverify.lowrank.LowRankEnsemble`; :func:`build_network` builds either from a
+:class:`~ipcverify.architecture.ModelConfig`, and :class:`IPCModel` holds either.
 """
 
 from __future__ import annotations
@@ -30,10 +35,12 @@ from ipcverify.calibration.protocol import Calibration
 from ipcverify.domain import DomainModel
 from ipcverify.errors import InvalidInputError, SetError
 from ipcverify.inference import InferenceEngine
+from ipcverify.lowrank import LowRankEnsemble
+from ipcverify.lowrank_engine import LowRankEngine
 from ipcverify.nonsingular import checked_ellipsoid
 from ipcverify.sets import Ellipsoid
 
-__all__ = ["IPCNetwork", "IPCModel", "network_fingerprint"]
+__all__ = ["IPCNetwork", "IPCModel", "Network", "build_network", "engine_for", "network_fingerprint"]
 
 FloatArray = NDArray[np.float64]
 _ACTIVATIONS: dict[str, type[nn.Module]] = {"relu": nn.ReLU, "tanh": nn.Tanh, "elu": nn.ELU}
@@ -47,7 +54,7 @@ class IPCNetwork(nn.Module):
 
     Examples
     --------
-    >>> net = IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(8,)))
+    >>> net = IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(8,), param="cholesky"))
     >>> c, C, logdet = net(torch.zeros(5, 2), torch.zeros(5, 3))
     >>> tuple(C.shape), tuple(logdet.shape)
     ((5, 3, 3), (5,))
@@ -65,6 +72,11 @@ class IPCNetwork(nn.Module):
 
     def __init__(self, config: ModelConfig) -> None:
         super().__init__()
+        if config.lowrank:
+            raise InvalidInputError(
+                "IPCNetwork builds the paper's heads ('cholesky', 'full'); this config has the low-rank head "
+                f"with {config.members} member(s): build it with ipcverify.model.build_network(config)"
+            )
         self.config = config
         d, n = config.x_dim, config.y_dim
         act = _ACTIVATIONS[config.activation]
@@ -143,13 +155,38 @@ class IPCNetwork(nn.Module):
         return g, logdet
 
 
+#: The networks an :class:`IPCModel` can hold.
+Network = IPCNetwork | LowRankEnsemble
+
+
+def build_network(config: ModelConfig) -> Network:
+    """The untrained network of ``config``: a :class:`~ipcverify.lowrank.LowRankEnsemble` for the
+    low-rank head, an :class:`IPCNetwork` for the paper's heads.
+
+    Examples
+    --------
+    >>> type(build_network(ModelConfig(x_dim=2, y_dim=3))).__name__
+    'LowRankEnsemble'
+    >>> type(build_network(ModelConfig.recipe("v1", x_dim=2, y_dim=3))).__name__
+    'IPCNetwork'
+    """
+    return LowRankEnsemble(config) if config.lowrank else IPCNetwork(config)
+
+
+def engine_for(network: Network) -> InferenceEngine | LowRankEngine:
+    """The float64 engine of record for ``network``."""
+    if isinstance(network, LowRankEnsemble):
+        return LowRankEngine.from_network(network)
+    return InferenceEngine.from_network(network)
+
+
 @dataclass(frozen=True, eq=False)
 class IPCModel:
     """A trained inverse perception contract, optionally calibrated.
 
     Parameters
     ----------
-    network : IPCNetwork
+    network : IPCNetwork or LowRankEnsemble
         The trained network (put in eval mode).
     calibration : Calibration, optional
         Scale factors applied to the raw sets; see :mod:`ipcverify.calibration`.
@@ -162,12 +199,12 @@ class IPCModel:
     Examples
     --------
     >>> import numpy as np
-    >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(8,))))
+    >>> m = IPCModel(build_network(ModelConfig(x_dim=2, y_dim=3, hidden=(8,))))
     >>> m.predict(np.zeros((4, 2)), np.zeros((4, 3))).batch_size
     4
     """
 
-    network: IPCNetwork
+    network: Network
     calibration: Calibration | None = None
     metadata: Mapping[str, Any] = field(default_factory=dict)
     domain: DomainModel | None = None
@@ -179,11 +216,12 @@ class IPCModel:
                 f"{self.config.x_dim + self.config.y_dim} (x and yhat); refit it with calibrate"
             )
         self.network.eval()
-        object.__setattr__(self, "_engine", InferenceEngine.from_network(self.network))
+        object.__setattr__(self, "_engine", engine_for(self.network))
 
     @property
-    def engine(self) -> InferenceEngine:
-        """The float64 NumPy evaluation of the network (see :mod:`ipcverify.inference`)."""
+    def engine(self) -> InferenceEngine | LowRankEngine:
+        """The float64 NumPy evaluation of the network (:mod:`ipcverify.inference` or
+        :mod:`ipcverify.lowrank_engine`)."""
         return self._engine  # type: ignore[attr-defined,no-any-return]
 
     @property
@@ -263,7 +301,7 @@ class IPCModel:
 
         Examples
         --------
-        >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=1, y_dim=1, hidden=(2,))))
+        >>> m = IPCModel(build_network(ModelConfig(x_dim=1, y_dim=1, hidden=(2,))))
         >>> m.require_calibration()  # doctest: +ELLIPSIS
         Traceback (most recent call last):
         ...
@@ -302,13 +340,15 @@ def _out_of_domain_message(error: str, domain: DomainModel | None, x: FloatArray
     )
 
 
-def network_fingerprint(network: IPCNetwork) -> str:
+def network_fingerprint(network: Network) -> str:
     """SHA-256 of a network's configuration and state dict (ties a calibration to its network).
+
+    Every member of an ensemble is in the state dict, so every member is hashed.
 
     Examples
     --------
     >>> from ipcverify.architecture import ModelConfig
-    >>> len(network_fingerprint(IPCNetwork(ModelConfig(x_dim=1, y_dim=1, hidden=(2,)))))
+    >>> len(network_fingerprint(build_network(ModelConfig(x_dim=1, y_dim=1, hidden=(2,)))))
     64
     """
     h = hashlib.sha256(repr(sorted(network.config.to_dict().items())).encode())

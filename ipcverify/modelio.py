@@ -2,9 +2,14 @@
 
 A model file is a ``torch.save`` of a dict holding only tensors and plain data::
 
-    {"format": "ipcverify-model", "format_version": 1,
+    {"format": "ipcverify-model", "format_version": 1 or 2,
      "config": {...}, "state_dict": {name: tensor}, "metadata": {...},
      "calibration": {...} or None}
+
+Version 2 holds a low-rank network (:class:`~ipcverify.lowrank.LowRankEnsemble`: every
+member's weights are in the state dict, stacked, and the config has ``param="lowrank"``,
+``linear_center`` and ``members``). A network with the paper's heads is still written as
+version 1, exactly as before, so older ipcverify versions read it; both versions are read.
 
 It is read with ``torch.load(..., weights_only=True)``, which unpickles only
 tensors and plain containers: a file that holds any other object (which could run
@@ -33,12 +38,13 @@ from ipcverify.data import (
 from ipcverify.domain import DomainModel
 from ipcverify.errors import InvalidInputError, ModelFileError
 from ipcverify.files import atomic_write
-from ipcverify.model import IPCModel, IPCNetwork
+from ipcverify.model import IPCModel, build_network
 from ipcverify.tables import refuse_unknown_columns
 
 __all__ = [
     "FORMAT",
     "FORMAT_VERSION",
+    "READ_VERSIONS",
     "save_model",
     "load_model",
     "load_data_for_model",
@@ -48,7 +54,10 @@ __all__ = [
 FORMAT = "ipcverify-model"
 #: Every torch.save archive starts with a zip local-file header.
 _ZIP_MAGIC = b"PK\x03\x04"
-FORMAT_VERSION = 1
+#: The newest format written (low-rank networks); others are written as version 1.
+FORMAT_VERSION = 2
+#: Format versions this ipcverify reads.
+READ_VERSIONS = (1, 2)
 _PLAIN = (str, int, float, bool, type(None))
 
 
@@ -86,7 +95,7 @@ def save_model(model: IPCModel, path: str | os.PathLike[str]) -> None:
     Examples
     --------
     >>> import tempfile, os, numpy as np
-    >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(8,))))
+    >>> m = IPCModel(build_network(ModelConfig(x_dim=2, y_dim=3, hidden=(8,))))
     >>> p = os.path.join(tempfile.mkdtemp(), "model.pt")
     >>> save_model(m, p)
     >>> load_model(p).config.hidden
@@ -104,7 +113,7 @@ def save_model(model: IPCModel, path: str | os.PathLike[str]) -> None:
         domain = {**record, "reference": reference}
     payload = {
         "format": FORMAT,
-        "format_version": FORMAT_VERSION,
+        "format_version": FORMAT_VERSION if model.config.lowrank else 1,
         "config": model.config.to_dict(),
         "state_dict": {k: v.detach().clone() for k, v in model.network.state_dict().items()},
         "metadata": metadata,
@@ -150,14 +159,16 @@ def load_model(path: str | os.PathLike[str]) -> IPCModel:
     if not isinstance(payload, dict) or payload.get("format") != FORMAT:
         raise ModelFileError(f"{p}: not an ipcverify model file (no 'format': '{FORMAT}' entry)")
     version = payload.get("format_version")
-    if version != FORMAT_VERSION:
+    if version not in READ_VERSIONS:
         raise ModelFileError(
             f"{p}: model format version {version!r} is not supported (this ipcverify reads "
-            f"version {FORMAT_VERSION}); retrain or upgrade ipcverify"
+            f"versions {', '.join(map(str, READ_VERSIONS))}); retrain or upgrade ipcverify"
         )
     try:
         config = ModelConfig.from_dict(payload["config"])
-        net = IPCNetwork(config)
+        if config.lowrank and version < 2:
+            raise InvalidInputError("a low-rank network in a version-1 file")
+        net = build_network(config)
         net.load_state_dict(payload["state_dict"], strict=True)
     except (KeyError, TypeError, RuntimeError, InvalidInputError) as exc:
         first = str(exc).strip().splitlines()[0]
@@ -208,7 +219,7 @@ def load_data_for_model(path: str | os.PathLike[str], model: IPCModel) -> Percep
     >>> from ipcverify.architecture import ModelConfig
     >>> p = os.path.join(tempfile.mkdtemp(), "d.csv")
     >>> save_dataset(make_lagged_perception(5, seed=0), p)
-    >>> len(load_data_for_model(p, IPCModel(IPCNetwork(ModelConfig(x_dim=6, y_dim=3)))))
+    >>> len(load_data_for_model(p, IPCModel(build_network(ModelConfig(x_dim=6, y_dim=3)))))
     5
     """
     if Path(path).suffix.lower() == ".npz":
@@ -229,7 +240,7 @@ def load_inputs_for_model(path: str | os.PathLike[str], model: IPCModel) -> Perc
     >>> from ipcverify.architecture import ModelConfig
     >>> p = os.path.join(tempfile.mkdtemp(), "q.csv")
     >>> pd.DataFrame({"x_0": [0.0, 1.0], "yhat_0": [0.5, 0.5]}).to_csv(p, index=False)
-    >>> load_inputs_for_model(p, IPCModel(IPCNetwork(ModelConfig(x_dim=1, y_dim=1)))).x.shape
+    >>> load_inputs_for_model(p, IPCModel(build_network(ModelConfig(x_dim=1, y_dim=1)))).x.shape
     (2, 1)
     """
     if Path(path).suffix.lower() == ".npz":

@@ -14,7 +14,7 @@ Examples
 >>> from ipcverify.architecture import ModelConfig
 >>> from ipcverify.data import PerceptionDataset, PerceptionInputs
 >>> from ipcverify.model import IPCModel, IPCNetwork
->>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(8,))))
+>>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(8,), param="cholesky")))
 >>> p = predict_sets(m, PerceptionInputs(np.zeros((4, 2)), np.zeros((4, 3))))
 >>> p.centers.shape, p.in_domain.tolist()   # no domain model: every query counts as inside
 ((4, 3), [True, True, True, True])

@@ -9,7 +9,8 @@ per-call overhead as the sound answer allows:
   :meth:`~ipcverify.model.IPCModel.predict`) on one query and applies the
   calibration. No :class:`~ipcverify.sets.Ellipsoid` is built, so there is no
   validation SVD on the hot path; the inputs are checked once, and for ``n = 3`` with the
-  Cholesky head the output heads are plain float arithmetic. The returned centre and shape
+  Cholesky head the output heads are plain float arithmetic (the default ensemble's engine,
+  :mod:`ipcverify.lowrank_engine`, has its own one-query path). The returned centre and shape
   are plain arrays.
 * :meth:`IPCQuery.decide` turns the ellipsoid (optionally moved to another frame by the
   caller's ``transform``) into the landing decision of record of
@@ -26,7 +27,7 @@ Examples
 >>> from ipcverify.model import IPCModel, IPCNetwork
 >>> from ipcverify.sets import Box
 >>> G = Box([-0.05, -0.05, 0.0], [0.05, 0.05, 0.05])
->>> q = IPCQuery(IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(8,)))), G)
+>>> q = IPCQuery(IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(8,), param="cholesky"))), G)
 >>> center, shape = q.ellipsoid(np.zeros(2), np.zeros(3))
 >>> center.shape, shape.shape
 ((3,), (3, 3))
@@ -48,6 +49,7 @@ from ipcverify.architecture import LOGDIAG_CLAMP
 from ipcverify.errors import InvalidInputError, SetError
 from ipcverify.inference import InferenceEngine
 from ipcverify.landing import LandingRule, QueryDecision
+from ipcverify.lowrank_engine import LowRankEngine
 from ipcverify.model import IPCModel
 from ipcverify.sets import Box
 
@@ -79,7 +81,7 @@ class IPCQuery:
     >>> import numpy as np
     >>> from ipcverify.architecture import ModelConfig
     >>> from ipcverify.model import IPCModel, IPCNetwork
-    >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(8,))))
+    >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(8,), param="cholesky")))
     >>> c, C = IPCQuery(m, Box([-1.0, -1.0, 0.0], [1.0, 1.0, 1.0])).ellipsoid([0.0, 1.0], [0.1, 0.2, 0.3])
     >>> bool(np.allclose(C, m.predict([0.0, 1.0], [0.1, 0.2, 0.3]).shapes[0]))
     True
@@ -94,7 +96,7 @@ class IPCQuery:
             raise InvalidInputError(f"IPCQuery needs an IPCModel; got {type(self.model).__name__}")
         if not isinstance(self.target, Box) or self.target.dim != 3:
             raise SetError("the landing target must be a 3-D Box")
-        eng: InferenceEngine = self.model.engine
+        eng = self.model.engine
         cal = self.model.calibration
         groups = None if cal is None else cal.groups()
         # one calibrated group: a constant scale, looked up once instead of per query
@@ -108,17 +110,20 @@ class IPCQuery:
         object.__setattr__(self, "_shapes", ((cfg.x_dim,), (cfg.y_dim,)))
         object.__setattr__(self, "_full", cfg.param == "full")
         object.__setattr__(self, "_offset", cfg.center == "offset")
-        object.__setattr__(self, "_flat_tril", eng.tril_rows * cfg.y_dim + eng.tril_cols)
-        object.__setattr__(self, "_flat_diag", np.arange(cfg.y_dim) * (cfg.y_dim + 1))
-        # n = 3 with the Cholesky head: the heads in plain floats (see _heads3)
-        fast = cfg.y_dim == 3 and cfg.param != "full"
-        object.__setattr__(self, "_fast3", fast)
-        if fast:
-            object.__setattr__(
-                self,
-                "_consts",
-                (eng.sigma.tolist(), eng.inv_sigma.tolist(), eng.y_mean.tolist(), LOGDIAG_CLAMP),
-            )
+        # the low-rank ensemble's engine has its own one-query path (all members at once)
+        object.__setattr__(self, "_lowrank", eng if isinstance(eng, LowRankEngine) else None)
+        object.__setattr__(self, "_fast3", False)
+        if isinstance(eng, InferenceEngine):
+            object.__setattr__(self, "_flat_tril", eng.tril_rows * cfg.y_dim + eng.tril_cols)
+            object.__setattr__(self, "_flat_diag", np.arange(cfg.y_dim) * (cfg.y_dim + 1))
+            # n = 3 with the Cholesky head: the heads in plain floats (see _heads3)
+            if cfg.y_dim == 3 and cfg.param != "full":
+                object.__setattr__(self, "_fast3", True)
+                object.__setattr__(
+                    self,
+                    "_consts",
+                    (eng.sigma.tolist(), eng.inv_sigma.tolist(), eng.y_mean.tolist(), LOGDIAG_CLAMP),
+                )
 
     # ----------------------------------------------------------------- ellipsoid
     def _inputs(self, x: ArrayLike, yhat: ArrayLike) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -132,7 +137,9 @@ class IPCQuery:
                 f"{ya.shape} (use IPCModel.predict for batches)"
             )
         z = np.concatenate((xa, ya))
-        if not math.isfinite(z @ z) and not np.isfinite(z).all():  # z @ z: one cheap call when finite
+        # one cheap sum in Python floats when finite (it cannot raise: a huge finite row sums to
+        # inf, and then the exact test decides)
+        if not math.isfinite(sum(z.tolist())) and not np.isfinite(z).all():
             raise InvalidInputError("x and yhat must be finite")
         return xa, ya, z
 
@@ -150,6 +157,8 @@ class IPCQuery:
         return self._sets(*self._inputs(x, yhat))
 
     def _sets(self, xa: FloatArray, ya: FloatArray, z: FloatArray) -> tuple[FloatArray, FloatArray]:
+        if self._lowrank is not None:  # type: ignore[attr-defined]
+            return self._lowrank_sets(xa, ya)
         eng: InferenceEngine = self._engine  # type: ignore[attr-defined]
         h = z - eng.in_mean
         h *= eng.in_scale
@@ -177,6 +186,17 @@ class IPCQuery:
         cal_scale: float | None = self._scale  # type: ignore[attr-defined]
         if cal_scale is not None:
             shape /= cal_scale
+        elif self.model.calibration is not None:
+            shape /= float(self.model.calibration.scale_for(xa[None], ya[None])[0])
+        return center, shape
+
+    def _lowrank_sets(self, xa: FloatArray, ya: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """:meth:`_sets` for the low-rank ensemble: its engine's one-query path, then the calibration."""
+        eng: LowRankEngine = self._lowrank  # type: ignore[attr-defined]
+        center, shape = eng.single(xa, ya)
+        scale: float | None = self._scale  # type: ignore[attr-defined]
+        if scale is not None:
+            shape /= scale
         elif self.model.calibration is not None:
             shape /= float(self.model.calibration.scale_for(xa[None], ya[None])[0])
         return center, shape

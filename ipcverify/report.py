@@ -477,7 +477,7 @@ def render_report(result: CertifyResult) -> str:
     >>> from ipcverify.model import IPCModel, IPCNetwork
     >>> from ipcverify.architecture import ModelConfig
     >>> from ipcverify.certify import certify  # certify imports this module, not the other way round
-    >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(8,))))
+    >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(8,), param="cholesky")))
     >>> page = render_report(certify(m, make_lagged_perception(500, seed=2)))
     >>> page.startswith("<!DOCTYPE html>") and "http" not in page
     True

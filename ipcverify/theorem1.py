@@ -30,7 +30,14 @@ from numpy.typing import ArrayLike
 
 from ipcverify.data import PerceptionDataset
 from ipcverify.errors import InvalidInputError
-from ipcverify.lipschitz import DEFAULT_RADIUS, DataBox, empirical_lipschitz, sound_lipschitz
+from ipcverify.lipschitz import (
+    DEFAULT_RADIUS,
+    DataBox,
+    Theorem1UnavailableError,
+    empirical_lipschitz,
+    sound_lipschitz,
+    theorem1_unavailable,
+)
 from ipcverify.model import IPCModel
 
 __all__ = [
@@ -86,7 +93,8 @@ class TrainingStatistics:
         >>> from ipcverify.synthetic import make_lagged_perception
         >>> from ipcverify.training import train, TrainConfig
         >>> ds = make_lagged_perception(200, seed=0)
-        >>> stats = TrainingStatistics.compute(train(ds, train_config=TrainConfig(epochs=1)).model, ds, 1.0)
+        >>> model = train(ds, train_config=TrainConfig.recipe("v1", epochs=1), recipe="v1").model
+        >>> stats = TrainingStatistics.compute(model, ds, 1.0)
         >>> stats.n, TrainingStatistics.from_dict(stats.to_dict()).to_dict() == stats.to_dict()
         (200, True)
         """
@@ -364,15 +372,25 @@ def theorem1(
     radius : float
         Parameter-ball radius of the sound Lipschitz bound.
 
+    Raises
+    ------
+    Theorem1UnavailableError
+        For an architecture without a derived Lipschitz bound (the default low-rank
+        ensemble; :func:`~ipcverify.lipschitz.theorem1_unavailable` says why).
+
     Examples
     --------
     >>> from ipcverify.synthetic import make_lagged_perception
     >>> from ipcverify.training import train, TrainConfig
     >>> ds = make_lagged_perception(300, seed=0)
-    >>> res = theorem1(train(ds, train_config=TrainConfig(epochs=1)).model, ds, delta=0.01)
+    >>> model = train(ds, train_config=TrainConfig.recipe("v1", epochs=1), recipe="v1").model
+    >>> res = theorem1(model, ds, delta=0.01)
     >>> res.sound.vacuous, res.sound.lipschitz >= res.optimistic.lipschitz
     (True, True)
     """
+    reason = theorem1_unavailable(model)
+    if reason is not None:
+        raise Theorem1UnavailableError(reason)
     if alpha is None:
         alpha = (model.metadata.get("train_config") or {}).get("alpha")
         if alpha is None:

@@ -1,27 +1,37 @@
-"""Training an IPC by the paper's objective (or, optionally, by Gaussian likelihood).
+"""Training an IPC: :func:`train`, by a recipe (default ``"tight"``) or explicit configurations.
 
-The paper's loss (``loss="hinge"``, the default) on a batch is
-``mean(l(g - 1)) + lam * mean(-log det(C^T C))`` with the hinge
-``l(t) = max(0, t / alpha + 1)`` (paper, eq. for L_ERM and L_REG): the hinge pushes every
-score ``g = ||C (y - c)||`` below ``1 - alpha``, the log-determinant term shrinks the
-ellipsoids. ``loss="likelihood"`` is the Gaussian negative log-likelihood of ``y`` under
-``N(c, (C^T C)^{-1})`` up to constants, ``mean(g^2) / 2 - mean(log det C)``.
+The objectives and :class:`TrainConfig` live in :mod:`ipcverify.objectives` (re-exported
+here). A low-rank network (the default) is trained by :mod:`ipcverify.lowrank_training`,
+all ensemble members at once; the paper's heads (recipes ``"v1"``, ``"paper"``) by the loop
+below, one network.
 """
 
 from __future__ import annotations
 
 import copy
 import math
-from dataclasses import asdict, dataclass
-from typing import Any, Literal
+from dataclasses import dataclass
+from typing import Any
 
 import torch
-from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
-from ipcverify.architecture import ModelConfig
+from ipcverify.architecture import DEFAULT_RECIPE, ModelConfig
 from ipcverify.data import PerceptionDataset
 from ipcverify.errors import InvalidInputError
-from ipcverify.model import IPCModel, IPCNetwork
+from ipcverify.lipschitz import theorem1_unavailable
+from ipcverify.lowrank_training import train_lowrank
+from ipcverify.model import IPCModel, IPCNetwork, Network
+from ipcverify.objectives import (
+    Loss,
+    NonFiniteLossError,
+    TrainConfig,
+    epoch_bar,
+    hinge,
+    ipc_loss,
+    likelihood_loss,
+    objective,
+    step_factor,
+)
 from ipcverify.theorem1 import TrainingStatistics
 
 __all__ = [
@@ -36,133 +46,6 @@ __all__ = [
     "NonFiniteLossError",
 ]
 
-#: Training objectives: the paper's hinge + volume loss, or Gaussian likelihood.
-Loss = Literal["hinge", "likelihood"]
-_LOSSES: tuple[str, ...] = ("hinge", "likelihood")
-
-
-class NonFiniteLossError(InvalidInputError):
-    """Training produced a non-finite loss (possible with the ``full`` parameterisation)."""
-
-
-@dataclass(frozen=True, kw_only=True)
-class TrainConfig:
-    """Optimisation settings.
-
-    Parameters
-    ----------
-    epochs : int
-        Passes over the training data (paper: 20).
-    lr : float
-        Adam learning rate (paper: 1e-3).
-    batch_size : int
-        Mini-batch size.
-    alpha : float
-        Hinge margin ``alpha > 0``. Default 1.0 (the paper: 0.1): with ``alpha >= 1`` the
-        hinge is active for every sample, so the loss is ``mean(g) / alpha`` plus the volume
-        term and the shape is learned from all samples, not only from those near the
-        boundary; calibration then sets the size. On held-out data this gave 3x smaller
-        calibrated sets on the quad-landing data and 10 % smaller on the synthetic data
-        at the same certified coverage (``benchmarks/tuning_results.json``,
-        ``docs/benchmarks.md``). The raw, uncalibrated sets are then conservative
-        (oversized): calibrate before use.
-    lam : float
-        Weight ``lambda >= 0`` of the volume penalty.
-    seed : int
-        Seeds initialisation and shuffling; CPU training is reproducible.
-    val_fraction : float
-        Share of the training data held out for validation (0 disables it).
-    patience : int or None
-        With validation, stop after this many epochs without improvement and
-        restore the best weights.
-    loss : {"hinge", "likelihood"}
-        Training objective. ``"hinge"`` (default) is the paper's
-        ``mean(l(g - 1)) + lam * mean(-log det(C^T C))``. ``"likelihood"`` is the Gaussian
-        negative log-likelihood of ``y`` under ``N(c, (C^T C)^{-1})`` up to constants,
-        ``mean(g^2) / 2 - mean(log det C)`` (``log det(C^T C) = 2 log det C``); ``alpha`` and
-        ``lam`` are not used by it. The squared score weights large errors more than the
-        hinge with ``alpha >= 1`` (which is ``mean(g) / alpha``), and the large errors are
-        the ones that set the calibrated radius. Its raw sets (radius 1) are undersized --
-        ``g^2`` is about chi-squared with ``n`` degrees of freedom -- so calibrate before use.
-    warmup_epochs : int
-        With ``loss="hinge"``: train the first ``warmup_epochs`` of the ``epochs`` with the
-        likelihood loss, then switch to the hinge (0, the default, disables it; must be
-        ``< epochs``). Must be 0 with ``loss="likelihood"``.
-    center_warm_start : bool
-        Before training, set the centre rows of the network's output layer to the
-        least-squares fit of the target centre offset ``(y - base) / sigma`` (``base`` is
-        ``yhat`` for ``center="offset"``, the mean of ``y`` for ``"raw"``) on the features
-        of the last hidden layer at initialisation, with a small ridge term (closed form,
-        see :func:`warm_start_center`). Closed form rather than extra epochs on
-        ``||y - c||^2``: it is the exact minimiser of the (ridge-regularised) squared
-        centre error over that layer, costs one small linear solve instead of training
-        time, has no step size or epoch count to tune, and leaves the shape head at its
-        initialisation. It removes e.g. a linear bias of ``yhat`` before the main loss
-        starts. Off by default: on the benchmark data it made the calibrated sets larger,
-        not smaller (``docs/benchmarks.md``).
-
-    Raises
-    ------
-    InvalidInputError
-        If a value is out of range or ``loss`` is unknown.
-
-    Examples
-    --------
-    >>> TrainConfig(epochs=5).lr
-    0.001
-    """
-
-    epochs: int = 20
-    lr: float = 1e-3
-    batch_size: int = 64
-    alpha: float = 1.0
-    lam: float = 0.01
-    seed: int = 0
-    val_fraction: float = 0.0
-    patience: int | None = None
-    loss: Loss = "hinge"
-    warmup_epochs: int = 0
-    center_warm_start: bool = False
-
-    def __post_init__(self) -> None:
-        if self.loss not in _LOSSES:
-            raise InvalidInputError(f"loss must be 'hinge' or 'likelihood'; got {self.loss!r}")
-        if not isinstance(self.center_warm_start, bool):
-            raise InvalidInputError(
-                f"center_warm_start must be True or False; got {self.center_warm_start!r}"
-            )
-        checks = [
-            (self.epochs >= 1, f"epochs must be >= 1; got {self.epochs}"),
-            (self.lr > 0 and math.isfinite(self.lr), f"lr must be > 0; got {self.lr}"),
-            (self.batch_size >= 1, f"batch size must be >= 1; got {self.batch_size}"),
-            (self.alpha > 0 and math.isfinite(self.alpha), f"alpha must be > 0; got {self.alpha}"),
-            (self.lam >= 0 and math.isfinite(self.lam), f"lam must be >= 0; got {self.lam}"),
-            (0 <= self.val_fraction < 1, f"val_fraction must be in [0, 1); got {self.val_fraction}"),
-            (
-                self.patience is None or self.patience >= 1,
-                f"patience must be >= 1; got {self.patience}",
-            ),
-            (
-                self.patience is None or self.val_fraction > 0,
-                "patience (early stopping) needs a validation split: set val_fraction > 0",
-            ),
-            (
-                0 <= self.warmup_epochs < self.epochs,
-                f"warmup_epochs must be in [0, epochs={self.epochs}); got {self.warmup_epochs}",
-            ),
-            (
-                self.warmup_epochs == 0 or self.loss == "hinge",
-                "warmup_epochs (likelihood pretraining) only applies to loss='hinge'",
-            ),
-        ]
-        for ok, msg in checks:
-            if not ok:
-                raise InvalidInputError(msg)
-
-    def to_dict(self) -> dict[str, Any]:
-        """Plain-data form (stored in model files)."""
-        return asdict(self)
-
 
 @dataclass(frozen=True)
 class TrainResult:
@@ -170,75 +53,6 @@ class TrainResult:
 
     model: IPCModel
     history: list[dict[str, float]]
-
-
-def hinge(t: torch.Tensor, alpha: float) -> torch.Tensor:
-    """The paper's hinge ``l(t) = max(0, t / alpha + 1)``."""
-    return torch.clamp(t / alpha + 1.0, min=0.0)
-
-
-def ipc_loss(
-    g: torch.Tensor, logdet: torch.Tensor, alpha: float, lam: float
-) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """The paper's objective on a batch.
-
-    Parameters
-    ----------
-    g : Tensor (B,)
-        Scores ``||C (y - c)||``.
-    logdet : Tensor (B,)
-        ``log det(C^T C)`` per sample.
-
-    Returns
-    -------
-    loss, hinge_term, reg_term : Tensor
-        ``loss = hinge_term + lam * reg_term`` with ``hinge_term = mean l(g - 1)`` and
-        ``reg_term = mean(-logdet)``.
-
-    Examples
-    --------
-    >>> g = torch.tensor([0.5, 1.0]); ld = torch.tensor([2.0, 0.0])
-    >>> [round(float(v), 4) for v in ipc_loss(g, ld, alpha=0.5, lam=0.1)]
-    [0.4, 0.5, -1.0]
-    """
-    h = hinge(g - 1.0, alpha).mean()
-    reg = (-logdet).mean()
-    return h + lam * reg, h, reg
-
-
-def likelihood_loss(g: torch.Tensor, logdet: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """Gaussian negative log-likelihood of ``y`` under ``N(c, (C^T C)^{-1})``, up to constants.
-
-    Parameters
-    ----------
-    g : Tensor (B,)
-        Scores ``||C (y - c)||`` (so ``g^2`` is the Mahalanobis distance in precision ``C^T C``).
-    logdet : Tensor (B,)
-        ``log det(C^T C)`` per sample.
-
-    Returns
-    -------
-    loss, sq_term, reg_term : Tensor
-        ``loss = sq_term + reg_term / 2`` with ``sq_term = mean(g^2) / 2`` and
-        ``reg_term = mean(-logdet)``, i.e. ``mean(g^2) / 2 - mean(log det C)``.
-
-    Examples
-    --------
-    >>> g = torch.tensor([1.0, 2.0]); ld = torch.tensor([2.0, 0.0])
-    >>> [round(float(v), 4) for v in likelihood_loss(g, ld)]
-    [0.75, 1.25, -1.0]
-    """
-    sq = 0.5 * (g * g).mean()
-    reg = (-logdet).mean()
-    return sq + 0.5 * reg, sq, reg
-
-
-def _loss(
-    g: torch.Tensor, logdet: torch.Tensor, loss: str, cfg: TrainConfig
-) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    if loss == "likelihood":
-        return likelihood_loss(g, logdet)
-    return ipc_loss(g, logdet, cfg.alpha, cfg.lam)
 
 
 def warm_start_center(
@@ -294,7 +108,7 @@ def _evaluate_loss(net: IPCNetwork, ds: PerceptionDataset, cfg: TrainConfig) -> 
     x, y, yhat = _tensors(ds)
     with torch.no_grad():
         g, logdet = net.score(x, y, yhat)
-        loss, h, reg = _loss(g, logdet, cfg.loss, cfg)
+        loss, h, reg = objective(g, logdet, cfg.loss, cfg)
     return {
         "loss": float(loss),
         ("half_sq_score" if cfg.loss == "likelihood" else "hinge"): float(h),
@@ -303,51 +117,12 @@ def _evaluate_loss(net: IPCNetwork, ds: PerceptionDataset, cfg: TrainConfig) -> 
     }
 
 
-def train(
-    train_data: PerceptionDataset,
-    model_config: ModelConfig | None = None,
-    train_config: TrainConfig | None = None,
-    progress: bool = False,
-) -> TrainResult:
-    """Learn an IPC from a perception log.
-
-    Parameters
-    ----------
-    train_data : PerceptionDataset
-        Training samples (keep calibration and test data apart).
-    model_config : ModelConfig, optional
-        Architecture; default: paper's (64, 128) MLP with Cholesky shape.
-    train_config : TrainConfig, optional
-        Optimisation settings; default: Adam 1e-3 for 20 epochs.
-    progress : bool
-        Show a rich progress bar.
-
-    Returns
-    -------
-    TrainResult
-        The model (uncalibrated) and the per-epoch history.
-
-    Raises
-    ------
-    NonFiniteLossError
-        If the loss becomes NaN or infinite (possible with ``param="full"``, whose
-        ``log det`` is ``-inf`` at a singular ``C``); switch to ``cholesky``.
-
-    Examples
-    --------
-    >>> from ipcverify.synthetic import make_lagged_perception
-    >>> ds = make_lagged_perception(200, seed=0)
-    >>> res = train(ds, train_config=TrainConfig(epochs=2))
-    >>> len(res.history)
-    2
-    """
-    tc = train_config or TrainConfig()
-    mc = model_config or ModelConfig(x_dim=train_data.x_dim, y_dim=train_data.y_dim)
-    if (mc.x_dim, mc.y_dim) != (train_data.x_dim, train_data.y_dim):
-        raise InvalidInputError(
-            f"model expects x_dim={mc.x_dim}, y_dim={mc.y_dim} but the data has "
-            f"x_dim={train_data.x_dim}, y_dim={train_data.y_dim}"
-        )
+def _train_network(
+    train_data: PerceptionDataset, mc: ModelConfig, tc: TrainConfig, progress: bool
+) -> tuple[IPCNetwork, list[dict[str, float]]]:
+    """The training loop of one network with the paper's heads (recipes ``"v1"``, ``"paper"``)."""
+    if tc.center_warm_start and mc.lowrank:
+        raise InvalidInputError("center_warm_start is for the paper's heads")
     torch.manual_seed(tc.seed)
     gen = torch.Generator().manual_seed(tc.seed)
 
@@ -365,21 +140,16 @@ def train(
         warm_start_center(net, x, y, yhat)
     opt = torch.optim.Adam(net.parameters(), lr=tc.lr)
     n = len(fit)
+    total_steps = tc.epochs * math.ceil(n / tc.batch_size)
+    sched = None
+    if tc.schedule != "constant":
+        sched = torch.optim.lr_scheduler.LambdaLR(opt, lambda k: step_factor(k, total_steps, tc.schedule))
     history: list[dict[str, float]] = []
     best_state: dict[str, Any] | None = None
     best_val = math.inf
     stale = 0
 
-    bar = Progress(
-        TextColumn("training"),
-        BarColumn(),
-        TextColumn("epoch {task.completed}/{task.total} loss {task.fields[loss]:.4f}"),
-        TimeRemainingColumn(),
-        disable=not progress,
-        transient=True,
-    )
-    with bar:
-        task = bar.add_task("train", total=tc.epochs, loss=float("nan"))
+    with epoch_bar(tc.epochs, progress) as (bar, task):
         for epoch in range(tc.epochs):
             net.train()
             epoch_loss = "likelihood" if epoch < tc.warmup_epochs else tc.loss
@@ -388,7 +158,7 @@ def train(
             for i in range(0, n, tc.batch_size):
                 idx = perm[i : i + tc.batch_size]
                 g, logdet = net.score(x[idx], y[idx], yhat[idx])
-                loss, _, _ = _loss(g, logdet, epoch_loss, tc)
+                loss, _, _ = objective(g, logdet, epoch_loss, tc)
                 if not torch.isfinite(loss):
                     raise NonFiniteLossError(
                         f"non-finite training loss at epoch {epoch + 1} "
@@ -398,6 +168,8 @@ def train(
                 opt.zero_grad(set_to_none=True)
                 loss.backward()
                 opt.step()
+                if sched is not None:
+                    sched.step()
                 total += float(loss.detach()) * len(idx)
             net.eval()
             rec = {"epoch": float(epoch + 1), "train_loss": total / n}
@@ -417,11 +189,75 @@ def train(
     if best_state is not None and tc.patience is not None:
         net.load_state_dict(best_state)
     net.eval()
-    stats = TrainingStatistics.compute(IPCModel(net), train_data, tc.alpha)
-    metadata = {
+    return net, history
+
+
+def train(
+    train_data: PerceptionDataset,
+    model_config: ModelConfig | None = None,
+    train_config: TrainConfig | None = None,
+    progress: bool = False,
+    *,
+    recipe: str = DEFAULT_RECIPE,
+) -> TrainResult:
+    """Learn an IPC from a perception log.
+
+    Parameters
+    ----------
+    train_data : PerceptionDataset
+        Training samples (keep calibration and test data apart).
+    model_config : ModelConfig, optional
+        Architecture; default: the recipe's (for ``"tight"``: an ensemble of 5 low-rank-head
+        MLPs (64, 64) with a linear centre stage).
+    train_config : TrainConfig, optional
+        Optimisation settings; default: the recipe's (for ``"tight"``: Gaussian likelihood,
+        Adam 2e-3 with cosine decay, at most 60 epochs, early stopping on 15 % held out).
+    progress : bool
+        Show a rich progress bar.
+    recipe : {"tight", "v1", "paper"}
+        Where the configurations not given come from (``ipcverify.architecture.RECIPES``).
+        A configuration that is given is used as it is.
+
+    Returns
+    -------
+    TrainResult
+        The model (uncalibrated) and the per-epoch history.
+
+    Raises
+    ------
+    NonFiniteLossError
+        If the loss becomes NaN or infinite (possible with ``param="full"``, whose
+        ``log det`` is ``-inf`` at a singular ``C``); switch to ``cholesky``.
+    InvalidInputError
+        For an unknown recipe or a configuration that does not fit the data.
+
+    Examples
+    --------
+    >>> from ipcverify.synthetic import make_lagged_perception
+    >>> ds = make_lagged_perception(200, seed=0)
+    >>> res = train(ds, train_config=TrainConfig(epochs=2))
+    >>> len(res.history), res.model.config.members
+    (2, 5)
+    >>> train(ds, recipe="paper").model.config.param
+    'full'
+    """
+    tc = train_config or TrainConfig.recipe(recipe)
+    mc = model_config or ModelConfig.recipe(recipe, x_dim=train_data.x_dim, y_dim=train_data.y_dim)
+    if (mc.x_dim, mc.y_dim) != (train_data.x_dim, train_data.y_dim):
+        raise InvalidInputError(
+            f"model expects x_dim={mc.x_dim}, y_dim={mc.y_dim} but the data has "
+            f"x_dim={train_data.x_dim}, y_dim={train_data.y_dim}"
+        )
+    net: Network
+    if mc.lowrank:
+        net, history = train_lowrank(train_data, mc, tc, progress)
+    else:
+        net, history = _train_network(train_data, mc, tc, progress)
+    model = IPCModel(net)
+    metadata: dict[str, Any] = {
         "train_config": tc.to_dict(),
         # what Theorem 1 needs, so that `ipcverify certify model.pt` works without the training file
-        "training_statistics": stats.to_dict(),
+        "training_statistics": None,
         "train_data_hash": train_data.content_hash(),
         "train_n": len(train_data),
         "x_columns": list(train_data.x_columns),
@@ -429,4 +265,9 @@ def train(
         "yhat_columns": list(train_data.yhat_columns),
         "history": history,
     }
+    unavailable = theorem1_unavailable(model)
+    if unavailable is None:
+        metadata["training_statistics"] = TrainingStatistics.compute(model, train_data, tc.alpha).to_dict()
+    else:
+        metadata["theorem1_unavailable"] = unavailable
     return TrainResult(IPCModel(net, None, metadata), history)

@@ -14,7 +14,7 @@ import click
 import numpy as np
 from rich.table import Table
 
-from ipcverify.architecture import ModelConfig
+from ipcverify.architecture import DEFAULT_RECIPE, RECIPES, ModelConfig
 from ipcverify.cli.app import app, console, err_console
 from ipcverify.data import load_dataset
 from ipcverify.demo import run_demo
@@ -77,77 +77,124 @@ def _print_evaluation(ev: Evaluation, title: str) -> None:
         console.print(bt)
 
 
+def _given(**values: object) -> dict[str, object]:
+    """The options the user set (None means: take the recipe's value)."""
+    return {k: v for k, v in values.items() if v is not None}
+
+
 @app.command("train")
 @click.argument("data", type=_EXISTING)
 @click.option("--out", type=click.Path(dir_okay=False, path_type=Path), required=True, help="Model file.")
-@click.option("--hidden", default="64,128", show_default=True, help="Hidden layer widths.")
-@click.option("--epochs", default=20, show_default=True, type=int)
-@click.option("--lr", default=1e-3, show_default=True, type=float, help="Adam learning rate.")
-@click.option("--alpha", default=TrainConfig.alpha, show_default=True, type=float, help="Hinge margin.")
-@click.option("--lam", default=TrainConfig.lam, show_default=True, type=float, help="Volume penalty weight.")
-@click.option("--batch-size", default=TrainConfig.batch_size, show_default=True, type=int)
+@click.option(
+    "--recipe",
+    type=click.Choice(list(RECIPES)),
+    default=DEFAULT_RECIPE,
+    show_default=True,
+    help="Architecture and training settings by name: tight (ensemble of low-rank heads, likelihood), "
+    "v1 (ipcverify's earlier default), paper (the paper's head and loss). The options below override it.",
+)
+@click.option("--hidden", default=None, help="Hidden layer widths, e.g. 64,64 [recipe's].")
+@click.option("--epochs", default=None, type=int, help="Epochs (at most, with early stopping) [recipe's].")
+@click.option("--lr", default=None, type=float, help="Adam learning rate [recipe's].")
+@click.option("--alpha", default=None, type=float, help="Hinge margin [recipe's].")
+@click.option("--lam", default=None, type=float, help="Volume penalty weight [recipe's].")
+@click.option("--batch-size", default=None, type=int, help="Mini-batch size [recipe's].")
 @click.option(
     "--loss",
     type=click.Choice(["hinge", "likelihood"]),
-    default=TrainConfig.loss,
-    show_default=True,
-    help="Training objective: the paper's hinge + volume loss, or Gaussian likelihood.",
+    default=None,
+    help="Training objective: the paper's hinge + volume loss, or Gaussian likelihood [recipe's].",
 )
 @click.option(
     "--center-warm-start/--no-center-warm-start",
-    default=TrainConfig.center_warm_start,
-    show_default=True,
-    help="Initialise the centre head by least squares before training.",
+    default=None,
+    help="Initialise the centre head by least squares before training (paper's heads only) [off].",
 )
-@click.option("--param", type=click.Choice(["cholesky", "full"]), default="cholesky", show_default=True)
-@click.option("--center", type=click.Choice(["offset", "raw"]), default="offset", show_default=True)
+@click.option("--param", type=click.Choice(["lowrank", "cholesky", "full"]), default=None, help="Shape head.")
+@click.option("--center", type=click.Choice(["offset", "raw"]), default=None, help="Centre head.")
+@click.option("--members", default=None, type=int, help="Ensemble size (low-rank head) [recipe's].")
+@click.option(
+    "--linear-center/--no-linear-center",
+    default=None,
+    help="Closed-form linear centre stage (low-rank head) [recipe's].",
+)
+@click.option(
+    "--schedule", type=click.Choice(["cosine", "constant"]), default=None, help="Step size [recipe's]."
+)
 @click.option("--seed", default=0, show_default=True, type=int)
-@click.option("--val-fraction", default=0.0, show_default=True, type=float, help="Hold out for validation.")
-@click.option("--patience", default=None, type=int, help="Early stopping patience (needs --val-fraction).")
+@click.option("--val-fraction", default=None, type=float, help="Hold out for validation [recipe's].")
+@click.option(
+    "--patience", default=None, type=int, help="Early stopping patience (needs --val-fraction) [recipe's]."
+)
 @click.option("--x-columns", default=None, help="Comma-separated state columns (default x_0, x_1, ...).")
 @click.option("--y-columns", default=None, help="Comma-separated truth columns (default y_0, ...).")
 @click.option("--yhat-columns", default=None, help="Comma-separated estimate columns (default yhat_0, ...).")
 def train_cmd(
     data: Path,
     out: Path,
-    hidden: str,
-    epochs: int,
-    lr: float,
-    alpha: float,
-    lam: float,
-    batch_size: int,
-    loss: str,
-    center_warm_start: bool,
-    param: str,
-    center: str,
+    recipe: str,
+    hidden: str | None,
+    epochs: int | None,
+    lr: float | None,
+    alpha: float | None,
+    lam: float | None,
+    batch_size: int | None,
+    loss: str | None,
+    center_warm_start: bool | None,
+    param: str | None,
+    center: str | None,
+    members: int | None,
+    linear_center: bool | None,
+    schedule: str | None,
     seed: int,
-    val_fraction: float,
+    val_fraction: float | None,
     patience: int | None,
     x_columns: str | None,
     y_columns: str | None,
     yhat_columns: str | None,
 ) -> None:
-    """Train an IPC on DATA (CSV, Parquet or NPZ) and save it to --out."""
+    """Train an IPC on DATA (CSV, Parquet or NPZ) and save it to --out.
+
+    The default recipe "tight" gives the smallest calibrated sets; "v1" and "paper" are
+    ipcverify's earlier default and the paper's settings (Theorem 1 is computed for those two).
+    """
     ds = load_dataset(data, _columns(x_columns), _columns(y_columns), _columns(yhat_columns))
-    mc = ModelConfig(x_dim=ds.x_dim, y_dim=ds.y_dim, hidden=parse_hidden(hidden), param=param, center=center)  # type: ignore[arg-type]
-    tc = TrainConfig(
-        epochs=epochs,
-        lr=lr,
-        alpha=alpha,
-        lam=lam,
-        batch_size=batch_size,
+    mc = ModelConfig.recipe(
+        recipe,
+        x_dim=ds.x_dim,
+        y_dim=ds.y_dim,
+        **_given(
+            hidden=None if hidden is None else parse_hidden(hidden),
+            param=param,
+            center=center,
+            members=members,
+            linear_center=linear_center,
+        ),
+    )
+    tc = TrainConfig.recipe(
+        recipe,
         seed=seed,
-        val_fraction=val_fraction,
-        patience=patience,
-        loss=loss,  # type: ignore[arg-type]
-        center_warm_start=center_warm_start,
+        **_given(
+            epochs=epochs,
+            lr=lr,
+            alpha=alpha,
+            lam=lam,
+            batch_size=batch_size,
+            val_fraction=val_fraction,
+            patience=patience,
+            loss=loss,
+            center_warm_start=center_warm_start,
+            schedule=schedule,
+        ),
     )
     result = train(ds, mc, tc, progress=True)
     save_model(result.model, out)
     last = result.history[-1]
+    what = f"{mc.members} networks" if mc.members > 1 else "1 network"
     console.print(
-        f"trained on {len(ds)} samples for {len(result.history)} epochs: loss {last['fit_loss']:.4f}, "
-        f"training violation rate {100 * last['fit_violation_rate']:.2f} % -> {out}"
+        f"trained {what} ({mc.param} head, recipe {recipe}) on {len(ds)} samples for {len(result.history)} "
+        f"epochs: final training loss {last['train_loss']:.4f} -> {out}; calibrate it before use",
+        markup=False,
     )
 
 

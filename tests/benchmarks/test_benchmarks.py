@@ -11,6 +11,7 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from benchmarks.bench_tightness import METHODS  # noqa: E402
+from benchmarks.readme import DOCUMENTS, load_results, render_blocks, replace_blocks  # noqa: E402
 from benchmarks.report import targets  # noqa: E402
 from benchmarks.run import RunConfig, run  # noqa: E402
 
@@ -24,15 +25,40 @@ def test_quick_run_writes_every_required_key(tmp_path):
     assert set(res["latency"]["single_query"]["paths"]) >= {"bare_forward", "decide", "decide_float"}
     tight = res["tightness"]["synthetic"]
     assert set(tight) == set(METHODS)
-    for method in ("ipc", "global_mahalanobis", "bonferroni_box", "raw_ipc"):
+    for method in ("ipc", "ipc_v1", "ipc_paper", "global_mahalanobis", "bonferroni_box", "oracle", "raw_ipc"):
         r = tight[method]
         assert r["mean_volume"] > 0 and r["median_volume"] > 0 and 0.0 <= r["coverage"] <= 1.0
+        assert 0.0 <= r["worst_bin_coverage"] <= r["coverage"]
     assert tight["ipc"]["calibrated"] and not tight["raw_ipc"]["calibrated"]
+    assert tight["ipc"]["settings"]["recipe"] == "tight" and tight["ipc_v1"]["settings"]["recipe"] == "v1"
     assert "mean_volume" in tight["mapie_multivariate"] or "skipped" in tight["mapie_multivariate"]
+    # the oracle reference and the ratios to it (same PAC order statistic, and exact 1 - epsilon)
+    oracle = tight["oracle"]["mean_volume"]
+    assert tight["ipc"]["mean_volume_ratio_to_oracle"] == tight["ipc"]["mean_volume"] / oracle
+    assert tight["oracle"]["mean_volume_ratio_to_oracle_exact"] > 1.0  # the PAC margin costs the oracle too
+    diag = tight["ipc_v1"]["diagnosis"]
+    sym = diag["factors_symmetric"]
+    assert sym["centre"] * sym["shape"] * sym["calibration"] == pytest.approx(diag["volume_ratio_to_oracle"])
+    shift = res["shift"]
+    assert {"hetlag_shift0", "hetlag_shift1", "fresh_shift0.5"} <= set(shift)
+    assert set(shift["hetlag_shift1"]) == {"ipc", "ipc_v1", "global_mahalanobis"}
+    assert 0.0 <= shift["hetlag_shift1"]["ipc"]["violation_mean"] <= 1.0
     assert res["latency"]["onnx_check"]["float64"]["vs_engine_shape"] < 1e-12
     md = (tmp_path / "results.md").read_text()
     assert "| method | calibrated | mean volume |" in md and "UNCALIBRATED" in md
+    assert "Before and after" in md and "diagnosis against the oracle" in md and "Under shift" in md
     assert (tmp_path / "plot.png").stat().st_size > 1000
+    # the documents' generated blocks render from any run's results, and only their bodies change
+    blocks = render_blocks(res, None)
+    assert {"bench-summary", "bench-table", "before-after", "diagnosis", "shift", "targets"} <= set(blocks)
+    doc = (
+        "a\n<!-- BEGIN generated:targets (python -m benchmarks.readme) -->\nold\n"
+        "<!-- END generated:targets -->\nb"
+    )
+    new, changed = replace_blocks(doc, blocks)
+    assert changed == ["targets"] and blocks["targets"] in new and "old" not in new
+    assert new.startswith("a\n<!-- BEGIN") and new.endswith("<!-- END generated:targets -->\nb")
+    assert replace_blocks(new, blocks)[1] == []
 
 
 def _fake(ipc, gm, mapie, ratio, float_ratio):
@@ -50,6 +76,40 @@ def _fake(ipc, gm, mapie, ratio, float_ratio):
     }
 
 
+def test_tightness_targets_are_computed_from_the_numbers():
+    def row(mean_volume, **ratios):
+        return {"mean_volume": mean_volume, **ratios}
+
+    ipc = {
+        **row(1.0, mean_volume_ratio_to_mapie=0.9, mean_volume_ratio_to_oracle=1.2),
+        "mean_volume_ratio_to_oracle_exact": 1.4,
+        "mean_volume_ratio_to_global_mahalanobis": 0.04,
+        "worst_bin_coverage": 0.977,
+        "train_seconds": 6.0,
+        "epsilon": 0.01,
+        "test_n": 5000,
+        "spread": {"coverage": {"min": 0.993}},
+    }
+    res = {
+        "tightness": {
+            "synthetic": {"ipc": ipc, "mapie_multivariate": {"worst_bin_coverage": 0.985}},
+            "fresh": {"ipc": {**ipc, "mean_volume_ratio_to_oracle": 1.6}, "mapie_multivariate": {}},
+        }
+    }
+    t = targets(res)
+    assert t["synthetic_ipc_vs_mapie"]["met"] and t["synthetic_ipc_vs_oracle"]["met"]
+    assert (
+        not t["synthetic_ipc_vs_oracle_exact"]["met"] and t["synthetic_ipc_vs_oracle_exact"]["limit"] == 1.3
+    )
+    assert not t["fresh_ipc_vs_oracle"]["met"] and t["fresh_ipc_vs_oracle"]["limit"] == 1.5
+    assert t["fresh_ipc_vs_global_mahalanobis"]["met"]
+    assert t["fresh_ipc_violation"]["value"] == pytest.approx(0.007) and t["fresh_ipc_violation"]["met"]
+    # worst-bin coverage: at least MAPIE's minus two binomial sd of a 500-sample bin (0.0089)
+    wb = t["synthetic_worst_bin_vs_mapie"]
+    assert wb["at_least"] and wb["limit"] == pytest.approx(0.985 - 0.0089, abs=1e-4) and wb["met"]
+    assert t["synthetic_train_seconds"]["met"] and t["quad_landing_train_seconds"]["met"] is None
+
+
 def test_targets_are_computed_from_the_numbers():
     t = targets(_fake(ipc=1.0, gm=4.0, mapie=0.8, ratio=1.1, float_ratio=1.3))
     assert t["quad_ipc_vs_global_mahalanobis"]["met"] and t["quad_ipc_vs_global_mahalanobis"]["value"] == 0.25
@@ -58,3 +118,12 @@ def test_targets_are_computed_from_the_numbers():
     missing = targets(_fake(ipc=1.0, gm=1.5, mapie=None, ratio=2.0, float_ratio=1.0))
     assert missing["quad_ipc_vs_mapie"]["met"] is None
     assert not missing["quad_ipc_vs_global_mahalanobis"]["met"]
+
+
+def test_the_documents_numbers_are_the_committed_results():
+    """README.md and docs/benchmarks.md hold exactly what ``python -m benchmarks.readme`` pastes."""
+    blocks = render_blocks(*load_results())
+    for doc in DOCUMENTS:
+        text = doc.read_text(encoding="utf-8")
+        assert replace_blocks(text, blocks)[1] == [], f"{doc.name}: run python -m benchmarks.readme"
+        assert "READING_" not in text

@@ -20,7 +20,7 @@ from ipcverify.modelio import load_model, save_model
 from ipcverify.synthetic import make_lagged_perception
 from ipcverify.training import TrainConfig, train
 
-CFG = ModelConfig(x_dim=6, y_dim=3, hidden=(16, 16))
+CFG = ModelConfig(x_dim=6, y_dim=3, hidden=(16, 16), param="cholesky")  # Theorem 1 needs the paper's head
 
 
 @pytest.fixture(scope="module")
@@ -29,7 +29,7 @@ def setup(tmp_path_factory):
     train_data = make_lagged_perception(1500, seed=50)
     cal_data = make_lagged_perception(2000, seed=51)
     test_data = make_lagged_perception(3000, seed=52)
-    model = train(train_data, CFG, TrainConfig(epochs=3, batch_size=128)).model
+    model = train(train_data, CFG, TrainConfig.recipe("v1", epochs=3, batch_size=128)).model
     for name, ds in (("train", train_data), ("cal", cal_data), ("test", test_data)):
         save_dataset(ds, d / f"{name}.csv")
     save_model(model, d / "model.pt")

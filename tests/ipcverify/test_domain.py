@@ -143,16 +143,19 @@ def test_the_query_path_answers_outside_domain_never_accept(calibrated):
 
 
 def test_a_degenerate_set_is_an_outside_domain_answer_not_an_accept():
-    q = IPCQuery(IPCModel(IPCNetwork(ModelConfig(x_dim=1, y_dim=3, hidden=(2,)))), G)
+    q = IPCQuery(IPCModel(IPCNetwork(ModelConfig(x_dim=1, y_dim=3, hidden=(2,), param="cholesky"))), G)
     d = q.rule.decide(np.zeros(3), np.zeros((3, 3)))
     assert d.verdict is Verdict.OUTSIDE_DOMAIN and not d.accept
 
 
-def test_a_singular_set_on_a_far_input_blames_the_input(calibrated):
-    net = calibrated.network
+@pytest.mark.parametrize(("recipe", "far"), [("v1", 1e30), ("tight", 1e200)])
+def test_a_singular_set_on_a_far_input_blames_the_input(recipe, far):
+    data = make_lagged_perception(600, seed=0)
+    model = train(data, train_config=TrainConfig.recipe(recipe, epochs=1), recipe=recipe).model
+    cal = calibrate(model, make_lagged_perception(800, seed=1), 0.05, 0.01)
     with pytest.raises(
         SetError, match=r"input row 0: the contract's set is degenerate .* outside the domain"
     ):
-        IPCModel(net, calibrated.calibration, calibrated.metadata, calibrated.domain).predict(
-            np.full((1, 6), 1e30), np.zeros((1, 3))
-        )
+        cal.predict(np.full((1, 6), far), np.zeros((1, 3)))
+    q = IPCQuery(cal, Box([-10.0, -10.0, -10.0], [10.0, 10.0, 10.0]))
+    assert q.decide(np.full(6, far), np.zeros(3)).verdict is Verdict.OUTSIDE_DOMAIN

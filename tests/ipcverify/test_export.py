@@ -23,11 +23,20 @@ def data():
 
 
 def _model(data, **kw):
-    return train(data[0], ModelConfig(x_dim=6, y_dim=3, hidden=(16, 32), **kw), TrainConfig(epochs=2)).model
+    kw = {"hidden": (16, 32), **kw}
+    return train(data[0], ModelConfig(x_dim=6, y_dim=3, **kw), TrainConfig(epochs=2)).model
 
 
 @pytest.mark.parametrize(
-    "kw", [{}, {"param": "full"}, {"center": "raw", "activation": "tanh"}], ids=["chol", "full", "raw-tanh"]
+    "kw",
+    [
+        {},
+        {"members": 1, "linear_center": False, "activation": "tanh", "hidden": (8,)},
+        {"param": "cholesky"},
+        {"param": "full"},
+        {"param": "cholesky", "center": "raw", "activation": "tanh"},
+    ],
+    ids=["lowrank-ensemble", "lowrank-1-tanh", "chol", "full", "raw-tanh"],
 )
 @pytest.mark.parametrize("dtype", ["float64", "float32"])
 def test_onnx_runtime_reproduces_the_calibrated_sets(data, tmp_path, kw, dtype):

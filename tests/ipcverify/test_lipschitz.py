@@ -75,7 +75,7 @@ def _max_gradient_in_ball_and_box(net, box, radius, rng, n_theta=12, n_x=60) -> 
 
 
 def test_per_sample_gradients_match_a_plain_autograd_loop():
-    cfg = ModelConfig(x_dim=6, y_dim=3, hidden=(8, 5))
+    cfg = ModelConfig(x_dim=6, y_dim=3, hidden=(8, 5), param="cholesky")
     net = _network(cfg, seed=1).double()
     norms = per_sample_gradient_norms(net, DATA.x[:6], DATA.y[:6], DATA.yhat[:6])
     for i in range(6):
@@ -89,7 +89,11 @@ def test_per_sample_gradients_match_a_plain_autograd_loop():
 
 def test_sound_bound_exceeds_the_empirical_estimate_on_a_trained_model():
     data = make_lagged_perception(800, seed=4)
-    m = train(data, ModelConfig(x_dim=6, y_dim=3, hidden=(16, 16)), TrainConfig(epochs=2)).model
+    m = train(
+        data,
+        ModelConfig(x_dim=6, y_dim=3, hidden=(16, 16), param="cholesky"),
+        TrainConfig.recipe("v1", epochs=2),
+    ).model
     low = empirical_lipschitz(m, data)
     low64 = empirical_lipschitz(m, data, dtype=torch.float64)
     assert low.value == pytest.approx(low64.value, rel=1e-4)
@@ -128,7 +132,7 @@ def test_sound_bound_dominates_gradients_in_the_ball_and_box(cfg, radius):
 @pytest.mark.parametrize("shape_bias", [-12.0, 11.95, 14.0])
 def test_sound_bound_holds_around_the_log_diagonal_clamp(shape_bias):
     """Diagonal logits near or beyond the clamp at +/-12 (exp saturates, its derivative vanishes)."""
-    cfg = ModelConfig(x_dim=6, y_dim=3, hidden=(6,))
+    cfg = ModelConfig(x_dim=6, y_dim=3, hidden=(6,), param="cholesky")
     net = _network(cfg, seed=5, weight_scale=0.3, shape_bias=shape_bias)
     model = IPCModel(net)
     box = DataBox.from_dataset(DATA)
@@ -138,7 +142,7 @@ def test_sound_bound_holds_around_the_log_diagonal_clamp(shape_bias):
 
 def test_lipschitz_inequality_on_function_values():
     """|g(theta1) - g(theta2)| <= L ||theta1 - theta2|| for pairs in the ball (no gradients involved)."""
-    cfg = ModelConfig(x_dim=6, y_dim=3, hidden=(6, 6))
+    cfg = ModelConfig(x_dim=6, y_dim=3, hidden=(6, 6), param="cholesky")
     net = _network(cfg, seed=8, weight_scale=1.5).double()
     box = DataBox.from_dataset(DATA)
     radius = 0.3
@@ -186,7 +190,7 @@ def test_sound_bound_property(hidden, y_dim, param, center, activation, seed, ra
 
 
 def test_bad_inputs():
-    m = IPCModel(_network(ModelConfig(x_dim=6, y_dim=3, hidden=(4,)), seed=0))
+    m = IPCModel(_network(ModelConfig(x_dim=6, y_dim=3, hidden=(4,), param="cholesky"), seed=0))
     with pytest.raises(InvalidInputError, match=r"radius must be finite and >= 0"):
         sound_lipschitz(m, DATA, radius=-1.0)
     small = DataBox(np.zeros(2), np.ones(2), np.zeros(3), np.ones(3), np.zeros(3), np.ones(3))

@@ -64,19 +64,24 @@ def test_likelihood_loss_matches_hand_computation():
     assert float(loss) == pytest.approx(nll - np.log(2 * np.pi), rel=1e-6)
 
 
+def _v1(**kwargs: object) -> TrainConfig:
+    """The paper's-head training settings of ipcverify's earlier default (the recipe "v1")."""
+    return TrainConfig.recipe("v1", **kwargs)
+
+
 def test_training_uses_the_configured_loss():
     data, _ = _heteroscedastic(300, 5)
-    hist = train(data, train_config=TrainConfig(epochs=1, loss="likelihood")).history[-1]
+    hist = train(data, train_config=_v1(epochs=1, loss="likelihood"), recipe="v1").history[-1]
     assert "fit_half_sq_score" in hist and "fit_hinge" not in hist
     # the recorded loss is the likelihood of the trained model
-    m = train(data, train_config=TrainConfig(epochs=1, loss="likelihood")).model
+    m = train(data, train_config=_v1(epochs=1, loss="likelihood"), recipe="v1").model
     g = torch.tensor(m.raw_scores(data.x, data.y, data.yhat))
     _, C = m.raw_arrays(data.x, data.yhat)
     logdet = torch.tensor(np.linalg.slogdet(np.transpose(C, (0, 2, 1)) @ C)[1])
     assert hist["fit_loss"] == pytest.approx(float(likelihood_loss(g, logdet)[0]), rel=1e-4, abs=1e-4)
     # a warm-up of likelihood epochs changes the result of hinge training
-    a = train(data, train_config=TrainConfig(epochs=2)).model
-    b = train(data, train_config=TrainConfig(epochs=2, warmup_epochs=1)).model
+    a = train(data, train_config=_v1(epochs=2), recipe="v1").model
+    b = train(data, train_config=_v1(epochs=2, warmup_epochs=1), recipe="v1").model
     assert not np.allclose(a.raw_scores(data.x, data.y, data.yhat), b.raw_scores(data.x, data.y, data.yhat))
 
 
@@ -96,7 +101,7 @@ def _centre_sq_error(model: IPCModel, data: PerceptionDataset) -> float:
 @pytest.mark.parametrize("center", ["offset", "raw"])
 def test_center_warm_start_reduces_the_centre_error(center):
     train_data, test_data = _linear_bias(2000, 0), _linear_bias(2000, 1)
-    mc = ModelConfig(x_dim=2, y_dim=3, hidden=(32, 32), center=center)
+    mc = ModelConfig(x_dim=2, y_dim=3, hidden=(32, 32), center=center, param="cholesky")
     # directly: the least-squares head fits the bias the initial network does not
     torch.manual_seed(0)
     net = IPCNetwork(mc)
@@ -107,8 +112,8 @@ def test_center_warm_start_reduces_the_centre_error(center):
     after = _centre_sq_error(IPCModel(net), test_data)
     assert after < 0.2 * before
     # through train(): after one epoch the warm-started centre is still much closer
-    cold = train(train_data, mc, TrainConfig(epochs=1)).model
-    warm = train(train_data, mc, TrainConfig(epochs=1, center_warm_start=True)).model
+    cold = train(train_data, mc, _v1(epochs=1)).model
+    warm = train(train_data, mc, _v1(epochs=1, center_warm_start=True)).model
     assert _centre_sq_error(warm, test_data) < 0.5 * _centre_sq_error(cold, test_data)
     assert warm.metadata["train_config"]["center_warm_start"] is True
 
@@ -173,7 +178,7 @@ def test_training_reaches_the_expected_violation_rate_and_size():
     p_star = stats.chi(3).sf(1 / k)  # ~0.65 %
     train_data, _ = _heteroscedastic(5000, 0)
     test_data, sigma = _heteroscedastic(50_000, 1)
-    model = train(train_data, train_config=TrainConfig(alpha=alpha, lam=lam, seed=0)).model
+    model = train(train_data, train_config=_v1(alpha=alpha, lam=lam, seed=0), recipe="v1").model
     sets = model.predict(test_data.x, test_data.yhat)
     # the learned radius follows sigma(x): half-width / sigma ~ 1/k* (to 10 %)
     ratio = np.median(sets.half_widths().mean(axis=1) / sigma)
@@ -186,17 +191,22 @@ def test_training_reaches_the_expected_violation_rate_and_size():
     assert np.median(sets.half_widths()) < 0.8 * (0.06 / k)
 
 
-def test_training_is_reproducible():
+@pytest.mark.parametrize("recipe", ["tight", "v1"])
+def test_training_is_reproducible(recipe):
     data, _ = _heteroscedastic(400, 0)
-    a = train(data, train_config=TrainConfig(epochs=2, seed=5)).model
-    b = train(data, train_config=TrainConfig(epochs=2, seed=5)).model
+    a = train(data, train_config=TrainConfig.recipe(recipe, epochs=2, seed=5), recipe=recipe).model
+    b = train(data, train_config=TrainConfig.recipe(recipe, epochs=2, seed=5), recipe=recipe).model
     for (ka, va), (_, vb) in zip(a.network.state_dict().items(), b.network.state_dict().items(), strict=True):
         assert torch.equal(va, vb), ka
+    c = train(data, train_config=TrainConfig.recipe(recipe, epochs=2, seed=6), recipe=recipe).model
+    assert not np.array_equal(
+        a.raw_scores(data.x, data.y, data.yhat), c.raw_scores(data.x, data.y, data.yhat)
+    )
 
 
 def test_cholesky_never_non_finite_with_aggressive_settings():
     data, _ = _heteroscedastic(500, 2)
-    res = train(data, train_config=TrainConfig(epochs=5, lr=0.05, lam=1.0, alpha=0.01))
+    res = train(data, train_config=_v1(epochs=5, lr=0.05, lam=1.0, alpha=0.01), recipe="v1")
     assert all(np.isfinite(r["train_loss"]) for r in res.history)
 
 
@@ -206,12 +216,14 @@ def test_full_param_non_finite_loss_is_reported():
     torch.manual_seed(0)
     with pytest.raises(NonFiniteLossError, match="use --param cholesky"):
         # a huge learning rate drives the full shape matrix to overflow
-        train(data, cfg, TrainConfig(epochs=30, lr=1e6, lam=10.0))
+        train(data, cfg, _v1(epochs=30, lr=1e6, lam=10.0))
 
 
-def test_early_stopping_and_history():
+@pytest.mark.parametrize("recipe", ["tight", "v1"])
+def test_early_stopping_and_history(recipe):
     data, _ = _heteroscedastic(600, 4)
-    res = train(data, train_config=TrainConfig(epochs=50, val_fraction=0.3, patience=2, lr=0.01))
+    tc = TrainConfig.recipe(recipe, epochs=50, val_fraction=0.3, patience=2, lr=0.01)
+    res = train(data, train_config=tc, recipe=recipe)
     assert len(res.history) < 50
     assert "val_loss" in res.history[0]
 
@@ -224,10 +236,12 @@ def test_early_stopping_and_history():
         ({"alpha": 0.0}, "alpha must be > 0"),
         ({"lam": -0.1}, "lam must be >= 0"),
         ({"batch_size": 0}, "batch size must be >= 1"),
-        ({"patience": 3}, "needs a validation split"),
+        ({"patience": 3, "val_fraction": 0.0}, "needs a validation split"),
+        ({"schedule": "step"}, "schedule must be 'cosine' or 'constant'"),
+        ({"linear_ridge": -1.0}, "linear_ridge must be >= 0"),
         ({"loss": "nll"}, "loss must be 'hinge' or 'likelihood'; got 'nll'"),
         ({"center_warm_start": "yes"}, "center_warm_start must be True or False"),
-        ({"warmup_epochs": -1}, r"warmup_epochs must be in \[0, epochs=20\)"),
+        ({"warmup_epochs": -1}, r"warmup_epochs must be in \[0, epochs=60\)"),
         ({"epochs": 5, "warmup_epochs": 5}, r"warmup_epochs must be in \[0, epochs=5\)"),
         ({"loss": "likelihood", "warmup_epochs": 2}, "only applies to loss='hinge'"),
     ],
@@ -237,14 +251,41 @@ def test_bad_train_config(kwargs, match):
         TrainConfig(**kwargs)
 
 
+def test_unknown_recipe_is_refused_with_the_names():
+    with pytest.raises(InvalidInputError, match="unknown recipe 'best'; choose one of tight, v1, paper"):
+        TrainConfig.recipe("best")
+    with pytest.raises(InvalidInputError, match="unknown recipe 'best'"):
+        ModelConfig.recipe("best", x_dim=1, y_dim=1)
+    with pytest.raises(InvalidInputError, match="unknown recipe 'best'"):
+        train(_heteroscedastic(50, 0)[0], recipe="best")
+
+
 def test_bad_model_config_and_inputs():
     with pytest.raises(InvalidInputError, match="param must be"):
         ModelConfig(x_dim=1, y_dim=1, param="diag")  # type: ignore[arg-type]
     with pytest.raises(InvalidInputError, match="hidden sizes must be positive"):
         ModelConfig(x_dim=1, y_dim=1, hidden=(0,))
-    m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(4,))))
+    with pytest.raises(InvalidInputError, match="ensembles come with the low-rank head"):
+        ModelConfig(x_dim=1, y_dim=1, param="cholesky", members=3)
+    with pytest.raises(InvalidInputError, match="ensembles come with the low-rank head"):
+        ModelConfig(x_dim=1, y_dim=1, param="full", linear_center=True)
+    with pytest.raises(InvalidInputError, match="use center='offset'"):
+        ModelConfig(x_dim=1, y_dim=1, center="raw")
+    with pytest.raises(InvalidInputError, match=r"members must be in \[1, 32\]"):
+        ModelConfig(x_dim=1, y_dim=1, members=33)
+    with pytest.raises(InvalidInputError, match="members must be an integer"):
+        ModelConfig(x_dim=1, y_dim=1, members=2.5)  # type: ignore[arg-type]
+    with pytest.raises(InvalidInputError, match="linear_center must be True or False"):
+        ModelConfig(x_dim=1, y_dim=1, linear_center="yes")  # type: ignore[arg-type]
+    with pytest.raises(InvalidInputError, match="build it with ipcverify.model.build_network"):
+        IPCNetwork(ModelConfig(x_dim=1, y_dim=1))
+    with pytest.raises(InvalidInputError, match="center_warm_start is for the paper's heads"):
+        train(_heteroscedastic(50, 0)[0], train_config=TrainConfig(epochs=1, center_warm_start=True))
+    m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(4,), param="cholesky")))
     with pytest.raises(InvalidInputError, match=r"expects x of shape \(B, 2\)"):
         m.predict(np.zeros((3, 3)), np.zeros((3, 3)))
     data, _ = _heteroscedastic(50, 0)
     with pytest.raises(InvalidInputError, match="model expects x_dim=5"):
         train(data, ModelConfig(x_dim=5, y_dim=3), TrainConfig(epochs=1))
+    with pytest.raises(InvalidInputError, match="too few samples"):
+        train(_heteroscedastic(3, 0)[0], train_config=TrainConfig(epochs=1, val_fraction=0.1))

@@ -10,7 +10,7 @@ import torch
 
 from ipcverify.architecture import ModelConfig
 from ipcverify.errors import ModelFileError
-from ipcverify.model import IPCModel, IPCNetwork
+from ipcverify.model import IPCModel, IPCNetwork, network_fingerprint
 from ipcverify.modelio import load_model, save_model
 from ipcverify.synthetic import make_lagged_perception
 from ipcverify.training import TrainConfig, train
@@ -69,12 +69,15 @@ def test_other_torch_file(tmp_path):
 def test_future_version(tmp_path):
     p = tmp_path / "v9.pt"
     torch.save({"format": "ipcverify-model", "format_version": 9}, p)
-    with pytest.raises(ModelFileError, match="model format version 9 is not supported"):
+    with pytest.raises(
+        ModelFileError,
+        match=r"model format version 9 is not supported \(this ipcverify reads versions 1, 2\)",
+    ):
         load_model(p)
 
 
 def test_damaged_state_dict(tmp_path):
-    m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(4,))))
+    m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(4,), param="cholesky")))
     p = tmp_path / "m.pt"
     save_model(m, p)
     payload = torch.load(p, weights_only=True)
@@ -85,7 +88,7 @@ def test_damaged_state_dict(tmp_path):
 
 
 def test_non_finite_weights(tmp_path):
-    m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(4,))))
+    m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(4,), param="cholesky")))
     p = tmp_path / "m.pt"
     save_model(m, p)
     payload = torch.load(p, weights_only=True)
@@ -96,7 +99,7 @@ def test_non_finite_weights(tmp_path):
 
 
 def test_save_is_atomic(tmp_path, monkeypatch):
-    m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(4,))))
+    m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(4,), param="cholesky")))
     p = tmp_path / "m.pt"
     save_model(m, p)
     before = p.read_bytes()
@@ -109,3 +112,61 @@ def test_save_is_atomic(tmp_path, monkeypatch):
         save_model(m, p)
     assert p.read_bytes() == before
     assert os.listdir(tmp_path) == ["m.pt"]
+
+
+def test_paper_head_files_stay_version_1_and_lowrank_files_are_version_2(tmp_path):
+    ds = make_lagged_perception(300, seed=0)
+    for recipe, version in (("v1", 1), ("paper", 1), ("tight", 2)):
+        model = train(ds, train_config=TrainConfig.recipe(recipe, epochs=1), recipe=recipe).model
+        p = tmp_path / f"{recipe}.pt"
+        save_model(model, p)
+        payload = torch.load(p, weights_only=True)
+        assert payload["format_version"] == version
+        if version == 1:  # exactly the keys an ipcverify without the low-rank head reads
+            assert set(payload["config"]) == {"x_dim", "y_dim", "hidden", "param", "center", "activation"}
+        back = load_model(p)
+        assert back.config == model.config and network_fingerprint(back.network) == network_fingerprint(
+            model.network
+        )
+        np.testing.assert_array_equal(back.predict(ds.x, ds.yhat).shapes, model.predict(ds.x, ds.yhat).shapes)
+
+
+def test_a_file_written_before_the_lowrank_head_loads_unchanged(tmp_path):
+    """A version-1 file as ipcverify wrote it before recipes existed: built by hand, no new keys."""
+    torch.manual_seed(3)
+    net = IPCNetwork(ModelConfig(x_dim=2, y_dim=3, param="cholesky"))
+    config = {
+        "x_dim": 2,
+        "y_dim": 3,
+        "hidden": [64, 128],
+        "param": "cholesky",
+        "center": "offset",
+        "activation": "relu",
+    }
+    payload = {
+        "format": "ipcverify-model",
+        "format_version": 1,
+        "config": config,
+        "state_dict": net.state_dict(),
+        "metadata": {"train_config": {"epochs": 20, "alpha": 1.0}},
+        "calibration": None,
+        "domain": None,
+    }
+    p = tmp_path / "old.pt"
+    torch.save(payload, p)
+    back = load_model(p)
+    assert back.config == ModelConfig.recipe("v1", x_dim=2, y_dim=3)
+    assert network_fingerprint(back.network) == network_fingerprint(net)
+    x, yhat = np.ones((4, 2)), np.zeros((4, 3))
+    np.testing.assert_array_equal(back.predict(x, yhat).shapes, IPCModel(net).predict(x, yhat).shapes)
+
+
+def test_a_lowrank_network_in_a_version_1_file_is_refused(tmp_path):
+    model = train(make_lagged_perception(200, seed=0), train_config=TrainConfig(epochs=1)).model
+    p = tmp_path / "m.pt"
+    save_model(model, p)
+    payload = torch.load(p, weights_only=True)
+    payload["format_version"] = 1
+    torch.save(payload, p)
+    with pytest.raises(ModelFileError, match="damaged model file .a low-rank network in a version-1 file"):
+        load_model(p)

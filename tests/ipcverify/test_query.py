@@ -24,7 +24,10 @@ def data():
     return make_lagged_perception(1500, seed=0), make_lagged_perception(1000, seed=1)
 
 
-@pytest.fixture(scope="module", params=[("cholesky", "offset"), ("full", "raw"), ("cholesky", "raw")])
+@pytest.fixture(
+    scope="module",
+    params=[("lowrank", "offset"), ("cholesky", "offset"), ("full", "raw"), ("cholesky", "raw")],
+)
 def trained(request, data):
     param, center = request.param
     mc = ModelConfig(x_dim=6, y_dim=3, hidden=(16, 16), param=param, center=center)
@@ -124,7 +127,7 @@ def test_bad_queries_are_refused_with_a_message(trained, x, yhat, match):
 
 
 def test_landing_needs_three_dimensions():
-    q = IPCQuery(IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=2, hidden=(4,)))), G)
+    q = IPCQuery(IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=2, hidden=(4,), param="cholesky"))), G)
     assert q.ellipsoid(np.zeros(2), np.zeros(2))[1].shape == (2, 2)
     with pytest.raises(SetError, match="needs a 3-D ellipsoid"):
         q.decide(np.zeros(2), np.zeros(2))

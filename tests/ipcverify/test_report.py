@@ -25,7 +25,11 @@ CHROMIUM = Path("/usr/bin/chromium")
 @pytest.fixture(scope="module")
 def written(tmp_path_factory):
     data = make_lagged_perception(1200, seed=60)
-    model = train(data, ModelConfig(x_dim=6, y_dim=3, hidden=(16,)), TrainConfig(epochs=2)).model
+    model = train(
+        data,
+        ModelConfig(x_dim=6, y_dim=3, hidden=(16,), param="cholesky"),
+        TrainConfig.recipe("v1", epochs=2),
+    ).model
     cal = calibrate(model, make_lagged_perception(1500, seed=61), 0.05, 0.01)
     res = certify(cal, make_lagged_perception(2000, seed=62), train_data=data)
     out = tmp_path_factory.mktemp("report")
@@ -68,7 +72,7 @@ def test_page_says_what_is_guaranteed(written):
 
 
 def test_report_without_calibration_or_training_data(tmp_path):
-    m = IPCModel(IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(4,))))
+    m = IPCModel(IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(4,), param="cholesky")))
     res = certify(m, make_lagged_perception(300, seed=63))
     write_certificate(res, tmp_path)
     page = (tmp_path / "report.html").read_text()
@@ -81,7 +85,7 @@ def test_one_dimensional_truth_renders(tmp_path):
     from ipcverify.data import PerceptionDataset
 
     ds = PerceptionDataset(rng.normal(size=(400, 2)), rng.normal(size=(400, 1)), rng.normal(size=(400, 1)))
-    m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=1, hidden=(4,))))
+    m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=1, hidden=(4,), param="cholesky")))
     write_certificate(certify(m, ds), tmp_path)
     for raw in _images((tmp_path / "report.html").read_text()):
         Image.open(io.BytesIO(raw)).load()

@@ -67,7 +67,11 @@ def test_huge_n_is_reported_without_looping():
 
 def test_theorem1_on_a_trained_model_reports_both_constants():
     data = make_lagged_perception(600, seed=0)
-    m = train(data, ModelConfig(x_dim=6, y_dim=3, hidden=(8,)), TrainConfig(epochs=2, alpha=0.2)).model
+    m = train(
+        data,
+        ModelConfig(x_dim=6, y_dim=3, hidden=(8,), param="cholesky"),
+        TrainConfig.recipe("v1", epochs=2, alpha=0.2),
+    ).model
     res = theorem1(m, data, delta=0.01)
     assert res.alpha == 0.2 and res.n_train == 600 and res.n_parameters == m.n_parameters
     assert res.sound.lipschitz >= res.optimistic.lipschitz > 0

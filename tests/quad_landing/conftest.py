@@ -23,7 +23,7 @@ def make_ipc() -> Callable[[bool], IPCModel]:
     """A factory of small untrained IPCs on ``x_C`` (12) and ``yhat_C`` (3), calibrated or not."""
 
     def make(calibrated: bool) -> IPCModel:
-        m = IPCModel(IPCNetwork(ModelConfig(x_dim=12, y_dim=3, hidden=(4,))))
+        m = IPCModel(IPCNetwork(ModelConfig(x_dim=12, y_dim=3, hidden=(4,), param="cholesky")))
         if not calibrated:
             return m
         from ipcverify.calibration import GlobalCalibration, threshold_scores

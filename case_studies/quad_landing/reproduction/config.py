@@ -47,8 +47,19 @@ from case_studies.quad_landing.sim.framebuffer import MAX_BUFFER_SIZE
 from ipcverify.errors import InvalidInputError
 from ipcverify.training import TrainConfig
 
-__all__ = ["IpcParams", "Sizes", "AblationSizes", "ReproduceConfig", "load_reproduce_config",
-           "REPRODUCE_SECTIONS"]  # fmt: skip
+__all__ = [
+    "IPC_RECIPE",
+    "IpcParams",
+    "Sizes",
+    "AblationSizes",
+    "ReproduceConfig",
+    "load_reproduce_config",
+    "REPRODUCE_SECTIONS",
+]
+
+#: The library recipe the reproduction builds on: the paper's Cholesky head and hinge loss
+#: (``ipcverify``'s default recipe is the tighter "tight"; the reproduction keeps the paper's).
+IPC_RECIPE = "v1"
 
 
 def _train_fields() -> dict[str, dataclasses.Field[Any]]:
@@ -62,7 +73,8 @@ class IpcParams(TomlSection):
     The ``[ipc]`` table is flat. Its keys that are fields of
     :class:`ipcverify.training.TrainConfig` (``epochs``, ``lr``, ``batch_size``, ``alpha``,
     ``lam``, ``seed``, or any other the library defines) build :attr:`train`; the fields
-    the table leaves out keep the library's defaults. The other keys are not training:
+    the table leaves out keep the values of the library's recipe :data:`IPC_RECIPE`
+    (``TrainConfig.recipe("v1")``). The other keys are not training:
 
     Parameters
     ----------
@@ -124,7 +136,7 @@ class IpcParams(TomlSection):
             if fields[key].type in ("int", int) and (isinstance(value, bool) or not isinstance(value, int)):
                 raise ConfigError(f"ipc.{key} must be an integer, got {value!r}")
         try:
-            config = TrainConfig(**train)
+            config = TrainConfig.recipe(IPC_RECIPE, **train)
         except InvalidInputError as exc:
             raise ConfigError(f"[ipc]: {exc}") from None
         rest: dict[str, Any] = {

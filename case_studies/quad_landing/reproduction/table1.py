@@ -177,7 +177,7 @@ def table1(model: IPCModel, tests: Mapping[int, PerceptionDataset], delta: float
     --------
     >>> from ipcverify.model import IPCNetwork
     >>> from ipcverify.architecture import ModelConfig
-    >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(4,))))
+    >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(4,), param="cholesky")))
     >>> ds = PerceptionDataset(np.zeros((10, 2)), np.ones((10, 3)) * 100, np.zeros((10, 3)))
     >>> table1(m, {1: ds}).row(1).violations
     10

@@ -423,6 +423,8 @@ def test_grouped_calibration_survives_a_model_file(tmp_path):
 
     s, runs = _toy(seed=3)
     cal = _fit(s, runs, 0.1, 0.1, "pac", "sample", seed=9)
-    model = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=1, hidden=(4,)))).with_calibration(cal)
+    model = IPCModel(
+        IPCNetwork(ModelConfig(x_dim=2, y_dim=1, hidden=(4,), param="cholesky"))
+    ).with_calibration(cal)
     save_model(model, tmp_path / "m.pt")
     assert load_model(tmp_path / "m.pt").calibration == cal

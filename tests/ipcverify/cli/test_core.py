@@ -43,15 +43,48 @@ def test_train_loss_and_center_warm_start_flags(files, tmp_path):
     p = tmp_path / "lik.pt"
     argv = ["train", str(files / "train.parquet"), "--out", str(p), "--epochs", "2", "--hidden", "8"]
     with pytest.raises(SystemExit) as exc:
-        main([*argv, "--loss", "likelihood", "--center-warm-start"])
+        main([*argv, "--recipe", "v1", "--loss", "likelihood", "--center-warm-start"])
     assert exc.value.code == 0
     tc = load_model(p).metadata["train_config"]
     assert (tc["loss"], tc["center_warm_start"]) == ("likelihood", True)
     with pytest.raises(SystemExit) as exc:
-        main(argv)
+        main([*argv, "--recipe", "v1"])
     assert exc.value.code == 0
     tc = load_model(p).metadata["train_config"]
     assert (tc["loss"], tc["center_warm_start"]) == ("hinge", False)
+
+
+def test_train_recipes_by_name_and_explicit_options_override_them(files, tmp_path):
+    from ipcverify.architecture import ModelConfig
+    from ipcverify.cli import main
+    from ipcverify.training import TrainConfig
+
+    p = tmp_path / "m.pt"
+    base = ["train", str(files / "train.parquet"), "--out", str(p), "--hidden", "8"]
+    expected = {
+        "tight": ("lowrank", "offset", 5, "likelihood", 0.15),
+        "v1": ("cholesky", "offset", 1, "hinge", 0.0),
+        "paper": ("full", "raw", 1, "hinge", 0.0),
+    }
+    for recipe, (param, center, members, loss, val) in expected.items():
+        with pytest.raises(SystemExit) as exc:
+            main([*base, "--recipe", recipe, "--epochs", "1"])
+        assert exc.value.code == 0
+        m = load_model(p)
+        tc = m.metadata["train_config"]
+        assert (m.config.param, m.config.center, m.config.members) == (param, center, members)
+        assert (tc["loss"], tc["val_fraction"], tc["epochs"], m.config.hidden) == (loss, val, 1, (8,))
+        # everything not given on the command line is the recipe's
+        want = TrainConfig.recipe(recipe, epochs=1).to_dict()
+        assert tc == want
+        assert m.config == ModelConfig.recipe(recipe, x_dim=6, y_dim=3, hidden=(8,))
+    # the default recipe is "tight"; --members and --no-linear-center override it
+    with pytest.raises(SystemExit) as exc:
+        main([*base, "--epochs", "1", "--members", "2", "--no-linear-center", "--alpha", "0.5"])
+    assert exc.value.code == 0
+    m = load_model(p)
+    assert (m.config.param, m.config.members, m.config.linear_center) == ("lowrank", 2, False)
+    assert m.metadata["train_config"]["alpha"] == 0.5
 
 
 def test_evaluate_json(run_cli, files, model_path):
@@ -123,9 +156,14 @@ def test_bare_certify_works_from_the_model_file_alone(run_cli, model_path, tmp_p
     assert cert["status"] == "UNTESTED" and cert["test"] is None
     assert cert["calibration"]["k"] == cert["calibration"]["groups"][0]["k"]
     assert cert["domain"]["n_reference"] == 1000 and cert["domain"]["n"] == 0
-    assert cert["theorem1"]["computed"] and cert["theorem1"]["vacuous"]
+    # the default (low-rank ensemble) has no derived Lipschitz bound: Theorem 1 says why, nothing crashes
+    t1 = cert["theorem1"]
+    assert not t1["computed"] and t1["bound"] is None
+    assert t1["reason"].startswith("not available for this architecture") and "--recipe v1" in t1["reason"]
+    assert load_model(model_path).metadata["training_statistics"] is None
     page = (tmp_path / "cert" / "report.html").read_text()
     assert "No test data was given" in page and "Domain of validity" in page
+    assert "Not available for this architecture" in page
 
 
 def test_demo(run_cli, tmp_path):
@@ -164,7 +202,15 @@ def test_demo_calibrated_sets_keep_their_guarantee(tmp_path):
         ),
         (["train", "{train}", "--out", "{tmp}/m.pt", "--epochs", "0"], "epochs must be >= 1"),
         (["train", "{train}", "--out", "{tmp}/m.pt", "--lr", "-1"], "lr must be > 0"),
-        (["train", "{train}", "--out", "{tmp}/m.pt", "--patience", "2"], "needs a validation split"),
+        (
+            ["train", "{train}", "--out", "{tmp}/m.pt", "--val-fraction", "0", "--patience", "2"],
+            "needs a validation split",
+        ),
+        (["train", "{train}", "--out", "{tmp}/m.pt", "--recipe", "best"], "Invalid value for '--recipe'"),
+        (
+            ["train", "{train}", "--out", "{tmp}/m.pt", "--param", "cholesky", "--members", "3"],
+            "ensembles come with the low-rank head",
+        ),
         (["train", "{tmp}/missing.csv", "--out", "{tmp}/m.pt"], "does not exist"),
         (["train", "{bad}", "--out", "{tmp}/m.pt"], "non-finite value"),
         (["evaluate", "{bad}", "{test}"], "not a readable model file"),

@@ -21,7 +21,7 @@ def test_learned_contract_refuses_an_uncalibrated_model(make_ipc):
 
 
 def test_learned_contract_refuses_the_wrong_dimensions():
-    m = IPCModel(IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(4,))))
+    m = IPCModel(IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(4,), param="cholesky")))
     from ipcverify.calibration import GlobalCalibration, threshold_scores
 
     t = threshold_scores(np.linspace(0.1, 1.0, 200), 0.1, 0.1, "marginal")

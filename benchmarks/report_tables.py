@@ -1,0 +1,198 @@
+"""Markdown tables of the benchmark results, shared by ``results.md``, the README and docs/benchmarks.md.
+
+Every function takes the parsed ``benchmarks/results.json`` (or a part of it) and returns
+lines of markdown; nothing here is typed in by hand (:mod:`benchmarks.readme` pastes the
+tables into the documents between generated-block markers).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+__all__ = [
+    "LABELS",
+    "CM3",
+    "fmt",
+    "tightness_table",
+    "before_after_table",
+    "diagnosis_table",
+    "diagnosis_runs_table",
+    "shift_table",
+    "targets_table",
+]
+
+#: Display names of the methods.
+LABELS: dict[str, str] = {
+    "ipc": "**ipcverify IPC, default recipe `tight`**",
+    "ipc_v1": "ipcverify IPC, earlier default `v1`",
+    "ipc_paper": "ipcverify IPC, recipe `paper`",
+    "global_mahalanobis": "global Mahalanobis ellipsoid",
+    "bonferroni_box": "Bonferroni box",
+    "mapie_multivariate": "MAPIE 1.6 multivariate score",
+    "oracle": "oracle (true law), PAC radius",
+    "oracle_exact": "oracle at exactly 1 − ε (no calibration)",
+    "raw_ipc": "raw paper IPC (UNCALIBRATED)",
+    "raw_ipc_paper_head": "raw paper IPC, paper head (UNCALIBRATED)",
+}
+#: m^3 -> cm^3
+CM3 = 1e6
+
+
+def fmt(v: float | None, digits: int = 3) -> str:
+    """``v`` with ``digits`` significant digits (``–`` for missing)."""
+    return "–" if v is None else f"{v:.{digits}g}"
+
+
+def _vol(r: dict[str, Any], key: str) -> str:
+    s = r["spread"][key]
+    if s["n"] == 1:
+        return fmt(r[key] * CM3)
+    return f"{fmt(r[key] * CM3)} [{fmt(s['min'] * CM3)}–{fmt(s['max'] * CM3)}]"
+
+
+def _ratio(r: dict[str, Any], key: str) -> str:
+    return fmt(r.get(key), 3)
+
+
+def tightness_table(name: str, res: dict[str, Any]) -> list[str]:
+    """All methods on one dataset: volumes, coverage, worst-bin coverage and the volume ratios."""
+    ipc = res["ipc"]
+    lines = [
+        f"**{name}** — PAC calibration at ε = {ipc['epsilon']:g}, δ = {ipc['delta']:g} on "
+        f"{ipc['calibration_n']:,} samples; test split of {ipc['test_n']:,}. Volumes in cm³: median over "
+        "training seeds [min–max]. Ratios are of mean volumes.",
+        "",
+        "| method | calibrated | mean volume | median volume | test coverage | worst-bin coverage "
+        "| × MAPIE | × oracle (PAC) | × oracle (exact 1 − ε) | × global | train s |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for method, r in res.items():
+        label = LABELS.get(method, method)
+        if "skipped" in r:
+            lines.append(f"| {label} | – | not run: {r['skipped']} | | | | | | | | |")
+            continue
+        cal = "yes" if r["calibrated"] else "**no**"
+        train_s = fmt(r["train_seconds"], 2) if "train_seconds" in r else ""
+        lines.append(
+            f"| {label} | {cal} | {_vol(r, 'mean_volume')} | {_vol(r, 'median_volume')} | "
+            f"{100 * r['coverage']:.2f} % | {r['worst_bin_coverage']:.3f} | "
+            f"{_ratio(r, 'mean_volume_ratio_to_mapie')} | {_ratio(r, 'mean_volume_ratio_to_oracle')} | "
+            f"{_ratio(r, 'mean_volume_ratio_to_oracle_exact')} | "
+            f"{_ratio(r, 'mean_volume_ratio_to_global_mahalanobis')} | {train_s} |"
+        )
+    return lines
+
+
+def before_after_table(tightness: dict[str, Any]) -> list[str]:
+    """Old default (``v1``) against the new default (``tight``), MAPIE and the oracle, per dataset."""
+    lines = [
+        "| dataset | method | mean vol. (cm³) | × MAPIE | × oracle (PAC) | × oracle (exact) | × global "
+        "| coverage | worst-bin coverage |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for name, res in tightness.items():
+        for method in ("ipc_v1", "ipc", "mapie_multivariate", "oracle"):
+            r = res.get(method)
+            if r is None or "mean_volume" not in r:
+                continue
+            label = {"ipc_v1": "before: `v1`", "ipc": "**after: `tight`**"}.get(method, LABELS[method])
+            lines.append(
+                f"| {name} | {label} | {fmt(r['mean_volume'] * CM3)} | "
+                f"{_ratio(r, 'mean_volume_ratio_to_mapie')} | {_ratio(r, 'mean_volume_ratio_to_oracle')} | "
+                f"{_ratio(r, 'mean_volume_ratio_to_oracle_exact')} | "
+                f"{_ratio(r, 'mean_volume_ratio_to_global_mahalanobis')} | {100 * r['coverage']:.2f} % | "
+                f"{r['worst_bin_coverage']:.3f} |"
+            )
+    return lines
+
+
+def diagnosis_table(tightness: dict[str, Any]) -> list[str]:
+    """The volume-excess diagnosis of every ellipsoidal method (first training seed) on the oracle data."""
+    lines = [
+        "| dataset | method | × oracle (1 − ε) | centre | shape | calibration | PAC margin "
+        "| shape-first: size / orientation / centre | RMS whitened centre bias | sd log size "
+        "| aspect misfit |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for name, res in tightness.items():
+        for method in ("ipc_v1", "ipc", "mapie_multivariate", "global_mahalanobis", "oracle"):
+            d = res.get(method, {}).get("diagnosis")
+            if d is None:
+                continue
+            f, sf, sym, st = d["factors"], d["factors_shape_first"], d["factors_symmetric"], d["stats"]
+            label = {"ipc_v1": "`v1` (earlier default)", "ipc": "`tight` (default)"}.get(
+                method, LABELS[method]
+            )
+            lines.append(
+                f"| {name} | {label} | {fmt(d['volume_ratio_to_oracle'])} | {fmt(sym['centre'])} | "
+                f"{fmt(sym['shape'])} | {fmt(sym['calibration'])} | {fmt(f['pac_margin'])} | "
+                f"{fmt(sf['rel_scale'])} / {fmt(sf['orientation'])} / {fmt(sf['centre'])} | "
+                f"{fmt(st['rms_whitened_bias'])} | {fmt(st['sd_log_rel_scale'])} | "
+                f"{fmt(st['aspect_misfit'])} |"
+            )
+    return lines
+
+
+def diagnosis_runs_table(diagnosis: dict[str, Any]) -> list[str]:
+    """``benchmarks/diagnosis_results.json``: each recipe's diagnosis per law and training seed."""
+    lines = [
+        "| law | recipe | seed | × oracle (1 − ε) | centre | shape | calibration | PAC margin "
+        "| RMS whitened centre bias | sd log size | aspect misfit | coverage |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for law, recipes in diagnosis.items():
+        if law == "settings":
+            continue
+        for recipe, runs in recipes.items():
+            for seed, d in enumerate(runs):
+                sym, st = d["factors_symmetric"], d["stats"]
+                lines.append(
+                    f"| {law} | `{recipe}` | {seed} | {fmt(d['volume_ratio_to_oracle'])} | "
+                    f"{fmt(sym['centre'])} | {fmt(sym['shape'])} | {fmt(sym['calibration'])} | "
+                    f"{fmt(d['factors']['pac_margin'])} | {fmt(st['rms_whitened_bias'])} | "
+                    f"{fmt(st['sd_log_rel_scale'])} | {fmt(st['aspect_misfit'])} | "
+                    f"{100 * d['coverage']:.2f} % |"
+                )
+    return lines
+
+
+def shift_table(shift: dict[str, Any]) -> list[str]:
+    """Violation rates (mean [worst] over folds and seeds) and mean volumes under shift."""
+    methods = ("ipc_v1", "ipc", "global_mahalanobis")
+    heads = {
+        "ipc_v1": "earlier default `v1`",
+        "ipc": "default `tight`",
+        "global_mahalanobis": "global Mahalanobis",
+    }
+    lines = [
+        "| setting | "
+        + " | ".join(f"{heads[m]}: violation mean [worst] (mean vol. m³)" for m in methods)
+        + " |",
+        "|---" * (len(methods) + 1) + "|",
+    ]
+    for setting, rows in shift.items():
+        if not isinstance(rows, dict) or "ipc" not in rows:
+            continue
+        cells = []
+        for m in methods:
+            r = rows[m]
+            cell = (
+                f"{100 * r['violation_mean']:.2f} % [{100 * r['violation_max']:.2f} %] "
+                f"({fmt(r['mean_volume'])})"
+            )
+            if "worst_group_violation" in r:
+                cell += f"; worst run {100 * r['worst_group_violation']:.1f} %"
+            cells.append(cell)
+        lines.append(f"| {setting} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def targets_table(targets: dict[str, Any]) -> list[str]:
+    """The issue's targets as computed by :func:`benchmarks.report.targets`."""
+    lines = ["| target | measured | limit | met |", "|---|---|---|---|"]
+    for t in targets.values():
+        val = "n/a" if t["value"] is None else f"{t['value']:.3g}"
+        met = "n/a" if t["met"] is None else ("yes" if t["met"] else f"**no** ({t['by']:.3g}× the limit)")
+        rel = "≥" if t.get("at_least") else "≤"
+        lines.append(f"| {t['what']} | {val} | {rel} {t['limit']:.3g} | {met} |")
+    return lines

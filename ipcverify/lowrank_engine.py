@@ -1,0 +1,292 @@
+"""Float64 NumPy evaluation of a :class:`~ipcverify.lowrank.LowRankEnsemble`: its sets of record.
+
+The same role as :mod:`ipcverify.inference` for the paper's heads: once trained, the
+ensemble is evaluated everywhere (prediction, calibration, certificates, the controller's
+single queries) by this engine, with the float32 weights taken exactly into float64.
+
+All members are evaluated together: the first layer and the two affine skip paths are
+one matrix product of the shared input with the members' stacked weights, the later layers
+one batched product each. The moment-matched covariance ``Sigma`` is one product of the
+stacked factors; its Cholesky factor and the triangular inverse are written out entry by
+entry (:func:`cholesky_lower`, :func:`lower_inverse`), the same arithmetic for one query
+or a million, and the same as the ONNX export's graph.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import torch
+from numpy.typing import NDArray
+
+from ipcverify.architecture import LOGDIAG_CLAMP, ModelConfig
+from ipcverify.errors import InvalidInputError
+from ipcverify.inference import CHUNK
+from ipcverify.lowrank import LowRankEnsemble
+
+__all__ = ["LowRankEngine", "cholesky_lower", "lower_inverse", "cholesky_inverse_small"]
+
+FloatArray = NDArray[np.float64]
+
+
+def _np(t: torch.Tensor) -> FloatArray:
+    return np.ascontiguousarray(t.detach().cpu().double().numpy())
+
+
+def cholesky_lower(S: FloatArray) -> FloatArray:
+    """Lower Cholesky factors of SPD matrices ``S`` (..., n, n), entry by entry (Cholesky-Banachiewicz).
+
+    A non-positive pivot (a matrix that is not numerically positive definite) gives NaN
+    entries, never an exception: callers treat such a set as degenerate.
+
+    Examples
+    --------
+    >>> S = np.array([[4.0, 2.0], [2.0, 5.0]])
+    >>> cholesky_lower(S).tolist()
+    [[2.0, 0.0], [1.0, 2.0]]
+    """
+    n = S.shape[-1]
+    L = np.zeros_like(S)
+    for i in range(n):
+        for j in range(i + 1):
+            s = S[..., i, j] - np.einsum("...k,...k->...", L[..., i, :j], L[..., j, :j])
+            if i == j:
+                s = np.where(s > 0.0, s, np.nan)
+                L[..., i, i] = np.sqrt(s)
+            else:
+                L[..., i, j] = s / L[..., j, j]
+    return L
+
+
+def lower_inverse(L: FloatArray) -> FloatArray:
+    """Inverses of lower-triangular matrices ``L`` (..., n, n) by forward substitution.
+
+    Examples
+    --------
+    >>> lower_inverse(np.array([[2.0, 0.0], [1.0, 2.0]])).tolist()
+    [[0.5, 0.0], [-0.25, 0.5]]
+    """
+    n = L.shape[-1]
+    X = np.zeros_like(L)
+    for i in range(n):
+        X[..., i, i] = 1.0 / L[..., i, i]
+        for j in range(i):
+            acc = np.einsum("...k,...k->...", L[..., i, j:i], X[..., j:i, j])
+            X[..., i, j] = -acc / L[..., i, i]
+    return X
+
+
+def cholesky_inverse_small(S: list[list[float]]) -> list[list[float]]:
+    """``chol(S)^-1`` of one small SPD matrix, on Python floats.
+
+    The arithmetic of :func:`cholesky_lower` and :func:`lower_inverse` for one matrix.
+
+    A non-positive pivot gives NaN entries.
+
+    Examples
+    --------
+    >>> cholesky_inverse_small([[4.0, 2.0], [2.0, 5.0]])
+    [[0.5, 0.0], [-0.25, 0.5]]
+    """
+    n = len(S)
+    L = [[0.0] * n for _ in range(n)]
+    for i in range(n):
+        for j in range(i + 1):
+            s = S[i][j]
+            for m in range(j):
+                s -= L[i][m] * L[j][m]
+            if i == j:
+                L[i][i] = math.sqrt(s) if s > 0.0 else math.nan
+            else:
+                L[i][j] = s / L[j][j]
+    X = [[0.0] * n for _ in range(n)]
+    for i in range(n):
+        X[i][i] = 1.0 / L[i][i] if L[i][i] == L[i][i] else math.nan
+        for j in range(i):
+            acc = 0.0
+            for m in range(j, i):
+                acc += L[i][m] * X[m][j]
+            X[i][j] = -acc / L[i][i] if L[i][i] == L[i][i] else math.nan
+    return X
+
+
+def _u_layout(n: int) -> NDArray[np.intp]:
+    """Column order turning a member's ``[o (n) | vec(V) (n^2)]`` into ``U = [V | o]``.
+
+    ``U`` is n x (n + 1), stored by rows.
+    """
+    order = []
+    for i in range(n):
+        order += [n + i * n + j for j in range(n)] + [i]
+    return np.asarray(order, dtype=np.intp)
+
+
+@dataclass(frozen=True, eq=False)
+class LowRankEngine:
+    """Float64 forward pass of a :class:`~ipcverify.lowrank.LowRankEnsemble` (all members at once).
+
+    Build it with :meth:`from_network`; :meth:`batch` for (B, ·) arrays, :meth:`single`
+    for one query. The weights are stored so that every member's outputs come out as
+    ``[U | h]``: ``U = [V | o]`` (n x (n + 1), row-major) and the log-diagonal ``h``; the
+    moment-matched covariance is then ``mean_k U_k' U_k'^T + diag(mean_k exp(2 h_k))`` with
+    ``U_k'`` the member's ``U`` with its centre offset replaced by the deviation from the
+    members' mean.
+
+    Examples
+    --------
+    >>> net = LowRankEnsemble(ModelConfig(x_dim=2, y_dim=3, hidden=(8,)))
+    >>> c, C = LowRankEngine.from_network(net).batch(np.zeros((4, 2)), np.zeros((4, 3)))
+    >>> c.shape, C.shape
+    ((4, 3), (4, 3, 3))
+    """
+
+    config: ModelConfig
+    #: first layer, then the skip paths in the layout of U: (K, d + n, h1 + n (n + 1)) and (K, 1, ·)
+    first_weight: FloatArray
+    first_bias: FloatArray
+    #: the later layers, stacked over members: (K, in, out) and (K, 1, out); the last in [U | h] order
+    weights: tuple[FloatArray, ...]
+    biases: tuple[FloatArray, ...]
+    in_mean: FloatArray
+    in_scale: FloatArray
+    sigma: FloatArray
+    inv_sigma: FloatArray
+    lin_weight: FloatArray
+    lin_bias: FloatArray
+    #: ``first_weight`` as one (d + n, K * width) matrix: one query's first layer is one product
+    first_flat: FloatArray = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        k, d_in, width = self.first_weight.shape
+        flat = np.ascontiguousarray(self.first_weight.transpose(1, 0, 2).reshape(d_in, k * width))
+        object.__setattr__(self, "first_flat", flat)
+
+    @classmethod
+    def from_network(cls, network: LowRankEnsemble) -> LowRankEngine:
+        """Extract the stacked weights (in the ``[U | h]`` layout) and the normalisation of an ensemble."""
+        cfg = network.config
+        k, n = cfg.members, cfg.y_dim
+        layers = list(network.body.layers)
+        d_in = cfg.x_dim + n
+        skip_w, skip_b = np.zeros((k, d_in, n)), np.zeros((k, 1, n))
+        if network.center_skip is not None:
+            skip_w, skip_b = _np(network.center_skip.weight), _np(network.center_skip.bias)
+        u = _u_layout(n)
+        # skip paths [centre (n) | factor (n^2)] -> U layout
+        sw = np.concatenate([skip_w, _np(network.factor_skip.weight)], axis=2)[..., u]
+        sb = np.concatenate([skip_b, _np(network.factor_skip.bias)], axis=2)[..., u]
+        # last layer [o (n) | h (n) | V (n^2)] -> [U | h]
+        order = np.concatenate(
+            [np.concatenate([np.arange(n), np.arange(2 * n, 2 * n + n * n)])[u], n + np.arange(n)]
+        )
+        weights = [_np(m.weight) for m in layers[1:]]  # type: ignore[arg-type]
+        biases = [_np(m.bias) for m in layers[1:]]  # type: ignore[arg-type]
+        weights[-1], biases[-1] = weights[-1][..., order], biases[-1][..., order]
+        sigma = _np(network.sigma)
+        return cls(
+            config=cfg,
+            first_weight=np.ascontiguousarray(np.concatenate([_np(layers[0].weight), sw], axis=2)),  # type: ignore[arg-type]
+            first_bias=np.ascontiguousarray(np.concatenate([_np(layers[0].bias), sb], axis=2)),  # type: ignore[arg-type]
+            weights=tuple(np.ascontiguousarray(w) for w in weights),
+            biases=tuple(np.ascontiguousarray(b) for b in biases),
+            in_mean=_np(network.in_mean),
+            in_scale=1.0 / _np(network.in_std),
+            sigma=sigma,
+            inv_sigma=1.0 / sigma,
+            lin_weight=_np(network.lin_weight),
+            lin_bias=_np(network.lin_bias),
+        )
+
+    def _activation(self, h: FloatArray) -> FloatArray:
+        act = self.config.activation
+        if act == "relu":
+            return np.maximum(h, 0.0, out=h)
+        if act == "tanh":
+            return np.tanh(h, out=h)
+        return np.where(h > 0, h, np.expm1(np.minimum(h, 0.0)))  # elu, alpha = 1
+
+    def _outputs(self, first: FloatArray) -> FloatArray:
+        """Every member's ``[U | h]`` (K, ..., n (n + 1) + n) from the first layer's outputs (K, ..., ·)."""
+        nu = self.config.y_dim * (self.config.y_dim + 1)
+        width = first.shape[-1] - nu
+        h = self._activation(first[..., :width])
+        last = len(self.weights) - 1
+        for i, (w, b) in enumerate(zip(self.weights, self.biases, strict=True)):
+            h = h @ w
+            h += b
+            if i < last:
+                h = self._activation(h)
+        h[..., :nu] += first[..., width:]
+        return h
+
+    def _moments(self, out: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Moment-matched offset (B, n) and covariance (B, n, n) from every member's ``[U | h]`` (K, B, ·)."""
+        n, k = self.config.y_dim, self.config.members
+        nu = n * (n + 1)
+        U = out[..., :nu].reshape(k, -1, n, n + 1)  # a view of out
+        mean = U[..., n].sum(axis=0) / k
+        U[..., n] -= mean
+        cols = U.transpose(1, 2, 0, 3).reshape(-1, n, k * (n + 1))  # (B, n, K (n + 1))
+        cov = cols @ cols.transpose(0, 2, 1)
+        cov /= k
+        log_var = np.minimum(np.maximum(out[..., nu:], -LOGDIAG_CLAMP), LOGDIAG_CLAMP)
+        log_var *= 2.0
+        cov.reshape(-1, n * n)[:, :: n + 1] += np.exp(log_var).sum(axis=0) / k
+        return mean, cov
+
+    def combined(self, z: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Moment-matched offset (B, n) and covariance (B, n, n) in standardised output units."""
+        first = z @ self.first_weight  # (B, d + n) @ (K, d + n, ·) -> (K, B, ·)
+        first += self.first_bias
+        return self._moments(self._outputs(first))
+
+    def batch(
+        self, x: FloatArray, yhat: FloatArray, chunk: int | None = None
+    ) -> tuple[FloatArray, FloatArray]:
+        """Centres (B, n) and shape matrices (B, n, n) for validated float64 inputs.
+
+        Rows are evaluated ``chunk`` at a time (default :data:`ipcverify.inference.CHUNK`), so
+        the members' hidden layers stay in the CPU cache; every row gets the same operations
+        whatever the chunk. An input so far from the training data that the covariance
+        overflows gives a non-finite set, not a floating-point exception:
+        :meth:`ipcverify.model.IPCModel.predict` reports it as a degenerate set outside the
+        domain, and the query path answers OUTSIDE_DOMAIN.
+        """
+        size = CHUNK if chunk is None else int(chunk)
+        if size < 1:
+            raise InvalidInputError(f"chunk must be a positive number of rows; got {chunk!r}")
+        n = self.config.y_dim
+        centers, shapes = np.empty((len(x), n)), np.empty((len(x), n, n))
+        for start in range(0, len(x), size):
+            sl = slice(start, start + size)
+            z = np.concatenate([x[sl], yhat[sl]], axis=1)
+            z -= self.in_mean
+            z *= self.in_scale
+            with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+                mean, cov = self.combined(z)
+                centers[sl] = yhat[sl] + z @ self.lin_weight + self.lin_bias + self.sigma * mean
+                shape = lower_inverse(cholesky_lower(cov))
+                shape *= self.inv_sigma
+            shapes[sl] = shape
+        return centers, shapes
+
+    def single(self, x: FloatArray, yhat: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Centre (n,) and shape matrix (n, n) for one query given as 1-D float64 arrays.
+
+        The same arithmetic as :meth:`batch` with less per-call overhead: the first layer of
+        every member is one vector-matrix product, the triangular algebra at the end runs on
+        Python floats (:func:`cholesky_inverse_small`).
+        """
+        z = np.concatenate((x, yhat))
+        z -= self.in_mean
+        z *= self.in_scale
+        k = self.config.members
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            first = (z @ self.first_flat).reshape(k, 1, -1)
+            first += self.first_bias
+            mean, cov = self._moments(self._outputs(first))
+            center = yhat + z @ self.lin_weight + self.lin_bias + self.sigma * mean[0]
+            inv = cholesky_inverse_small(cov[0].tolist())
+        return center, np.array(inv) * self.inv_sigma
