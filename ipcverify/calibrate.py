@@ -58,6 +58,7 @@ def calibrate(
     edge_fraction: float = 0.2,
     seed: int = 0,
     domain_alpha: float | None = DEFAULT_ALPHA,
+    domain_group_column: str | None = None,
 ) -> IPCModel:
     """Calibrate an IPC on held-out data; returns the model with the calibration attached.
 
@@ -98,6 +99,12 @@ def calibrate(
     domain_alpha : float or None
         False-alarm rate of the domain-of-validity test fitted on the calibration inputs
         (:class:`~ipcverify.domain.DomainModel`, attached to the model); None fits none.
+    domain_group_column : str, optional
+        Fit the domain test with the groups of this column as the exchangeable units
+        (leave-one-group-out distances, risk-control threshold: a new group's expected share
+        of flagged queries is at most ``domain_alpha``). Defaults to ``group_column``. Without
+        it, calibration rows of one flight sit close to each other and a row-level threshold
+        flags much of a *new* flight.
 
     Raises
     ------
@@ -161,7 +168,14 @@ def calibrate(
         )
     domain = None
     if domain_alpha is not None:
-        domain = DomainModel.fit(calibration_data.x, calibration_data.yhat, alpha=domain_alpha, seed=seed)
+        domain_groups = group_column if domain_group_column is None else domain_group_column
+        domain = DomainModel.fit(
+            calibration_data.x,
+            calibration_data.yhat,
+            alpha=domain_alpha,
+            seed=seed,
+            groups=None if domain_groups is None else calibration_data.column(domain_groups),
+        )
     return model.with_calibration(cal, domain)
 
 

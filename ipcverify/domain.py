@@ -46,9 +46,18 @@ from scipy import stats
 from scipy.spatial import cKDTree
 
 from ipcverify.bounds import marginal_conformal_index
+from ipcverify.calibration.grouped import risk_control_threshold
+from ipcverify.data import group_codes
 from ipcverify.errors import InvalidInputError, SampleSizeError
 
-__all__ = ["DEFAULT_ALPHA", "DEFAULT_K", "MAX_REFERENCE", "DomainModel", "DomainReport"]
+__all__ = [
+    "DEFAULT_ALPHA",
+    "DEFAULT_K",
+    "MAX_REFERENCE",
+    "DomainModel",
+    "DomainReport",
+    "other_group_distances",
+]
 
 FloatArray = NDArray[np.float64]
 
@@ -64,6 +73,10 @@ EIGEN_FLOOR = 1e-6
 #: Level of the one-sided binomial test behind "far more queries outside than false alarms explain".
 WELL_ABOVE_LEVEL = 1e-3
 METHOD = "conformal k-nearest-neighbour distance on whitened (x, yhat), leave-one-out threshold"
+GROUP_METHOD = (
+    "conformal k-nearest-neighbour distance on whitened (x, yhat), leave-one-group-out threshold "
+    "(conformal risk control over the calibration groups)"
+)
 #: contains_one answers from a cached or float32 distance only this far (relative) from the threshold.
 _ABOVE, _BELOW = 1.0 + 1e-9, 1.0 - 1e-9
 _STEP_SLACK = 1.0 + 1e-12  # covers the rounding of a 15-ish-term float64 distance
@@ -127,6 +140,37 @@ def _stack(x: ArrayLike, yhat: ArrayLike) -> FloatArray:
     return np.concatenate([xa, ya], axis=1)
 
 
+def other_group_distances(tree: cKDTree, points: FloatArray, codes: NDArray[np.intp], k: int) -> FloatArray:
+    """Distance from each of the tree's points to its ``k``-th nearest point of another group.
+
+    ``points`` are the tree's data and ``codes`` their groups. Neighbours are fetched in
+    growing batches until ``k`` of another group are among them, so small groups cost one
+    query and a point deep inside a large group a few more.
+
+    Examples
+    --------
+    >>> pts = np.array([[0.0], [0.1], [1.0], [3.0]])
+    >>> other_group_distances(cKDTree(pts), pts, np.array([0, 0, 1, 1]), 1).tolist()
+    [1.0, 0.9, 0.9, 2.9]
+    """
+    n = len(points)
+    out = np.full(n, np.inf)
+    todo = np.arange(n)
+    m = min(n, k + 1 + int(np.bincount(codes).min()))
+    while todo.size:
+        dist, idx = tree.query(points[todo], k=m)
+        dist, idx = dist.reshape(len(todo), m), idx.reshape(len(todo), m)
+        other = codes[idx] != codes[todo][:, None]
+        found = np.cumsum(other, axis=1) >= k
+        done = found.any(axis=1)
+        first = np.argmax(found, axis=1)
+        out[todo[done]] = dist[done, first[done]]
+        if m == n:  # fewer than k points of other groups: no finite distance
+            break
+        todo, m = todo[~done], min(n, 2 * m)
+    return out
+
+
 @dataclass(frozen=True, eq=False)
 class DomainModel:
     """A fitted domain-of-validity test (build it with :meth:`fit`).
@@ -147,6 +191,11 @@ class DomainModel:
         Queries with a score above it are outside the domain.
     n : int
         Calibration inputs used (``m``).
+    method : str
+        The test in words.
+    n_groups : int or None
+        With a group-aware threshold (:meth:`fit` with ``groups``): the number of calibration
+        groups; None for the row-level threshold.
     """
 
     mean: FloatArray
@@ -157,6 +206,7 @@ class DomainModel:
     threshold: float
     n: int
     method: str = METHOD
+    n_groups: int | None = None
     _tree: Any = field(default=None, init=False, repr=False)
     _wt: Any = field(default=None, init=False, repr=False)
     _scan: Any = field(default=None, init=False, repr=False)
@@ -178,6 +228,8 @@ class DomainModel:
             raise InvalidInputError(f"domain model: need 1 <= k < n = {len(ref)}; got k={self.k}")
         if not (0.0 < self.alpha < 1.0) or not (math.isfinite(self.threshold) and self.threshold >= 0):
             raise InvalidInputError("domain model: alpha must lie in (0, 1) and the threshold be finite")
+        if self.n_groups is not None and not (2 <= self.n_groups <= self.n):
+            raise InvalidInputError(f"domain model: need 2 <= n_groups <= n = {self.n}; got {self.n_groups}")
         for name, value in (("mean", mean), ("whitening", w), ("reference", ref)):
             value.setflags(write=False)
             object.__setattr__(self, name, value)
@@ -197,13 +249,38 @@ class DomainModel:
         k: int = DEFAULT_K,
         max_reference: int = MAX_REFERENCE,
         seed: int = 0,
+        groups: ArrayLike | None = None,
     ) -> DomainModel:
         """Fit the test on calibration inputs (leave-one-out conformal threshold at ``alpha``).
+
+        With ``groups`` (one label per input: flight, run, sequence) the inputs of one group are
+        correlated and a new group's queries lie farther from the calibration inputs than the
+        inputs of a calibration group lie from each other; a row-level threshold then flags far
+        more than ``alpha`` of a new group's queries. The score of each calibration input is
+        its distance to the ``k``-th nearest input of *another* group, and the threshold is
+        set by conformal risk control over the groups
+        (:func:`~ipcverify.calibration.grouped.risk_control_threshold`): if the groups are
+        exchangeable, the expected share of a new group's queries flagged is at most ``alpha``
+        (``proofs/domain.md``).
 
         Raises
         ------
         SampleSizeError
-            If there are too few inputs for ``alpha`` (``n >= (1 - alpha) / alpha`` is needed).
+            If there are too few inputs for ``alpha`` (``n >= (1 - alpha) / alpha`` is needed),
+            or with ``groups`` too few groups (``G >= 1 / alpha - 1``).
+
+        Examples
+        --------
+        >>> rng = np.random.default_rng(1)
+        >>> flight = np.repeat(np.arange(150), 20)  # 150 flights, each with its own offset
+        >>> z = rng.normal(size=(150, 4))[flight] + 0.1 * rng.normal(size=(3000, 4))
+        >>> rows = DomainModel.fit(z[:, :2], z[:, 2:], alpha=0.05)
+        >>> by_flight = DomainModel.fit(z[:, :2], z[:, 2:], alpha=0.05, groups=flight)
+        >>> new = rng.normal(size=(200, 4))[np.repeat(np.arange(200), 5)] + 0.1 * rng.normal(size=(1000, 4))
+        >>> float((~rows.contains(new[:, :2], new[:, 2:])).mean()) > 0.2     # far above alpha
+        True
+        >>> float((~by_flight.contains(new[:, :2], new[:, 2:])).mean()) < 0.1
+        True
         """
         z = _stack(x, yhat)
         if not np.isfinite(z).all():
@@ -212,8 +289,15 @@ class DomainModel:
             raise InvalidInputError(f"domain test: k must be a positive integer; got {k!r}")
         if not (isinstance(alpha, (int, float)) and 0.0 < alpha < 1.0):
             raise InvalidInputError(f"domain test: alpha must lie strictly between 0 and 1; got {alpha!r}")
+        labels = None if groups is None else np.asarray(groups)
+        if labels is not None and labels.shape != (len(z),):
+            raise InvalidInputError(
+                f"domain test: {len(z)} calibration inputs but groups of shape {labels.shape}"
+            )
         if len(z) > max_reference:
-            z = z[np.sort(np.random.default_rng(seed).choice(len(z), max_reference, replace=False))]
+            keep = np.sort(np.random.default_rng(seed).choice(len(z), max_reference, replace=False))
+            z = z[keep]
+            labels = None if labels is None else labels[keep]
         n = len(z)
         need = math.ceil((1.0 - alpha) / alpha)
         if n < max(need, k + 1):
@@ -228,19 +312,26 @@ class DomainModel:
         vals = np.maximum(vals, EIGEN_FLOOR * top)
         whitening = (vecs / np.sqrt(vals)).T  # rows: scaled principal directions
         ref = (z - mean) @ whitening.T
-        dist, _ = cKDTree(ref).query(ref, k=k + 1)  # the first neighbour is the point itself
+        tree = cKDTree(ref)
+        if labels is not None:
+            codes, distinct = group_codes(labels, "domain test groups")
+            scores = other_group_distances(tree, ref, codes, k)
+            try:
+                threshold, _ = risk_control_threshold(scores, codes, alpha)
+            except SampleSizeError:
+                raise SampleSizeError(
+                    f"the group-aware domain test at alpha={alpha:g} needs at least "
+                    f"{math.ceil(1 / alpha - 1)} groups; got {len(distinct)} -- use more groups "
+                    "(flights, runs) or a larger --domain-alpha"
+                ) from None
+            return cls(mean=mean, whitening=whitening, reference=ref, k=int(k), alpha=float(alpha),
+                       threshold=threshold, n=n, method=GROUP_METHOD, n_groups=len(distinct))  # fmt: skip
+        dist, _ = tree.query(ref, k=k + 1)  # the first neighbour is the point itself
         loo = np.asarray(dist, dtype=np.float64).reshape(n, k + 1)[:, k]
         rank = marginal_conformal_index(n, alpha)
         threshold = float(np.partition(loo, rank - 1)[rank - 1])
-        return cls(
-            mean=mean,
-            whitening=whitening,
-            reference=ref,
-            k=int(k),
-            alpha=float(alpha),
-            threshold=threshold,
-            n=n,
-        )
+        return cls(mean=mean, whitening=whitening, reference=ref, k=int(k), alpha=float(alpha),
+                   threshold=threshold, n=n)  # fmt: skip
 
     # ------------------------------------------------------------------- queries
     def _whiten(self, z: FloatArray) -> FloatArray:
@@ -360,6 +451,7 @@ class DomainModel:
             "mean": self.mean.tolist(),
             "whitening": self.whitening.tolist(),
             "reference": self.reference,
+            "n_groups": self.n_groups,
         }
 
     @classmethod
@@ -374,6 +466,7 @@ class DomainModel:
             threshold=float(data["threshold"]),
             n=int(data["n"]),
             method=str(data.get("method", METHOD)),
+            n_groups=None if data.get("n_groups") is None else int(data["n_groups"]),
         )
 
 

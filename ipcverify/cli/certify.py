@@ -71,6 +71,11 @@ _STYLE = {
     help="False-alarm rate of the domain-of-validity test fitted on the calibration inputs.",
 )
 @click.option(
+    "--domain-group-column",
+    default=None,
+    help="Fit the domain test with whole groups of this column as the units (default: --group-column).",
+)
+@click.option(
     "--recalibrate", is_flag=True, help="Replace an existing calibration (calibrates the raw network)."
 )
 @click.option(
@@ -90,6 +95,7 @@ def calibrate_cmd(
     group_column: str | None,
     guarantee: str,
     domain_alpha: float,
+    domain_group_column: str | None,
     recalibrate: bool,
     seed: int,
     out: Path,
@@ -114,6 +120,7 @@ def calibrate_cmd(
         guarantee=guarantee,  # type: ignore[arg-type]
         recalibrate=recalibrate,
         domain_alpha=domain_alpha,
+        domain_group_column=domain_group_column,
         seed=seed,
     )
     save_model(cal_model, out)

@@ -130,7 +130,7 @@ def _flight_data(n_flights: int, rows: int, seed: int, bias: float = 0.05) -> Pe
 
 @pytest.fixture(scope="module")
 def net():
-    return IPCModel(IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(8,))))
+    return IPCModel(IPCNetwork(ModelConfig.recipe("v1", x_dim=6, y_dim=3, hidden=(8,))))
 
 
 @pytest.fixture(scope="module")

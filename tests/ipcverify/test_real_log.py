@@ -96,7 +96,10 @@ def test_twenty_runs_cannot_certify_one_percent_at_the_group_level(parts):
     data = parts["calibration"]
     with pytest.raises(SampleSizeError, match=r"groups of column 'run' are too few"):
         calibrate(model, data, 0.01, 0.001, group_column="run")
-    loose = calibrate(model, data, 0.5, 0.1, group_column="run", guarantee="trajectory")
+    # the domain test follows the groups too, and 1 % of a new run needs 99 runs: it says so
+    with pytest.raises(SampleSizeError, match=r"group-aware domain test .* larger --domain-alpha"):
+        calibrate(model, data, 0.5, 0.1, group_column="run", guarantee="trajectory")
+    loose = calibrate(model, data, 0.5, 0.1, group_column="run", guarantee="trajectory", domain_alpha=None)
     summary = loose.require_calibration().summary()
     assert summary.kind == "grouped" and summary.details["group_column"] == "run"
     assert np.isfinite(loose.require_calibration().groups()[0].scale)

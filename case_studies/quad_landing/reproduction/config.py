@@ -9,7 +9,7 @@ machine (:class:`~case_studies.quad_landing.landing.state_machine.LandingParams`
 recipe (:class:`IpcParams`), the sizes of the reproduction (:class:`Sizes`) and of its
 per-configuration Table I (:class:`AblationSizes`). Each
 section's dataclass lives beside the code that uses it. The ``[quick]`` table is an
-overlay with the same layout (``[quick.sizes]``, ``[quick.ablation]``) applied by
+overlay with the same layout (``[quick.sizes]``, ``[quick.ipc]``, ``[quick.ablation]``) applied by
 ``load_reproduce_config(quick=True)``. Unknown sections or keys are errors; nothing is
 ``eval``-ed.
 
@@ -87,7 +87,8 @@ class IpcParams(TomlSection):
     coverage_quantile : float
         The domain of validity fitted at calibration (:class:`ipcverify.domain.DomainModel`)
         flags queries beyond this quantile of the calibration inputs' nearest-neighbour
-        distances: its false-alarm rate is ``1 - coverage_quantile``. The closed loop's
+        distances: its false-alarm rate is ``1 - coverage_quantile`` (fitted by flight when
+        there are enough flights: :func:`~.learn.domain_groups`). The closed loop's
         shift check (:func:`case_studies.quad_landing.reproduction.certified.coverage_check`)
         uses the same test.
 

@@ -40,7 +40,14 @@ from ipcverify.model import IPCModel
 from ipcverify.modelio import load_model, save_model
 from ipcverify.training import train
 
-__all__ = ["learn_ipc", "cached_ipc", "calibration_summary", "certified_epsilon", "flight_level_check"]
+__all__ = [
+    "learn_ipc",
+    "cached_ipc",
+    "calibration_summary",
+    "certified_epsilon",
+    "domain_groups",
+    "flight_level_check",
+]
 
 
 def learn_ipc(
@@ -72,14 +79,38 @@ def learn_ipc(
     torch.set_num_threads(1)  # a small MLP: one thread is fastest, and threads on a busy machine spin
     try:
         model = train(train_data, mc, params.train, progress=progress).model
-        # the domain of validity: queries beyond the calibration inputs' coverage_quantile
-        # nearest-neighbour distance are outside it (false-alarm rate 1 - coverage_quantile)
         alpha = 1.0 - params.coverage_quantile
-        return calibrate(
-            model, calibration_data, params.epsilon, params.delta, mode="pac", domain_alpha=alpha
-        )
+        by = domain_groups(calibration_data, alpha)
+        return calibrate(model, calibration_data, params.epsilon, params.delta, mode="pac",
+                         domain_alpha=alpha, domain_group_column=by)  # fmt: skip
     finally:
         torch.set_num_threads(threads)
+
+
+def domain_groups(calibration_data: PerceptionDataset, alpha: float) -> str | None:
+    """``"flight"`` if the domain of validity can be fitted by flight at false-alarm rate ``alpha``.
+
+    The domain of validity (:class:`ipcverify.domain.DomainModel`) flags a query farther from
+    the calibration inputs than they lie from each other. Rows of one flight lie close to each
+    other, so a row-level threshold flags much of a *new* flight; fitted by flight (each input
+    measured against other flights, a risk-control threshold), a new flight's expected share
+    flagged is at most ``alpha``. That needs at least ``1 / alpha - 1`` flights; with fewer
+    (the ablation's small sets) the row-level test is used. The model's ``domain.method`` and
+    ``domain.n_groups`` record which.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from ipcverify.data import PerceptionDataset
+    >>> z = np.zeros((200, 1))
+    >>> data = PerceptionDataset(z, z, z, extra={"flight": np.arange(200) // 2})
+    >>> domain_groups(data, 0.01), domain_groups(data, 0.001)
+    ('flight', None)
+    """
+    flights = calibration_data.extra.get("flight")
+    if flights is None or len(set(flights.tolist())) < 1.0 / alpha - 1.0:
+        return None
+    return "flight"
 
 
 def certified_epsilon(model: IPCModel) -> float:
@@ -164,7 +195,7 @@ def _key(
         "calibration": calibration_data.content_hash(),
         "params": json.loads(json.dumps(params.to_table(), default=list)),
         "torch": torch.__version__,
-        "model_format": 2,  # 2: the calibrated model carries its domain-of-validity test
+        "model_format": 3,  # 2: the model carries its domain-of-validity test; 3: fitted by flight
     }
 
 

@@ -108,8 +108,8 @@ def bound_words(bound: Mapping[str, Any]) -> str:
     Examples
     --------
     >>> b = {"union_bound": 0.0798, "max_queries": 8, "epsilon": 0.009976, "refined_bound": 0.0791}
-    >>> bound_words(b)[:50]
-    'P(unsafe) ≤ 7.98 % (M = 8 measurements × ε = 0.0099'
+    >>> bound_words(b).split(";")[0]
+    'P(unsafe) ≤ 7.98 % (M = 8 measurements × ε = 0.009976'
     """
     return (
         f"P(unsafe) ≤ {100 * bound['union_bound']:.2f} % (M = {bound['max_queries']} measurements × "
