@@ -1,6 +1,6 @@
 """Benchmark: ``ipcverify certify`` on 10,000 test samples, plus the synthetic acceptance numbers.
 
-Run ``python -m benchmarks.bench_certify``. Target (issue 3): certify on 10,000 test
+Run ``python -m benchmarks.bench_certify``. Target: certify on 10,000 test
 samples, Lipschitz computations included, in <= 10 s on 2 CPU cores. Two timings are
 recorded: the library call :func:`ipcverify.certify.certify_files` in a warm process
 (load files, certify with Theorem 1 and both Lipschitz constants, write JSON and HTML)
