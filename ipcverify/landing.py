@@ -466,10 +466,35 @@ class LandingRule:
         non-finite shape matrix) is answered OUTSIDE_DOMAIN.
         """
         c, C = _arrays(center, shape)
+        return self._decide(c.tolist(), C.ravel().tolist(), c, C)
+
+    def decide_values(self, center: list[float], shape: list[float]) -> QueryDecision:
+        """:meth:`decide` for a centre (3 floats) and a row-major shape matrix (9 floats) as Python floats.
+
+        The same decision, without converting arrays to floats and back (the single-query
+        path of :class:`ipcverify.query.IPCQuery` computes its sets in Python floats).
+
+        Examples
+        --------
+        >>> rule = LandingRule(Box([-0.05, -0.05, 0.0], [0.05, 0.05, 0.05]))
+        >>> d = rule.decide_values([0.0, 0.0, 0.0], [40.0, 0.0, 0.0, 0.0, 40.0, 0.0, 0.0, 0.0, 80.0])
+        >>> d.accept, d.decided_by.name, d.turnoff.tolist()
+        (True, 'BOUND', [0.0, 0.0, 0.0125])
+        """
+        if len(center) != 3 or len(shape) != 9:
+            raise SetError(
+                f"the landing decision needs a 3-D ellipsoid: 3 centre and 9 shape values; got "
+                f"{len(center)} and {len(shape)}"
+            )
+        both = np.array(center + shape, dtype=np.float64)
+        values = both.tolist()  # float64 values whatever the caller's number types
+        return self._decide(values[:3], values[3:], both[:3], both[3:].reshape(3, 3))
+
+    def _decide(self, cl: list[float], flat: list[float], c: FloatArray, C: FloatArray) -> QueryDecision:
+        """:meth:`decide` given the set both as floats (for the bound) and as arrays (for the answer)."""
         bounds = self._bounds  # type: ignore[attr-defined]
         if bounds is not None:
-            cl = c.tolist()
-            r = landing_by_bound(cl, C.ravel().tolist(), *bounds)
+            r = landing_by_bound(cl, flat, *bounds)
             if r is not None:
                 p = np.array((cl[0], cl[1], r.turnoff_z))
                 return QueryDecision(c, C, r.accept, p, DecidedBy.BOUND, True, self.target)

@@ -155,13 +155,49 @@ class LowRankEngine:
     inv_sigma: FloatArray
     lin_weight: FloatArray
     lin_bias: FloatArray
-    #: ``first_weight`` as one (d + n, K * width) matrix: one query's first layer is one product
-    first_flat: FloatArray = field(init=False, repr=False)
+    #: ``first_weight`` and ``first_bias`` split into the hidden units (K, d + n, h1) and the skip
+    #: paths padded with zeros to the width of ``[U | h]`` (K, d + n, nu + n): contiguous blocks
+    hidden_weight: FloatArray = field(init=False, repr=False)
+    hidden_bias: FloatArray = field(init=False, repr=False)
+    skip_weight: FloatArray = field(init=False, repr=False)
+    skip_bias: FloatArray = field(init=False, repr=False)
+    #: one query's first product (see :meth:`single_values`): (d + n, K * h1 + K * (nu + n) + n)
+    single_weight: FloatArray = field(init=False, repr=False)
+    #: its bias, same columns
+    single_bias: FloatArray = field(init=False, repr=False)
+    #: ``lin_bias``, ``sigma`` and ``inv_sigma`` as Python floats, for :meth:`single_values`
+    single_constants: tuple[list[float], list[float], list[float]] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
-        k, d_in, width = self.first_weight.shape
-        flat = np.ascontiguousarray(self.first_weight.transpose(1, 0, 2).reshape(d_in, k * width))
-        object.__setattr__(self, "first_flat", flat)
+        k, n, h1 = self.config.members, self.config.y_dim, self.config.hidden[0]
+
+        def split(w: FloatArray) -> tuple[FloatArray, FloatArray]:
+            """Hidden units (K, rows, h1) and zero-padded skip paths (K, rows, nu + n), contiguous."""
+            pad = np.zeros((k, w.shape[1], n))
+            skip = np.concatenate([w[:, :, h1:], pad], axis=2)
+            return np.ascontiguousarray(w[:, :, :h1]), np.ascontiguousarray(skip)
+
+        hw, sw = split(self.first_weight)
+        hb, sb = split(self.first_bias)
+        for name, value in (
+            ("hidden_weight", hw),
+            ("hidden_bias", hb),
+            ("skip_weight", sw),
+            ("skip_bias", sb),
+        ):
+            object.__setattr__(self, name, value)
+
+        def flat(w: FloatArray) -> FloatArray:
+            return w.transpose(1, 0, 2).reshape(w.shape[1], -1)
+
+        # every member's hidden units, then every member's skip paths, then lin: one block each
+        single_w = np.concatenate([flat(hw), flat(sw), self.lin_weight], axis=1)
+        single_b = np.concatenate([flat(hb)[0], flat(sb)[0], np.zeros(n)])
+        object.__setattr__(self, "single_weight", np.ascontiguousarray(single_w))
+        object.__setattr__(self, "single_bias", single_b)
+        object.__setattr__(
+            self, "single_constants", (self.lin_bias.tolist(), self.sigma.tolist(), self.inv_sigma.tolist())
+        )
 
     @classmethod
     def from_network(cls, network: LowRankEnsemble) -> LowRankEngine:
@@ -207,18 +243,17 @@ class LowRankEngine:
             return np.tanh(h, out=h)
         return np.where(h > 0, h, np.expm1(np.minimum(h, 0.0)))  # elu, alpha = 1
 
-    def _outputs(self, first: FloatArray) -> FloatArray:
-        """Every member's ``[U | h]`` (K, ..., n (n + 1) + n) from the first layer's outputs (K, ..., ·)."""
-        nu = self.config.y_dim * (self.config.y_dim + 1)
-        width = first.shape[-1] - nu
-        h = self._activation(first[..., :width])
+    def _outputs(self, hidden: FloatArray, skip: FloatArray) -> FloatArray:
+        """Every member's ``[U | h]`` (K, ..., n (n + 1) + n) from the first layer's hidden units
+        (K, ..., h1) and skip paths (K, ..., n (n + 1) + n; zero on ``h``), both overwritten."""
+        h = self._activation(hidden)
         last = len(self.weights) - 1
         for i, (w, b) in enumerate(zip(self.weights, self.biases, strict=True)):
             h = h @ w
             h += b
             if i < last:
                 h = self._activation(h)
-        h[..., :nu] += first[..., width:]
+        h += skip  # adding the padding's 0.0 to h changes nothing
         return h
 
     def _moments(self, out: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -238,9 +273,11 @@ class LowRankEngine:
 
     def combined(self, z: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Moment-matched offset (B, n) and covariance (B, n, n) in standardised output units."""
-        first = z @ self.first_weight  # (B, d + n) @ (K, d + n, ·) -> (K, B, ·)
-        first += self.first_bias
-        return self._moments(self._outputs(first))
+        hidden = z @ self.hidden_weight  # (B, d + n) @ (K, d + n, ·) -> (K, B, ·)
+        hidden += self.hidden_bias
+        skip = z @ self.skip_weight
+        skip += self.skip_bias
+        return self._moments(self._outputs(hidden, skip))
 
     def batch(
         self, x: FloatArray, yhat: FloatArray, chunk: int | None = None
@@ -275,18 +312,103 @@ class LowRankEngine:
     def single(self, x: FloatArray, yhat: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Centre (n,) and shape matrix (n, n) for one query given as 1-D float64 arrays.
 
-        The same arithmetic as :meth:`batch` with less per-call overhead: the first layer of
-        every member is one vector-matrix product, the triangular algebra at the end runs on
-        Python floats (:func:`cholesky_inverse_small`).
+        The same arithmetic as :meth:`batch` (up to the summation order of the matrix
+        products) with less per-call overhead; see :meth:`single_values`.
         """
-        z = np.concatenate((x, yhat))
-        z -= self.in_mean
+        center, shape = self.single_values(np.concatenate((x, yhat)), yhat)
+        n = self.config.y_dim
+        both = np.array(center + shape)
+        return both[:n], both[n:].reshape(n, n)
+
+    def single_values(self, z: FloatArray, yhat: FloatArray) -> tuple[list[float], list[float]]:
+        """Centre (n floats) and row-major shape matrix (n * n floats) for one query, as Python floats.
+
+        ``z`` is the query's raw input row ``concat(x, yhat)`` (1-D float64, not modified) and
+        ``yhat`` its estimate. The first layer of every member, the skip paths and the linear
+        centre stage are one vector-matrix product (:attr:`single_weight`: the hidden units, the
+        skip paths and ``lin`` each in one contiguous block), each later layer one stacked product; for
+        ``n = 3`` the moments, the Cholesky factor and its inverse are then plain float
+        arithmetic written out entry by entry (:func:`_moments3`, :func:`_shape3`). The
+        operations are those of :meth:`batch` (means summed over members in order,
+        ``exp`` of twice the clamped log-diagonal, Cholesky-Banachiewicz, forward substitution,
+        ``yhat + lin(z) + sigma * mean``) up to the summation order of the products.
+        """
+        z = z - self.in_mean
         z *= self.in_scale
-        k = self.config.members
+        k, n = self.config.members, self.config.y_dim
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-            first = (z @ self.first_flat).reshape(k, 1, -1)
-            first += self.first_bias
-            mean, cov = self._moments(self._outputs(first))
-            center = yhat + z @ self.lin_weight + self.lin_bias + self.sigma * mean[0]
-            inv = cholesky_inverse_small(cov[0].tolist())
-        return center, np.array(inv) * self.inv_sigma
+            first = z @ self.single_weight
+            first += self.single_bias
+            nh = k * self.config.hidden[0]
+            h = self._outputs(first[:nh].reshape(k, 1, -1), first[nh:-n].reshape(k, 1, -1))
+            if n == 3:
+                mean, cov = _moments3(h.reshape(k, -1).tolist())
+            else:
+                m, c = self._moments(h)
+                mean, cov = m[0].tolist(), c[0].ravel().tolist()
+        lin_bias, sigma, inv_sigma = self.single_constants
+        center = [
+            y + w + b + s * m
+            for y, w, b, s, m in zip(yhat.tolist(), first[-n:].tolist(), lin_bias, sigma, mean, strict=True)
+        ]
+        if n == 3:
+            return center, _shape3(cov, inv_sigma)
+        inv = cholesky_inverse_small([cov[i * n : (i + 1) * n] for i in range(n)])
+        return center, [v * inv_sigma[j] for row in inv for j, v in enumerate(row)]
+
+
+def _moments3(rows: list[list[float]]) -> tuple[list[float], list[float]]:
+    """:meth:`LowRankEngine._moments` for one query and ``n = 3``, on Python floats.
+
+    ``rows`` holds every member's ``[U | h]`` (15 floats: ``U = [V | o]`` row-major, then the
+    log-diagonal). Returns the mean offset and the covariance (row-major, 9 floats).
+    """
+    k = len(rows)
+    m0 = m1 = m2 = 0.0
+    for r in rows:
+        m0 += r[3]
+        m1 += r[7]
+        m2 += r[11]
+    m0, m1, m2 = m0 / k, m1 / k, m2 / k
+    s00 = s10 = s11 = s20 = s21 = s22 = e0 = e1 = e2 = 0.0
+    hi = LOGDIAG_CLAMP
+    lo = -hi
+    exp = math.exp
+    for a0, a1, a2, o0, b0, b1, b2, o1, c0, c1, c2, o2, h0, h1, h2 in rows:
+        o0, o1, o2 = o0 - m0, o1 - m1, o2 - m2
+        s00 += a0 * a0 + a1 * a1 + a2 * a2 + o0 * o0
+        s10 += b0 * a0 + b1 * a1 + b2 * a2 + o1 * o0
+        s11 += b0 * b0 + b1 * b1 + b2 * b2 + o1 * o1
+        s20 += c0 * a0 + c1 * a1 + c2 * a2 + o2 * o0
+        s21 += c0 * b0 + c1 * b1 + c2 * b2 + o2 * o1
+        s22 += c0 * c0 + c1 * c1 + c2 * c2 + o2 * o2
+        # the clamp of np.minimum(np.maximum(h, lo), hi), NaN kept (exp(NaN) is NaN)
+        e0 += exp(2.0 * (lo if h0 < lo else hi if h0 > hi else h0))
+        e1 += exp(2.0 * (lo if h1 < lo else hi if h1 > hi else h1))
+        e2 += exp(2.0 * (lo if h2 < lo else hi if h2 > hi else h2))
+    s10, s20, s21 = s10 / k, s20 / k, s21 / k
+    return [m0, m1, m2], [s00 / k + e0 / k, s10, s20, s10, s11 / k + e1 / k, s21, s20, s21, s22 / k + e2 / k]
+
+
+def _shape3(S: list[float], inv_sigma: list[float]) -> list[float]:
+    """``chol(S)^-1 diag(inv_sigma)`` for one 3 x 3 SPD matrix ``S`` (row-major), row-major.
+
+    :func:`cholesky_lower` then :func:`lower_inverse` written out for ``n = 3``, in the same
+    order of operations; a non-positive pivot gives NaN entries (never an exception).
+    """
+    s00, _, _, s10, s11, _, s20, s21, s22 = S
+    nan = math.nan
+    l00 = math.sqrt(s00) if s00 > 0.0 else nan
+    l10 = s10 / l00
+    l20 = s20 / l00
+    t = s11 - l10 * l10
+    l11 = math.sqrt(t) if t > 0.0 else nan
+    l21 = (s21 - l20 * l10) / l11
+    t = s22 - (l20 * l20 + l21 * l21)
+    l22 = math.sqrt(t) if t > 0.0 else nan
+    x00, x11, x22 = 1.0 / l00, 1.0 / l11, 1.0 / l22
+    x10 = -(l10 * x00) / l11
+    x21 = -(l21 * x11) / l22
+    x20 = -(l20 * x00 + l21 * x10) / l22
+    i0, i1, i2 = inv_sigma
+    return [x00 * i0, 0.0, 0.0, x10 * i0, x11 * i1, 0.0, x20 * i0, x21 * i1, x22 * i2]

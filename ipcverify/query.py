@@ -10,7 +10,8 @@ per-call overhead as the sound answer allows:
   calibration. No :class:`~ipcverify.sets.Ellipsoid` is built, so there is no
   validation SVD on the hot path; the inputs are checked once, and for ``n = 3`` with the
   Cholesky head the output heads are plain float arithmetic (the default ensemble's engine,
-  :mod:`ipcverify.lowrank_engine`, has its own one-query path). The returned centre and shape
+  :mod:`ipcverify.lowrank_engine`, has its own one-query path,
+  :meth:`~ipcverify.lowrank_engine.LowRankEngine.single_values`). The returned centre and shape
   are plain arrays.
 * :meth:`IPCQuery.decide` turns the ellipsoid (optionally moved to another frame by the
   caller's ``transform``) into the landing decision of record of
@@ -18,6 +19,8 @@ per-call overhead as the sound answer allows:
   model's domain test (:meth:`ipcverify.domain.DomainModel.contains_one`). **Every answer is
   proven** (Proposition 1, ``proofs/proposition1.md``): in float64 with a rigorous rounding
   bound (``proofs/float_landing.md``), or, inside the rounding band, in exact arithmetic.
+  Without a ``transform`` the set stays in Python floats from the engine to the bound
+  (:meth:`ipcverify.landing.LandingRule.decide_values`: the same rule on the same numbers).
 * :meth:`IPCQuery.decide_float` is the float rule alone: fast in every case, **not a proof**.
 
 Examples
@@ -157,22 +160,14 @@ class IPCQuery:
         return self._sets(*self._inputs(x, yhat))
 
     def _sets(self, xa: FloatArray, ya: FloatArray, z: FloatArray) -> tuple[FloatArray, FloatArray]:
-        if self._lowrank is not None:  # type: ignore[attr-defined]
-            return self._lowrank_sets(xa, ya)
+        values = self._values(xa, ya, z)
+        if values is not None:
+            return self._arrays(*values)
         eng: InferenceEngine = self._engine  # type: ignore[attr-defined]
         h = z - eng.in_mean
         h *= eng.in_scale
         out = eng.mlp(h)  # the engine's own MLP evaluation (1-D input: one query)
-        if self._fast3:  # type: ignore[attr-defined]
-            c3, flat = self._heads3(out.tolist(), ya)
-            scale: float | None = self._scale  # type: ignore[attr-defined]
-            if scale is None and self.model.calibration is not None:
-                scale = float(self.model.calibration.scale_for(xa[None], ya[None])[0])
-            if scale is not None:
-                flat = [v / scale for v in flat]
-            both = np.array(c3 + flat)  # one allocation for the centre and the matrix
-            return both[:3], both[3:].reshape(3, 3)
-        n: int = self._n  # type: ignore[attr-defined]
+        n = self._n  # type: ignore[attr-defined]
         center = (ya if self._offset else eng.y_mean) + eng.sigma * out[:n]  # type: ignore[attr-defined]
         if self._full:  # type: ignore[attr-defined]
             L = out[n:].reshape(n, n)
@@ -190,16 +185,35 @@ class IPCQuery:
             shape /= float(self.model.calibration.scale_for(xa[None], ya[None])[0])
         return center, shape
 
-    def _lowrank_sets(self, xa: FloatArray, ya: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """:meth:`_sets` for the low-rank ensemble: its engine's one-query path, then the calibration."""
-        eng: LowRankEngine = self._lowrank  # type: ignore[attr-defined]
-        center, shape = eng.single(xa, ya)
+    def _arrays(self, center: list[float], flat: list[float]) -> tuple[FloatArray, FloatArray]:
+        """Centre (n,) and shape (n, n) arrays from Python floats, in one allocation."""
+        n: int = self._n  # type: ignore[attr-defined]
+        both = np.array(center + flat)
+        return both[:n], both[n:].reshape(n, n)
+
+    def _values(
+        self, xa: FloatArray, ya: FloatArray, z: FloatArray
+    ) -> tuple[list[float], list[float]] | None:
+        """Calibrated centre and row-major shape as Python floats, where a float path exists.
+
+        The low-rank ensemble (its engine's :meth:`~ipcverify.lowrank_engine.LowRankEngine.single_values`)
+        and the Cholesky head for ``n = 3`` (:meth:`_heads3`); None for the other heads.
+        """
+        if self._lowrank is not None:  # type: ignore[attr-defined]
+            center, flat = self._lowrank.single_values(z, ya)  # type: ignore[attr-defined]
+        elif self._fast3:  # type: ignore[attr-defined]
+            eng: InferenceEngine = self._engine  # type: ignore[attr-defined]
+            h = z - eng.in_mean
+            h *= eng.in_scale
+            center, flat = self._heads3(eng.mlp(h).tolist(), ya)
+        else:
+            return None
         scale: float | None = self._scale  # type: ignore[attr-defined]
+        if scale is None and self.model.calibration is not None:
+            scale = float(self.model.calibration.scale_for(xa[None], ya[None])[0])
         if scale is not None:
-            shape /= scale
-        elif self.model.calibration is not None:
-            shape /= float(self.model.calibration.scale_for(xa[None], ya[None])[0])
-        return center, shape
+            flat = [v / scale for v in flat]
+        return center, flat
 
     def _heads3(self, out: list[float], ya: FloatArray) -> tuple[list[float], list[float]]:
         """Centre and row-major ``L diag(1/sigma)`` for n = 3, Cholesky head, in plain floats.
@@ -254,6 +268,14 @@ class IPCQuery:
         SetError
             If the model's ``n`` is not 3 (the landing target is 3-D).
         """
+        if transform is None and self._n == 3:  # type: ignore[attr-defined]
+            xa, ya, z = self._inputs(x, yhat)
+            values = self._values(xa, ya, z)
+            if values is not None:  # no arrays until the answer is known
+                domain = self.model.domain
+                if domain is not None and not domain.contains_one(z):
+                    return self.rule.outside_domain(*self._arrays(*values))
+                return self.rule.decide_values(*values)
         center, shape, z = self._ellipsoid_in_frame(x, yhat, transform)
         domain = self.model.domain
         if domain is not None and not domain.contains_one(z):

@@ -8,7 +8,7 @@ import pytest
 from ipcverify.architecture import ModelConfig
 from ipcverify.calibrate import calibrate
 from ipcverify.errors import InvalidInputError, SetError
-from ipcverify.landing import check_landing, landing_accept_float, landing_decision
+from ipcverify.landing import LandingRule, check_landing, landing_accept_float, landing_decision
 from ipcverify.model import IPCModel, IPCNetwork
 from ipcverify.query import IPCQuery
 from ipcverify.sets import Box, Ellipsoid
@@ -82,6 +82,11 @@ def test_decide_agrees_with_the_exact_decision_near_the_threshold(trained):
         d = q.rule.decide(e.centers[0], e.shapes[0])
         exact = landing_decision(e, G)
         assert d.accept == exact.accept
+        # the same rule on Python floats (the query path's form): the same answer
+        dv = q.rule.decide_values(e.centers[0].tolist(), e.shapes[0].ravel().tolist())
+        assert (dv.accept, dv.decided_by, dv.verdict) == (d.accept, d.decided_by, d.verdict)
+        np.testing.assert_array_equal(dv.turnoff, d.turnoff)
+        np.testing.assert_array_equal(dv.shape, e.shapes[0])
         if d.accept:
             accepted += 1
             assert d.proven and check_landing(d.proof).status.name == "PROVEN"
@@ -111,6 +116,36 @@ def test_decide_end_to_end_runs_and_reports_a_proof_only_for_accepts(trained, da
         assert d.proven == d.accept
         assert d.turnoff.shape == (3,)
         assert q.decide_float(test.x[i], test.yhat[i]).accept >= d.accept  # float never stricter here
+
+
+def test_decide_is_the_rules_decision_on_the_querys_own_set(trained, data):
+    """decide() keeps the set in Python floats until the answer: the answer of the array path."""
+    q_small = IPCQuery(calibrate(trained, data[1], 0.05, 0.01), G)
+    q_wide = IPCQuery(q_small.model, Box([-20.0, -20.0, -20.0], [20.0, 20.0, 20.0]))
+    q_tiny = IPCQuery(q_small.model, Box([-1e-6, -1e-6, 0.0], [1e-6, 1e-6, 1e-6]))
+    test = make_lagged_perception(40, seed=6)
+    verdicts = set()
+    for q in (q_small, q_wide, q_tiny):
+        for i in range(len(test)):
+            d = q.decide(test.x[i], test.yhat[i])
+            ref = q.decide(test.x[i], test.yhat[i], transform=lambda c, C: (c, C))  # the array path
+            c, C = q.ellipsoid(test.x[i], test.yhat[i])
+            assert (d.accept, d.decided_by, d.verdict, d.proven) == (
+                ref.accept,
+                ref.decided_by,
+                ref.verdict,
+                ref.proven,
+            )
+            for a, b in ((d.turnoff, ref.turnoff), (d.center, c), (d.shape, C)):
+                np.testing.assert_array_equal(a, b)
+            verdicts.add(d.verdict.name)
+    assert {"ACCEPT", "REJECT"} <= verdicts
+
+
+def test_the_rule_on_floats_needs_three_and_nine_values():
+    rule = LandingRule(G)
+    with pytest.raises(SetError, match="3 centre and 9 shape values; got 2 and 9"):
+        rule.decide_values([0.0, 0.0], [1.0] * 9)
 
 
 @pytest.mark.parametrize(
