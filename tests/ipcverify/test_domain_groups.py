@@ -16,6 +16,7 @@ import pandas as pd
 import pytest
 from scipy.spatial import cKDTree
 
+from benchmarks.bench_domain_groups import correlated_flights, figure, run
 from ipcverify.architecture import ModelConfig
 from ipcverify.calibrate import calibrate
 from ipcverify.data import PerceptionDataset
@@ -27,13 +28,6 @@ from ipcverify.modelio import load_model, save_model
 ALPHA = 0.05
 #: Failure probability of the Bernstein bound on the mean flagged share below.
 LEVEL = 1e-3
-
-
-def _flights(rng: np.random.Generator, n_flights: int, per: int = 20) -> tuple[np.ndarray, np.ndarray]:
-    """Inputs (n_flights * per, 5): each flight has its own offset, its rows scatter around it."""
-    labels = np.repeat(np.arange(n_flights), per)
-    offsets = rng.normal(size=(n_flights, 5))
-    return offsets[labels] + 0.15 * rng.normal(size=(len(labels), 5)), labels
 
 
 def _flagged_share(dom: DomainModel, z: np.ndarray) -> float:
@@ -60,8 +54,8 @@ def test_a_new_flight_is_flagged_at_most_alpha_on_average_where_the_row_level_te
     draws, shares, row_shares = 200, [], []
     for seed in range(draws):
         rng = np.random.default_rng(seed)
-        z, labels = _flights(rng, 60)
-        new, _ = _flights(rng, 5)  # five new flights, exchangeable with the calibration flights
+        z, labels = correlated_flights(rng, 60)
+        new, _ = correlated_flights(rng, 5)  # five new flights, exchangeable with the calibration flights
         by_flight = DomainModel.fit(z[:, :3], z[:, 3:], alpha=ALPHA, groups=labels)
         shares.append(_flagged_share(by_flight, new))
         if seed < 20:
@@ -74,16 +68,16 @@ def test_a_new_flight_is_flagged_at_most_alpha_on_average_where_the_row_level_te
 
 def test_the_group_aware_test_still_flags_a_shift():
     rng = np.random.default_rng(3)
-    z, labels = _flights(rng, 100)
+    z, labels = correlated_flights(rng, 100)
     dom = DomainModel.fit(z[:, :3], z[:, 3:], alpha=ALPHA, groups=labels)
-    shifted, _ = _flights(rng, 5)
+    shifted, _ = correlated_flights(rng, 5)
     assert _flagged_share(dom, 4.0 * shifted) > 0.8  # ranges x4: mostly far from every flight
     assert dom.n_groups == 100 and "leave-one-group-out" in dom.method
 
 
 def test_too_few_groups_and_bad_labels_are_refused():
     rng = np.random.default_rng(4)
-    z, labels = _flights(rng, 10)
+    z, labels = correlated_flights(rng, 10)
     with pytest.raises(SampleSizeError, match="at least 19 groups"):
         DomainModel.fit(z[:, :3], z[:, 3:], alpha=ALPHA, groups=labels)
     with pytest.raises(InvalidInputError, match="groups of shape"):
@@ -97,7 +91,7 @@ def _dataset(z: np.ndarray, labels: np.ndarray, rng: np.random.Generator) -> Per
 
 def test_calibrate_fits_the_domain_by_flight_and_the_model_file_keeps_it(tmp_path):
     rng = np.random.default_rng(5)
-    z, labels = _flights(rng, 120)
+    z, labels = correlated_flights(rng, 120)
     data = _dataset(z, labels, rng)
     net = IPCModel(IPCNetwork(ModelConfig.recipe("v1", x_dim=3, y_dim=2, hidden=(8,))))
     rows = calibrate(net, data, 0.05, 0.01)
@@ -114,7 +108,7 @@ def test_calibrate_fits_the_domain_by_flight_and_the_model_file_keeps_it(tmp_pat
 
 def test_cli_calibrate_domain_group_column(tmp_path, run_cli):
     rng = np.random.default_rng(6)
-    z, labels = _flights(rng, 120)
+    z, labels = correlated_flights(rng, 120)
     frame = pd.DataFrame(z[:, :3], columns=[f"x_{i}" for i in range(3)])
     for i in range(2):
         frame[f"y_{i}"] = z[:, 3 + i] + 0.01 * rng.normal(size=len(z))
@@ -131,3 +125,12 @@ def test_cli_calibrate_domain_group_column(tmp_path, run_cli):
     assert dom is not None and dom.n_groups == 120
     res = run_cli(*args, "--domain-group-column", "nope")
     assert res.code == 2 and "nope" in res.stderr and len(res.stderr.strip().splitlines()) == 1
+
+
+def test_the_benchmark_reports_both_fits_and_draws_its_figure(tmp_path):
+    result = run(draws=4)
+    mean = result["mean_flagged_share"]
+    assert set(mean) == {"rows_new", "flight_new", "rows_shifted", "flight_shifted"}
+    assert mean["rows_new"] > mean["flight_new"] and min(mean["rows_shifted"], mean["flight_shifted"]) > 0.5
+    figure(result, tmp_path / "f.png")
+    assert (tmp_path / "f.png").stat().st_size > 10_000
