@@ -36,6 +36,7 @@ from torch import nn
 
 from ipcverify.architecture import LOGDIAG_CLAMP, ModelConfig
 from ipcverify.errors import InvalidInputError
+from ipcverify.scoring import ScoredNetwork
 
 __all__ = [
     "SIGMA_FLOOR",
@@ -157,7 +158,7 @@ def fit_linear_stage(
     return sol[:d], sol[d]
 
 
-class LowRankEnsemble(nn.Module):
+class LowRankEnsemble(ScoredNetwork):
     """The default network: ``members`` low-rank-head MLPs sharing one normalisation (see the module).
 
     The normalisation and the linear centre stage are float64 buffers; the members'
@@ -287,11 +288,3 @@ class LowRankEnsemble(nn.Module):
             - 2.0 * torch.log(self.sigma).sum()
         )
         return center.to(x.dtype), shape.to(x.dtype), logdet.to(x.dtype)
-
-    def score(
-        self, x: torch.Tensor, y: torch.Tensor, yhat: torch.Tensor
-    ) -> tuple[torch.Tensor, torch.Tensor]:
-        """``g = ||C (y - c)||`` (B,) and ``log det(C^T C)`` (B,)."""
-        center, C, logdet = self(x, yhat)
-        g = torch.linalg.vector_norm(torch.einsum("bij,bj->bi", C, y - center), dim=1)
-        return g, logdet

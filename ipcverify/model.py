@@ -38,6 +38,7 @@ from ipcverify.inference import InferenceEngine
 from ipcverify.lowrank import LowRankEnsemble
 from ipcverify.lowrank_engine import LowRankEngine
 from ipcverify.nonsingular import checked_ellipsoid
+from ipcverify.scoring import ScoredNetwork
 from ipcverify.sets import Ellipsoid
 
 __all__ = ["IPCNetwork", "IPCModel", "Network", "build_network", "engine_for", "network_fingerprint"]
@@ -46,7 +47,7 @@ FloatArray = NDArray[np.float64]
 _ACTIVATIONS: dict[str, type[nn.Module]] = {"relu": nn.ReLU, "tanh": nn.Tanh, "elu": nn.ELU}
 
 
-class IPCNetwork(nn.Module):
+class IPCNetwork(ScoredNetwork):
     """The neural network behind an IPC (float32, CPU).
 
     ``body`` is a plain :class:`torch.nn.Sequential` MLP; normalisation buffers
@@ -145,14 +146,6 @@ class IPCNetwork(nn.Module):
         C = L * inv_sigma
         logdet = logdet_L2 + 2.0 * torch.log(inv_sigma).sum()
         return center, C, logdet
-
-    def score(
-        self, x: torch.Tensor, y: torch.Tensor, yhat: torch.Tensor
-    ) -> tuple[torch.Tensor, torch.Tensor]:
-        """``g = ||C (y - c)||`` (B,) and ``log det(C^T C)`` (B,)."""
-        center, C, logdet = self(x, yhat)
-        g = torch.linalg.vector_norm(torch.einsum("bij,bj->bi", C, y - center), dim=1)
-        return g, logdet
 
 
 #: The networks an :class:`IPCModel` can hold.
