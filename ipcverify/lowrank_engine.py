@@ -18,21 +18,16 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-import torch
 from numpy.typing import NDArray
 
 from ipcverify.architecture import LOGDIAG_CLAMP, ModelConfig
 from ipcverify.errors import InvalidInputError
-from ipcverify.inference import CHUNK
+from ipcverify.inference import CHUNK, float64_array
 from ipcverify.lowrank import LowRankEnsemble
 
 __all__ = ["LowRankEngine", "cholesky_lower", "lower_inverse", "cholesky_inverse_small"]
 
 FloatArray = NDArray[np.float64]
-
-
-def _np(t: torch.Tensor) -> FloatArray:
-    return np.ascontiguousarray(t.detach().cpu().double().numpy())
 
 
 def cholesky_lower(S: FloatArray) -> FloatArray:
@@ -208,31 +203,34 @@ class LowRankEngine:
         d_in = cfg.x_dim + n
         skip_w, skip_b = np.zeros((k, d_in, n)), np.zeros((k, 1, n))
         if network.center_skip is not None:
-            skip_w, skip_b = _np(network.center_skip.weight), _np(network.center_skip.bias)
+            skip_w, skip_b = (
+                float64_array(network.center_skip.weight),
+                float64_array(network.center_skip.bias),
+            )
         u = _u_layout(n)
         # skip paths [centre (n) | factor (n^2)] -> U layout
-        sw = np.concatenate([skip_w, _np(network.factor_skip.weight)], axis=2)[..., u]
-        sb = np.concatenate([skip_b, _np(network.factor_skip.bias)], axis=2)[..., u]
+        sw = np.concatenate([skip_w, float64_array(network.factor_skip.weight)], axis=2)[..., u]
+        sb = np.concatenate([skip_b, float64_array(network.factor_skip.bias)], axis=2)[..., u]
         # last layer [o (n) | h (n) | V (n^2)] -> [U | h]
         order = np.concatenate(
             [np.concatenate([np.arange(n), np.arange(2 * n, 2 * n + n * n)])[u], n + np.arange(n)]
         )
-        weights = [_np(m.weight) for m in layers[1:]]  # type: ignore[arg-type]
-        biases = [_np(m.bias) for m in layers[1:]]  # type: ignore[arg-type]
+        weights = [float64_array(m.weight) for m in layers[1:]]  # type: ignore[arg-type]
+        biases = [float64_array(m.bias) for m in layers[1:]]  # type: ignore[arg-type]
         weights[-1], biases[-1] = weights[-1][..., order], biases[-1][..., order]
-        sigma = _np(network.sigma)
+        sigma = float64_array(network.sigma)
         return cls(
             config=cfg,
-            first_weight=np.ascontiguousarray(np.concatenate([_np(layers[0].weight), sw], axis=2)),  # type: ignore[arg-type]
-            first_bias=np.ascontiguousarray(np.concatenate([_np(layers[0].bias), sb], axis=2)),  # type: ignore[arg-type]
+            first_weight=np.ascontiguousarray(np.concatenate([float64_array(layers[0].weight), sw], axis=2)),  # type: ignore[arg-type]
+            first_bias=np.ascontiguousarray(np.concatenate([float64_array(layers[0].bias), sb], axis=2)),  # type: ignore[arg-type]
             weights=tuple(np.ascontiguousarray(w) for w in weights),
             biases=tuple(np.ascontiguousarray(b) for b in biases),
-            in_mean=_np(network.in_mean),
-            in_scale=1.0 / _np(network.in_std),
+            in_mean=float64_array(network.in_mean),
+            in_scale=1.0 / float64_array(network.in_std),
             sigma=sigma,
             inv_sigma=1.0 / sigma,
-            lin_weight=_np(network.lin_weight),
-            lin_bias=_np(network.lin_bias),
+            lin_weight=float64_array(network.lin_weight),
+            lin_bias=float64_array(network.lin_bias),
         )
 
     def _activation(self, h: FloatArray) -> FloatArray:
