@@ -20,9 +20,13 @@ from numpy.typing import NDArray
 
 from case_studies.quad_landing.landing.scenario import Scenario
 
-__all__ = ["Outcome", "QueryRecord", "LandingRun"]
+__all__ = ["INTO_PAD_REASON", "Outcome", "QueryRecord", "LandingRun"]
 
 FloatArray = NDArray[np.float64]
+
+
+#: Why a run that drove the vehicle into the pad is unsafe (``state_machine.into_pad``).
+INTO_PAD_REASON = "flew into the pad: the turn-off target lies below the pad's surface (motors on at contact)"
 
 
 class Outcome(Enum):
@@ -37,7 +41,8 @@ class Outcome(Enum):
         """One sentence on the outcome."""
         return {
             Outcome.SAFE: "the motors were cut inside {y} + G",
-            Outcome.UNSAFE: "the motors were cut outside {y} + G: a safety violation",
+            Outcome.UNSAFE: "the motors were cut outside {y} + G, or the vehicle flew into the pad: "
+            "a safety violation",
             Outcome.ABORTED: "no landing (cap, no detection or no settle): the motors stay on; not safe",
         }[self]
 
@@ -153,6 +158,11 @@ class LandingRun:
     def pad(self) -> FloatArray:
         """True pad position."""
         return self.scenario.pad.position
+
+    @property
+    def hit_pad(self) -> bool:
+        """Whether the run drove the vehicle into the pad (an UNSAFE run with its own reason)."""
+        return self.outcome is Outcome.UNSAFE and self.reason == INTO_PAD_REASON
 
     @property
     def offset(self) -> FloatArray | None:

@@ -22,13 +22,16 @@ States (paper, Fig. "state machine"), preceded by a search:
 * **Landing** — fly horizontally above ``P``, then down to ``P + tau e_z``; cut the motors
   only once settled there and ``p - P`` lies in the cut box ``K = G - G_tau``
   (:func:`cut_box`: ``[-tau, tau]^2 x [0, 2 tau]``, checked in exact rational arithmetic),
-  so that ``p - y = (p - P) + (P - y) in K + G_tau = G``; otherwise abort.
+  so that ``p - y = (p - P) + (P - y) in K + G_tau = G``; otherwise abort. A target
+  ``P + tau e_z`` below the pad's surface (a pad perceived too low) drives the vehicle into
+  the pad: the run is **unsafe** (:func:`into_pad`), whatever the cut test says.
 
 A run that reaches ``max_measurements`` without accepting, finds no pad during the
 transit, or cannot settle at ``P_turnoff`` is **aborted** (the motors stay on): never
 counted as safe. A landed run is **safe** iff the position at the motor-off command
 lies in ``{y} + G`` (``proofs/landing_safety.md``); the rest position after the fall is
-recorded too.
+recorded too. A run that flies into the pad is **unsafe**; its position at contact is
+recorded as the cut position.
 
 Examples
 --------
@@ -40,7 +43,9 @@ Examples
 >>> sc = draw_scenario(0, seed=0, params=ScenarioParams.defaults(), config=cfg)
 >>> run = run_landing(sc, TrivialContract(), sim_config=cfg, params=LandingParams.defaults(buffer_size=1))
 >>> run.outcome.name, run.n_queries   # the baseline trusts its first measurement
-('SAFE', 1)
+('UNSAFE', 1)
+>>> run.reason   # OpenCV's default detector reads the range long: the pad is perceived too low
+"flew into the pad: the turn-off target lies below the pad's surface (motors on at contact)"
 """
 
 from __future__ import annotations
@@ -52,7 +57,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from case_studies.quad_landing.landing.contracts import Contract
-from case_studies.quad_landing.landing.runs import LandingRun, Outcome, QueryRecord
+from case_studies.quad_landing.landing.runs import INTO_PAD_REASON, LandingRun, Outcome, QueryRecord
 from case_studies.quad_landing.landing.scenario import Scenario, camera_offset_z
 from case_studies.quad_landing.settings import REPRODUCE_PATH, ConfigError, TomlSection, check_positive
 from case_studies.quad_landing.sim.config import SimConfig
@@ -73,6 +78,7 @@ __all__ = [
     "cut_allowed",
     "new_waypoint",
     "in_target",
+    "into_pad",
     "run_landing",
 ]
 
@@ -231,6 +237,23 @@ def cut_allowed(position: FloatArray, turnoff: FloatArray, tau: float, target: B
     lower, upper = cut_box(tau, target)
     d = [a - b for a, b in zip(exact_vector(position), exact_vector(turnoff), strict=True)]
     return all(lo <= v <= hi for lo, v, hi in zip(lower, d, upper, strict=True))
+
+
+def into_pad(turnoff: FloatArray, tau: float, pad: FloatArray) -> bool:
+    """Whether flying to ``P + tau e_z`` drives the vehicle into the pad: its height is below ``y_z``.
+
+    ``p - y`` in ``G`` needs ``p_z >= y_z``: the vehicle's reference point never goes below the
+    pad's surface (the paper's New Waypoint rule exists "to avoid hitting the landing pad").
+    A turn-off target below it is a collision, counted UNSAFE whatever the exact cut test
+    says (``proofs/landing_safety.md``, Corollary 1: it needs ``y`` outside the accepted set).
+
+    Examples
+    --------
+    >>> pad = np.zeros(3)
+    >>> into_pad(np.array([0.0, 0.0, -0.004]), 0.005, pad), into_pad(np.array([0.0, 0.0, -0.006]), 0.005, pad)
+    (False, True)
+    """
+    return bool(turnoff[2] + tau < pad[2])
 
 
 def in_target(offset: FloatArray, target: Box) -> bool:
@@ -415,6 +438,9 @@ def run_landing(
     decision = accepted
     turnoff = decision.turnoff.copy()
     verified = decision.proof is not None and check_landing(decision.proof).status is Status.PROVEN
+    # A target below the pad's surface drives the vehicle into the pad (the simulator's
+    # judgement, like in_target: the machine does not know y); see into_pad.
+    collides = into_pad(turnoff, tau, scenario.pad.position)
     goal = clamp_to_workspace(turnoff + np.array([0.0, 0.0, tau]), flight)
     here = flight.state[:3]
     above = clamp_to_workspace(np.array([goal[0], goal[1], max(here[2], goal[2])]), flight)
@@ -435,6 +461,8 @@ def run_landing(
         on_frame=log,
     )
     cut = flight.state[:3]
+    if collides:
+        return finish(Outcome.UNSAFE, INTO_PAD_REASON, turnoff, cut, cut.copy(), verified)
     if not (leg.settled and cut_allowed(cut, turnoff, tau, G)):
         return finish(
             Outcome.ABORTED,

@@ -213,6 +213,9 @@ class CampaignSummary:
         Mean real seconds per run.
     reasons : tuple of str or None
         Why the aborted runs aborted (distinct, sorted).
+    unsafe_into_pad : int
+        How many of the unsafe runs drove the vehicle into the pad (a pad perceived below its
+        surface; ``state_machine.into_pad``) rather than cutting the motors outside ``G``.
     """
 
     runs: int
@@ -232,15 +235,18 @@ class CampaignSummary:
     max_queries: int | None = None
     wall_time_per_run: float | None = None
     reasons: tuple[str, ...] | None = None
+    unsafe_into_pad: int = 0
 
     def __post_init__(self) -> None:
         if (
             self.safe + self.unsafe + self.aborted != self.runs
             or min(self.safe, self.unsafe, self.aborted) < 0
+            or not 0 <= self.unsafe_into_pad <= self.unsafe
         ):
             raise InvalidInputError(
-                f"safe + unsafe + aborted must equal runs, got {self.safe} + {self.unsafe} + "
-                f"{self.aborted} != {self.runs}"
+                "safe + unsafe + aborted must equal runs (and unsafe_into_pad lie in [0, unsafe]), got "
+                f"{self.safe} + {self.unsafe} + {self.aborted} vs {self.runs}, "
+                f"{self.unsafe_into_pad} into the pad"
             )
 
     def to_dict(self) -> dict[str, Any]:
@@ -279,4 +285,5 @@ def summarize(runs: Sequence[LandingRun], delta: float = 0.05) -> CampaignSummar
         max_queries=int(max(r.n_queries for r in runs)),
         wall_time_per_run=float(np.mean([r.wall_time for r in runs])),
         reasons=tuple(sorted({r.reason for r in runs if r.outcome is Outcome.ABORTED})),
+        unsafe_into_pad=sum(1 for r in runs if r.hit_pad),
     )

@@ -131,8 +131,9 @@ def plot_topview(ipc: Sequence[LandingRun], baseline: Sequence[LandingRun]) -> F
     for i, run in enumerate(baseline):
         if run.cut_position is not None:
             off = run.cut_position - run.pad
-            ax.scatter(off[0], off[1], marker="x", s=60, color=_color(i), lw=1.8, zorder=4)
-            zoom.scatter(100 * off[0], 100 * off[1], marker="x", s=80, color=_color(i), lw=2.0, zorder=4)
+            mark = "v" if run.hit_pad else "x"  # into the pad: where it hit it
+            ax.scatter(off[0], off[1], marker=mark, s=60, color=_color(i), lw=1.8, zorder=4)
+            zoom.scatter(100 * off[0], 100 * off[1], marker=mark, s=80, color=_color(i), lw=2.0, zorder=4)
     ax.scatter([0], [0], marker="s", s=60, color="black", zorder=6)
     _g_box(ax, scale=1.0)
     ax.set_aspect("equal")
@@ -142,6 +143,7 @@ def plot_topview(ipc: Sequence[LandingRun], baseline: Sequence[LandingRun]) -> F
     handles = [
         Line2D([], [], marker="*", ls="", color="gray", markersize=11, label="IPC: motors off"),
         Line2D([], [], marker="x", ls="", color="gray", markersize=8, mew=2, label="baseline: motors off"),
+        Line2D([], [], marker="v", ls="", color="gray", markersize=8, label="baseline: flew into the pad"),
         Line2D(
             [],
             [],
@@ -170,45 +172,44 @@ def plot_topview(ipc: Sequence[LandingRun], baseline: Sequence[LandingRun]) -> F
     zoom.set_ylim(-lim, lim)
     zoom.set_xlabel("x - y_x (cm)")
     zoom.set_ylabel("y - y_y (cm)")
-    zoom.set_title("where the motors were cut (dashed: G)")
+    zoom.set_title("where the motors were cut or the pad was hit (dashed: G)")
     zoom.grid(alpha=0.3)
     fig.tight_layout()
     return fig
 
 
 def plot_campaign(ipc: Sequence[LandingRun], baseline: Sequence[LandingRun]) -> Figure:
-    """Motor-off offsets of every Monte Carlo run (cm), horizontal and vertical, with ``G``."""
+    """Motor-off offsets of every Monte Carlo run (cm), horizontal and vertical, with ``G``.
+
+    A run that flew into the pad is drawn where it hit the pad (a triangle).
+    """
     fig = Figure(figsize=(11, 4.6))
     top, side = fig.subplots(1, 2)
     for runs, marker, color, label in ((baseline, "x", "#d62728", "baseline"), (ipc, "*", "#1f77b4", "IPC")):
-        off = np.array([100 * r.offset for r in runs if r.offset is not None]).reshape(-1, 3)
         counts = {o: sum(1 for r in runs if r.outcome is o) for o in Outcome}
+        into = sum(1 for r in runs if r.hit_pad)
         text = (
-            f"{label}: {counts[Outcome.SAFE]} safe, {counts[Outcome.UNSAFE]} unsafe, "
-            f"{counts[Outcome.ABORTED]} aborted"
+            f"{label}: {counts[Outcome.SAFE]} safe, {counts[Outcome.UNSAFE]} unsafe"
+            + (f" ({into} into the pad)" if into else "")
+            + f", {counts[Outcome.ABORTED]} aborted"
         )
-        top.scatter(
-            off[:, 0],
-            off[:, 1],
-            marker=marker,
-            s=25 if marker == "x" else 40,
-            color=color,
-            alpha=0.7,
-            label=text,
-        )
-        side.scatter(
-            np.hypot(off[:, 0], off[:, 1]),
-            off[:, 2],
-            marker=marker,
-            s=25 if marker == "x" else 40,
-            color=color,
-            alpha=0.7,
-        )
+        for hit, mark in ((False, marker), (True, "v")):
+            off = np.array(
+                [100 * r.offset for r in runs if r.offset is not None and r.hit_pad == hit]
+            ).reshape(-1, 3)
+            if not len(off):
+                continue
+            size = 40 if mark == "*" else 25
+            top.scatter(off[:, 0], off[:, 1], marker=mark, s=size, color=color, alpha=0.7, label=text)
+            side.scatter(
+                np.hypot(off[:, 0], off[:, 1]), off[:, 2], marker=mark, s=size, color=color, alpha=0.7
+            )
+            text = "_" + text  # one legend entry per contract
     _g_box(top)
     top.set_aspect("equal")
     top.set_xlabel("x - y_x (cm)")
     top.set_ylabel("y - y_y (cm)")
-    top.set_title("motor-off position, top view (dashed: G)")
+    top.set_title("motor-off position (triangles: pad hit), top view (dashed: G)")
     top.legend(fontsize=8, loc="upper left")
     top.grid(alpha=0.3)
     target = LandingParams.defaults().target
@@ -217,7 +218,7 @@ def plot_campaign(ipc: Sequence[LandingRun], baseline: Sequence[LandingRun]) -> 
     side.axvline(5.0, color="black", ls="--", lw=1.0, label="5 cm")
     side.set_xlabel("horizontal distance to the pad centre (cm)")
     side.set_ylabel("height above the pad (cm)")
-    side.set_title("motor-off position, side view")
+    side.set_title("motor-off position (triangles: pad hit), side view")
     side.legend(fontsize=8)
     side.grid(alpha=0.3)
     fig.tight_layout()

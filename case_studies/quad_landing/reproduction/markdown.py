@@ -22,6 +22,7 @@ __all__ = [
     "ablation_markdown",
     "landing_markdown",
     "claim_markdown",
+    "unsafe_cell",
     "bound_words",
     "results_markdown",
 ]
@@ -70,7 +71,19 @@ def _side(s: Mapping[str, Any]) -> str:
     ci = "—" if not iv else f"[{100 * iv[0]:.1f}, {100 * iv[1]:.1f}] %"
     rate = "—" if s.get("unsafe_rate") is None else _pct(s["unsafe_rate"])
     q = "—" if s.get("mean_queries") is None else f"{s['mean_queries']:.2f}"
-    return f"{s['runs']} | {s['safe']} | {s['unsafe']} | {s['aborted']} | {rate} | {ci} | {q}"
+    return f"{s['runs']} | {s['safe']} | {unsafe_cell(s)} | {s['aborted']} | {rate} | {ci} | {q}"
+
+
+def unsafe_cell(s: Mapping[str, Any]) -> str:
+    """The unsafe count, with how many of those runs flew into the pad.
+
+    Examples
+    --------
+    >>> unsafe_cell({"unsafe": 9, "unsafe_into_pad": 6}), unsafe_cell({"unsafe": 2})
+    ('9 (6 into the pad)', '2')
+    """
+    pad = int(s.get("unsafe_into_pad", 0))
+    return f"{s['unsafe']} ({pad} into the pad)" if pad else f"{s['unsafe']}"
 
 
 def landing_markdown(landing: Mapping[str, Any]) -> str:

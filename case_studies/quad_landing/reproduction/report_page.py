@@ -21,6 +21,8 @@ import html
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+from case_studies.quad_landing.reproduction.markdown import unsafe_cell
+
 __all__ = ["render_report"]
 
 _CSS = """
@@ -234,7 +236,7 @@ def _landing_row(side: Mapping[str, Any]) -> list[str]:
     return [
         _e(side["runs"]),
         _e(side["safe"]),
-        _e(side["unsafe"]),
+        _e(unsafe_cell(side)),
         _e(side["aborted"]),
         _pct(side.get("unsafe_rate")),
         _interval(side.get("unsafe_interval")),
@@ -275,14 +277,15 @@ def _landing(summary: Mapping[str, Any], figs: Mapping[str, bytes]) -> str:
         "IPC's ellipsoid fits the target region G (tracking tolerance "
         f"{1000 * land['tracking_tolerance']:.1f} mm, at most {land['max_measurements']} measurements "
         "per run). A run is safe if the motors are cut inside "
-        "{y} ⊕ G; aborted runs never count as safe.</p>"
+        "{y} ⊕ G; a run that flies into the pad (a pad perceived below its surface) is unsafe; "
+        "aborted runs never count as safe.</p>"
         + _landing_table(land, paper, f"Table 4. Landing at buffer size {k}.")
         + _figure(
             figs,
             "topview",
             "Figure 4. The paper-style runs with the pad at the origin: IPC paths and "
             "measurements (circles, size ~ ellipsoid), motor cuts of the IPC (stars) and of the baseline "
-            "(crosses); G dashed around the pad.",
+            "(crosses; triangles where it flew into the pad); G dashed around the pad.",
         )  # fmt: skip
         + _figure(
             figs,

@@ -20,6 +20,7 @@ from case_studies.quad_landing.landing.state_machine import (
     cut_box,
     decision_target,
     in_target,
+    into_pad,
     new_waypoint,
     run_landing,
 )
@@ -157,10 +158,33 @@ def test_unsafe_runs_have_a_violated_accepted_query(baseline_runs):
         assert r.n_queries == 1 and r.queries[0].accepted  # the baseline trusts its first measurement
         if r.outcome is Outcome.UNSAFE:
             assert r.queries[-1].truth_inside is False
-        if r.outcome is not Outcome.ABORTED:
-            assert r.certificate_verified
+        if r.outcome is Outcome.ABORTED:
+            continue
+        assert r.certificate_verified
+        if into_pad(r.turnoff, 0.005, r.scenario.pad.position):
+            assert r.outcome is Outcome.UNSAFE and "into the pad" in r.reason
+        else:
             assert cut_allowed(r.cut_position, r.turnoff, 0.005, G)
             assert (r.outcome is Outcome.SAFE) == in_target(r.offset, G)
+
+
+def test_a_target_below_the_pad_is_a_collision():
+    """A pad perceived 3 cm too low: the vehicle is driven into the pad, an UNSAFE run that
+    accepted a set missing y (Corollary 1), not an abort."""
+
+    class Low:
+        name = "low"
+
+        def decide(self, m, target):
+            return LandingRule(target).decide(m.yhat_w - np.array([0.0, 0.0, 0.03]), np.eye(3) * 1e4)
+
+    p = load_reproduce_config()
+    sc = draw_scenario(0, seed=21, params=p.scenario, config=CFG)
+    run = run_landing(sc, Low(), sim_config=CFG, params=p.landing)
+    assert into_pad(run.turnoff, p.landing.tracking_tolerance, sc.pad.position)
+    assert run.outcome is Outcome.UNSAFE and "into the pad" in run.reason
+    assert run.queries[-1].accepted and run.queries[-1].truth_inside is False
+    assert run.cut_position is not None and run.cut_position[2] < sc.pad.position[2] + 0.01
 
 
 def test_a_run_records_what_the_figures_need(baseline_runs):

@@ -7,7 +7,7 @@ import pytest
 
 from case_studies.quad_landing.landing.contracts import TrivialContract
 from case_studies.quad_landing.landing.runs import Outcome
-from case_studies.quad_landing.reproduction.campaign import run_campaign, summarize
+from case_studies.quad_landing.reproduction.campaign import CampaignSummary, run_campaign, summarize
 from case_studies.quad_landing.reproduction.config import LandingParams, ScenarioParams
 from case_studies.quad_landing.sim.config import load_config
 from ipcverify.errors import InvalidInputError
@@ -77,10 +77,14 @@ def test_campaign_rejects_bad_arguments():
 def test_summarize_counts_outcomes(sequential):
     s = summarize(sequential)
     assert s.unsafe == sum(r.outcome is Outcome.UNSAFE for r in sequential)
+    assert s.unsafe_into_pad == sum(r.hit_pad for r in sequential) <= s.unsafe
+    with pytest.raises(InvalidInputError, match="into the pad"):
+        CampaignSummary(runs=1, safe=1, unsafe=0, aborted=0, confidence=0.95, unsafe_into_pad=1)
     assert s.safe_rate is not None and s.unsafe_rate is not None and s.aborted_rate is not None
     assert np.isclose(s.safe_rate + s.unsafe_rate + s.aborted_rate, 1.0)
     empty = summarize([])
-    assert empty.runs == 0 and set(empty.to_dict()) == {"runs", "safe", "unsafe", "aborted", "confidence"}
+    keys = {"runs", "safe", "unsafe", "aborted", "confidence", "unsafe_into_pad"}
+    assert empty.runs == 0 and set(empty.to_dict()) == keys
     assert set(s.to_dict()) > set(empty.to_dict()) and s.to_dict()["unsafe_interval"] == s.unsafe_interval
 
 
