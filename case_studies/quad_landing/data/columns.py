@@ -90,7 +90,7 @@ def measurement_row(m: Measurement) -> NDArray[np.float64]:
     --------
     >>> from case_studies.quad_landing import Flight, hover_state
     >>> flight = Flight(buffer_size=0)
-    >>> flight.reset(hover_state((0.0, 0.0, 1.2)))
+    >>> flight.reset(hover_state((0.05, -0.03, 1.2)))
     >>> measurement_row(flight.measure()).shape
     (36,)
     """

@@ -4,9 +4,10 @@ Detection uses ``cv2.aruco.ArucoDetector`` (OpenCV >= 4.8 API) and pose uses
 ``cv2.solvePnP(..., flags=cv2.SOLVEPNP_IPPE_SQUARE)`` on the four corners; the
 translation vector is the marker centre in the camera frame, ``yhat_C``.
 
-Corner refinement matters: contour corners and plain sub-pixel refinement sit slightly
-inside the black border, so the marker looks smaller and the range comes out too long
-by 0.5-3 % (comparable to the lag error this case study is about). AprilTag refinement
+Corner refinement matters: OpenCV's default (no refinement, the case study's default:
+what the paper's OpenCV calls ran), contour corners and plain sub-pixel refinement sit
+slightly inside the black border, so the marker looks smaller and the range comes out too
+long by 0.5-3 % (comparable to the lag error this case study is about). AprilTag refinement
 (``CORNER_REFINE_APRILTAG``) fits lines to the edges and is unbiased; raising
 ``aprilTagMinWhiteBlackDiff`` from its default 5 to 30 skips low-contrast clusters and
 makes it about 15x faster with the same accuracy. Its corners come out about half a
@@ -48,7 +49,7 @@ class DetectorParams(TomlSection):
     Parameters
     ----------
     corner_refinement : {"apriltag", "subpix", "contour", "none"}
-        Corner refinement method.
+        Corner refinement method: "none" is OpenCV's default (ranges read long), "apriltag" the unbiased one.
     april_tag_min_white_black_diff : int
         ``aprilTagMinWhiteBlackDiff`` (grey levels); larger is faster but misses
         low-contrast markers.
@@ -63,8 +64,8 @@ class DetectorParams(TomlSection):
 
     Examples
     --------
-    >>> DetectorParams.defaults().corner_refinement
-    'apriltag'
+    >>> DetectorParams.defaults().corner_refinement  # OpenCV's default
+    'none'
     """
 
     toml_file = DEFAULTS_PATH

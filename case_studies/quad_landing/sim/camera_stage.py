@@ -20,7 +20,7 @@ Examples
 --------
 >>> from case_studies.quad_landing import Flight, hover_state
 >>> flight = Flight(buffer_size=1, seed=0)               # the timing model is the default
->>> flight.reset(hover_state((0.0, 0.0, 1.2)))
+>>> flight.reset(hover_state((0.05, -0.03, 1.2)))  # off centre: see docs/case_study.md (IPPE)
 >>> flight.hold(0.5)
 >>> m = flight.measure()
 >>> bool(0.0 < m.age < 0.1), m.detected

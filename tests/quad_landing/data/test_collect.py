@@ -16,7 +16,11 @@ from case_studies.quad_landing.sim.features import camera_frame_state
 from ipcverify.errors import InvalidInputError
 
 CFG = load_config()
-SHORT = CFG.replace(paths={"duration": 2.0}, collect={"warmup_time": 0.5})
+# AprilTag refinement: it misses no in-view frame here, so two buffer sizes sample the same
+# instants (OpenCV's default detector misses some frames, which shifts the samples)
+SHORT = CFG.replace(
+    paths={"duration": 2.0}, collect={"warmup_time": 0.5}, detector={"corner_refinement": "apriltag"}
+)
 
 
 @pytest.fixture(scope="module")
@@ -111,7 +115,9 @@ def test_exploration_reaches_speed_rotation_and_heights():
     assert np.median(speed) > 0.4 and np.percentile(speed, 90) > 0.8 and speed.max() > 1.2
     assert np.percentile(rate, 75) > 0.3
     assert height.min() > 0.6 and height.max() > 2.0
-    assert stats.detection_rate > 0.97
+    # OpenCV's default detector misses about 5 % of the in-view frames of these fast paths
+    # (AprilTag refinement under 3 %; docs/case_study.md)
+    assert stats.detection_rate > 0.93
 
 
 @pytest.mark.parametrize("suffix", [".parquet", ".csv"])

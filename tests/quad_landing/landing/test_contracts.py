@@ -59,7 +59,9 @@ def test_contracts_need_a_detection():
 def test_both_contracts_answer_through_the_same_landing_rule(make_ipc):
     """The learned IPC goes through IPCQuery; the baseline through the same LandingRule."""
     flight = Flight(buffer_size=1, seed=0)
-    flight.reset(hover_state((0.0, 0.0, 1.0)), Pad((0.0, 0.0, 0.0), yaw=0.3))
+    # not exactly centred: OpenCV's unrefined corners of a centred, level pad are symmetric
+    # integers on which IPPE_SQUARE gives no pose (docs/case_study.md)
+    flight.reset(hover_state((0.05, -0.03, 1.0)), Pad((0.0, 0.0, 0.0), yaw=0.3))
     m = flight.measure()
     base = TrivialContract().decide(m, G)
     assert base.accept and base.proven and base.proof is not None

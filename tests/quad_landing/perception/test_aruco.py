@@ -12,11 +12,13 @@ from case_studies.quad_landing.sim.render import RenderParams
 from ipcverify.errors import InvalidInputError
 
 CFG = load_config()
+#: The geometry tests use AprilTag refinement (unbiased corners); the default is OpenCV's, none.
+APRIL = CFG.replace(detector={"corner_refinement": "apriltag"})
 
 
 def test_no_lag_recovers_the_pad_within_1cm_at_1m():
-    """Twenty poses 1 m above the pad, tilted and turned, with noise and blur."""
-    f = Flight(CFG, buffer_size=0, seed=1)
+    """Twenty poses 1 m above the pad, tilted and turned, with noise and blur (AprilTag refinement)."""
+    f = Flight(APRIL, buffer_size=0, seed=1)
     rng = np.random.default_rng(7)
     errors = []
     for _ in range(20):
@@ -38,7 +40,7 @@ def test_detected_corners_match_the_projected_marker():
 
     Without the half-pixel correction they are ~0.45 px off in both axes.
     """
-    cfg = CFG.replace(render={"noise_std": 0.0, "blur_sigma": 0.0})
+    cfg = APRIL.replace(render={"noise_std": 0.0, "blur_sigma": 0.0})
     f = Flight(cfg, buffer_size=0, seed=0)
     x = hover_state((0.12, -0.07, 1.3), yaw=0.9)
     x[6:8] = [0.05, -0.08]
@@ -48,7 +50,11 @@ def test_detected_corners_match_the_projected_marker():
     T_CW = f.camera_pose().inverse()
     expected = f.camera.project(f.renderer.marker_corners_camera(T_CW, f.pad))
     assert np.max(np.abs(corners - expected)) < 0.2
-    raw = ArucoPerception(f.camera, cfg.marker, DetectorParams.defaults(april_tag_corner_shift_px=0.0))
+    raw = ArucoPerception(
+        f.camera,
+        cfg.marker,
+        DetectorParams.defaults(corner_refinement="apriltag", april_tag_corner_shift_px=0.0),
+    )
     shift = raw.detect(f.latest_image()) - expected
     assert np.all((shift > 0.3) & (shift < 0.6))
 
@@ -61,10 +67,34 @@ def test_nothing_is_detected_without_the_marker():
     m = f.measure()
     assert not m.detected and not m.pad_in_view
     # a detector looking for another id ignores the pad's marker
-    f.reset(hover_state((0.0, 0.0, 1.0)))
+    f.reset(hover_state((0.05, -0.03, 1.0)))
     other = ArucoPerception(f.camera, MarkerParams.defaults(marker_id=7), DetectorParams.defaults())
     assert f.perception.estimate(f.latest_image()) is not None
     assert other.estimate(f.latest_image()) is None
+
+
+def test_the_default_detector_is_opencvs_and_reads_the_range_long():
+    """OpenCV's default (no corner refinement): corners inside the black border, so the marker
+    looks smaller and the range comes out long (docs/case_study.md: +0.7 ... +3 %)."""
+    import cv2
+
+    assert CFG.detector.corner_refinement == "none"
+    assert cv2.aruco.DetectorParameters().cornerRefinementMethod == cv2.aruco.CORNER_REFINE_NONE
+    rng = np.random.default_rng(3)
+    ratios = []
+    for cfg in (CFG, APRIL):
+        f = Flight(cfg, buffer_size=0, seed=2)
+        r = []
+        for _ in range(15):
+            f.reset(
+                hover_state((rng.uniform(-0.1, 0.1), rng.uniform(-0.1, 0.1), 1.6), yaw=rng.uniform(-3, 3))
+            )
+            m = f.measure()
+            if m.detected:
+                r.append(np.linalg.norm(m.yhat_c) / np.linalg.norm(m.y_c) - 1.0)
+        assert len(r) >= 10
+        ratios.append(float(np.median(r)))
+    assert 0.007 < ratios[0] < 0.04 and abs(ratios[1]) < 0.003
 
 
 def test_detector_and_render_params_validate():

@@ -8,7 +8,7 @@ from case_studies.quad_landing import Flight, load_config
 from case_studies.quad_landing.data.collect import fly_path
 
 CFG = load_config(overrides={"camera_timing": {"model": "frames"}})  # the fixed k-frame lag
-TIMED = load_config()
+TIMED = load_config(overrides={"detector": {"corner_refinement": "apriltag"}})  # unbiased corners
 
 
 def test_median_error_grows_with_the_buffer_size_at_speed():

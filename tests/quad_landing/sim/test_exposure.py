@@ -28,7 +28,9 @@ def setup():
     cfg = load_config().replace(render={"noise_std": 0.0})
     cam = Camera(cfg.camera)
     renderer = Renderer(cam, cfg.marker, cfg.render)
-    return renderer, ArucoPerception(cam, cfg.marker, cfg.detector), Pad((0.0, 0.0, 0.0), yaw=0.3), cam
+    # AprilTag refinement: corners unbiased to a tenth of a pixel (OpenCV's default sits inside the border)
+    april = cfg.replace(detector={"corner_refinement": "apriltag"}).detector
+    return renderer, ArucoPerception(cam, cfg.marker, april), Pad((0.0, 0.0, 0.0), yaw=0.3), cam
 
 
 def _pose(t: float) -> Pose:
