@@ -31,6 +31,7 @@ from ipcverify.errors import InvalidInputError
 __all__ = [
     "DEFAULTS_PATH",
     "REPRODUCE_PATH",
+    "PAPER_HEAD_PATH",
     "ConfigError",
     "TomlSection",
     "Range",
@@ -46,6 +47,8 @@ __all__ = [
 DEFAULTS_PATH = Path(__file__).with_name("defaults.toml")
 #: The reproduction's settings, shipped beside the code.
 REPRODUCE_PATH = Path(__file__).with_name("reproduce.toml")
+#: The paper's IPC for the reproduction: ``reproduce --settings`` this file (``docs/reproduce.md``).
+PAPER_HEAD_PATH = Path(__file__).with_name("paper_head.toml")
 
 #: A ``[low, high]`` pair of a settings file.
 Range = tuple[float, float]

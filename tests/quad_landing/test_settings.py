@@ -122,10 +122,17 @@ def test_ipc_section_builds_a_train_config_and_the_rest():
     train_keys = {f.name for f in dataclasses.fields(TrainConfig)}
     ipc = IpcParams.defaults()
     # the training keys of [ipc] are the TrainConfig, nothing else mirrors it
-    # (the fields [ipc] leaves out are the library recipe "v1": the paper's head and hinge loss)
-    assert ipc.train == TrainConfig.recipe("v1", **{k: v for k, v in shipped.items() if k in train_keys})
+    # (the fields [ipc] leaves out are those of its recipe, ipcverify's default "tight")
+    assert ipc.recipe == shipped["recipe"] == "tight"
+    assert ipc.train == TrainConfig.recipe("tight", **{k: v for k, v in shipped.items() if k in train_keys})
     assert not {f.name for f in dataclasses.fields(IpcParams)} & train_keys
-    assert {k for k in shipped if k not in train_keys} == {"hidden", "epsilon", "delta", "coverage_quantile"}
+    assert {k for k in shipped if k not in train_keys} == {
+        "recipe",
+        "hidden",
+        "epsilon",
+        "delta",
+        "coverage_quantile",
+    }
     # any TrainConfig field may be set from [ipc]; the table round-trips
     tuned = IpcParams.defaults(val_fraction=0.2)
     assert tuned.train.val_fraction == 0.2 and IpcParams.from_table(tuned.to_table()) == tuned

@@ -44,11 +44,11 @@ from case_studies.quad_landing.settings import (
     read_toml,
 )
 from case_studies.quad_landing.sim.framebuffer import MAX_BUFFER_SIZE
+from ipcverify.architecture import RECIPES
 from ipcverify.errors import InvalidInputError
 from ipcverify.training import TrainConfig
 
 __all__ = [
-    "IPC_RECIPE",
     "IpcParams",
     "Sizes",
     "AblationSizes",
@@ -56,10 +56,6 @@ __all__ = [
     "load_reproduce_config",
     "REPRODUCE_SECTIONS",
 ]
-
-#: The library recipe the reproduction builds on: the paper's Cholesky head and hinge loss
-#: (``ipcverify``'s default recipe is the tighter "tight"; the reproduction keeps the paper's).
-IPC_RECIPE = "v1"
 
 
 def _train_fields() -> dict[str, dataclasses.Field[Any]]:
@@ -73,11 +69,15 @@ class IpcParams(TomlSection):
     The ``[ipc]`` table is flat. Its keys that are fields of
     :class:`ipcverify.training.TrainConfig` (``epochs``, ``lr``, ``batch_size``, ``alpha``,
     ``lam``, ``seed``, or any other the library defines) build :attr:`train`; the fields
-    the table leaves out keep the values of the library's recipe :data:`IPC_RECIPE`
-    (``TrainConfig.recipe("v1")``). The other keys are not training:
+    the table leaves out keep the values of the library's recipe ``recipe``
+    (``TrainConfig.recipe(recipe)``). The other keys are not training:
 
     Parameters
     ----------
+    recipe : str
+        The library's recipe (:data:`ipcverify.architecture.RECIPES`): ``"tight"``, ipcverify's
+        default (the reproduction's), or ``"v1"`` / ``"paper"``, the paper's heads and hinge
+        loss (``case_studies/quad_landing/paper_head.toml``).
     hidden : tuple of int
         Hidden layer sizes of the network (:class:`ipcverify.model.ModelConfig`).
     train : TrainConfig
@@ -95,8 +95,8 @@ class IpcParams(TomlSection):
     Examples
     --------
     >>> ipc = IpcParams.defaults()  # [ipc] of reproduce.toml
-    >>> ipc.hidden, ipc.train.epochs, ipc.epsilon
-    ((64, 128), 40, 0.01)
+    >>> ipc.recipe, ipc.hidden, ipc.train.loss, ipc.epsilon
+    ('tight', (64, 128), 'likelihood', 0.002)
     >>> IpcParams.defaults(epochs=2).train.epochs
     2
     """
@@ -104,6 +104,7 @@ class IpcParams(TomlSection):
     toml_file = REPRODUCE_PATH
     toml_section = "ipc"
 
+    recipe: str
     hidden: tuple[int, ...]
     train: TrainConfig
     epsilon: float
@@ -111,6 +112,8 @@ class IpcParams(TomlSection):
     coverage_quantile: float
 
     def __post_init__(self) -> None:
+        if self.recipe not in RECIPES:
+            raise ConfigError(f"ipc.recipe must be one of {', '.join(RECIPES)}, got {self.recipe!r}")
         h = tuple(self.hidden)
         if not h or any(isinstance(v, bool) or not isinstance(v, int) or v < 1 for v in h):
             raise ConfigError(f"ipc.hidden must be a list of positive integers, got {self.hidden!r}")
@@ -124,7 +127,7 @@ class IpcParams(TomlSection):
 
     @classmethod
     def toml_keys(cls) -> frozenset[str]:
-        """``hidden``, ``epsilon``, ``delta``, ``coverage_quantile`` and the fields of ``TrainConfig``."""
+        """``recipe``, ``hidden``, ``epsilon``, ``delta``, ``coverage_quantile``, TrainConfig's fields."""
         own = {f.name for f in dataclasses.fields(cls) if f.init and f.name != "train"}
         return frozenset(own | set(_train_fields()))
 
@@ -136,8 +139,11 @@ class IpcParams(TomlSection):
         for key, value in train.items():
             if fields[key].type in ("int", int) and (isinstance(value, bool) or not isinstance(value, int)):
                 raise ConfigError(f"ipc.{key} must be an integer, got {value!r}")
+        recipe = table.get("recipe")
+        if recipe not in RECIPES:
+            raise ConfigError(f"ipc.recipe must be one of {', '.join(RECIPES)}, got {recipe!r}")
         try:
-            config = TrainConfig.recipe(IPC_RECIPE, **train)
+            config = TrainConfig.recipe(recipe, **train)
         except InvalidInputError as exc:
             raise ConfigError(f"[ipc]: {exc}") from None
         rest: dict[str, Any] = {
@@ -151,6 +157,7 @@ class IpcParams(TomlSection):
     def to_table(self) -> dict[str, Any]:
         """The flat ``[ipc]`` layout: ``hidden``, every ``TrainConfig`` field, then the rest."""
         return {
+            "recipe": self.recipe,
             "hidden": list(self.hidden),
             **dataclasses.asdict(self.train),
             "epsilon": self.epsilon,

@@ -12,7 +12,7 @@ Examples
 --------
 >>> from case_studies.quad_landing.data.datasets import as_dataset, collect_mixed
 >>> from case_studies.quad_landing.data.approach import ApproachParams
->>> from case_studies.quad_landing.reproduction.config import IPC_RECIPE, IpcParams
+>>> from case_studies.quad_landing.reproduction.config import IpcParams
 >>> ap = ApproachParams.defaults(hover_points=1)
 >>> tr = as_dataset(collect_mixed(300, buffer_size=1, seed=0, approach=ap))
 >>> cal = as_dataset(collect_mixed(700, buffer_size=1, seed=1, approach=ap))
@@ -30,7 +30,7 @@ from typing import Any
 import pandas as pd
 import torch
 
-from case_studies.quad_landing.reproduction.config import IPC_RECIPE, IpcParams
+from case_studies.quad_landing.reproduction.config import IpcParams
 from ipcverify.architecture import ModelConfig
 from ipcverify.calibrate import calibrate
 from ipcverify.data import PerceptionDataset
@@ -74,7 +74,9 @@ def learn_ipc(
     IPCModel
         The calibrated model.
     """
-    mc = ModelConfig.recipe(IPC_RECIPE, x_dim=train_data.x_dim, y_dim=train_data.y_dim, hidden=params.hidden)
+    mc = ModelConfig.recipe(
+        params.recipe, x_dim=train_data.x_dim, y_dim=train_data.y_dim, hidden=params.hidden
+    )
     threads = torch.get_num_threads()
     torch.set_num_threads(1)  # a small MLP: one thread is fastest, and threads on a busy machine spin
     try:

@@ -70,8 +70,9 @@ def table1_protocol(cfg: ReproduceConfig, frames: Mapping[str, pd.DataFrame]) ->
     """``summary.json``'s ``table1_protocol``: how Table I was tested, the flights' speeds."""
     return {
         "training": (
-            f"IPC trained on {cfg.sizes.n_train} and PAC-calibrated on {cfg.sizes.n_calibration} samples at "
-            "buffer size 1 (exploration paths and approach flights)"
+            f"IPC (recipe {cfg.ipc.recipe}, hidden layers {', '.join(map(str, cfg.ipc.hidden))}) trained on "
+            f"{cfg.sizes.n_train} and PAC-calibrated (epsilon = {cfg.ipc.epsilon:g}) on "
+            f"{cfg.sizes.n_calibration} samples at buffer size 1 (exploration paths and approach flights)"
         ),
         "test": (
             f"{cfg.sizes.n_pilot} measurements per buffer size from pilot test flights (smooth hand-flown "

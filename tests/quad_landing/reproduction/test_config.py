@@ -29,25 +29,25 @@ def test_reproduce_config_rejects_unknown_keys_and_bad_values(tmp_path):
     assert load_reproduce_config(good, quick=True).sizes.mc_runs == 3
 
 
-def test_the_reproduction_keeps_the_paper_network_and_hinge_whatever_the_library_default():
-    """The library's default recipe changed (``tight``); the reproduction pins the earlier one.
-
-    The reproduction trained ``ModelConfig()`` (offset centre, Cholesky head) with
-    ``TrainConfig(**[ipc])`` when those were the library's defaults; ``IPC_RECIPE = "v1"``
-    gives the same network and the same training whatever the library's default is now.
-    """
+def test_the_reproduction_uses_the_default_recipe_and_keeps_the_paper_head_available():
+    """``[ipc] recipe`` picks the library's recipe: ``tight`` by default, and
+    ``paper_head.toml`` gives the paper's network and hinge training (the earlier reproduction)."""
     import dataclasses
 
-    from case_studies.quad_landing.reproduction.config import IPC_RECIPE
+    from case_studies.quad_landing.settings import PAPER_HEAD_PATH
     from ipcverify.architecture import DEFAULT_RECIPE, ModelConfig
     from ipcverify.training import TrainConfig
 
     ipc = load_reproduce_config().ipc
-    assert IPC_RECIPE != DEFAULT_RECIPE == "tight"
-    mc = ModelConfig.recipe(IPC_RECIPE, x_dim=12, y_dim=3, hidden=ipc.hidden)
+    assert ipc.recipe == DEFAULT_RECIPE == "tight"
+    assert ipc.train == TrainConfig.recipe("tight", seed=0)  # nothing of the paper's training leaks in
+    mc = ModelConfig.recipe(ipc.recipe, x_dim=12, y_dim=3, hidden=ipc.hidden)
+    assert (mc.lowrank, mc.hidden, mc.members) == (True, (64, 128), 5)
+
+    paper = load_reproduce_config(PAPER_HEAD_PATH).ipc
+    mc = ModelConfig.recipe(paper.recipe, x_dim=12, y_dim=3, hidden=paper.hidden)
     assert (mc.param, mc.center, mc.lowrank, mc.hidden) == ("cholesky", "offset", False, (64, 128))
-    t = ipc.train
-    # the reproduce.toml keys, then the earlier library defaults for everything the file leaves out
+    t = paper.train
     assert (t.epochs, t.lr, t.batch_size, t.alpha, t.lam, t.seed) == (40, 1e-3, 64, 0.1, 0.01, 0)
     assert (t.loss, t.schedule, t.val_fraction, t.patience, t.warmup_epochs, t.center_warm_start) == (
         "hinge",
@@ -57,9 +57,15 @@ def test_the_reproduction_keeps_the_paper_network_and_hinge_whatever_the_library
         0,
         False,
     )
-    # nothing the file leaves out comes from the default recipe
     default = TrainConfig()
     differing = {
         f.name for f in dataclasses.fields(TrainConfig) if getattr(t, f.name) != getattr(default, f.name)
     }
     assert {"loss", "schedule", "epochs"} <= differing
+
+
+def test_an_unknown_recipe_is_a_config_error(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text('[ipc]\nrecipe = "best"\n')
+    with pytest.raises(ConfigError, match="ipc.recipe must be one of"):
+        load_reproduce_config(bad)
