@@ -18,11 +18,14 @@ and measured on the same test split.
 * ``quad_landing``: :func:`case_studies.quad_landing.data.collect` at buffer size 1 with seeds
   1000, 1001, 1002 (different exploration paths and sensor noise per split). The quad
   data takes about 12 s per 5000 samples to fly, so it is cached as Parquet under
-  ``benchmarks/.cache/`` (gitignored), keyed by size and seed.
+  ``benchmarks/.cache/`` (gitignored), keyed by size, seed and the simulator's settings
+  (:func:`simulator_fingerprint`).
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -32,7 +35,16 @@ from ipcverify.data import PerceptionDataset, load_dataset
 from ipcverify.errors import InvalidInputError
 from ipcverify.files import atomic_write
 
-__all__ = ["CACHE", "DATASETS", "ORACLE_DATASETS", "SPLIT_SEEDS", "Splits", "load_splits", "quad_split"]
+__all__ = [
+    "CACHE",
+    "DATASETS",
+    "ORACLE_DATASETS",
+    "SPLIT_SEEDS",
+    "Splits",
+    "load_splits",
+    "quad_split",
+    "simulator_fingerprint",
+]
 
 #: Cache folder for generated quad-landing data (gitignored).
 CACHE = Path(__file__).with_name(".cache")
@@ -73,9 +85,24 @@ class Splits:
             raise InvalidInputError(f"{self.name}: the splits disagree in dimensions {sorted(dims)}")
 
 
+def simulator_fingerprint() -> str:
+    """Eight hex digits of the simulator's settings (``defaults.toml``): part of the cache key,
+    so that data flown with other settings (another detector, another camera) is never reused.
+
+    Examples
+    --------
+    >>> len(simulator_fingerprint()), simulator_fingerprint() == simulator_fingerprint()
+    (8, True)
+    """
+    from case_studies.quad_landing import load_config
+
+    text = json.dumps(load_config().as_dict(), sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:8]
+
+
 def quad_split(n: int, seed: int, cache: Path = CACHE) -> PerceptionDataset:
     """One draw of quad-landing data (buffer size 1), flown once and then read from the cache."""
-    path = cache / f"quad_k1_n{n}_seed{seed}.parquet"
+    path = cache / f"quad_k1_n{n}_seed{seed}_{simulator_fingerprint()}.parquet"
     if not path.is_file():
         from case_studies.quad_landing import collect
 
