@@ -1,9 +1,10 @@
 """Learn and calibrate an IPC with the reproduction's recipe, cached on disk.
 
-The recipe (:class:`.reproduction.config.IpcParams`) is the paper's network: an MLP on
-``(x_C, yhat_C)`` with hidden layers (64, 128), trained with Adam at 1e-3
-(:func:`ipcverify.training.train`) — for 40 epochs rather than the paper's 20, which leave
-it under-trained on hovering states here (``docs/reproduce.md``) — then calibrated in PAC
+The recipe (:class:`.reproduction.config.IpcParams`, ``[ipc]`` of ``reproduce.toml``) is a
+library recipe on ``(x_C, yhat_C)`` with the paper's hidden layers (64, 128): ipcverify's
+default ``tight`` (an ensemble with a low-rank covariance head, trained by likelihood), or the
+paper's network and hinge loss with ``paper_head.toml`` (``docs/reproduce.md``). It is trained
+(:func:`ipcverify.training.train`), then calibrated in PAC
 mode on a separate calibration set (:func:`ipcverify.calibrate.calibrate`): with probability at least
 ``1 - delta`` over the calibration draw, a fresh sample from the calibration
 distribution violates the calibrated contract with probability at most ``epsilon``.

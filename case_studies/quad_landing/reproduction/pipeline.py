@@ -7,7 +7,7 @@
    and held-out test sets at buffer size 1 (and at the extra landing buffer size), the pilot
    test sets of Table I at every buffer size, and the same for every camera variant of the
    ablation (:mod:`.variants`).
-2. **IPCs** (cached in ``OUT/models``): the paper's network trained and PAC-calibrated at buffer
+2. **IPCs** (cached in ``OUT/models``): the ``[ipc]`` recipe trained and PAC-calibrated at buffer
    size 1 (:mod:`.learn`) and certified on its held-out test set
    (:func:`ipcverify.certify.certify`, written to ``OUT/certificates``); likewise at the extra
    landing buffer size.
