@@ -58,6 +58,13 @@ __all__ = [
 ]
 
 
+def _check_recipe(recipe: Any) -> str:
+    """``recipe`` if it names a library recipe, else a :class:`ConfigError` listing them."""
+    if recipe not in RECIPES:
+        raise ConfigError(f"ipc.recipe must be one of {', '.join(RECIPES)}, got {recipe!r}")
+    return str(recipe)
+
+
 def _train_fields() -> dict[str, dataclasses.Field[Any]]:
     return {f.name: f for f in dataclasses.fields(TrainConfig) if f.init}
 
@@ -112,8 +119,7 @@ class IpcParams(TomlSection):
     coverage_quantile: float
 
     def __post_init__(self) -> None:
-        if self.recipe not in RECIPES:
-            raise ConfigError(f"ipc.recipe must be one of {', '.join(RECIPES)}, got {self.recipe!r}")
+        _check_recipe(self.recipe)
         h = tuple(self.hidden)
         if not h or any(isinstance(v, bool) or not isinstance(v, int) or v < 1 for v in h):
             raise ConfigError(f"ipc.hidden must be a list of positive integers, got {self.hidden!r}")
@@ -139,9 +145,7 @@ class IpcParams(TomlSection):
         for key, value in train.items():
             if fields[key].type in ("int", int) and (isinstance(value, bool) or not isinstance(value, int)):
                 raise ConfigError(f"ipc.{key} must be an integer, got {value!r}")
-        recipe = table.get("recipe")
-        if recipe not in RECIPES:
-            raise ConfigError(f"ipc.recipe must be one of {', '.join(RECIPES)}, got {recipe!r}")
+        recipe = _check_recipe(table.get("recipe"))
         try:
             config = TrainConfig.recipe(recipe, **train)
         except InvalidInputError as exc:

@@ -193,6 +193,7 @@ def plot_campaign(ipc: Sequence[LandingRun], baseline: Sequence[LandingRun]) -> 
             + (f" ({into} into the pad)" if into else "")
             + f", {counts[Outcome.ABORTED]} aborted"
         )
+        labelled = False  # one legend entry per contract, on its first non-empty group
         for hit, mark in ((False, marker), (True, "v")):
             off = np.array(
                 [100 * r.offset for r in runs if r.offset is not None and r.hit_pad == hit]
@@ -200,11 +201,19 @@ def plot_campaign(ipc: Sequence[LandingRun], baseline: Sequence[LandingRun]) -> 
             if not len(off):
                 continue
             size = 40 if mark == "*" else 25
-            top.scatter(off[:, 0], off[:, 1], marker=mark, s=size, color=color, alpha=0.7, label=text)
+            top.scatter(
+                off[:, 0],
+                off[:, 1],
+                marker=mark,
+                s=size,
+                color=color,
+                alpha=0.7,
+                label=None if labelled else text,
+            )
             side.scatter(
                 np.hypot(off[:, 0], off[:, 1]), off[:, 2], marker=mark, s=size, color=color, alpha=0.7
             )
-            text = "_" + text  # one legend entry per contract
+            labelled = True
     _g_box(top)
     top.set_aspect("equal")
     top.set_xlabel("x - y_x (cm)")
