@@ -11,7 +11,10 @@ ONNX Runtime limited to **one thread**:
 * ``decide_float`` -- query -> ellipsoid -> domain test -> float landing decision (not a proof).
 * ``decide`` -- query -> ellipsoid -> domain test -> landing decision of record (float64 with a
   rigorous rounding bound, exact arithmetic inside the band: every answer proven), over the
-  test split's queries in order: the path the landing controller runs. Also over the same
+  test split's queries in order: the path the landing controller runs. The model should carry
+  the domain of validity a default :func:`~ipcverify.calibrate.calibrate` fits (as
+  ``python -m benchmarks.run`` gives it); ``decide_without_domain_test`` is the same model and
+  queries with the domain dropped, to show what the domain test costs. Also over the same
   queries shuffled (``decide_shuffled``: no frame-to-frame coherence for the domain test's
   cache), and split by answer: accepted, rejected inside the domain, outside the domain.
 * ``onnx_float64`` / ``onnx_float32`` -- ONNX Runtime on the exported graph, (1, d) inputs.
@@ -139,6 +142,9 @@ def single_query(
         paths["decide_float"] = cycler(lambda j: q.decide_float(xs[j], ys[j]), np.arange(m))
         paths["decide"] = cycler(lambda j: q.decide(xs[j], ys[j]), np.arange(m))
         paths["decide_shuffled"] = cycler(lambda j: q.decide(xs[j], ys[j]), shuffled)
+        if model.domain is not None:
+            bare_q = IPCQuery(model.with_calibration(model.calibration, None), q.target)
+            paths["decide_without_domain_test"] = cycler(lambda j: bare_q.decide(xs[j], ys[j]), np.arange(m))
         for name, idx in groups.items():
             if len(idx):
                 paths[f"decide_{name}_queries"] = cycler(lambda j: q.decide(xs[j], ys[j]), idx)
@@ -277,6 +283,11 @@ def bench_latency(
     result["single_query_ratio_to_bare_forward"] = sq["decide"]["p50_ratio_to_bare_forward"]
     result["single_query_p99_ratio_to_bare_forward"] = sq["decide"]["p99_ratio_to_bare_forward"]
     result["single_query_float_ratio_to_bare_forward"] = sq["decide_float"]["p50_ratio_to_bare_forward"]
+    result["single_query_has_domain_test"] = model.domain is not None
+    if "decide_without_domain_test" in sq:
+        result["single_query_ratio_without_domain_test"] = sq["decide_without_domain_test"][
+            "p50_ratio_to_bare_forward"
+        ]
     bt = result["batch_throughput"]["paths"]
     result["batch_predict_ratio_to_bare_forward"] = {
         str(b): bt["model_predict"][str(b)]["median"] / bt["bare_torch_forward"][str(b)]["median"]

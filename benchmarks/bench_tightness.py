@@ -20,6 +20,9 @@ on the same test split:
   calibration split (the oracle's own scores). ``oracle_exact`` -- the same sets at
   exactly conditional coverage ``1 - epsilon`` (closed-form volume; no calibration, so no
   finite-sample margin: the PAC order statistic costs even the oracle a factor).
+  ``mean_volume_ratio_to_oracle_same_coverage`` (ellipsoidal methods, first training seed)
+  compares with the oracle at the coverage the method actually reaches
+  (:func:`benchmarks.diagnose_tightness.diagnose`): set size at equal coverage.
 * ``raw_ipc`` -- **uncalibrated**: the paper's IPC as published (Cholesky head, alpha = 0.1,
   lambda = 0.01, 20 epochs, Adam 1e-3) used without calibration; ``raw_ipc_paper_head`` --
   **uncalibrated**, also with the paper's head (the ``ipc_paper`` network, raw).
@@ -277,3 +280,7 @@ def _ratios(res: dict[str, Any]) -> None:
         for r in res.values():
             if "mean_volume" in r:
                 r[key] = r["mean_volume"] / base
+    for r in res.values():  # at the method's own coverage: from the diagnosis of its first seed
+        same = r.get("diagnosis", {}).get("volume_ratio_to_oracle_same_coverage")
+        if same is not None:
+            r["mean_volume_ratio_to_oracle_same_coverage"] = same

@@ -18,6 +18,15 @@ from benchmarks.report_tables import (
 
 __all__ = ["LABELS", "targets", "render_markdown", "plot_tightness"]
 
+#: The oracle references of the tightness targets: (ratio key suffix, what it is). The first is the
+#: issue's own reference (calibrated like every other method); the second compares sizes at equal
+#: coverage (the issue's "at the same coverage"); the third is stricter than any certified set can
+#: be at a finite calibration size, since the order statistic's margin costs the oracle itself.
+ORACLE_READINGS: tuple[tuple[str, str], ...] = (
+    ("oracle", "oracle calibrated by the same PAC order statistic"),
+    ("oracle_same_coverage", "oracle at the IPC's own population coverage (first seed)"),
+    ("oracle_exact", "exact 1 - eps oracle (stricter: uncertified, no finite-sample margin)"),
+)
 #: The issue's training budget (seconds, N = 5,000, 2 cores).
 TRAIN_SECONDS = 10.0
 
@@ -47,26 +56,15 @@ def _tightness_targets(tight: dict[str, Any]) -> dict[str, Any]:
             1.0,
             f"default IPC mean volume / MAPIE multivariate mean volume ({name})",
         )
-    for name in ("synthetic", "synthetic_t4"):
-        for ref, label in (
-            ("oracle", "oracle calibrated by the same PAC order statistic"),
-            ("oracle_exact", "exact 1 - eps oracle"),
-        ):
+    fresh = tight.get("fresh")
+    for name, limit in (("synthetic", 1.3), ("synthetic_t4", 1.3), ("fresh", 1.5)):
+        for ref, label in ORACLE_READINGS:
             out[f"{name}_ipc_vs_{ref}"] = _target(
                 _get(tight.get(name), "ipc", f"mean_volume_ratio_to_{ref}"),
-                1.3,
-                f"default IPC mean volume / {label} ({name})",
+                limit,
+                f"default IPC mean volume / {label} ({name}"
+                + (", never tuned on)" if name == "fresh" else ")"),
             )
-    fresh = tight.get("fresh")
-    for ref, label in (
-        ("oracle", "oracle calibrated by the same PAC order statistic"),
-        ("oracle_exact", "exact 1 - eps oracle"),
-    ):
-        out[f"fresh_ipc_vs_{ref}"] = _target(
-            _get(fresh, "ipc", f"mean_volume_ratio_to_{ref}"),
-            1.5,
-            f"default IPC / {label} (fresh data, never tuned on)",
-        )
     out["fresh_ipc_vs_global_mahalanobis"] = _target(
         _get(fresh, "ipc", "mean_volume_ratio_to_global_mahalanobis"),
         0.5,
@@ -120,15 +118,24 @@ def targets(results: dict[str, Any]) -> dict[str, Any]:
     out.update({k: v for k, v in _tightness_targets(tight).items() if k != "quad_landing_ipc_vs_mapie"})
     lat = results.get("latency")
     if lat is not None:
+        guarded = lat.get("single_query_has_domain_test", False)
         out["single_query_latency"] = _target(
             lat["single_query_ratio_to_bare_forward"],
             1.2,
-            "p50 of query -> ellipsoid -> domain test -> landing decision of record (proven) / bare forward",
+            "p50 of query -> ellipsoid -> "
+            + ("domain test -> " if guarded else "(no domain fitted) ")
+            + "landing decision of record (proven) / bare forward",
         )
+        if "single_query_ratio_without_domain_test" in lat:
+            out["single_query_latency_without_domain_test"] = _target(
+                lat["single_query_ratio_without_domain_test"],
+                1.2,
+                "the same, with the model's domain dropped (what the decision alone costs)",
+            )
         out["single_query_latency_float_decision"] = _target(
             lat["single_query_float_ratio_to_bare_forward"],
             1.2,
-            "p50 of query -> ellipsoid -> float landing decision (not a proof) / bare forward",
+            "p50 of query -> ellipsoid -> domain test -> float landing decision (not a proof) / bare forward",
         )
         out["single_query_latency_p99"] = _target(
             lat.get("single_query_p99_ratio_to_bare_forward"),

@@ -37,6 +37,7 @@ from benchmarks.bench_tightness import bench_tightness
 from benchmarks.common import blas_single_thread, machine_info, write_json
 from benchmarks.datasets import CACHE, DATASETS, load_splits
 from benchmarks.report import render_markdown, targets
+from ipcverify.calibrate import calibrate
 from ipcverify.errors import InvalidInputError
 
 __all__ = ["RunConfig", "run", "main"]
@@ -134,10 +135,14 @@ def run(
     print(f"[{time.perf_counter() - t_start:6.1f} s] shift study done", flush=True)
     lat_name = "quad_landing" if "quad_landing" in models else datasets[0]
     ipc, splits, _ = models[lat_name]
+    # as a user gets it: calibrate() fits the domain of validity by default (the tightness rows
+    # need none), so the decision of record runs its domain test
+    guarded = calibrate(ipc, splits.calibration, cfg.epsilon, cfg.delta, "pac", recalibrate=True)
     results["latency"] = {
         "dataset": lat_name,
-        "model": "the calibrated IPC of the first training seed; queries = the test split, in order",
-        **bench_latency(ipc, splits.test, cfg.latency_rounds, cfg.latency_calls, cfg.batch_sizes),
+        "model": "the IPC of the first training seed, calibrated as calibrate() does by default (with its "
+        "domain of validity); queries = the test split, in order",
+        **bench_latency(guarded, splits.test, cfg.latency_rounds, cfg.latency_calls, cfg.batch_sizes),
     }
     print(f"[{time.perf_counter() - t_start:6.1f} s] latency done", flush=True)
     for name, (ipc, splits, load_s) in models.items():

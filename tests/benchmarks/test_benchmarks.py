@@ -23,6 +23,9 @@ def test_quick_run_writes_every_required_key(tmp_path):
     res = json.loads((tmp_path / "results.json").read_text())
     assert res["latency"]["single_query_ratio_to_bare_forward"] > 0
     assert set(res["latency"]["single_query"]["paths"]) >= {"bare_forward", "decide", "decide_float"}
+    # the decision of record is timed as a default calibration ships it: with its domain test
+    assert res["latency"]["single_query_has_domain_test"] is True
+    assert "decide_without_domain_test" in res["latency"]["single_query"]["paths"]
     tight = res["tightness"]["synthetic"]
     assert set(tight) == set(METHODS)
     for method in ("ipc", "ipc_v1", "ipc_paper", "global_mahalanobis", "bonferroni_box", "oracle", "raw_ipc"):
@@ -36,6 +39,8 @@ def test_quick_run_writes_every_required_key(tmp_path):
     oracle = tight["oracle"]["mean_volume"]
     assert tight["ipc"]["mean_volume_ratio_to_oracle"] == tight["ipc"]["mean_volume"] / oracle
     assert tight["oracle"]["mean_volume_ratio_to_oracle_exact"] > 1.0  # the PAC margin costs the oracle too
+    # at its own coverage the oracle's PAC sets are the oracle (up to the Monte Carlo coverage estimate)
+    assert tight["oracle"]["mean_volume_ratio_to_oracle_same_coverage"] == pytest.approx(1.0, rel=0.1)
     diag = tight["ipc_v1"]["diagnosis"]
     sym = diag["factors_symmetric"]
     assert sym["centre"] * sym["shape"] * sym["calibration"] == pytest.approx(diag["volume_ratio_to_oracle"])

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy import stats
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
@@ -50,6 +51,28 @@ def test_the_diagnosis_factors_multiply_to_the_volume_ratio():
     assert sym["centre"] * sym["shape"] * sym["calibration"] == pytest.approx(ratio)
     assert f["pac_margin"] * f["draw"] == pytest.approx(f["calibration"])
     assert ratio > 5  # one ellipsoid for every input is far from the heteroscedastic oracle
+
+
+def test_the_ratio_at_the_methods_own_coverage_compares_sizes_at_equal_coverage():
+    """The oracle's own shape at a wider radius covers more than q: at q it is charged
+    1.2^3 = 1.73x, at its own coverage 1x. The tolerance is five Monte Carlo standard errors
+    of the coverage estimate (N m independent draws), carried to volume through the density
+    of ||u|| (chi with 3 degrees of freedom): dV/V = 3 dq / (r f(r))."""
+    n, m, q = 2000, 200, 0.99
+    _, orc = make_hetlag(n, 8)
+    wide = orc.sets(1.2 * orc.radius(q))
+    d = diagnose(wide, orc, q=q, m=m, seed=3)
+    covered = d.stats["population_coverage"]
+    r = stats.chi.ppf(covered, 3)
+    tol = 3 * 5 * np.sqrt(covered * (1 - covered) / (n * m)) / (r * stats.chi.pdf(r, 3))
+    assert d.volume_ratio == pytest.approx(1.2**3, rel=1e-9)
+    assert abs(np.log(d.volume_ratio_same_coverage)) < tol
+    assert covered > q
+    # a shape error is still charged at equal coverage
+    gm = fit_global_mahalanobis(make_hetlag(2000, 6)[0]).calibrate(make_hetlag(2000, 7)[0], 0.05, 0.05)
+    data, orc2 = make_hetlag(2000, 5)
+    g = diagnose(gm.predict(data.x, data.yhat), orc2, q=0.95, m=100)
+    assert g.volume_ratio_same_coverage > 5
 
 
 def test_the_default_recipe_beats_the_global_ellipsoid_by_a_fixed_margin():
