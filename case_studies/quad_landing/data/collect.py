@@ -17,7 +17,7 @@ import json
 import multiprocessing
 import time
 from collections import deque
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Generator, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -223,7 +223,7 @@ def _worker_fly(index: int, seed: int) -> PathRecord:
     return fly_path(_WORKER_FLIGHT, index, seed)
 
 
-def _records(cfg: SimConfig, buffer_size: int, seed: int, jobs: int) -> Iterator[PathRecord]:
+def _records(cfg: SimConfig, buffer_size: int, seed: int, jobs: int) -> Generator[PathRecord, None, None]:
     """Path records in index order, flown here (jobs = 1) or by worker processes."""
     if jobs == 1:
         flight = Flight(cfg, buffer_size=buffer_size)

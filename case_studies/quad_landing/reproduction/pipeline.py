@@ -255,7 +255,7 @@ def _certify(model: IPCModel, test: PerceptionDataset, out_dir: Path) -> dict[st
     return {
         "status": cert.status.name,
         "statement": cert.statement,
-        "test": cert.test.to_dict(),
+        "test": None if cert.test is None else cert.test.to_dict(),
         "group_test": None if cert.group_test is None else cert.group_test.to_dict(),
         "files": str(out_dir),
     }
