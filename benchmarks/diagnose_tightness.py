@@ -24,15 +24,7 @@ of ``u`` per input, the same draws for every family, so the ratios are paired):
    ``pac_margin`` (coverage ``k / (n + 1)`` instead of ``q``) and the ``draw`` (the
    calibration sample's luck).
 
-The product of the four is the volume ratio (it telescopes).
-
-Besides the ratio at ``q``, :func:`diagnose` reports the ratio **at the method's own
-coverage** (``volume_ratio_same_coverage``): the method's mean volume over the oracle's at
-the population coverage the method actually reaches (Monte Carlo, the same draws). A
-PAC-calibrated family covers more than ``q`` by design (its order statistic is chosen so
-that coverage falls below ``q`` with probability at most ``delta``), so the ratio at ``q``
-charges it for the certificate's margin; the ratio at its own coverage compares set sizes
-at equal coverage, which is the oracle comparison the tightness issue's "Why" makes. The order matters:
+The product of the four is the volume ratio (it telescopes). The order matters:
 centre-first asks what the centre error costs a set that does not know about it,
 shape-first what it costs given the method's own shape. Both orders are reported, and
 their two-order Shapley split ``factors_symmetric`` = {centre, shape, calibration}
@@ -40,6 +32,14 @@ their two-order Shapley split ``factors_symmetric`` = {centre, shape, calibratio
 centre bias ``||S_i^-1 (c_i - mu_i)||``, the spread of the log relative size, the aspect
 misfit of ``C_i S_i`` (log of arithmetic over geometric mean of its squared singular values;
 0 for the oracle's orientation) and the population coverage of the sets.
+
+Besides the ratio at ``q``, :func:`diagnose` reports the ratio **at the method's own
+coverage** (``volume_ratio_same_coverage``): the method's mean volume over the oracle's at
+the population coverage the method actually reaches (Monte Carlo, the same draws). A
+PAC-calibrated family covers more than ``q`` by design (its order statistic is chosen so
+that coverage falls below ``q`` with probability at most ``delta``), so the ratio at ``q``
+charges it for the certificate's margin; the ratio at its own coverage compares set sizes
+at equal coverage, the comparison the tightness issue's "Why" makes.
 """
 
 from __future__ import annotations
