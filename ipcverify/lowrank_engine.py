@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 
 from ipcverify.architecture import LOGDIAG_CLAMP, ModelConfig
 from ipcverify.errors import InvalidInputError
-from ipcverify.inference import CHUNK, float64_array
+from ipcverify.inference import CHUNK, activate, float64_array
 from ipcverify.lowrank import LowRankEnsemble
 
 __all__ = ["LowRankEngine", "cholesky_lower", "lower_inverse", "cholesky_inverse_small"]
@@ -233,24 +233,16 @@ class LowRankEngine:
             lin_bias=float64_array(network.lin_bias),
         )
 
-    def _activation(self, h: FloatArray) -> FloatArray:
-        act = self.config.activation
-        if act == "relu":
-            return np.maximum(h, 0.0, out=h)
-        if act == "tanh":
-            return np.tanh(h, out=h)
-        return np.where(h > 0, h, np.expm1(np.minimum(h, 0.0)))  # elu, alpha = 1
-
     def _outputs(self, hidden: FloatArray, skip: FloatArray) -> FloatArray:
         """Every member's ``[U | h]`` (K, ..., n (n + 1) + n) from the first layer's hidden units
         (K, ..., h1) and skip paths (K, ..., n (n + 1) + n; zero on ``h``), both overwritten."""
-        h = self._activation(hidden)
+        h = activate(hidden, self.config.activation)
         last = len(self.weights) - 1
         for i, (w, b) in enumerate(zip(self.weights, self.biases, strict=True)):
             h = h @ w
             h += b
             if i < last:
-                h = self._activation(h)
+                h = activate(h, self.config.activation)
         h += skip  # adding the padding's 0.0 to h changes nothing
         return h
 
