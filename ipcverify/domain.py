@@ -49,6 +49,7 @@ from ipcverify.bounds import marginal_conformal_index
 from ipcverify.calibration.grouped import risk_control_threshold
 from ipcverify.data import group_codes
 from ipcverify.errors import InvalidInputError, SampleSizeError
+from ipcverify.kernels import scan_kth, whiten_one
 
 __all__ = [
     "DEFAULT_ALPHA",
@@ -112,16 +113,17 @@ class _Scan:
         )
 
     def kth(self, w: FloatArray, k: int) -> tuple[float, float] | None:
-        """Lower and upper bounds of the ``k``-th smallest distance ``||r_j - w||`` (None: too far out)."""
+        """Lower and upper bounds of the ``k``-th smallest distance ``||r_j - w||`` (None: too far out).
+
+        The products are one call of :func:`ipcverify.kernels.scan_kth`.
+        """
         norm = math.hypot(*w.tolist())  # scaled internally: a far-out query cannot overflow here
         if not norm < _SCAN_MAX_NORM or (len(w) + 6) * _U32 > _SCAN_BOUND:
             return None
         ww = norm * norm
-        w1 = np.empty(len(w) + 1, dtype=np.float32)
-        w1[:-1] = w
-        w1[-1] = 1.0
-        d2 = w1 @ self.columns
-        kth = float(d2.min() if k == 1 else np.partition(d2, k - 1)[k - 1]) + ww
+        kth = float(scan_kth(w, self.columns, k)) + ww
+        if kth != kth:
+            return None
         slack = _SCAN_BOUND * (self.max_norm + math.sqrt(ww)) ** 2
         return math.sqrt(max(kth - slack, 0.0)), math.sqrt(kth + slack)
 
@@ -376,11 +378,15 @@ class DomainModel:
         Steps 1 and 2 answer only with a relative margin of ``1e-9`` to the threshold, a million
         times the rounding of the tree's own distance, so the answer is always :meth:`contains`'s.
         """
+        if z.shape != self.mean.shape:
+            raise InvalidInputError(
+                f"domain test: one query is a 1-D (x, yhat) of length {len(self.mean)}; got shape {z.shape}"
+            )
         # one cheap sum in Python floats when finite (it cannot raise: a huge finite row sums to
         # inf, and then the exact test decides)
         if not math.isfinite(sum(z.tolist())) and not np.isfinite(z).all():
             return False
-        w = (z - self.mean) @ self._wt
+        w = whiten_one(z, self.mean, self._wt)
         t = self.threshold
         last = self._last[0]
         if last is not None:  # step 1

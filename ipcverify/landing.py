@@ -297,17 +297,22 @@ def landing_accept_float(ellipsoids: Ellipsoid, target: Box) -> NDArray[np.bool_
 
 def _half_widths_3(C: FloatArray) -> FloatArray:
     """``sqrt(((C^T C)^{-1})_ii)`` = norms of the rows of ``C^{-1}`` for a 3x3 ``C`` (float, fast)."""
-    (a, b, c), (d, e, f), (g, h, i) = C.tolist()
+    return np.array(_half_widths_values(C.ravel().tolist()))
+
+
+def _half_widths_values(flat: list[float]) -> list[float]:
+    """:func:`_half_widths_3` of a row-major ``C`` given as 9 Python floats, as 3 floats."""
+    a, b, c, d, e, f, g, h, i = flat
     A, B, Cc = e * i - f * h, -(d * i - f * g), d * h - e * g
     det = a * A + b * B + c * Cc
     if not (math.isfinite(det) and det != 0.0):
-        return np.full(3, math.inf)
+        return [math.inf] * 3
     # rows of adj(C) (= columns of the cofactor matrix), i.e. rows of C^{-1} times det
     r0 = (A, -(b * i - c * h), b * f - c * e)
     r1 = (B, a * i - c * g, -(a * f - c * d))
     r2 = (Cc, -(a * h - b * g), a * e - b * d)
     ad = abs(det)
-    return np.array([math.sqrt(u * u + v * v + w * w) / ad for u, v, w in (r0, r1, r2)])
+    return [math.sqrt(u * u + v * v + w * w) / ad for u, v, w in (r0, r1, r2)]
 
 
 class Verdict(Enum):
@@ -481,12 +486,7 @@ class LandingRule:
         >>> d.accept, d.decided_by.name, d.turnoff.tolist()
         (True, 'BOUND', [0.0, 0.0, 0.0125])
         """
-        if len(center) != 3 or len(shape) != 9:
-            raise SetError(
-                f"the landing decision needs a 3-D ellipsoid: 3 centre and 9 shape values; got "
-                f"{len(center)} and {len(shape)}"
-            )
-        both = np.array(center + shape, dtype=np.float64)
+        both = _values_array(center, shape)
         values = both.tolist()  # float64 values whatever the caller's number types
         return self._decide(values[:3], values[3:], both[:3], both[3:].reshape(3, 3))
 
@@ -532,6 +532,32 @@ class LandingRule:
         p = c.copy()
         p[2] += _half_widths_3(C)[2]
         return QueryDecision(c, C, False, p, DecidedBy.DOMAIN, False, self.target)
+
+    def outside_domain_values(self, center: list[float], shape: list[float]) -> QueryDecision:
+        """:meth:`outside_domain` for a centre (3 floats) and a row-major shape (9 floats).
+
+        Examples
+        --------
+        >>> rule = LandingRule(Box([-0.05, -0.05, 0.0], [0.05, 0.05, 0.05]))
+        >>> d = rule.outside_domain_values([0.0, 0.0, 1.0], [2.0, 0.0, 0.0, 0.0, 2.0, 0.0, 0.0, 0.0, 4.0])
+        >>> d.verdict.name, d.turnoff.tolist()
+        ('OUTSIDE_DOMAIN', [0.0, 0.0, 1.25])
+        """
+        both = _values_array(center, shape)
+        values = both.tolist()
+        p = np.array(values[:3])
+        p[2] += _half_widths_values(values[3:])[2]
+        return QueryDecision(both[:3], both[3:].reshape(3, 3), False, p, DecidedBy.DOMAIN, False, self.target)
+
+
+def _values_array(center: list[float], shape: list[float]) -> FloatArray:
+    """Centre (3 floats) and row-major shape (9 floats) as one float64 array of 12 values."""
+    if len(center) != 3 or len(shape) != 9:
+        raise SetError(
+            f"the landing decision needs a 3-D ellipsoid: 3 centre and 9 shape values; got "
+            f"{len(center)} and {len(shape)}"
+        )
+    return np.array(center + shape, dtype=np.float64)
 
 
 def _arrays(center: FloatArray, shape: FloatArray) -> tuple[FloatArray, FloatArray]:

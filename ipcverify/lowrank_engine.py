@@ -14,8 +14,8 @@ or a million, and the same as the ONNX export's graph.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -23,9 +23,10 @@ from numpy.typing import NDArray
 from ipcverify.architecture import LOGDIAG_CLAMP, ModelConfig
 from ipcverify.errors import InvalidInputError
 from ipcverify.inference import CHUNK, activate, float64_array
+from ipcverify.kernels import ACTIVATION_CODES, lowrank_one
 from ipcverify.lowrank import LowRankEnsemble
 
-__all__ = ["LowRankEngine", "cholesky_lower", "lower_inverse", "cholesky_inverse_small"]
+__all__ = ["LowRankEngine", "cholesky_lower", "lower_inverse"]
 
 FloatArray = NDArray[np.float64]
 
@@ -70,40 +71,6 @@ def lower_inverse(L: FloatArray) -> FloatArray:
         for j in range(i):
             acc = np.einsum("...k,...k->...", L[..., i, j:i], X[..., j:i, j])
             X[..., i, j] = -acc / L[..., i, i]
-    return X
-
-
-def cholesky_inverse_small(S: list[list[float]]) -> list[list[float]]:
-    """``chol(S)^-1`` of one small SPD matrix, on Python floats.
-
-    The arithmetic of :func:`cholesky_lower` and :func:`lower_inverse` for one matrix.
-
-    A non-positive pivot gives NaN entries.
-
-    Examples
-    --------
-    >>> cholesky_inverse_small([[4.0, 2.0], [2.0, 5.0]])
-    [[0.5, 0.0], [-0.25, 0.5]]
-    """
-    n = len(S)
-    L = [[0.0] * n for _ in range(n)]
-    for i in range(n):
-        for j in range(i + 1):
-            s = S[i][j]
-            for m in range(j):
-                s -= L[i][m] * L[j][m]
-            if i == j:
-                L[i][i] = math.sqrt(s) if s > 0.0 else math.nan
-            else:
-                L[i][j] = s / L[j][j]
-    X = [[0.0] * n for _ in range(n)]
-    for i in range(n):
-        X[i][i] = 1.0 / L[i][i] if L[i][i] == L[i][i] else math.nan
-        for j in range(i):
-            acc = 0.0
-            for m in range(j, i):
-                acc += L[i][m] * X[m][j]
-            X[i][j] = -acc / L[i][i] if L[i][i] == L[i][i] else math.nan
     return X
 
 
@@ -160,8 +127,8 @@ class LowRankEngine:
     single_weight: FloatArray = field(init=False, repr=False)
     #: its bias, same columns
     single_bias: FloatArray = field(init=False, repr=False)
-    #: ``lin_bias``, ``sigma`` and ``inv_sigma`` as Python floats, for :meth:`single_values`
-    single_constants: tuple[list[float], list[float], list[float]] = field(init=False, repr=False)
+    #: the arguments of :func:`ipcverify.kernels.lowrank_one` after the query's own
+    single_arguments: tuple[Any, ...] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         k, n, h1 = self.config.members, self.config.y_dim, self.config.hidden[0]
@@ -191,7 +158,23 @@ class LowRankEngine:
         object.__setattr__(self, "single_weight", np.ascontiguousarray(single_w))
         object.__setattr__(self, "single_bias", single_b)
         object.__setattr__(
-            self, "single_constants", (self.lin_bias.tolist(), self.sigma.tolist(), self.inv_sigma.tolist())
+            self,
+            "single_arguments",
+            (
+                np.ascontiguousarray(self.in_mean, dtype=np.float64),
+                np.ascontiguousarray(self.in_scale, dtype=np.float64),
+                self.single_weight,
+                self.single_bias,
+                tuple(np.ascontiguousarray(w, dtype=np.float64) for w in self.weights),
+                tuple(np.ascontiguousarray(b, dtype=np.float64) for b in self.biases),
+                np.ascontiguousarray(self.lin_bias, dtype=np.float64).reshape(-1),
+                np.ascontiguousarray(self.sigma, dtype=np.float64),
+                np.ascontiguousarray(self.inv_sigma, dtype=np.float64),
+                k,
+                h1,
+                float(LOGDIAG_CLAMP),
+                ACTIVATION_CODES[self.config.activation],
+            ),
         )
 
     @classmethod
@@ -305,100 +288,34 @@ class LowRankEngine:
         The same arithmetic as :meth:`batch` (up to the summation order of the matrix
         products) with less per-call overhead; see :meth:`single_values`.
         """
-        center, shape = self.single_values(np.concatenate((x, yhat)), yhat)
         n = self.config.y_dim
-        both = np.array(center + shape)
+        z = np.concatenate((x, yhat))
+        self._check_one(z, yhat)
+        both = lowrank_one(z, yhat, *self.single_arguments)
         return both[:n], both[n:].reshape(n, n)
 
     def single_values(self, z: FloatArray, yhat: FloatArray) -> tuple[list[float], list[float]]:
         """Centre (n floats) and row-major shape matrix (n * n floats) for one query, as Python floats.
 
         ``z`` is the query's raw input row ``concat(x, yhat)`` (1-D float64, not modified) and
-        ``yhat`` its estimate. The first layer of every member, the skip paths and the linear
-        centre stage are one vector-matrix product (:attr:`single_weight`: the hidden units, the
-        skip paths and ``lin`` each in one contiguous block), each later layer one stacked product; for
-        ``n = 3`` the moments, the Cholesky factor and its inverse are then plain float
-        arithmetic written out entry by entry (:func:`_moments3`, :func:`_shape3`). The
-        operations are those of :meth:`batch` (means summed over members in order,
-        ``exp`` of twice the clamped log-diagonal, Cholesky-Banachiewicz, forward substitution,
-        ``yhat + lin(z) + sigma * mean``) up to the summation order of the products.
+        ``yhat`` its estimate. One call of the compiled kernel
+        :func:`ipcverify.kernels.lowrank_one`: the operations of :meth:`batch` (the first
+        layer, the skip paths and ``lin`` as one product with :attr:`single_weight`; means
+        summed over members in order; ``exp`` of twice the clamped log-diagonal;
+        Cholesky-Banachiewicz; forward substitution; ``yhat + lin(z) + sigma * mean``), each
+        product summed in index order where BLAS may choose another: the same sets up to the
+        last bits.
         """
-        z = z - self.in_mean
-        z *= self.in_scale
-        k, n = self.config.members, self.config.y_dim
-        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-            first = z @ self.single_weight
-            first += self.single_bias
-            nh = k * self.config.hidden[0]
-            h = self._outputs(first[:nh].reshape(k, 1, -1), first[nh:-n].reshape(k, 1, -1))
-            if n == 3:
-                mean, cov = _moments3(h.reshape(k, -1).tolist())
-            else:
-                m, c = self._moments(h)
-                mean, cov = m[0].tolist(), c[0].ravel().tolist()
-        lin_bias, sigma, inv_sigma = self.single_constants
-        center = [
-            y + w + b + s * m
-            for y, w, b, s, m in zip(yhat.tolist(), first[-n:].tolist(), lin_bias, sigma, mean, strict=True)
-        ]
-        if n == 3:
-            return center, _shape3(cov, inv_sigma)
-        inv = cholesky_inverse_small([cov[i * n : (i + 1) * n] for i in range(n)])
-        return center, [v * inv_sigma[j] for row in inv for j, v in enumerate(row)]
+        n = self.config.y_dim
+        self._check_one(z, yhat)
+        res = lowrank_one(z, yhat, *self.single_arguments).tolist()
+        return res[:n], res[n:]
 
-
-def _moments3(rows: list[list[float]]) -> tuple[list[float], list[float]]:
-    """:meth:`LowRankEngine._moments` for one query and ``n = 3``, on Python floats.
-
-    ``rows`` holds every member's ``[U | h]`` (15 floats: ``U = [V | o]`` row-major, then the
-    log-diagonal). Returns the mean offset and the covariance (row-major, 9 floats).
-    """
-    k = len(rows)
-    m0 = m1 = m2 = 0.0
-    for r in rows:
-        m0 += r[3]
-        m1 += r[7]
-        m2 += r[11]
-    m0, m1, m2 = m0 / k, m1 / k, m2 / k
-    s00 = s10 = s11 = s20 = s21 = s22 = e0 = e1 = e2 = 0.0
-    hi = LOGDIAG_CLAMP
-    lo = -hi
-    exp = math.exp
-    for a0, a1, a2, o0, b0, b1, b2, o1, c0, c1, c2, o2, h0, h1, h2 in rows:
-        o0, o1, o2 = o0 - m0, o1 - m1, o2 - m2
-        s00 += a0 * a0 + a1 * a1 + a2 * a2 + o0 * o0
-        s10 += b0 * a0 + b1 * a1 + b2 * a2 + o1 * o0
-        s11 += b0 * b0 + b1 * b1 + b2 * b2 + o1 * o1
-        s20 += c0 * a0 + c1 * a1 + c2 * a2 + o2 * o0
-        s21 += c0 * b0 + c1 * b1 + c2 * b2 + o2 * o1
-        s22 += c0 * c0 + c1 * c1 + c2 * c2 + o2 * o2
-        # the clamp of np.minimum(np.maximum(h, lo), hi), NaN kept (exp(NaN) is NaN)
-        e0 += exp(2.0 * (lo if h0 < lo else hi if h0 > hi else h0))
-        e1 += exp(2.0 * (lo if h1 < lo else hi if h1 > hi else h1))
-        e2 += exp(2.0 * (lo if h2 < lo else hi if h2 > hi else h2))
-    s10, s20, s21 = s10 / k, s20 / k, s21 / k
-    return [m0, m1, m2], [s00 / k + e0 / k, s10, s20, s10, s11 / k + e1 / k, s21, s20, s21, s22 / k + e2 / k]
-
-
-def _shape3(S: list[float], inv_sigma: list[float]) -> list[float]:
-    """``chol(S)^-1 diag(inv_sigma)`` for one 3 x 3 SPD matrix ``S`` (row-major), row-major.
-
-    :func:`cholesky_lower` then :func:`lower_inverse` written out for ``n = 3``, in the same
-    order of operations; a non-positive pivot gives NaN entries (never an exception).
-    """
-    s00, _, _, s10, s11, _, s20, s21, s22 = S
-    nan = math.nan
-    l00 = math.sqrt(s00) if s00 > 0.0 else nan
-    l10 = s10 / l00
-    l20 = s20 / l00
-    t = s11 - l10 * l10
-    l11 = math.sqrt(t) if t > 0.0 else nan
-    l21 = (s21 - l20 * l10) / l11
-    t = s22 - (l20 * l20 + l21 * l21)
-    l22 = math.sqrt(t) if t > 0.0 else nan
-    x00, x11, x22 = 1.0 / l00, 1.0 / l11, 1.0 / l22
-    x10 = -(l10 * x00) / l11
-    x21 = -(l21 * x11) / l22
-    x20 = -(l20 * x00 + l21 * x10) / l22
-    i0, i1, i2 = inv_sigma
-    return [x00 * i0, 0.0, 0.0, x10 * i0, x11 * i1, 0.0, x20 * i0, x21 * i1, x22 * i2]
+    def _check_one(self, z: FloatArray, yhat: FloatArray) -> None:
+        """The compiled kernel reads without bounds checks: one query's shapes are checked here."""
+        d, n = self.config.x_dim, self.config.y_dim
+        if z.shape != (d + n,) or yhat.shape != (n,):
+            raise InvalidInputError(
+                f"one query needs x of shape ({d},) and yhat of shape ({n},); got an input row of "
+                f"shape {z.shape} and yhat of shape {yhat.shape}"
+            )

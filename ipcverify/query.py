@@ -274,7 +274,7 @@ class IPCQuery:
             if values is not None:  # no arrays until the answer is known
                 domain = self.model.domain
                 if domain is not None and not domain.contains_one(z):
-                    return self.rule.outside_domain(*self._arrays(*values))
+                    return self.rule.outside_domain_values(*values)
                 return self.rule.decide_values(*values)
         center, shape, z = self._ellipsoid_in_frame(x, yhat, transform)
         domain = self.model.domain

@@ -8,6 +8,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ipcverify.domain import DomainModel
+from ipcverify.errors import InvalidInputError
+from ipcverify.kernels import scan_kth
 
 
 def _fit(k: int, seed: int = 0) -> tuple[DomainModel, np.ndarray, np.ndarray]:
@@ -114,3 +116,21 @@ def test_contains_one_on_the_calibration_inputs_matches_contains(k):
     assert [dom.contains_one(v) for v in z] == [
         bool(dom.contains(a[None], b[None])[0]) for a, b in zip(x, yhat, strict=True)
     ]
+
+
+def test_contains_one_refuses_a_query_of_the_wrong_length():
+    dom, _, _ = DOMAINS[1]
+    with pytest.raises(InvalidInputError, match="1-D \\(x, yhat\\) of length 5; got shape \\(4,\\)"):
+        dom.contains_one(np.zeros(4))
+
+
+@pytest.mark.parametrize("k", [1, 2, 5])
+def test_the_compiled_scan_is_the_kth_smallest_product(k):
+    # the kernel's k-th smallest of (w, 1) . column_j, against NumPy's float32 product and sort
+    rng = np.random.default_rng(k)
+    cols = rng.normal(size=(4, 37)).astype(np.float32)
+    w = rng.normal(size=3)
+    want = np.sort(np.append(w, 1.0).astype(np.float32) @ cols)[k - 1]
+    np.testing.assert_allclose(scan_kth(w, cols, k), want, rtol=1e-5, atol=1e-5)
+    cols[2, 11] = np.nan  # a NaN product anywhere: NaN, never a finite answer
+    assert np.isnan(scan_kth(w, cols, k))

@@ -13,7 +13,7 @@ from ipcverify.data import PerceptionDataset
 from ipcverify.errors import InvalidInputError
 from ipcverify.lipschitz import Theorem1UnavailableError, sound_lipschitz, theorem1_unavailable
 from ipcverify.lowrank import SIGMA_FLOOR, LowRankEnsemble, fit_linear_stage, member_covariances, moment_match
-from ipcverify.lowrank_engine import LowRankEngine, cholesky_inverse_small, cholesky_lower, lower_inverse
+from ipcverify.lowrank_engine import LowRankEngine, cholesky_lower, lower_inverse
 from ipcverify.lowrank_training import train_lowrank
 from ipcverify.model import IPCModel, build_network, network_fingerprint
 from ipcverify.synthetic import make_lagged_perception
@@ -80,6 +80,31 @@ def test_the_float64_engine_matches_the_torch_network(cfg):
         np.testing.assert_allclose(Ci, C[i], rtol=1e-12, atol=1e-13 * np.abs(C[i]).max())
 
 
+def test_one_query_far_out_gives_a_degenerate_set_not_an_exception():
+    # inputs so large that the layers overflow: the compiled one-query kernel must give non-finite
+    # entries where the batch path does (NumPy's error model: inf and NaN, never ZeroDivisionError)
+    cfg = CONFIGS[0]
+    eng = LowRankEngine.from_network(_random_network(cfg, seed=8, scale=0.5))
+    for big, finite in ((1e150, True), (1e300, False)):
+        x, yhat = np.full(cfg.x_dim, big), np.full(cfg.y_dim, -big)
+        c, C = eng.batch(x[None], yhat[None])
+        ci, Ci = eng.single(x, yhat)
+        assert bool(np.isfinite(c).all() and np.isfinite(C).all()) is finite
+        assert bool(np.isfinite(ci).all() and np.isfinite(Ci).all()) is finite
+        if finite:
+            np.testing.assert_allclose(ci, c[0], rtol=1e-12)
+            np.testing.assert_allclose(Ci, C[0], rtol=1e-9, atol=1e-12 * np.abs(C[0]).max())
+
+
+def test_one_query_of_the_wrong_shape_is_refused_before_the_compiled_kernel():
+    cfg = CONFIGS[0]
+    eng = LowRankEngine.from_network(_random_network(cfg))
+    with pytest.raises(InvalidInputError, match=r"x of shape \(4,\) and yhat of shape \(3,\)"):
+        eng.single(np.zeros(5), np.zeros(3))
+    with pytest.raises(InvalidInputError, match=r"got an input row of shape \(7,\) and yhat of shape \(2,\)"):
+        eng.single_values(np.zeros(7), np.zeros(2))
+
+
 @pytest.mark.parametrize("chunk", [1, 7, 64, 10_000])
 def test_chunked_batches_give_the_same_sets_through_the_model(chunk):
     cfg = CONFIGS[0]
@@ -133,12 +158,8 @@ def test_entrywise_cholesky_and_triangular_inverse_match_lapack():
         L = cholesky_lower(S)
         np.testing.assert_allclose(L, np.linalg.cholesky(S), rtol=1e-10, atol=1e-12)
         np.testing.assert_allclose(lower_inverse(L), np.linalg.inv(L), rtol=1e-9, atol=1e-10)
-        np.testing.assert_allclose(
-            np.array(cholesky_inverse_small(S[0].tolist())), np.linalg.inv(L[0]), rtol=1e-9, atol=1e-10
-        )
     bad = np.array([[[1.0, 2.0], [2.0, 1.0]]])  # indefinite: NaN, not an exception
     assert np.isnan(cholesky_lower(bad)).any()
-    assert any(np.isnan(v) for row in cholesky_inverse_small(bad[0].tolist()) for v in row)
 
 
 def test_the_linear_stage_recovers_a_linear_bias_exactly():

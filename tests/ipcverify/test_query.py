@@ -8,7 +8,7 @@ import pytest
 from ipcverify.architecture import ModelConfig
 from ipcverify.calibrate import calibrate
 from ipcverify.errors import InvalidInputError, SetError
-from ipcverify.landing import LandingRule, check_landing, landing_accept_float, landing_decision
+from ipcverify.landing import LandingRule, Verdict, check_landing, landing_accept_float, landing_decision
 from ipcverify.model import IPCModel, IPCNetwork
 from ipcverify.query import IPCQuery
 from ipcverify.sets import Box, Ellipsoid
@@ -146,6 +146,21 @@ def test_the_rule_on_floats_needs_three_and_nine_values():
     rule = LandingRule(G)
     with pytest.raises(SetError, match="3 centre and 9 shape values; got 2 and 9"):
         rule.decide_values([0.0, 0.0], [1.0] * 9)
+    with pytest.raises(SetError, match="3 centre and 9 shape values; got 3 and 4"):
+        rule.outside_domain_values([0.0, 0.0, 0.0], [1.0] * 4)
+
+
+def test_the_outside_domain_answer_on_floats_is_the_one_on_arrays():
+    rng = np.random.default_rng(3)
+    shapes = [rng.normal(size=(3, 3)) for _ in range(50)] + [np.zeros((3, 3)), np.full((3, 3), np.inf)]
+    rule = LandingRule(G)
+    for C in shapes:
+        c = rng.normal(size=3)
+        a = rule.outside_domain(c, C)
+        b = rule.outside_domain_values(c.tolist(), C.ravel().tolist())
+        assert a.verdict is b.verdict is Verdict.OUTSIDE_DOMAIN and not b.accept
+        for u, v in ((a.center, b.center), (a.shape, b.shape), (a.turnoff, b.turnoff)):
+            np.testing.assert_array_equal(u, v)
 
 
 @pytest.mark.parametrize(

@@ -1,0 +1,26 @@
+"""Tests of the compiled one-query kernels' own behaviour (their numbers are tested against the
+batch paths in test_lowrank.py and test_domain_one.py)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ipcverify.kernels import _activate, _compiled
+
+
+def test_a_kernel_that_cannot_be_cached_is_still_compiled():
+    # a function without a source file has no cache location, as in a read-only install: numba
+    # refuses cache=True, and the kernel is compiled per process instead of failing at import
+    namespace: dict = {}
+    exec("def f(x):\n    return x + 1.0\n", namespace)
+    f = _compiled(namespace["f"])
+    assert f(2.0) == 3.0
+
+
+def test_the_compiled_activations_are_numpys():
+    v = np.array([-3.0, -0.5, -0.0, 0.0, 0.25, 4.0, np.nan])
+    relu = [_activate(x, 0) for x in v]
+    np.testing.assert_array_equal(relu, np.maximum(v, 0.0))  # NaN kept
+    np.testing.assert_allclose([_activate(x, 1) for x in v], np.tanh(v), rtol=1e-15)
+    elu = np.where(v > 0, v, np.expm1(np.minimum(v, 0.0)))
+    np.testing.assert_allclose([_activate(x, 2) for x in v], elu, rtol=1e-15)
