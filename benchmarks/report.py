@@ -150,6 +150,14 @@ def targets(results: dict[str, Any]) -> dict[str, Any]:
                     f"model.predict throughput / bare torch forward throughput at {int(size):,} queries",
                     at_least=True,
                 )
+                ceiling = lat.get("batch_float64_layers_ratio_to_bare_forward", {}).get(size)
+                if ceiling is not None:
+                    out[f"batch_float64_layers_{size}"] = _target(
+                        ceiling,
+                        0.8,
+                        f"ceiling: float64 layers alone / bare torch forward at {int(size):,} queries",
+                        at_least=True,
+                    )
     return out
 
 
@@ -247,6 +255,15 @@ def render_markdown(results: dict[str, Any]) -> str:
                 "model.predict / bare torch forward: "
                 + ", ".join(f"{float(r):.2f} at {int(b):,}" for b, r in ratios.items())
                 + ".",
+            ]
+        ceiling = lat.get("batch_float64_layers_ratio_to_bare_forward")
+        if ceiling:
+            lines += [
+                "",
+                "Ceiling: the network's layers alone in float64 (no heads, no moments, no Cholesky) / "
+                "bare torch forward: "
+                + ", ".join(f"{float(r):.2f} at {int(b):,}" for b, r in ceiling.items())
+                + ". No evaluation with float64 sets of record can exceed it.",
             ]
         if "onnx_check" in lat:
             chk = lat["onnx_check"]

@@ -408,6 +408,17 @@ class DomainModel:
         self._last[0] = None
         return bool(float(d[0, 0]) <= t)
 
+    def prepare(self) -> None:
+        """Compile (or load from Numba's on-disk cache) the kernels of :meth:`contains_one` now.
+
+        The first :meth:`contains_one` otherwise pays it (seconds on a fresh install). Runs the
+        whitening and the scan once at the reference mean; the answer cache of step 1 is left
+        untouched.
+        """
+        # a fresh writable array, as contains_one receives (the kernel is compiled per layout)
+        w = whiten_one(np.array(self.mean, dtype=np.float64), self.mean, self._wt)
+        self._scan.kth(w, self.k)
+
     # ------------------------------------------------------------- reporting
     def report(
         self, x: ArrayLike, yhat: ArrayLike, violated: NDArray[np.bool_] | None = None

@@ -87,7 +87,6 @@ def _layer(
 @_compiled
 def lowrank_one(  # pragma: no cover - compiled
     z: FloatArray,
-    yhat: FloatArray,
     in_mean: FloatArray,
     in_scale: FloatArray,
     first_weight: FloatArray,
@@ -104,13 +103,15 @@ def lowrank_one(  # pragma: no cover - compiled
 ) -> FloatArray:
     """One query's centre and shape matrix, ``n + n * n`` floats (the shape row-major).
 
-    ``z`` is the raw input row ``concat(x, yhat)``; ``first_weight`` and ``first_bias`` are the
+    ``z`` is the raw input row ``concat(x, yhat)`` (its last ``n`` entries are ``yhat``; one
+    argument, so the compiled specialisation does not depend on how a caller sliced ``yhat``);
+    ``first_weight`` and ``first_bias`` are the
     engine's ``single_weight`` and ``single_bias`` (every member's hidden units, then every
     member's skip paths in the width of ``[U | h]``, then the linear centre stage);
     ``weights`` and ``biases`` the later layers stacked over members, the last in ``[U | h]``
     order. A non-positive pivot gives NaN entries, an overflow inf: never an exception.
     """
-    n = yhat.shape[0]
+    n = sigma.shape[0]
     d = z.shape[0]
     width = first_weight.shape[1]
     zs = np.empty(d)
@@ -186,7 +187,7 @@ def lowrank_one(  # pragma: no cover - compiled
             res[n + i * n + j] *= inv_sigma[j]
     lin0 = width - n
     for a in range(n):
-        res[a] = yhat[a] + first[lin0 + a] + lin_bias[a] + sigma[a] * mean[a]
+        res[a] = z[d - n + a] + first[lin0 + a] + lin_bias[a] + sigma[a] * mean[a]
     return res
 
 

@@ -244,13 +244,21 @@ class LowRankEngine:
         cov.reshape(-1, n * n)[:, :: n + 1] += np.exp(log_var).sum(axis=0) / k
         return mean, cov
 
-    def combined(self, z: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """Moment-matched offset (B, n) and covariance (B, n, n) in standardised output units."""
+    def layers(self, z: FloatArray) -> FloatArray:
+        """Every member's ``[U | h]`` (K, B, n (n + 1) + n) for standardised inputs ``z`` (B, d + n).
+
+        The network's layers and skip paths alone: the float64 work every set needs before
+        its moments.
+        """
         hidden = z @ self.hidden_weight  # (B, d + n) @ (K, d + n, ·) -> (K, B, ·)
         hidden += self.hidden_bias
         skip = z @ self.skip_weight
         skip += self.skip_bias
-        return self._moments(self._outputs(hidden, skip))
+        return self._outputs(hidden, skip)
+
+    def combined(self, z: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Moment-matched offset (B, n) and covariance (B, n, n) in standardised output units."""
+        return self._moments(self.layers(z))
 
     def batch(
         self, x: FloatArray, yhat: FloatArray, chunk: int | None = None
@@ -288,17 +296,22 @@ class LowRankEngine:
         The same arithmetic as :meth:`batch` (up to the summation order of the matrix
         products) with less per-call overhead; see :meth:`single_values`.
         """
-        n = self.config.y_dim
+        d, n = self.config.x_dim, self.config.y_dim
+        if np.shape(x) != (d,) or np.shape(yhat) != (n,):
+            raise InvalidInputError(
+                f"one query needs x of shape ({d},) and yhat of shape ({n},); got {np.shape(x)} "
+                f"and {np.shape(yhat)}"
+            )
         z = np.concatenate((x, yhat))
-        self._check_one(z, yhat)
-        both = lowrank_one(z, yhat, *self.single_arguments)
+        both = lowrank_one(z, *self.single_arguments)
         return both[:n], both[n:].reshape(n, n)
 
-    def single_values(self, z: FloatArray, yhat: FloatArray) -> tuple[list[float], list[float]]:
+    def single_values(self, z: FloatArray) -> tuple[list[float], list[float]]:
         """Centre (n floats) and row-major shape matrix (n * n floats) for one query, as Python floats.
 
-        ``z`` is the query's raw input row ``concat(x, yhat)`` (1-D float64, not modified) and
-        ``yhat`` its estimate. One call of the compiled kernel
+        ``z`` is the query's raw input row ``concat(x, yhat)`` (1-D float64, C-contiguous and
+        writable, as :func:`numpy.concatenate` returns it: another layout compiles the kernel
+        again; not modified). One call of the compiled kernel
         :func:`ipcverify.kernels.lowrank_one`: the operations of :meth:`batch` (the first
         layer, the skip paths and ``lin`` as one product with :attr:`single_weight`; means
         summed over members in order; ``exp`` of twice the clamped log-diagonal;
@@ -307,15 +320,27 @@ class LowRankEngine:
         last bits.
         """
         n = self.config.y_dim
-        self._check_one(z, yhat)
-        res = lowrank_one(z, yhat, *self.single_arguments).tolist()
+        self._check_one(z)
+        res = lowrank_one(z, *self.single_arguments).tolist()
         return res[:n], res[n:]
 
-    def _check_one(self, z: FloatArray, yhat: FloatArray) -> None:
-        """The compiled kernel reads without bounds checks: one query's shapes are checked here."""
+    def prepare(self) -> None:
+        """Compile (or load from Numba's on-disk cache) the one-query kernel for this network now.
+
+        The first :meth:`single` otherwise pays it: seconds on a fresh install, about a
+        millisecond from the cache. :class:`ipcverify.query.IPCQuery` calls it once, so a control
+        loop's first frame costs what the others do. Evaluates one query at the input mean and
+        discards it.
+        """
+        d = self.config.x_dim
+        z = np.array(self.in_mean, dtype=np.float64).reshape(-1)
+        self.single(z[:d], z[d:])
+
+    def _check_one(self, z: FloatArray) -> None:
+        """The compiled kernel reads without bounds checks: one query's input row is checked here."""
         d, n = self.config.x_dim, self.config.y_dim
-        if z.shape != (d + n,) or yhat.shape != (n,):
+        if z.shape != (d + n,):
             raise InvalidInputError(
-                f"one query needs x of shape ({d},) and yhat of shape ({n},); got an input row of "
-                f"shape {z.shape} and yhat of shape {yhat.shape}"
+                f"one query's input row concat(x, yhat) needs shape ({d + n},) (x of length {d}, "
+                f"yhat of length {n}); got shape {z.shape}"
             )

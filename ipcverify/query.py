@@ -11,8 +11,10 @@ per-call overhead as the sound answer allows:
   validation SVD on the hot path; the inputs are checked once, and for ``n = 3`` with the
   Cholesky head the output heads are plain float arithmetic (the default ensemble's engine,
   :mod:`ipcverify.lowrank_engine`, has its own one-query path,
-  :meth:`~ipcverify.lowrank_engine.LowRankEngine.single_values`). The returned centre and shape
-  are plain arrays.
+  :meth:`~ipcverify.lowrank_engine.LowRankEngine.single_values`: one compiled call,
+  :func:`ipcverify.kernels.lowrank_one`, float64 throughout; its sets equal the batch sets to
+  1e-12, tested). The returned
+  centre and shape are plain arrays.
 * :meth:`IPCQuery.decide` turns the ellipsoid (optionally moved to another frame by the
   caller's ``transform``) into the landing decision of record of
   :class:`ipcverify.landing.LandingRule` against the caller's target box ``G``, after the
@@ -127,6 +129,11 @@ class IPCQuery:
                     "_consts",
                     (eng.sigma.tolist(), eng.inv_sigma.tolist(), eng.y_mean.tolist(), LOGDIAG_CLAMP),
                 )
+        # compile the one-query kernels here, not on the control loop's first frame
+        if isinstance(eng, LowRankEngine):
+            eng.prepare()
+        if self.model.domain is not None:
+            self.model.domain.prepare()
 
     # ----------------------------------------------------------------- ellipsoid
     def _inputs(self, x: ArrayLike, yhat: ArrayLike) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -200,7 +207,7 @@ class IPCQuery:
         and the Cholesky head for ``n = 3`` (:meth:`_heads3`); None for the other heads.
         """
         if self._lowrank is not None:  # type: ignore[attr-defined]
-            center, flat = self._lowrank.single_values(z, ya)  # type: ignore[attr-defined]
+            center, flat = self._lowrank.single_values(z)  # type: ignore[attr-defined]
         elif self._fast3:  # type: ignore[attr-defined]
             eng: InferenceEngine = self._engine  # type: ignore[attr-defined]
             h = z - eng.in_mean

@@ -26,6 +26,12 @@ def test_quick_run_writes_every_required_key(tmp_path):
     # the decision of record is timed as a default calibration ships it: with its domain test
     assert res["latency"]["single_query_has_domain_test"] is True
     assert "decide_without_domain_test" in res["latency"]["single_query"]["paths"]
+    # the float64 ceiling of batch throughput is measured beside predict at every size
+    lat = res["latency"]
+    assert set(lat["batch_float64_layers_ratio_to_bare_forward"]) == set(
+        lat["batch_predict_ratio_to_bare_forward"]
+    )
+    assert all(r > 0 for r in lat["batch_float64_layers_ratio_to_bare_forward"].values())
     tight = res["tightness"]["synthetic"]
     assert set(tight) == set(METHODS)
     for method in ("ipc", "ipc_v1", "ipc_paper", "global_mahalanobis", "bonferroni_box", "oracle", "raw_ipc"):

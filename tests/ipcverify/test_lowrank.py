@@ -101,8 +101,10 @@ def test_one_query_of_the_wrong_shape_is_refused_before_the_compiled_kernel():
     eng = LowRankEngine.from_network(_random_network(cfg))
     with pytest.raises(InvalidInputError, match=r"x of shape \(4,\) and yhat of shape \(3,\)"):
         eng.single(np.zeros(5), np.zeros(3))
-    with pytest.raises(InvalidInputError, match=r"got an input row of shape \(7,\) and yhat of shape \(2,\)"):
-        eng.single_values(np.zeros(7), np.zeros(2))
+    with pytest.raises(InvalidInputError, match=r"x of shape \(4,\) and yhat of shape \(3,\)"):
+        eng.single(np.zeros(5), np.zeros(2))  # the right total length, split wrongly
+    with pytest.raises(InvalidInputError, match=r"needs shape \(7,\) .* got shape \(6,\)"):
+        eng.single_values(np.zeros(6))
 
 
 @pytest.mark.parametrize("chunk", [1, 7, 64, 10_000])

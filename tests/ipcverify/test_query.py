@@ -186,3 +186,23 @@ def test_landing_needs_three_dimensions():
 def test_query_needs_a_model():
     with pytest.raises(InvalidInputError, match="needs an IPCModel"):
         IPCQuery("model.pt", G)  # type: ignore[arg-type]
+
+
+def test_the_constructor_compiles_the_kernels_the_first_query_runs(data):
+    # a control loop's first frame must not pay a compilation: IPCQuery compiles the one-query
+    # kernels when it is built, with the argument layouts decide() passes them, even when the
+    # caller's rows are strided views
+    from ipcverify import kernels
+
+    mc = ModelConfig(x_dim=6, y_dim=3, hidden=(16, 16), param="lowrank", center="offset")
+    model = calibrate(train(data[0], mc, TrainConfig(epochs=1, seed=3)).model, data[1], 0.05, 0.01)
+    assert model.domain is not None
+    q = IPCQuery(model, G)
+    kernel_list = (kernels.lowrank_one, kernels.whiten_one, kernels.scan_kth)
+    compiled = [len(k.signatures) for k in kernel_list]
+    assert all(c >= 1 for c in compiled)
+    x, yhat = np.asfortranarray(data[1].x), np.asfortranarray(data[1].yhat)  # rows are strided
+    assert not yhat[0].flags.c_contiguous
+    for i in range(20):
+        q.decide(x[i], yhat[i])
+    assert [len(k.signatures) for k in kernel_list] == compiled
