@@ -1,4 +1,4 @@
-"""The project's own rules that tools check: ruff clean and fully typed (mypy)."""
+"""The project's own rules that tools check: ruff clean and fully typed (mypy, library and case study)."""
 
 from __future__ import annotations
 
@@ -23,6 +23,6 @@ def test_ruff_is_clean():
 @pytest.mark.slow
 def test_mypy_is_clean():
     res = subprocess.run(
-        [sys.executable, "-m", "mypy", "ipcverify"], cwd=ROOT, capture_output=True, text=True
+        [sys.executable, "-m", "mypy", "ipcverify", "case_studies"], cwd=ROOT, capture_output=True, text=True
     )
     assert res.returncode == 0, res.stdout + res.stderr

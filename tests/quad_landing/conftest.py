@@ -7,6 +7,7 @@ from collections.abc import Callable
 
 import numpy as np
 import pytest
+import torch
 
 from case_studies.quad_landing.landing.contracts import TrivialContract
 from case_studies.quad_landing.landing.runs import LandingRun
@@ -23,7 +24,11 @@ def make_ipc() -> Callable[[bool], IPCModel]:
     """A factory of small untrained IPCs on ``x_C`` (12) and ``yhat_C`` (3), calibrated or not."""
 
     def make(calibrated: bool) -> IPCModel:
-        m = IPCModel(IPCNetwork(ModelConfig(x_dim=12, y_dim=3, hidden=(4,), param="cholesky")))
+        # seeded: the untrained weights (and so which rows a test's sets contain) must not depend
+        # on which tests ran before in the same process
+        with torch.random.fork_rng():
+            torch.manual_seed(0)
+            m = IPCModel(IPCNetwork(ModelConfig(x_dim=12, y_dim=3, hidden=(4,), param="cholesky")))
         if not calibrated:
             return m
         from ipcverify.calibration import GlobalCalibration, threshold_scores

@@ -300,7 +300,7 @@ def make_path(
     bearing = u(-np.pi, np.pi)
     center = pad + np.array([off * np.cos(bearing), off * np.sin(bearing), h])
     return ExplorationPath(
-        name=template, center=center, amplitude=amp, omega=omega, phase=phase,
+        name=template, center=center, amplitude=np.array(amp), omega=np.array(omega), phase=phase,
         yaw0=yaw0, duration=params.duration, **yaw,
     )  # fmt: skip
 

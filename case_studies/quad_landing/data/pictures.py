@@ -49,8 +49,8 @@ def camera_frame_picture(out: Path, *, buffer_size: int = 2, seed: int = 0,
         raise InvalidInputError("the marker was never detected on the picture path; try a seed")
     speed, m, gray = best
     scale = 2
-    img = cv2.resize(cv2.cvtColor(gray, cv2.COLOR_GRAY2BGR), None, fx=scale, fy=scale,
-                     interpolation=cv2.INTER_NEAREST)  # fmt: skip
+    img = np.asarray(cv2.resize(cv2.cvtColor(gray, cv2.COLOR_GRAY2BGR), None, fx=scale, fy=scale,
+                                interpolation=cv2.INTER_NEAREST), dtype=np.uint8)  # fmt: skip
     corners = flight.perception.detect(gray)
     if corners is None:  # pragma: no cover - the measurement was a detection
         raise InvalidInputError("the picture's frame has no detection")
@@ -59,6 +59,8 @@ def camera_frame_picture(out: Path, *, buffer_size: int = 2, seed: int = 0,
     true_c = flight.renderer.marker_corners_camera(m.world_from_camera.inverse(), flight.pad)
     uv = flight.camera.project(true_c) * scale + (scale - 1) / 2
     cv2.polylines(img, [np.round(uv).astype(np.int32).reshape(-1, 1, 2)], True, (0, 200, 0), 2)
+    if m.yhat_c is None:  # pragma: no cover - the measurement was a detection
+        raise InvalidInputError("the picture's frame has no estimate")
     err = float(np.linalg.norm(m.yhat_c - m.y_c))
     lines = [
         f"buffer size {buffer_size}: image {1000 * m.age:.0f} ms older than the state",
@@ -81,7 +83,7 @@ def paths_picture(out: Path, *, seed: int = 0, config: SimConfig | None = None) 
     fig = Figure(figsize=(9.0, 4.2), dpi=90)
     ax3 = fig.add_subplot(1, 2, 1, projection="3d")
     ax2 = fig.add_subplot(1, 2, 2)
-    colors = colormaps["tab10"].colors
+    colors = colormaps["tab10"](np.arange(10))  # its ten colours, RGBA
     for i, name in enumerate(TEMPLATES):
         path = make_path(name, path_rng(seed, i), cfg.pad.position, cfg.paths)
         path = fit_to_view(path, flight.camera, outline, cfg.paths.view_margin_px)

@@ -280,7 +280,7 @@ def draw_scenario(
     yaw = float(rng.uniform(-np.pi, np.pi))
     m = np.deg2rad(params.aligned_margin_deg)
     pad_yaw = float(wrap_angle(yaw + rng.integers(4) * np.pi / 2 + rng.uniform(m, np.pi / 2 - m)))
-    pad = Pad((pad_xy[0], pad_xy[1], ground), pad_yaw)
+    pad = Pad(np.array([pad_xy[0], pad_xy[1], ground]), pad_yaw)
     z = ground + float(rng.uniform(*params.start_height)) + camera_offset_z(config)
     dist = float(rng.uniform(*params.start_distance))
     speed = float(rng.uniform(*params.transit_speed))

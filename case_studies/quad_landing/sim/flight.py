@@ -59,10 +59,12 @@ class _BufferedFunction:
         self._buf, self._eval = fn.buffer()
         self._args = [np.zeros(fn.size1_in(i)) for i in range(fn.n_in())]
         self._res = [np.zeros(fn.size1_out(i)) for i in range(fn.n_out())]
+        # CasADi's type stub lists a byte size that its Python binding does not accept (it takes
+        # the size from the buffer): hence the ignores
         for i, a in enumerate(self._args):
-            self._buf.set_arg(i, memoryview(a))
+            self._buf.set_arg(i, a.data)  # type: ignore[call-arg]
         for i, r in enumerate(self._res):
-            self._buf.set_res(i, memoryview(r))
+            self._buf.set_res(i, r.data)  # type: ignore[call-arg]
 
     def __call__(self, *args: FloatArray) -> FloatArray:
         for dst, src in zip(self._args, args, strict=True):
