@@ -28,10 +28,11 @@ height, or the exact rational fallback). Batch throughput is queries per second 
 ONNX Runtime (float64 and float32) and the bare torch forward, all single-threaded;
 ``engine_arrays_blas_default_threads`` repeats the engine with NumPy's BLAS at one thread
 per core (its default), which on 2 shared cores is far slower for mid-sized batches.
-``float64_layers_only`` is the network's layers alone in float64 (the engine's own products,
-nothing else): no evaluation whose sets of record are float64 can beat it, so its ratio to the
-bare (float32) torch forward, ``batch_float64_layers_ratio_to_bare_forward``, is the ceiling
-of ``batch_predict_ratio_to_bare_forward``.
+``float64_layers_only`` is the network's layers alone in float64 (the engine's own products
+and fused bias passes, nothing else): no evaluation whose sets of record are float64 can beat
+it, so its ratio to the bare (float32) torch forward,
+``batch_float64_layers_ratio_to_bare_forward``, is the ceiling of
+``batch_predict_ratio_to_bare_forward``.
 """
 
 from __future__ import annotations

@@ -1,15 +1,21 @@
-"""Compiled one-query kernels: the low-rank ensemble's forward pass and the domain scan.
+"""Compiled kernels: the low-rank ensemble's forward pass and sets, and the domain scan.
 
 A controller asks one query per camera frame, and at that size NumPy's per-call overhead
 (about a microsecond per operation, a dozen operations per layer stack) costs more than the
-arithmetic. These two kernels, compiled by Numba on first use, do the arithmetic of one query
-in one call:
+arithmetic; a batch spends a third of its time in element-wise passes over the hidden layers
+and in NumPy's small-matrix calls per row. These kernels, compiled by Numba on first use
+(:meth:`ipcverify.lowrank_engine.LowRankEngine.prepare` compiles them ahead), do that work in
+compiled loops:
 
-* :func:`lowrank_one` -- standardisation, every member's layers, the moment-matched covariance,
-  its Cholesky factor and inverse, and the centre: the operations of
-  :meth:`ipcverify.lowrank_engine.LowRankEngine.batch` for one row, each product summed in
-  index order (BLAS may sum in another order: the sets agree to the last bits, as the batch's
-  chunks do among themselves);
+* :func:`lowrank_one` -- one query: standardisation, every member's layers, then its set
+  (:func:`_set_of_row`: the moment-matched covariance, its Cholesky factor and inverse, and
+  the centre), each product summed in index order (BLAS may sum in another order: the sets
+  agree to the last bits, as the batch's chunks do among themselves);
+* :func:`lowrank_sets` -- a batch's sets from its layers' outputs, row by row with the same
+  :func:`_set_of_row`, so a batch and a single query share every operation after the layers;
+* :func:`bias_activate` and :func:`bias_skip_add` -- a batch layer's bias and activation
+  (or bias and skip path) in one pass over the BLAS product, the same numbers as NumPy's
+  separate passes;
 * :func:`whiten_one` and :func:`scan_kth` -- the whitening of a query and the float32 scan of
   all reference points of :class:`ipcverify.domain.DomainModel`, whose rounding bound
   (``proofs/domain.md``) holds for any summation order.
@@ -37,7 +43,15 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-__all__ = ["ACTIVATION_CODES", "lowrank_one", "scan_kth", "whiten_one"]
+__all__ = [
+    "ACTIVATION_CODES",
+    "bias_activate",
+    "bias_skip_add",
+    "lowrank_one",
+    "lowrank_sets",
+    "scan_kth",
+    "whiten_one",
+]
 
 FloatArray = NDArray[np.float64]
 
@@ -109,7 +123,8 @@ def lowrank_one(  # pragma: no cover - compiled
     engine's ``single_weight`` and ``single_bias`` (every member's hidden units, then every
     member's skip paths in the width of ``[U | h]``, then the linear centre stage);
     ``weights`` and ``biases`` the later layers stacked over members, the last in ``[U | h]``
-    order. A non-positive pivot gives NaN entries, an overflow inf: never an exception.
+    order. The set is :func:`_set_of_row`'s: a non-positive pivot gives NaN entries, an
+    overflow inf, never an exception.
     """
     n = sigma.shape[0]
     d = z.shape[0]
@@ -137,58 +152,129 @@ def lowrank_one(  # pragma: no cover - compiled
     for m in range(members):
         for j in range(out_w):
             h[m, j] += first[skip0 + m * out_w + j]
-    # moments: mean offset, then mean_k U_k' U_k'^T + diag(mean_k exp(2 h_k)) (U_k' centred)
-    mean = np.zeros(n)
-    for m in range(members):
-        for a in range(n):
-            mean[a] += h[m, a * (n + 1) + n]
+    lin0 = width - n
+    base = np.empty(n)
     for a in range(n):
-        mean[a] /= members
-    for m in range(members):
-        for a in range(n):
-            h[m, a * (n + 1) + n] -= mean[a]
-    cov = np.zeros((n, n))
+        base[a] = z[d - n + a] + first[lin0 + a] + lin_bias[a]
+    res = np.empty(n + n * n)
+    work = np.empty(n + 2 * n * n)
+    _set_of_row(h.reshape(members, 1, out_w), 0, base, sigma, inv_sigma, clamp, res[:n], res[n:], work)
+    return res
+
+
+@_compiled
+def _set_of_row(
+    out: FloatArray,
+    r: int,
+    base: FloatArray,
+    sigma: FloatArray,
+    inv_sigma: FloatArray,
+    clamp: float,
+    center: FloatArray,
+    shape: FloatArray,
+    work: FloatArray,
+) -> None:  # pragma: no cover - compiled
+    """Row ``r`` of every member's ``[U | h]`` (K, B, n (n + 1) + n) -> its set, written in place.
+
+    The moment-matched offset ``mean_k o_k`` and covariance ``mean_k U_k' U_k'^T +
+    diag(mean_k exp(2 h_k))`` (``U_k'`` with its offset column centred, ``h`` clamped), its
+    Cholesky-Banachiewicz factor ``L``, the inverse of ``L`` by forward substitution with its
+    columns divided by ``sigma``: ``shape`` (n * n, row-major); ``center = base + sigma * mean``.
+    ``work`` is scratch of ``n + 2 n^2`` floats (no allocation per row). A non-positive pivot
+    gives NaN entries, an overflow inf: never an exception.
+    """
+    members = out.shape[0]
+    n = base.shape[0]
+    nu = n * (n + 1)
+    mean, cov, low = 0, n, n + n * n  # offsets into work
+    for a in range(n):
+        s = 0.0
+        for m in range(members):
+            s += out[m, r, a * (n + 1) + n]
+        work[mean + a] = s / members
     for a in range(n):
         for b in range(a + 1):
             s = 0.0
             for m in range(members):
-                for c in range(n + 1):
-                    s += h[m, a * (n + 1) + c] * h[m, b * (n + 1) + c]
-            cov[a, b] = s / members
+                for c in range(n):
+                    s += out[m, r, a * (n + 1) + c] * out[m, r, b * (n + 1) + c]
+                s += (out[m, r, a * (n + 1) + n] - work[mean + a]) * (
+                    out[m, r, b * (n + 1) + n] - work[mean + b]
+                )
+            work[cov + a * n + b] = s / members
     for a in range(n):
         e = 0.0
         for m in range(members):
-            v = h[m, nu + a]
+            v = out[m, r, nu + a]
             v = -clamp if v < -clamp else (clamp if v > clamp else v)
             e += math.exp(2.0 * v)
-        cov[a, a] += e / members
-    # Cholesky-Banachiewicz, then the inverse of the factor by forward substitution
-    low = np.zeros((n, n))
+        work[cov + a * n + a] += e / members
     for i in range(n):
         for j in range(i + 1):
             dot = 0.0
             for p in range(j):
-                dot += low[i, p] * low[j, p]
-            s = cov[i, j] - dot
+                dot += work[low + i * n + p] * work[low + j * n + p]
+            s = work[cov + i * n + j] - dot
             if i == j:
-                low[i, i] = math.sqrt(s) if s > 0.0 else math.nan
+                work[low + i * n + i] = math.sqrt(s) if s > 0.0 else math.nan
             else:
-                low[i, j] = s / low[j, j]
-    res = np.zeros(n + n * n)
+                work[low + i * n + j] = s / work[low + j * n + j]
+    for i in range(n * n):
+        shape[i] = 0.0
     for j in range(n):
-        res[n + j * n + j] = 1.0 / low[j, j]
+        shape[j * n + j] = 1.0 / work[low + j * n + j]
         for i in range(j + 1, n):
             dot = 0.0
             for p in range(j, i):
-                dot += low[i, p] * res[n + p * n + j]
-            res[n + i * n + j] = -dot / low[i, i]
+                dot += work[low + i * n + p] * shape[p * n + j]
+            shape[i * n + j] = -dot / work[low + i * n + i]
     for i in range(n):
         for j in range(i + 1):
-            res[n + i * n + j] *= inv_sigma[j]
-    lin0 = width - n
+            shape[i * n + j] *= inv_sigma[j]
     for a in range(n):
-        res[a] = z[d - n + a] + first[lin0 + a] + lin_bias[a] + sigma[a] * mean[a]
-    return res
+        center[a] = base[a] + sigma[a] * work[mean + a]
+
+
+@_compiled
+def lowrank_sets(
+    out: FloatArray,
+    base: FloatArray,
+    sigma: FloatArray,
+    inv_sigma: FloatArray,
+    clamp: float,
+    centers: FloatArray,
+    shapes: FloatArray,
+) -> None:  # pragma: no cover - compiled
+    """Every row's set from every member's ``[U | h]`` (K, B, ·): ``centers`` (B, n) and ``shapes``
+    (B, n * n), written in place; ``base`` (B, n) is ``yhat + lin(z)``. The one-query kernel's
+    arithmetic (:func:`_set_of_row`), row by row."""
+    n = base.shape[1]
+    work = np.empty(n + 2 * n * n)
+    for r in range(out.shape[1]):
+        _set_of_row(out, r, base[r], sigma, inv_sigma, clamp, centers[r], shapes[r], work)
+
+
+@_compiled
+def bias_activate(h: FloatArray, bias: FloatArray, code: int) -> None:  # pragma: no cover - compiled
+    """In place, one pass: ``h = activation(h + bias)`` for ``h`` (K, B, W) and ``bias`` (K, 1, W).
+
+    The same numbers as NumPy's ``h += bias`` and then the activation, in half the memory traffic.
+    """
+    k, rows, w = h.shape
+    for m in range(k):
+        for r in range(rows):
+            for j in range(w):
+                h[m, r, j] = _activate(h[m, r, j] + bias[m, 0, j], code)
+
+
+@_compiled
+def bias_skip_add(h: FloatArray, bias: FloatArray, skip: FloatArray) -> None:  # pragma: no cover - compiled
+    """In place, one pass: ``h = (h + bias) + skip`` for ``h`` and ``skip`` (K, B, W), ``bias`` (K, 1, W)."""
+    k, rows, w = h.shape
+    for m in range(k):
+        for r in range(rows):
+            for j in range(w):
+                h[m, r, j] = (h[m, r, j] + bias[m, 0, j]) + skip[m, r, j]
 
 
 @_compiled

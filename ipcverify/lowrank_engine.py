@@ -22,8 +22,8 @@ from numpy.typing import NDArray
 
 from ipcverify.architecture import LOGDIAG_CLAMP, ModelConfig
 from ipcverify.errors import InvalidInputError
-from ipcverify.inference import CHUNK, activate, float64_array
-from ipcverify.kernels import ACTIVATION_CODES, lowrank_one
+from ipcverify.inference import CHUNK, float64_array
+from ipcverify.kernels import ACTIVATION_CODES, bias_activate, bias_skip_add, lowrank_one, lowrank_sets
 from ipcverify.lowrank import LowRankEnsemble
 
 __all__ = ["LowRankEngine", "cholesky_lower", "lower_inverse"]
@@ -216,19 +216,6 @@ class LowRankEngine:
             lin_bias=float64_array(network.lin_bias),
         )
 
-    def _outputs(self, hidden: FloatArray, skip: FloatArray) -> FloatArray:
-        """Every member's ``[U | h]`` (K, ..., n (n + 1) + n) from the first layer's hidden units
-        (K, ..., h1) and skip paths (K, ..., n (n + 1) + n; zero on ``h``), both overwritten."""
-        h = activate(hidden, self.config.activation)
-        last = len(self.weights) - 1
-        for i, (w, b) in enumerate(zip(self.weights, self.biases, strict=True)):
-            h = h @ w
-            h += b
-            if i < last:
-                h = activate(h, self.config.activation)
-        h += skip  # adding the padding's 0.0 to h changes nothing
-        return h
-
     def _moments(self, out: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Moment-matched offset (B, n) and covariance (B, n, n) from every member's ``[U | h]`` (K, B, ·)."""
         n, k = self.config.y_dim, self.config.members
@@ -250,14 +237,27 @@ class LowRankEngine:
         The network's layers and skip paths alone: the float64 work every set needs before
         its moments.
         """
-        hidden = z @ self.hidden_weight  # (B, d + n) @ (K, d + n, ·) -> (K, B, ·)
-        hidden += self.hidden_bias
+        code = ACTIVATION_CODES[self.config.activation]
+        h = z @ self.hidden_weight  # (B, d + n) @ (K, d + n, ·) -> (K, B, ·)
+        bias_activate(h, self.hidden_bias, code)
         skip = z @ self.skip_weight
         skip += self.skip_bias
-        return self._outputs(hidden, skip)
+        last = len(self.weights) - 1
+        for i, (w, b) in enumerate(zip(self.weights, self.biases, strict=True)):
+            h = h @ w
+            if i < last:
+                bias_activate(h, b, code)
+            else:  # adding the skip's padding 0.0 to h changes nothing
+                bias_skip_add(h, b, skip)
+        return h
 
     def combined(self, z: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """Moment-matched offset (B, n) and covariance (B, n, n) in standardised output units."""
+        """Moment-matched offset (B, n) and covariance (B, n, n) in standardised output units.
+
+        In NumPy, independently of the compiled :func:`ipcverify.kernels.lowrank_sets` that
+        :meth:`batch` uses (the tests check one against the other, and both against the
+        mixture's moments computed by hand).
+        """
         return self._moments(self.layers(z))
 
     def batch(
@@ -283,11 +283,11 @@ class LowRankEngine:
             z -= self.in_mean
             z *= self.in_scale
             with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-                mean, cov = self.combined(z)
-                centers[sl] = yhat[sl] + z @ self.lin_weight + self.lin_bias + self.sigma * mean
-                shape = lower_inverse(cholesky_lower(cov))
-                shape *= self.inv_sigma
-            shapes[sl] = shape
+                base = yhat[sl] + z @ self.lin_weight + self.lin_bias
+                lowrank_sets(
+                    self.layers(z), base, self.sigma, self.inv_sigma, float(LOGDIAG_CLAMP),
+                    centers[sl], shapes[sl].reshape(-1, n * n),
+                )  # fmt: skip
         return centers, shapes
 
     def single(self, x: FloatArray, yhat: FloatArray) -> tuple[FloatArray, FloatArray]:

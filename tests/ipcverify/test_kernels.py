@@ -24,3 +24,26 @@ def test_the_compiled_activations_are_numpys():
     np.testing.assert_allclose([_activate(x, 1) for x in v], np.tanh(v), rtol=1e-15)
     elu = np.where(v > 0, v, np.expm1(np.minimum(v, 0.0)))
     np.testing.assert_allclose([_activate(x, 2) for x in v], elu, rtol=1e-15)
+
+
+def test_the_fused_bias_passes_give_numpys_separate_passes():
+    from ipcverify.inference import activate
+    from ipcverify.kernels import ACTIVATION_CODES, bias_activate, bias_skip_add
+
+    rng = np.random.default_rng(7)
+    h = rng.normal(size=(3, 40, 9)) * 3
+    h[1, 5, 2] = np.nan
+    bias = rng.normal(size=(3, 1, 9))
+    skip = rng.normal(size=(3, 40, 9))
+    for name, code in ACTIVATION_CODES.items():
+        got = h.copy()
+        bias_activate(got, bias, code)
+        want = activate(h + bias, name)
+        if name == "relu":  # the default: the very same numbers
+            np.testing.assert_array_equal(got, want)
+        else:  # libm's tanh / expm1 may differ from NumPy's by an ulp
+            np.testing.assert_allclose(got, want, rtol=1e-15, atol=1e-300)
+        assert np.isnan(got[1, 5, 2])
+    got = h.copy()
+    bias_skip_add(got, bias, skip)
+    np.testing.assert_array_equal(got, (h + bias) + skip)
