@@ -3,9 +3,9 @@
 A controller asks one query per camera frame, and at that size NumPy's per-call overhead
 (about a microsecond per operation, a dozen operations per layer stack) costs more than the
 arithmetic; a batch spends a third of its time in element-wise passes over the hidden layers
-and in NumPy's small-matrix calls per row. These kernels, compiled by Numba on first use
-(:meth:`ipcverify.lowrank_engine.LowRankEngine.prepare` compiles them ahead), do that work in
-compiled loops:
+and in NumPy's small-matrix calls per row. These kernels, compiled by Numba on first use (the
+query path's ahead of time: :meth:`ipcverify.lowrank_engine.LowRankEngine.prepare` and
+:meth:`ipcverify.domain.DomainModel.prepare`), do that work in compiled loops:
 
 * :func:`lowrank_one` -- one query: standardisation, every member's layers, then its set
   (:func:`_set_of_row`: the moment-matched covariance, its Cholesky factor and inverse, and
