@@ -223,6 +223,7 @@ def batch_throughput(
     # chunks; no standardisation, heads, moments or Cholesky): a ceiling for any evaluation
     # of the same network whose sets are float64
     layers = eng.layers if isinstance(eng, LowRankEngine) else eng.mlp
+    chunk = eng.chunk if isinstance(eng, LowRankEngine) else CHUNK
     out: dict[str, Any] = {"unit": "queries per second", "sizes": list(sizes), "paths": {}}
     for b in sizes:
         xs, ys = xs_all[:b].copy(), ys_all[:b].copy()
@@ -240,8 +241,8 @@ def batch_throughput(
         z64 = z.numpy().astype(np.float64)
 
         def float64_layers(z64: np.ndarray = z64) -> None:
-            for start in range(0, len(z64), CHUNK):
-                layers(z64[start : start + CHUNK])
+            for start in range(0, len(z64), chunk):
+                layers(z64[start : start + chunk])
 
         fns: dict[str, Any] = {
             "model_predict": lambda xs=xs, ys=ys: model.predict(xs, ys),

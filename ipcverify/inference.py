@@ -19,11 +19,33 @@ from numpy.typing import NDArray
 from ipcverify.architecture import LOGDIAG_CLAMP, ModelConfig
 from ipcverify.errors import InvalidInputError
 
-__all__ = ["CHUNK", "InferenceEngine", "activate", "float64_array"]
+__all__ = ["CACHE_BYTES", "CHUNK", "InferenceEngine", "activate", "chunk_rows", "float64_array"]
 
-#: Rows evaluated together by :meth:`InferenceEngine.batch`: their hidden layers (512 x 128 float64,
-#: 0.5 MB) stay in the CPU cache; measured fastest among 256 .. 4096 on the benchmark machine.
-CHUNK = 512
+#: Bytes of one layer's activations per chunk of a batch: half a megabyte, so that a layer's input
+#: and output stay in a core's L2 cache (1 MB and up on current x86 and ARM server cores).
+CACHE_BYTES = 1 << 19
+
+
+def chunk_rows(width: int) -> int:
+    """Rows per chunk of a batch whose widest layer has ``width`` float64 activations per row.
+
+    As many rows as fit :data:`CACHE_BYTES`, rounded down to a multiple of 64 (at least 64):
+    512 for the paper's heads (128 units), 192 for the default ensemble (5 members x 64). The
+    products of a chunk then run from cache; larger chunks measured up to 25 % slower in the
+    second layer of the ensemble (benchmarks/bench_latency.py, ``float64_layers_only``).
+
+    Examples
+    --------
+    >>> chunk_rows(128), chunk_rows(5 * 64), chunk_rows(10_000)
+    (512, 192, 64)
+    """
+    if width < 1:
+        raise InvalidInputError(f"a layer needs a positive width; got {width!r}")
+    return max(64, CACHE_BYTES // (8 * width) // 64 * 64)
+
+
+#: Rows evaluated together by :meth:`InferenceEngine.batch` (the paper's heads, 128 hidden units)
+CHUNK = chunk_rows(128)
 
 FloatArray = NDArray[np.float64]
 

@@ -8,14 +8,18 @@ query path's ahead of time: :meth:`ipcverify.lowrank_engine.LowRankEngine.prepar
 :meth:`ipcverify.domain.DomainModel.prepare`), do that work in compiled loops:
 
 * :func:`lowrank_one` -- one query: standardisation, every member's layers, then its set
-  (:func:`_set_of_row`: the moment-matched covariance, its Cholesky factor and inverse, and
+  (:func:`_set_columns`: the moment-matched covariance, its Cholesky factor and inverse, and
   the centre), each product summed in index order (BLAS may sum in another order: the sets
   agree to the last bits, as the batch's chunks do among themselves);
-* :func:`lowrank_sets` -- a batch's sets from its layers' outputs, row by row with the same
-  :func:`_set_of_row`, so a batch and a single query share every operation after the layers;
-* :func:`bias_activate` and :func:`bias_skip_add` -- a batch layer's bias and activation
-  (or bias and skip path) in one pass over the BLAS product, the same numbers as NumPy's
-  separate passes;
+* :func:`lowrank_sets` -- a batch's sets from its layers' outputs, with the same
+  :func:`_set_columns` (queries as columns, so its loops vectorise), so a batch and a single
+  query share every operation after the layers but ``exp`` (NumPy's vectorised one for a batch,
+  :func:`clamped_exp2`; libm's for one query: they may differ in the last bit);
+* :func:`standardise`, :func:`bias_activate` and :func:`bias_skip_add` -- a batch's
+  standardisation, and a layer's bias and activation (or bias and skip path) in one pass over
+  the BLAS product, the same numbers as NumPy's separate passes;
+* :func:`rcond_lower_3` -- the cheap lower bound of the reciprocal condition number with which
+  :mod:`ipcverify.nonsingular` validates a batch's shape matrices;
 * :func:`whiten_one` and :func:`scan_kth` -- the whitening of a query and the float32 scan of
   all reference points of :class:`ipcverify.domain.DomainModel`, whose rounding bound
   (``proofs/domain.md``) holds for any summation order.
@@ -47,9 +51,12 @@ __all__ = [
     "ACTIVATION_CODES",
     "bias_activate",
     "bias_skip_add",
+    "clamped_exp2",
     "lowrank_one",
     "lowrank_sets",
+    "rcond_lower_3",
     "scan_kth",
+    "standardise",
     "whiten_one",
 ]
 
@@ -123,7 +130,7 @@ def lowrank_one(  # pragma: no cover - compiled
     engine's ``single_weight`` and ``single_bias`` (every member's hidden units, then every
     member's skip paths in the width of ``[U | h]``, then the linear centre stage);
     ``weights`` and ``biases`` the later layers stacked over members, the last in ``[U | h]``
-    order. The set is :func:`_set_of_row`'s: a non-positive pivot gives NaN entries, an
+    order. The set is :func:`_set_columns`'s: a non-positive pivot gives NaN entries, an
     overflow inf, never an exception.
     """
     n = sigma.shape[0]
@@ -156,125 +163,237 @@ def lowrank_one(  # pragma: no cover - compiled
     base = np.empty(n)
     for a in range(n):
         base[a] = z[d - n + a] + first[lin0 + a] + lin_bias[a]
+    exps = np.empty((members, n, 1))
+    for m in range(members):
+        for a in range(n):
+            v = h[m, nu + a]
+            v = -clamp if v < -clamp else (clamp if v > clamp else v)  # NaN kept, as np.clip keeps it
+            exps[m, a, 0] = math.exp(2.0 * v)
     res = np.empty(n + n * n)
-    work = np.empty(n + 2 * n * n)
-    _set_of_row(h.reshape(members, 1, out_w), 0, base, sigma, inv_sigma, clamp, res[:n], res[n:], work)
+    work = np.empty((n + 3 * n * n + 1, 1))
+    _set_columns(
+        h.reshape((members, out_w, 1)), exps, base.reshape((n, 1)), sigma, inv_sigma,
+        res[:n].reshape((1, n)), res[n:].reshape((1, n * n)), work,
+    )  # fmt: skip
     return res
 
 
 @_compiled
-def _set_of_row(
+def _set_columns(
     out: FloatArray,
-    r: int,
+    exps: FloatArray,
     base: FloatArray,
     sigma: FloatArray,
     inv_sigma: FloatArray,
-    clamp: float,
-    center: FloatArray,
-    shape: FloatArray,
+    centers: FloatArray,
+    shapes: FloatArray,
     work: FloatArray,
 ) -> None:  # pragma: no cover - compiled
-    """Row ``r`` of every member's ``[U | h]`` (K, B, n (n + 1) + n) -> its set, written in place.
+    """Column ``r`` of every member's ``[U | h]`` (K, n (n + 1) + n, R) -> set ``r``, written in place.
 
     The moment-matched offset ``mean_k o_k`` and covariance ``mean_k U_k' U_k'^T +
-    diag(mean_k exp(2 h_k))`` (``U_k'`` with its offset column centred, ``h`` clamped), its
+    diag(mean_k exps_k)`` (``U_k'`` with its offset column centred; ``exps`` (K, n, R) is
+    ``exp(2 h)`` of the clamped log-diagonal ``h``, see :func:`clamped_exp2`), its
     Cholesky-Banachiewicz factor ``L``, the inverse of ``L`` by forward substitution with its
-    columns divided by ``sigma``: ``shape`` (n * n, row-major); ``center = base + sigma * mean``.
-    ``work`` is scratch of ``n + 2 n^2`` floats (no allocation per row). A non-positive pivot
-    gives NaN entries, an overflow inf: never an exception.
+    columns divided by ``sigma``: ``shapes`` (R, n * n, row-major); ``centers = base + sigma *
+    mean`` (R, n) with ``base`` (n, R). ``work`` is scratch of ``(n + 3 n^2 + 1, R)`` floats.
+    Each set's operations are those of one query, in the same order, whatever ``R``: the loops
+    run over the columns innermost, so that the compiler can vectorise them. A non-positive
+    pivot gives NaN entries, an overflow inf: never an exception.
     """
     members = out.shape[0]
+    rows = out.shape[2]
     n = base.shape[0]
-    nu = n * (n + 1)
-    mean, cov, low = 0, n, n + n * n  # offsets into work
+    mean, cov, low, inv, ex = 0, n, n + n * n, n + 2 * n * n, n + 3 * n * n  # rows of work
     for a in range(n):
-        s = 0.0
+        for r in range(rows):
+            work[mean + a, r] = 0.0
         for m in range(members):
-            s += out[m, r, a * (n + 1) + n]
-        work[mean + a] = s / members
+            for r in range(rows):
+                work[mean + a, r] += out[m, a * (n + 1) + n, r]
+        for r in range(rows):
+            work[mean + a, r] /= members
     for a in range(n):
         for b in range(a + 1):
-            s = 0.0
+            row = cov + a * n + b
+            for r in range(rows):
+                work[row, r] = 0.0
             for m in range(members):
                 for c in range(n):
-                    s += out[m, r, a * (n + 1) + c] * out[m, r, b * (n + 1) + c]
-                s += (out[m, r, a * (n + 1) + n] - work[mean + a]) * (
-                    out[m, r, b * (n + 1) + n] - work[mean + b]
-                )
-            work[cov + a * n + b] = s / members
+                    for r in range(rows):
+                        work[row, r] += out[m, a * (n + 1) + c, r] * out[m, b * (n + 1) + c, r]
+                for r in range(rows):
+                    work[row, r] += (out[m, a * (n + 1) + n, r] - work[mean + a, r]) * (
+                        out[m, b * (n + 1) + n, r] - work[mean + b, r]
+                    )
+            for r in range(rows):
+                work[row, r] /= members
     for a in range(n):
-        e = 0.0
+        for r in range(rows):
+            work[ex, r] = 0.0
         for m in range(members):
-            v = out[m, r, nu + a]
-            v = -clamp if v < -clamp else (clamp if v > clamp else v)
-            e += math.exp(2.0 * v)
-        work[cov + a * n + a] += e / members
+            for r in range(rows):
+                work[ex, r] += exps[m, a, r]
+        for r in range(rows):
+            work[cov + a * n + a, r] += work[ex, r] / members
     for i in range(n):
         for j in range(i + 1):
-            dot = 0.0
-            for p in range(j):
-                dot += work[low + i * n + p] * work[low + j * n + p]
-            s = work[cov + i * n + j] - dot
-            if i == j:
-                work[low + i * n + i] = math.sqrt(s) if s > 0.0 else math.nan
-            else:
-                work[low + i * n + j] = s / work[low + j * n + j]
-    for i in range(n * n):
-        shape[i] = 0.0
+            for r in range(rows):
+                dot = 0.0
+                for p in range(j):
+                    dot += work[low + i * n + p, r] * work[low + j * n + p, r]
+                s = work[cov + i * n + j, r] - dot
+                if i == j:
+                    work[low + i * n + i, r] = math.sqrt(s) if s > 0.0 else math.nan
+                else:
+                    work[low + i * n + j, r] = s / work[low + j * n + j, r]
     for j in range(n):
-        shape[j * n + j] = 1.0 / work[low + j * n + j]
+        for r in range(rows):
+            work[inv + j * n + j, r] = 1.0 / work[low + j * n + j, r]
         for i in range(j + 1, n):
-            dot = 0.0
-            for p in range(j, i):
-                dot += work[low + i * n + p] * shape[p * n + j]
-            shape[i * n + j] = -dot / work[low + i * n + i]
-    for i in range(n):
-        for j in range(i + 1):
-            shape[i * n + j] *= inv_sigma[j]
-    for a in range(n):
-        center[a] = base[a] + sigma[a] * work[mean + a]
+            for r in range(rows):
+                dot = 0.0
+                for p in range(j, i):
+                    dot += work[low + i * n + p, r] * work[inv + p * n + j, r]
+                work[inv + i * n + j, r] = -dot / work[low + i * n + i, r]
+    for r in range(rows):
+        for i in range(n):
+            for j in range(n):
+                shapes[r, i * n + j] = work[inv + i * n + j, r] * inv_sigma[j] if j <= i else 0.0
+        for a in range(n):
+            centers[r, a] = base[a, r] + sigma[a] * work[mean + a, r]
+
+
+@_compiled
+def standardise(
+    x: FloatArray, yhat: FloatArray, mean: FloatArray, scale: FloatArray
+) -> FloatArray:  # pragma: no cover - compiled
+    """``(concat(x, yhat) - mean) * scale`` (R, d + n) in one pass, as the one-query kernel computes it."""
+    rows, d = x.shape
+    n = yhat.shape[1]
+    z = np.empty((rows, d + n))
+    for r in range(rows):
+        for i in range(d):
+            z[r, i] = (x[r, i] - mean[i]) * scale[i]
+        for a in range(n):
+            z[r, d + a] = (yhat[r, a] - mean[d + a]) * scale[d + a]
+    return z
+
+
+def clamped_exp2(log_diag: FloatArray, clamp: float) -> FloatArray:
+    """``exp(2 clip(h, -clamp, clamp))`` elementwise, as a new array (NaN kept).
+
+    In NumPy, whose vectorised ``exp`` is several times faster than a compiled loop of libm's:
+    the batch path's exponentials. The one-query kernel computes the same numbers with libm
+    (the two may differ in the last bit).
+
+    Examples
+    --------
+    >>> clamped_exp2(np.array([0.0, 1.0, 50.0]), 2.0).round(3).tolist()  # exp(0), exp(2), exp(4)
+    [1.0, 7.389, 54.598]
+    """
+    out = np.maximum(log_diag, -clamp)  # np.clip's semantics without its Python-level overhead
+    np.minimum(out, clamp, out=out)
+    out *= 2.0
+    return np.exp(out, out=out)
 
 
 @_compiled
 def lowrank_sets(
     out: FloatArray,
-    base: FloatArray,
+    exps: FloatArray,
+    lin: FloatArray,
+    yhat: FloatArray,
+    lin_bias: FloatArray,
     sigma: FloatArray,
     inv_sigma: FloatArray,
-    clamp: float,
     centers: FloatArray,
     shapes: FloatArray,
 ) -> None:  # pragma: no cover - compiled
-    """Every row's set from every member's ``[U | h]`` (K, B, ·): ``centers`` (B, n) and ``shapes``
-    (B, n * n), written in place; ``base`` (B, n) is ``yhat + lin(z)``. The one-query kernel's
-    arithmetic (:func:`_set_of_row`), row by row."""
-    n = base.shape[1]
-    work = np.empty(n + 2 * n * n)
-    for r in range(out.shape[1]):
-        _set_of_row(out, r, base[r], sigma, inv_sigma, clamp, centers[r], shapes[r], work)
+    """Every set of a batch from every member's ``[U | h]`` (K, ·, R), written in place.
+
+    ``exps`` (K, n, R) is :func:`clamped_exp2` of the log-diagonal rows of ``out``, ``lin``
+    (n, R) the linear stage's product, ``yhat`` (R, n) the estimates; ``centers``
+    (R, n) and ``shapes`` (R, n * n) receive the sets: :func:`_set_columns` with ``base =
+    (yhat + lin) + lin_bias``, the one-query kernel's arithmetic column by column.
+    """
+    n, rows = lin.shape
+    base = np.empty((n, rows))
+    for a in range(n):
+        for r in range(rows):
+            base[a, r] = (yhat[r, a] + lin[a, r]) + lin_bias[a]
+    work = np.empty((n + 3 * n * n + 1, rows))
+    _set_columns(out, exps, base, sigma, inv_sigma, centers, shapes, work)
 
 
 @_compiled
 def bias_activate(h: FloatArray, bias: FloatArray, code: int) -> None:  # pragma: no cover - compiled
-    """In place, one pass: ``h = activation(h + bias)`` for ``h`` (K, B, W) and ``bias`` (K, 1, W).
+    """In place, one pass: ``h = activation(h + bias)`` for ``h`` (W, R) and ``bias`` (W,).
 
-    The same numbers as NumPy's ``h += bias`` and then the activation, in half the memory traffic.
+    ``code`` is one of :data:`ACTIVATION_CODES`, or ``-1`` for the bias alone. The same numbers
+    as NumPy's ``h += bias[:, None]`` and then the activation, in half the memory traffic.
     """
-    k, rows, w = h.shape
-    for m in range(k):
-        for r in range(rows):
-            for j in range(w):
-                h[m, r, j] = _activate(h[m, r, j] + bias[m, 0, j], code)
+    w, rows = h.shape
+    for j in range(w):
+        b = bias[j]
+        if code < 0:
+            for r in range(rows):
+                h[j, r] += b
+        elif code == 0:
+            for r in range(rows):
+                v = h[j, r] + b
+                h[j, r] = 0.0 if v < 0.0 else v  # NaN kept, as np.maximum keeps it
+        else:
+            for r in range(rows):
+                h[j, r] = _activate(h[j, r] + b, code)
 
 
 @_compiled
 def bias_skip_add(h: FloatArray, bias: FloatArray, skip: FloatArray) -> None:  # pragma: no cover - compiled
-    """In place, one pass: ``h = (h + bias) + skip`` for ``h`` and ``skip`` (K, B, W), ``bias`` (K, 1, W)."""
-    k, rows, w = h.shape
-    for m in range(k):
+    """In place, one pass: ``h = (h + bias) + skip`` for ``h`` and ``skip`` (W, R), ``bias`` (W,)."""
+    w, rows = h.shape
+    for j in range(w):
+        b = bias[j]
         for r in range(rows):
-            for j in range(w):
-                h[m, r, j] = (h[m, r, j] + bias[m, 0, j]) + skip[m, r, j]
+            h[j, r] = (h[j, r] + b) + skip[j, r]
+
+
+@_compiled
+def rcond_lower_3(
+    s: FloatArray, rel: float, tiny: float, normal: float
+) -> FloatArray:  # pragma: no cover - compiled
+    """Per 3x3 matrix of ``s`` (B, 3, 3): ``|det C|`` lowered by its rounding bound over
+    ``||C||_F ||adj C||_F``, times ``1 - 1e-12``; 0 where ``det``, ``||C||_F^2`` or
+    ``||adj C||_F^2`` is not a normal number (or NaN). ``rel`` is the relative rounding bound of
+    the determinant (times the permanent of ``|C|``), ``tiny`` the absolute one (times the largest
+    ``|C_0j|``). See :func:`ipcverify.nonsingular.nonsingular` for why it is a lower bound of
+    ``sigma_min / sigma_max``.
+    """
+    res = np.empty(s.shape[0])
+    for r in range(s.shape[0]):
+        a, b, c = s[r, 0, 0], s[r, 0, 1], s[r, 0, 2]
+        d, e, f = s[r, 1, 0], s[r, 1, 1], s[r, 1, 2]
+        g, h, i = s[r, 2, 0], s[r, 2, 1], s[r, 2, 2]
+        k00, k01, k02 = e * i - f * h, f * g - d * i, d * h - e * g
+        k10, k11, k12 = c * h - b * i, a * i - c * g, b * g - a * h
+        k20, k21, k22 = b * f - c * e, c * d - a * f, a * e - b * d
+        det = abs(a * k00 + b * k01 + c * k02)
+        aa, ab, ac = abs(a), abs(b), abs(c)
+        perm = aa * (abs(e * i) + abs(f * h))
+        perm += ab * (abs(f * g) + abs(d * i))
+        perm += ac * (abs(d * h) + abs(e * g))
+        big = aa if aa > ab else ab
+        big = big if big > ac else ac
+        det -= rel * perm + tiny * big
+        adj2 = k00 * k00 + k01 * k01 + k02 * k02 + k10 * k10 + k11 * k11 + k12 * k12
+        adj2 += k20 * k20 + k21 * k21 + k22 * k22
+        c2 = 0.0
+        for p in range(3):
+            for q in range(3):
+                c2 += s[r, p, q] * s[r, p, q]
+        shown = det >= normal and c2 >= normal and adj2 >= normal and c2 < math.inf and adj2 < math.inf
+        res[r] = det / (math.sqrt(c2) * math.sqrt(adj2)) * (1.0 - 1e-12) if shown else 0.0
+    return res
 
 
 @_compiled

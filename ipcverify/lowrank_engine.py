@@ -4,12 +4,15 @@ The same role as :mod:`ipcverify.inference` for the paper's heads: once trained,
 ensemble is evaluated everywhere (prediction, calibration, certificates, the controller's
 single queries) by this engine, with the float32 weights taken exactly into float64.
 
-All members are evaluated together: the first layer and the two affine skip paths are
-one matrix product of the shared input with the members' stacked weights, the later layers
-one batched product each. The moment-matched covariance ``Sigma`` is one product of the
-stacked factors; its Cholesky factor and the triangular inverse are written out entry by
-entry (:func:`cholesky_lower`, :func:`lower_inverse`), the same arithmetic for one query
-or a million, and the same as the ONNX export's graph.
+All members are evaluated together, with the queries as columns: the first layer of every
+member, the two affine skip paths and the linear stage are one matrix product of the
+standardised inputs, the later layers one batched product each, and the biases and
+activations one compiled pass each (:mod:`ipcverify.kernels`). The moment-matched covariance
+``Sigma``, its Cholesky factor and the triangular inverse are then computed by the compiled
+:func:`ipcverify.kernels.lowrank_sets`, with the arithmetic of one query
+(:func:`ipcverify.kernels.lowrank_one`) column by column. :func:`cholesky_lower` and
+:func:`lower_inverse` write the same factorisation for whole arrays in NumPy; the ONNX
+export's graph follows them, so all agree to rounding.
 """
 
 from __future__ import annotations
@@ -22,8 +25,16 @@ from numpy.typing import NDArray
 
 from ipcverify.architecture import LOGDIAG_CLAMP, ModelConfig
 from ipcverify.errors import InvalidInputError
-from ipcverify.inference import CHUNK, float64_array
-from ipcverify.kernels import ACTIVATION_CODES, bias_activate, bias_skip_add, lowrank_one, lowrank_sets
+from ipcverify.inference import chunk_rows, float64_array
+from ipcverify.kernels import (
+    ACTIVATION_CODES,
+    bias_activate,
+    bias_skip_add,
+    clamped_exp2,
+    lowrank_one,
+    lowrank_sets,
+    standardise,
+)
 from ipcverify.lowrank import LowRankEnsemble
 
 __all__ = ["LowRankEngine", "cholesky_lower", "lower_inverse"]
@@ -117,46 +128,46 @@ class LowRankEngine:
     inv_sigma: FloatArray
     lin_weight: FloatArray
     lin_bias: FloatArray
-    #: ``first_weight`` and ``first_bias`` split into the hidden units (K, d + n, h1) and the skip
-    #: paths padded with zeros to the width of ``[U | h]`` (K, d + n, nu + n): contiguous blocks
-    hidden_weight: FloatArray = field(init=False, repr=False)
-    hidden_bias: FloatArray = field(init=False, repr=False)
-    skip_weight: FloatArray = field(init=False, repr=False)
-    skip_bias: FloatArray = field(init=False, repr=False)
-    #: one query's first product (see :meth:`single_values`): (d + n, K * h1 + K * (nu + n) + n)
+    #: one query's first product (see :meth:`single_values`): (d + n, K * h1 + K * (nu + n) + n):
+    #: every member's hidden units, then every member's skip paths padded with zeros to the width
+    #: of ``[U | h]``, then the linear stage
     single_weight: FloatArray = field(init=False, repr=False)
-    #: its bias, same columns
+    #: its bias, same columns (zero for the linear stage, whose bias is added with ``yhat``)
     single_bias: FloatArray = field(init=False, repr=False)
     #: the arguments of :func:`ipcverify.kernels.lowrank_one` after the query's own
     single_arguments: tuple[Any, ...] = field(init=False, repr=False)
+    #: the batch's products, rows as columns: ``single_weight`` transposed, and the later layers
+    #: (K, out, in) with their biases flattened (K * out,)
+    first_t: FloatArray = field(init=False, repr=False)
+    weights_t: tuple[FloatArray, ...] = field(init=False, repr=False)
+    biases_t: tuple[FloatArray, ...] = field(init=False, repr=False)
+    #: rows per chunk of :meth:`batch`: :func:`ipcverify.inference.chunk_rows` of the widest layer
+    chunk: int = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         k, n, h1 = self.config.members, self.config.y_dim, self.config.hidden[0]
-
-        def split(w: FloatArray) -> tuple[FloatArray, FloatArray]:
-            """Hidden units (K, rows, h1) and zero-padded skip paths (K, rows, nu + n), contiguous."""
-            pad = np.zeros((k, w.shape[1], n))
-            skip = np.concatenate([w[:, :, h1:], pad], axis=2)
-            return np.ascontiguousarray(w[:, :, :h1]), np.ascontiguousarray(skip)
-
-        hw, sw = split(self.first_weight)
-        hb, sb = split(self.first_bias)
-        for name, value in (
-            ("hidden_weight", hw),
-            ("hidden_bias", hb),
-            ("skip_weight", sw),
-            ("skip_bias", sb),
-        ):
-            object.__setattr__(self, name, value)
+        w0, b0 = self.first_weight, self.first_bias
+        pad = np.zeros((k, w0.shape[1], n))
 
         def flat(w: FloatArray) -> FloatArray:
+            """(K, rows, cols) -> (rows, K * cols): every member's columns side by side."""
             return w.transpose(1, 0, 2).reshape(w.shape[1], -1)
 
         # every member's hidden units, then every member's skip paths, then lin: one block each
-        single_w = np.concatenate([flat(hw), flat(sw), self.lin_weight], axis=1)
-        single_b = np.concatenate([flat(hb)[0], flat(sb)[0], np.zeros(n)])
-        object.__setattr__(self, "single_weight", np.ascontiguousarray(single_w))
-        object.__setattr__(self, "single_bias", single_b)
+        hidden_w, skip_w = w0[:, :, :h1], np.concatenate([w0[:, :, h1:], pad], axis=2)
+        hidden_b, skip_b = b0[:, :, :h1], np.concatenate([b0[:, :, h1:], pad[:, :1]], axis=2)
+        single_w = np.concatenate([flat(hidden_w), flat(skip_w), self.lin_weight], axis=1)
+        single_b = np.concatenate([flat(hidden_b)[0], flat(skip_b)[0], np.zeros(n)])
+        derived: dict[str, Any] = {
+            "single_weight": np.ascontiguousarray(single_w),
+            "single_bias": single_b,
+            "first_t": np.ascontiguousarray(single_w.T),
+            "weights_t": tuple(np.ascontiguousarray(w.transpose(0, 2, 1)) for w in self.weights),
+            "biases_t": tuple(np.ascontiguousarray(b.reshape(-1)) for b in self.biases),
+            "chunk": chunk_rows(k * max(self.config.hidden)),
+        }
+        for name, value in derived.items():
+            object.__setattr__(self, name, value)
         object.__setattr__(
             self,
             "single_arguments",
@@ -217,39 +228,46 @@ class LowRankEngine:
         )
 
     def _moments(self, out: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """Moment-matched offset (B, n) and covariance (B, n, n) from every member's ``[U | h]`` (K, B, ·)."""
+        """Moment-matched offset (B, n) and covariance (B, n, n) from every member's ``[U | h]`` (K, ·, B)."""
         n, k = self.config.y_dim, self.config.members
         nu = n * (n + 1)
-        U = out[..., :nu].reshape(k, -1, n, n + 1)  # a view of out
+        U = out[:, :nu].transpose(0, 2, 1).reshape(k, -1, n, n + 1).copy()
         mean = U[..., n].sum(axis=0) / k
         U[..., n] -= mean
         cols = U.transpose(1, 2, 0, 3).reshape(-1, n, k * (n + 1))  # (B, n, K (n + 1))
         cov = cols @ cols.transpose(0, 2, 1)
         cov /= k
-        log_var = np.minimum(np.maximum(out[..., nu:], -LOGDIAG_CLAMP), LOGDIAG_CLAMP)
+        log_var = np.minimum(np.maximum(out[:, nu:].transpose(0, 2, 1), -LOGDIAG_CLAMP), LOGDIAG_CLAMP)
         log_var *= 2.0
         cov.reshape(-1, n * n)[:, :: n + 1] += np.exp(log_var).sum(axis=0) / k
         return mean, cov
 
-    def layers(self, z: FloatArray) -> FloatArray:
-        """Every member's ``[U | h]`` (K, B, n (n + 1) + n) for standardised inputs ``z`` (B, d + n).
+    def layers(self, z: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Every member's ``[U | h]`` (K, n (n + 1) + n, B) and the linear stage (n, B), rows as columns.
 
-        The network's layers and skip paths alone: the float64 work every set needs before
-        its moments.
+        ``z`` is the standardised input (B, d + n). The network's layers, skip paths and
+        linear stage alone: the float64 work every set needs before its moments. Each product
+        is one BLAS call with the queries as columns, so that every later pass (the biases,
+        the activations, :func:`ipcverify.kernels.lowrank_sets`) runs along contiguous rows.
         """
         code = ACTIVATION_CODES[self.config.activation]
-        h = z @ self.hidden_weight  # (B, d + n) @ (K, d + n, ·) -> (K, B, ·)
-        bias_activate(h, self.hidden_bias, code)
-        skip = z @ self.skip_weight
-        skip += self.skip_bias
-        last = len(self.weights) - 1
-        for i, (w, b) in enumerate(zip(self.weights, self.biases, strict=True)):
-            h = h @ w
+        k, n = self.config.members, self.config.y_dim
+        hidden = k * self.config.hidden[0]
+        out_w = n * (n + 1) + n
+        first = self.first_t @ z.T  # (K h1 + K (nu + n) + n, B): the single query's first product
+        bias_activate(first[:hidden], self.single_bias[:hidden], code)
+        bias_activate(first[hidden:], self.single_bias[hidden:], -1)
+        rows = z.shape[0]
+        h = first[:hidden].reshape(k, -1, rows)
+        last = len(self.weights_t) - 1
+        for i, (w, b) in enumerate(zip(self.weights_t, self.biases_t, strict=True)):
+            h = w @ h  # (K, out, in) @ (K, in, B)
+            flat = h.reshape(-1, rows)
             if i < last:
-                bias_activate(h, b, code)
+                bias_activate(flat, b, code)
             else:  # adding the skip's padding 0.0 to h changes nothing
-                bias_skip_add(h, b, skip)
-        return h
+                bias_skip_add(flat, b, first[hidden : hidden + k * out_w])
+        return h, first[hidden + k * out_w :]
 
     def combined(self, z: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Moment-matched offset (B, n) and covariance (B, n, n) in standardised output units.
@@ -258,35 +276,35 @@ class LowRankEngine:
         :meth:`batch` uses (the tests check one against the other, and both against the
         mixture's moments computed by hand).
         """
-        return self._moments(self.layers(z))
+        return self._moments(self.layers(z)[0])
 
     def batch(
         self, x: FloatArray, yhat: FloatArray, chunk: int | None = None
     ) -> tuple[FloatArray, FloatArray]:
         """Centres (B, n) and shape matrices (B, n, n) for validated float64 inputs.
 
-        Rows are evaluated ``chunk`` at a time (default :data:`ipcverify.inference.CHUNK`), so
-        the members' hidden layers stay in the CPU cache; every row gets the same operations
-        whatever the chunk. An input so far from the training data that the covariance
-        overflows gives a non-finite set, not a floating-point exception:
+        Rows are evaluated ``chunk`` at a time (default :attr:`chunk`, which keeps the members'
+        hidden layers in the CPU cache); every row gets the same operations whatever the chunk.
+        An input so far from the training data that the covariance overflows gives a
+        non-finite set, not a floating-point exception:
         :meth:`ipcverify.model.IPCModel.predict` reports it as a degenerate set outside the
         domain, and the query path answers OUTSIDE_DOMAIN.
         """
-        size = CHUNK if chunk is None else int(chunk)
+        size = self.chunk if chunk is None else int(chunk)
         if size < 1:
             raise InvalidInputError(f"chunk must be a positive number of rows; got {chunk!r}")
         n = self.config.y_dim
+        nu = n * (n + 1)
         centers, shapes = np.empty((len(x), n)), np.empty((len(x), n, n))
         for start in range(0, len(x), size):
             sl = slice(start, start + size)
-            z = np.concatenate([x[sl], yhat[sl]], axis=1)
-            z -= self.in_mean
-            z *= self.in_scale
+            z = standardise(x[sl], yhat[sl], self.in_mean, self.in_scale)
             with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-                base = yhat[sl] + z @ self.lin_weight + self.lin_bias
+                out, lin = self.layers(z)
                 lowrank_sets(
-                    self.layers(z), base, self.sigma, self.inv_sigma, float(LOGDIAG_CLAMP),
-                    centers[sl], shapes[sl].reshape(-1, n * n),
+                    out, clamped_exp2(out[:, nu:], LOGDIAG_CLAMP), lin, np.ascontiguousarray(yhat[sl]),
+                    self.lin_bias.reshape(-1), self.sigma, self.inv_sigma, centers[sl],
+                    shapes[sl].reshape(-1, n * n),
                 )  # fmt: skip
         return centers, shapes
 

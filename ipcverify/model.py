@@ -250,7 +250,7 @@ class IPCModel:
         All of ipcverify evaluates a trained model through this one path (the
         float64 engine of :mod:`ipcverify.inference`), so calibration, certificates
         and the controller see exactly the same sets. ``batch_size`` rows are evaluated
-        together (default :data:`ipcverify.inference.CHUNK`, which keeps them in cache).
+        together (default: the engine's, :func:`ipcverify.inference.chunk_rows`, which keeps them in cache).
         """
         xa, ya = self._check(x, yhat)
         return self._engine.batch(xa, ya, batch_size)  # type: ignore[attr-defined,no-any-return]

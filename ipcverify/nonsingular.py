@@ -31,6 +31,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ipcverify.errors import SetError
+from ipcverify.kernels import rcond_lower_3
 from ipcverify.sets import SINGULAR_RCOND, Ellipsoid
 
 __all__ = ["CheckedEllipsoid", "checked_ellipsoid", "nonsingular", "svd_rcond"]
@@ -39,7 +40,6 @@ FloatArray = NDArray[np.float64]
 _U8 = 8.0 * 2.0**-53
 _ABS = 2.0**-1060
 _NORMAL = 2.0**-1000
-_INF = np.inf
 
 
 def svd_rcond(shapes: FloatArray) -> FloatArray:
@@ -49,32 +49,16 @@ def svd_rcond(shapes: FloatArray) -> FloatArray:
 
 
 def _rcond_lower_3(s: FloatArray) -> FloatArray:
-    """A lower bound of ``sigma_min / sigma_max`` for 3x3 matrices (0 or NaN where not shown).
+    """A lower bound of ``sigma_min / sigma_max`` for 3x3 matrices (0 where not shown).
 
     ``|det C|`` is lowered by its rounding bound: ``8 u`` times the permanent of ``|C|`` (the
     relative part, Lemma 3 of ``proofs/float_landing.md``) plus ``2^-1060 max_j |C_0j|`` (products
     that underflow). The ratio is trusted only when ``det``, ``||C||_F^2`` and ``||adj C||_F^2`` are
-    normal numbers, so that no other underflow or overflow can enter.
+    normal numbers, so that no other underflow or overflow can enter; the last factor
+    ``1 - 1e-12`` covers the rounding of the norms (in any summation order), the square roots and
+    the division. One compiled pass (:func:`ipcverify.kernels.rcond_lower_3`).
     """
-    a, b, c = s[:, 0, 0], s[:, 0, 1], s[:, 0, 2]
-    d, e, f = s[:, 1, 0], s[:, 1, 1], s[:, 1, 2]
-    g, h, i = s[:, 2, 0], s[:, 2, 1], s[:, 2, 2]
-    with np.errstate(all="ignore"):
-        k00, k01, k02 = e * i - f * h, f * g - d * i, d * h - e * g
-        k10, k11, k12 = c * h - b * i, a * i - c * g, b * g - a * h
-        k20, k21, k22 = b * f - c * e, c * d - a * f, a * e - b * d
-        det = np.abs(a * k00 + b * k01 + c * k02)
-        aa, ab, ac = np.abs(a), np.abs(b), np.abs(c)
-        perm = aa * (np.abs(e * i) + np.abs(f * h))
-        perm += ab * (np.abs(f * g) + np.abs(d * i))
-        perm += ac * (np.abs(d * h) + np.abs(e * g))
-        det -= _U8 * perm + _ABS * np.maximum(np.maximum(aa, ab), ac)
-        adj2 = k00 * k00 + k01 * k01 + k02 * k02 + k10 * k10 + k11 * k11 + k12 * k12
-        adj2 += k20 * k20 + k21 * k21 + k22 * k22
-        c2 = np.einsum("bij,bij->b", s, s)
-        lower = det / (np.sqrt(c2) * np.sqrt(adj2)) * (1.0 - 1e-12)
-        normal = (det >= _NORMAL) & (c2 >= _NORMAL) & (adj2 >= _NORMAL) & (c2 < _INF) & (adj2 < _INF)
-    return np.where(normal, lower, 0.0)
+    return rcond_lower_3(np.ascontiguousarray(s, dtype=np.float64), _U8, _ABS, _NORMAL)  # type: ignore[no-any-return]
 
 
 def nonsingular(shapes: ArrayLike) -> tuple[NDArray[np.bool_], FloatArray]:

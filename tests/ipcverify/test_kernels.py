@@ -31,19 +31,22 @@ def test_the_fused_bias_passes_give_numpys_separate_passes():
     from ipcverify.kernels import ACTIVATION_CODES, bias_activate, bias_skip_add
 
     rng = np.random.default_rng(7)
-    h = rng.normal(size=(3, 40, 9)) * 3
-    h[1, 5, 2] = np.nan
-    bias = rng.normal(size=(3, 1, 9))
-    skip = rng.normal(size=(3, 40, 9))
+    h = rng.normal(size=(27, 40)) * 3  # (units, queries): the batch's rows-as-columns layout
+    h[5, 2] = np.nan
+    bias = rng.normal(size=27)
+    skip = rng.normal(size=(27, 40))
     for name, code in ACTIVATION_CODES.items():
         got = h.copy()
         bias_activate(got, bias, code)
-        want = activate(h + bias, name)
+        want = activate(h + bias[:, None], name)
         if name == "relu":  # the default: the very same numbers
             np.testing.assert_array_equal(got, want)
         else:  # libm's tanh / expm1 may differ from NumPy's by an ulp
             np.testing.assert_allclose(got, want, rtol=1e-15, atol=1e-300)
-        assert np.isnan(got[1, 5, 2])
+        assert np.isnan(got[5, 2])
+    got = h.copy()
+    bias_activate(got, bias, -1)  # the bias alone
+    np.testing.assert_array_equal(got, h + bias[:, None])
     got = h.copy()
     bias_skip_add(got, bias, skip)
-    np.testing.assert_array_equal(got, (h + bias) + skip)
+    np.testing.assert_array_equal(got, (h + bias[:, None]) + skip)

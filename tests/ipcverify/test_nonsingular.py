@@ -60,3 +60,17 @@ def test_checked_ellipsoid_is_an_ellipsoid_with_the_same_checks_and_messages():
             make(np.zeros((1, 3)), np.full((1, 3, 3), np.inf))
         with pytest.raises(SetError, match="disagree"):
             make(np.zeros((2, 3)), np.stack([np.eye(3)] * 3))
+
+
+@settings(derandomize=True, max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_the_compiled_bound_never_exceeds_the_svd_ratio(seed):
+    # the cheap bound may only be lower than sigma_min / sigma_max; the SVD's ratio is itself
+    # accurate to a few units of roundoff of sigma_max, hence the absolute slack of ~90 u
+    from ipcverify.nonsingular import _rcond_lower_3
+
+    shapes = _batch(np.random.default_rng(seed), 300, 3)
+    lower = _rcond_lower_3(shapes)
+    assert np.isfinite(lower).all() and (lower >= 0).all()
+    assert (lower <= svd_rcond(shapes) * (1 + 1e-12) + 1e-14).all()
+    assert (lower[np.abs(shapes).sum(axis=(1, 2)) > 0] > 0).any()  # it does show some
