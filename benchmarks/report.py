@@ -366,3 +366,46 @@ def plot_tightness(results: dict[str, Any], path: Path) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def plot_throughput(results: dict[str, Any], path: Path) -> None:
+    """Queries per second against batch size: ``predict``, the float64 layers alone and bare torch.
+
+    The issue's target (``predict`` at least 0.8x the bare forward at 10^4 and 10^5 rows) is
+    drawn as the dotted line 0.8x torch; the error bars are the spread over rounds.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    bt = results["latency"]["batch_throughput"]
+    sizes = [int(b) for b in bt["sizes"]]
+    paths = {
+        "model_predict": ("model.predict (float64 sets, validated)", "#1b7837", "o-"),
+        "float64_layers_only": ("float64 layers alone (ceiling)", "#a6dba0", "s--"),
+        "bare_torch_forward": ("bare torch forward (float32)", "#4575b4", "^-"),
+    }
+    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    for key, (label, color, style) in paths.items():
+        runs = [bt["paths"][key][str(b)] for b in sizes]
+        med = [r["median"] for r in runs]
+        err = [
+            [m - r["min"] for m, r in zip(med, runs, strict=True)],
+            [r["max"] - m for m, r in zip(med, runs, strict=True)],
+        ]
+        ax.errorbar(sizes, med, yerr=err, fmt=style, color=color, label=label, capsize=3, ms=4)
+    torch_med = [bt["paths"]["bare_torch_forward"][str(b)]["median"] for b in sizes]
+    target = "0.8 x torch (the target at 10^4 and 10^5)"
+    ax.plot(sizes, [0.8 * t for t in torch_med], ":", color="#4575b4", label=target)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("batch size (queries)")
+    ax.set_ylabel("queries per second (1 thread)")
+    ax.set_title("Batch throughput of the quad IPC", fontsize=9)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

@@ -7,8 +7,8 @@ flies the quad-landing data, about 1 minute, cached in ``benchmarks/.cache/``)::
     python -m benchmarks.run
 
 It writes ``benchmarks/results.json`` (every number), ``benchmarks/results.md`` (the
-tables) and ``docs/img/bench_tightness.png``. ``--quick`` runs everything on tiny sizes
-(a smoke test of the harness; its numbers mean nothing) and writes to ``--out``.
+tables), ``docs/img/bench_tightness.png`` and ``docs/img/bench_throughput.png``. ``--quick`` runs
+everything on tiny sizes (a smoke test of the harness; its numbers mean nothing) and writes to ``--out``.
 
 Sections: ``tightness`` (:mod:`benchmarks.bench_tightness`: every method against MAPIE and,
 on the known-oracle data, the oracle; with the volume diagnosis), ``shift``
@@ -158,9 +158,10 @@ def run(
     md = render_markdown(results)
     (out_dir / "results.md").write_text(md)
     if figure is not None:
-        from benchmarks.report import plot_tightness
+        from benchmarks.report import plot_throughput, plot_tightness
 
         plot_tightness(results, figure)
+        plot_throughput(results, figure.with_name("bench_throughput.png"))
     print(md)
     return results
 

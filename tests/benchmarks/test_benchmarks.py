@@ -58,6 +58,8 @@ def test_quick_run_writes_every_required_key(tmp_path):
     md = (tmp_path / "results.md").read_text()
     assert "| method | calibrated | mean volume |" in md and "UNCALIBRATED" in md
     assert "Before and after" in md and "diagnosis against the oracle" in md and "Under shift" in md
+    for png in ("plot.png", "bench_throughput.png"):  # the tightness and throughput figures
+        assert (tmp_path / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert (tmp_path / "plot.png").stat().st_size > 1000
     # the documents' generated blocks render from any run's results, and only their bodies change
     blocks = render_blocks(res, None)
