@@ -167,7 +167,7 @@ def lowrank_one(  # pragma: no cover - compiled
     for m in range(members):
         for a in range(n):
             v = h[m, nu + a]
-            v = -clamp if v < -clamp else (clamp if v > clamp else v)  # NaN kept, as np.clip keeps it
+            v = -clamp if v < -clamp else (clamp if v > clamp else v)  # NaN kept, as clamped_exp2 keeps it
             exps[m, a, 0] = math.exp(2.0 * v)
     res = np.empty(n + n * n)
     work = np.empty((n + 3 * n * n + 1, 1))

@@ -312,7 +312,8 @@ class LowRankEngine:
         """Centre (n,) and shape matrix (n, n) for one query given as 1-D float64 arrays.
 
         The same arithmetic as :meth:`batch` (up to the summation order of the matrix
-        products) with less per-call overhead; see :meth:`single_values`.
+        products, and libm's ``exp`` for NumPy's) with less per-call overhead; see
+        :meth:`single_values`.
         """
         d, n = self.config.x_dim, self.config.y_dim
         if np.shape(x) != (d,) or np.shape(yhat) != (n,):
