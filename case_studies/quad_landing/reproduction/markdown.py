@@ -24,6 +24,7 @@ __all__ = [
     "claim_markdown",
     "unsafe_cell",
     "bound_words",
+    "contracts_markdown",
     "results_markdown",
 ]
 
@@ -131,9 +132,56 @@ def bound_words(bound: Mapping[str, Any]) -> str:
     )
 
 
+def contracts_markdown(summary: Mapping[str, Any]) -> str:
+    """The three contracts side by side: Table I, landings, hover half-widths, and the paper's claims.
+
+    Examples
+    --------
+    >>> c = {"table1": {"1": 0.0}, "landing": {"runs": 30, "safe": 30, "unsafe": 0, "aborted": 0},
+    ...      "landing_paper_runs": {"runs": 10, "safe": 10, "unsafe": 0, "aborted": 0},
+    ...      "hover_half_widths": None, "claims": {}}
+    >>> contracts_markdown({"contracts": {"paper_raw": c}}).splitlines()[2]
+    '| paper_raw | 0.00 % | 10 / 0 / 0 | 30 / 0 / 0 of 30 | — |'
+    """
+    contracts = summary.get("contracts") or {}
+    if not contracts:
+        return ""
+    buffers = sorted(next(iter(contracts.values()))["table1"], key=int)
+    head = (
+        "| contract | " + " | ".join(f"Table I, b = {b}" for b in buffers)
+        + " | paper-style safe / unsafe / aborted | Monte Carlo safe / unsafe / aborted "
+        + "| hover half-widths x / y / z, median (cm) |"
+    )  # fmt: skip
+    lines = [head, "|---|" + "---|" * (len(buffers) + 3)]
+    for name, c in contracts.items():
+        t1 = " | ".join(_pct(c["table1"][b]) for b in buffers)
+        pr, mc = c.get("landing_paper_runs"), c.get("landing")
+        paper = "not flown" if pr is None else f"{pr['safe']} / {pr['unsafe']} / {pr['aborted']}"
+        monte = (
+            "not flown" if mc is None else f"{mc['safe']} / {mc['unsafe']} / {mc['aborted']} of {mc['runs']}"
+        )
+        hover = c.get("hover_half_widths") or {}
+        med = hover.get("median")
+        widths = "—" if med is None else " / ".join(f"{100 * v:.1f}" for v in med)
+        lines.append(f"| {name} | {t1} | {paper} | {monte} | {widths} |")
+    claims = [
+        f"- {name}: " + "; ".join(
+            f"{cl['statement']}: {'holds' if cl['holds'] else 'does not hold'} ({cl['detail']})"
+            for cl in c["claims"].values()
+        )
+        for name, c in contracts.items()
+    ]  # fmt: skip
+    return "\n".join(lines) + (
+        "\n\n" + "\n".join(claims) if any(c["claims"] for c in contracts.values()) else ""
+    )
+
+
 def results_markdown(summary: Mapping[str, Any]) -> str:
-    """Everything the docs quote from a run: Table I, ages, ablation, landings, bound, timings."""
-    parts = ["### Table I", table1_markdown(summary)]
+    """Everything the docs quote: the contracts, Table I, ages, ablation, landings, bound, timings."""
+    parts = []
+    if summary.get("contracts"):
+        parts += ["### The three contracts", contracts_markdown(summary)]
+    parts += ["### Table I (default_calibrated)", table1_markdown(summary)]
     per = summary["camera_timing"]["per_buffer"]
     ages = " | ".join(
         f"{v['age_ms']['median']:.1f} ({v['age_ms']['p05']:.0f}–{v['age_ms']['p95']:.0f})"
