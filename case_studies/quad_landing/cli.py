@@ -214,6 +214,29 @@ def summarize_command(out: str) -> None:
     click.echo(results_markdown(json.loads(path.read_text())))
 
 
+@quad.command("paper-ablation")
+@click.argument("out", type=click.Path(file_okay=False, exists=True))
+@click.option("--runs", type=click.IntRange(min=1), default=30, show_default=True,
+              help="Monte Carlo landings per flown variant.")  # fmt: skip
+@click.option(
+    "--jobs", "-j", type=click.IntRange(1, 1024), default=2, show_default=True, help="Worker processes."
+)
+@_config_option
+@click.option("--settings", "settings_path", type=click.Path(dir_okay=False), default=None,
+              help="The TOML file the reproduction in OUT ran with, if any.")  # fmt: skip
+def paper_ablation_command(
+    out: str, runs: int, jobs: int, config_path: str | None, settings_path: str | None
+) -> None:
+    """Why the paper's IPC does not land: its method changed one part at a time, on OUT's data."""
+    from case_studies.quad_landing.reproduction.config import load_reproduce_config
+    from case_studies.quad_landing.reproduction.paper_ablation import ablation_markdown, run_paper_ablation
+
+    result = run_paper_ablation(out, runs=runs, config=load_reproduce_config(settings_path),
+                                sim_config=_config(config_path), jobs=jobs)  # fmt: skip
+    done = f"{result['seconds']} s; wrote {out}/paper_ablation.json, .md and .png"
+    console.print(ablation_markdown(result) + "\n" + done, markup=False, highlight=False, soft_wrap=True)
+
+
 @quad.command("reproduce")
 @click.option(
     "--out",
