@@ -312,10 +312,12 @@ def test_constructor_validation():
         ContainmentCertificate(e, box, Method.CLOSED_FORM, Status.REFUTED)
     with pytest.raises(InvalidInputError, match="only a REFUTED"):
         ContainmentCertificate(e, box, Method.CLOSED_FORM, Status.PROVEN, witness=(F(0), F(0)))
-    with pytest.raises(InvalidInputError, match="does not apply"):
-        ContainmentCertificate(e, box, Method.SDP, Status.UNKNOWN)
+    with pytest.raises(InvalidInputError, match="does not apply to an ellipsoid"):
+        ContainmentCertificate(e, e, Method.CLOSED_FORM, Status.UNKNOWN)
     with pytest.raises(InvalidInputError, match="lambda"):
         ContainmentCertificate(e, e, Method.SDP, Status.PROVEN)
+    with pytest.raises(InvalidInputError, match=r"one 'lambda' multiplier per face \(4\)"):
+        ContainmentCertificate(e, box, Method.SDP, Status.PROVEN, {"lambda": [F(1, 2)] * 3})
     with pytest.raises(SetError, match="dimension"):
         ContainmentCertificate(e, Box([0.0], [1.0]), Method.CLOSED_FORM, Status.UNKNOWN)
 
@@ -336,8 +338,10 @@ def test_prove_rejects_batches_and_mismatches():
     e = e2[0]
     with pytest.raises(SetError, match="dimension"):
         prove(e, Box([-1.0], [1.0]))
-    with pytest.raises(InvalidInputError, match="sdp"):
-        prove(e, Box([-1.0, -1.0], [1.0, 1.0]), method="sdp")
+    with pytest.raises(InvalidInputError, match="use 'sdp' for ellipsoids"):
+        prove(e, e, method="closed-form")
+    with pytest.raises(InvalidInputError, match="use 'sdp' for ellipsoids"):
+        prove(e, e, method=Method.SOCP)
     with pytest.raises(InvalidInputError, match="not one of"):
         prove(e, Box([-1.0, -1.0], [1.0, 1.0]), method="magic")
 
@@ -388,10 +392,10 @@ def test_prove_rejects_batches_and_mismatches():
         (
             {
                 "inner": {"type": "ellipsoid", "center": [0.0], "shape": [[1.0]]},
-                "outer": {"type": "box", "lower": [0.0], "upper": [1.0]},
-                "method": "sdp",
+                "outer": {"type": "ellipsoid", "center": [0.0], "shape": [[1.0]]},
+                "method": "closed-form",
             },
-            "does not apply",
+            "does not apply to an ellipsoid",
         ),
         (
             {
