@@ -17,14 +17,14 @@ is the solver's estimate of the face's slack ``b_j - max_E a_j^T y``.
 **The policy.** Anything but Clarabel's ``Solved`` is UNKNOWN. Each face is then certified
 exactly (:meth:`~ipcverify.containment.face_lmi.FaceSystem.check`) with the solver's ``lam``
 taken as an exact rational; if that fails and the solver's ``lam`` lies within
-:data:`POLISH_TOLERANCE` (relative) of the exact centre ``s / 2`` -- the solution of the
-program, which the solver approaches only to about the square root of its tolerance -- with
-``s / 2`` itself. ``s / 2`` is feasible whenever the face holds, touching included, so a
-face that holds is certified however tight it is. PROVEN needs every face. REFUTED needs a
-point of ``E`` outside the outer set, checked exactly: the maximiser ``u`` of a failing face
-read off the solver's dual (``Z = u u^T`` up to scale at the optimum), or, when it lies
-within :data:`POLISH_TOLERANCE` of it, ``z / ||z||`` from the data the solver was given.
-Anything else is UNKNOWN.
+``POLISH_TOLERANCE * sigma`` of the exact centre ``s / 2`` -- the solution of the program,
+which the solver approaches only to about the square root of its tolerance, as the objective
+is flat to first order there -- with ``s / 2`` itself. ``s / 2`` is feasible whenever the face
+holds, touching included, so a face that holds is certified however tight it is. PROVEN
+needs every face. REFUTED needs a point of ``E`` outside the outer set, checked exactly: the
+maximiser ``u`` of a failing face read off the solver's dual (``Z = u u^T`` up to scale at
+the optimum), or, when it lies within :data:`POLISH_TOLERANCE` of it, ``z / ||z||`` from the
+data the solver was given, or the centre ``c``. Anything else is UNKNOWN.
 
 Examples
 --------
@@ -60,8 +60,9 @@ __all__ = ["POLISH_TOLERANCE", "FaceSolution", "prove_sdp_faces", "solve_face_sd
 FloatArray = NDArray[np.float64]
 
 #: Relative distance within which the solver's multiplier (or dual maximiser) is replaced by
-#: the program's exact solution; Clarabel's default tolerances leave about 1e-5 (measured,
-#: ``benchmarks/bench_containment.py``), so 1e-3 is two orders of magnitude above it.
+#: the program's exact solution. On faces that hold, Clarabel's default tolerances leave its
+#: multiplier within about 1e-4 of ``s / 2`` (median 1e-5 over the landing decisions of
+#: ``benchmarks/bench_containment.py``), so 1e-3 leaves an order of magnitude of room.
 POLISH_TOLERANCE = 1e-3
 
 _SQRT2 = math.sqrt(2.0)
@@ -87,6 +88,8 @@ class FaceSolution:
         The maximiser of each face in the unit-ball coordinates, from the dual.
     z : ndarray, shape (m, n) or None
         ``C^{-T} a_j``, as given to the solver.
+    scale : ndarray, shape (m,) or None
+        ``sigma_j = max(|s_j|, ||z_j||)`` (1 where both vanish): each face's LMI is divided by it.
     """
 
     status: str
@@ -94,6 +97,7 @@ class FaceSolution:
     slack: FloatArray | None = None
     direction: FloatArray | None = None
     z: FloatArray | None = None
+    scale: FloatArray | None = None
 
     @property
     def solved(self) -> bool:
@@ -183,22 +187,26 @@ def solve_face_sdp(inner: Ellipsoid, outer: Box | Polytope) -> FaceSolution:
         direction = dual[:, side] / (_SQRT2 * dual[:, corner : corner + 1])
         lam = x[:m] * sigma
         slack = 2.0 * x[m:] * sigma
-    return FaceSolution(status, lam, slack, direction, z)
+    return FaceSolution(status, lam, slack, direction, z, sigma)
 
 
-def _certify_face(system: FaceSystem, j: int, lam: float) -> tuple[Fraction | None, str]:
+def _certify_face(system: FaceSystem, j: int, lam: float, scale: float) -> tuple[Fraction | None, str]:
     """The multiplier that certifies face ``j`` exactly (the solver's, or the polished centre), or None."""
     raw = Fraction(max(lam, 0.0)) if math.isfinite(lam) else Fraction(0)
     if system.check(j, raw)[0]:
         return raw, "solver"
     centre = face_centre(system, j)
-    if centre > 0 and abs(raw - centre) <= Fraction(POLISH_TOLERANCE) * centre and system.check(j, centre)[0]:
+    near = abs(raw - centre) <= Fraction(POLISH_TOLERANCE) * Fraction(scale)
+    if centre >= 0 and near and system.check(j, centre)[0]:
         return centre, "centre"
     return None, ""
 
 
 def _refute(ex: ExactEllipsoid, outer: Box | Polytope, sol: FaceSolution, faces: list[int]) -> Any:
-    """An exact witness from the failing faces' maximisers (dual, then polished), or None."""
+    """An exact witness from the failing faces' maximisers (dual, then polished), or None.
+
+    The centre ``c`` is tried last: it refutes when a face fails even there (``b_j < a_j^T c``).
+    """
     if sol.direction is None or sol.z is None or sol.slack is None:
         return None
     for j in sorted(faces, key=lambda f: float(sol.slack[f])):  # type: ignore[index]
@@ -214,6 +222,9 @@ def _refute(ex: ExactEllipsoid, outer: Box | Polytope, sol: FaceSolution, faces:
             y = witness_from_direction(ex, outer, exact_vector(cand), boundary=True)
             if y is not None:
                 return tuple(y), f"witness: the maximiser of face {j} from {how}, checked exactly"
+    y = witness_from_direction(ex, outer, exact_vector(np.zeros(len(ex.c))))
+    if y is not None:
+        return tuple(y), "witness: the centre of the inner set, outside a face, checked exactly"
     return None
 
 
@@ -239,14 +250,15 @@ def prove_sdp_faces(
     """
     sol = solve_face_sdp(inner, outer)
     m = outer.faces()[1].shape[0]
-    lam, slack = sol.lam, sol.slack
-    if not sol.solved or lam is None or slack is None:
+    lam, slack, scale = sol.lam, sol.slack, sol.scale
+    if not sol.solved or lam is None or slack is None or scale is None:
         return ContainmentCertificate(
             inner,
             outer,
             Method.SDP,
             Status.UNKNOWN,
-            detail=f"Clarabel status '{sol.status}' is not 'Solved': nothing is proven or refuted",
+            detail=f"no Clarabel solution to trust ({sol.status}; only 'Solved' is): nothing is proven "
+            "or refuted",
         )
     margin = float(slack.min()) if np.isfinite(slack).all() else None
     system = FaceSystem(inner, outer)
@@ -254,7 +266,7 @@ def prove_sdp_faces(
     kinds = {"solver": 0, "centre": 0}
     failed = []
     for j in range(m):
-        q, kind = _certify_face(system, j, float(lam[j]))
+        q, kind = _certify_face(system, j, float(lam[j]), float(scale[j]))
         if q is None:
             failed.append(j)
             chosen.append(Fraction(float(lam[j])) if math.isfinite(lam[j]) else Fraction(0))
