@@ -306,53 +306,59 @@ def bench_landing_sdp(count=None):
             if (kinds == "solver").any()
             else None,
         },
-        "_figure": {
-            "closed": np.array([d.certificate.margin for d in decisions]),
-            "sdp": np.array([np.nan if c.margin is None else c.margin for c in certs]),
-            "accept": np.array([d.accept for d in decisions]),
-            "rel_slack": rel_slack,
-            "kinds": kinds,
-        },
+        "_figure": {"rel_slack": rel_slack, "kinds": kinds},
     }
 
 
 def plot_landing_sdp(fig_data, summary):
+    """Left: CPU cost per decision of each route. Right: which multiplier certified each face."""
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(9.0, 3.6), layout="constrained")
+    fig = Figure(figsize=(9.0, 3.7), layout="constrained")
     left, right = fig.subplots(1, 2)
-    closed, sdp, accept = fig_data["closed"], fig_data["sdp"], fig_data["accept"]
-    err = np.abs(sdp - closed)
-    for mask, colour, label in (
-        (accept, "tab:green", "PROVEN (accept)"),
-        (~accept, "tab:red", "REFUTED (reject)"),
-    ):
-        left.scatter(1e3 * closed[mask], np.maximum(err[mask], 1e-18), s=3, c=colour, alpha=0.4, label=label)
-    left.set_yscale("log")
-    left.set_xlabel("closed-form margin of the landing box (mm)")
-    left.set_ylabel("|SDP estimate - closed form| (m)")
-    left.set_title("Clarabel's slack estimate (the verdicts are exact)", fontsize=9)
-    left.legend(fontsize=7, markerscale=3)
+    per = summary["per_decision"]
+    names = {
+        "landing_rule_decide (controller, float64 with rounding bound)": (
+            "LandingRule.decide\n(controller, proof)"
+        ),
+        "landing_decision (closed form, exact)": "landing_decision\n(closed form, exact)",
+        "sdp_clarabel_solve_only": "Clarabel solve only",
+        "prove_sdp (solve + exact certificate + witness)": 'prove(method="sdp")\n(solve + exact check)',
+        "verify_sdp_certificate (exact)": "verify(SDP certificate)",
+    }
+    ms = [1e3 * per[k]["cpu_s_total"] / per[k]["n"] for k in names]
+    y = np.arange(len(names))[::-1]
+    left.barh(y, ms, color=["tab:gray", "tab:green", "tab:blue", "tab:blue", "tab:purple"])
+    for yi, v in zip(y, ms, strict=True):
+        left.text(v * 1.1, yi, f"{v:.3g} ms", va="center", fontsize=7)
+    left.set_yticks(y, list(names.values()), fontsize=7)
+    left.set_xscale("log")
+    left.set_xlim(right=20 * max(ms))
+    left.set_xlabel("CPU time per landing decision (ms)")
+    left.set_title("cost of each route (n = 3, six faces)", fontsize=9)
     rel, kinds = fig_data["rel_slack"], fig_data["kinds"]
-    edges = np.array([0.0, 1e-15, 1e-12, 1e-9, 1e-6, 1e-3, 1.0, np.inf])
-    labels = ["<1e-15", "1e-15", "1e-12", "1e-9", "1e-6", "1e-3", ">1"]
+    edges = np.array([0.0, 1e-15, 1e-9, 1e-6, 1e-3, 1.0, np.inf])
+    labels = ["< 1e-15", "1e-15..1e-9", "1e-9..1e-6", "1e-6..1e-3", "1e-3..1", "> 1"]
     idx = np.clip(np.searchsorted(edges, rel, side="right") - 1, 0, len(labels) - 1)
     solver = np.bincount(idx[kinds == "solver"], minlength=len(labels))
     centre = np.bincount(idx[kinds == "centre"], minlength=len(labels))
     x = np.arange(len(labels))
-    right.bar(x, solver, color="tab:blue", label="solver's multiplier")
-    right.bar(x, centre, bottom=solver, color="tab:orange", label="centre s/2 (polished)")
-    right.set_xticks(x, labels, fontsize=7)
+    right.bar(x, solver, color="tab:blue", label="Clarabel's own multiplier")
+    right.bar(x, centre, bottom=solver, color="tab:orange", label="polished to the centre s/2")
+    right.set_xticks(x, labels, fontsize=7, rotation=20)
     right.set_yscale("log")
+    right.set_ylim(bottom=0.8)
     right.set_xlabel("relative slack of the face (slack / half-width)")
     right.set_ylabel("faces of PROVEN certificates")
+    right.set_title("which multiplier passed the exact check", fontsize=9)
+    right.legend(fontsize=7, loc="upper center")
     pairs = summary["closed_form_vs_sdp"]
-    right.set_title(
-        f"{summary['decisions']} decisions: {pairs.get('PROVEN/PROVEN', 0)} both PROVEN, "
-        f"{pairs.get('REFUTED/REFUTED', 0)} both REFUTED, {summary['sdp_unknown']} UNKNOWN",
+    fig.suptitle(
+        f"Proposition 1 by the S-lemma SDP, {summary['decisions']} landing decisions of a trained IPC:\n"
+        f"{pairs.get('PROVEN/PROVEN', 0)} PROVEN and {pairs.get('REFUTED/REFUTED', 0)} REFUTED by both "
+        f"routes, {summary['disagreements']} disagreements, {summary['sdp_unknown']} UNKNOWN",
         fontsize=9,
     )
-    right.legend(fontsize=7)
     return fig
 
 
