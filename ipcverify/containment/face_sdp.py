@@ -168,7 +168,8 @@ def solve_face_sdp(inner: Ellipsoid, outer: Box | Polytope) -> FaceSolution:
     for chordal in (True, False):  # Clarabel's chordal decomposition is faster; rarely it stalls
         settings = clarabel.DefaultSettings()
         settings.verbose = False
-        settings.chordal_decomposition_enable = chordal
+        if hasattr(settings, "chordal_decomposition_enable"):  # Clarabel >= 0.9
+            settings.chordal_decomposition_enable = chordal
         try:
             sol = clarabel.DefaultSolver(p_mat, q, a_mat, rhs.ravel(), cones, settings).solve()
         except BaseException as exc:  # Clarabel's Rust panics arrive as BaseException subclasses
