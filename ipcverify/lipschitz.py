@@ -173,9 +173,10 @@ def per_sample_gradient_norms(
     >>> per_sample_gradient_norms(net, np.ones((3, 2)), np.ones((3, 2)), np.zeros((3, 2))).shape
     (3,)
     """
-    if isinstance(_require_supported(network), LowRankEnsemble):
-        return ensemble_gradient_norms(network, x, y, yhat, params, chunk_size=chunk_size, dtype=dtype)
-    net = copy.deepcopy(network).to(dtype).eval()
+    checked = _require_supported(network)
+    if isinstance(checked, LowRankEnsemble):
+        return ensemble_gradient_norms(checked, x, y, yhat, params, chunk_size=chunk_size, dtype=dtype)
+    net = copy.deepcopy(checked).to(dtype).eval()
     if params is None:
         params = {k: v.detach() for k, v in net.named_parameters()}
     else:

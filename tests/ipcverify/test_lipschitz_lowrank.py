@@ -314,7 +314,7 @@ def test_bad_inputs():
         ensemble_gradient_norms(net, x, y, yh, params={name: torch.zeros(2)})
     with pytest.raises(InvalidInputError, match=r"chunk_size must be a positive number of samples"):
         ensemble_gradient_norms(net, x, y, yh, chunk_size=0)
-    # a network class of neither kind is refused with the reason (Theorem 1 covers both kinds ipcverify builds)
+    # a network of neither class is refused with the reason (Theorem 1 covers both kinds ipcverify builds)
     with pytest.raises(
         Theorem1UnavailableError, match=r"no Lipschitz bound is derived for a network of class Linear"
     ):
