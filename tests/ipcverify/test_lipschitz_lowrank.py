@@ -64,24 +64,6 @@ def _network(
     return net.eval()
 
 
-def _flat(net: LowRankEnsemble) -> tuple[list[str], list[torch.Size], np.ndarray]:
-    names, shapes, parts = [], [], []
-    for k, v in net.named_parameters():
-        names.append(k)
-        shapes.append(v.shape)
-        parts.append(v.detach().double().numpy().ravel())
-    return names, shapes, np.concatenate(parts)
-
-
-def _unflat(names, shapes, vec) -> dict[str, torch.Tensor]:
-    out, i = {}, 0
-    for k, s in zip(names, shapes, strict=True):
-        size = int(np.prod(s))
-        out[k] = torch.tensor(vec[i : i + size].reshape(s), dtype=torch.float64)
-        i += size
-    return out
-
-
 def _direction(names, shapes, rng: np.random.Generator, size: int) -> np.ndarray:
     """A unit vector: spread over all parameters, or (every other draw) over one parameter tensor only."""
     d = rng.standard_normal(size)
@@ -94,23 +76,14 @@ def _direction(names, shapes, rng: np.random.Generator, size: int) -> np.ndarray
     return d / np.linalg.norm(d)
 
 
-def _random_in_box(box: DataBox, rng: np.random.Generator, m: int, corners: bool) -> tuple[np.ndarray, ...]:
-    def draw(lo, hi):
-        if corners:
-            return np.where(rng.random((m, lo.size)) < 0.5, lo, hi)
-        return lo + (hi - lo) * rng.random((m, lo.size))
-
-    return draw(box.x_lo, box.x_hi), draw(box.y_lo, box.y_hi), draw(box.yhat_lo, box.yhat_hi)
-
-
-def _max_gradient_in_ball_and_box(net, box, radius, rng, n_theta=12, n_x=60) -> float:
-    names, shapes, theta = _flat(net)
+def _max_gradient_in_ball_and_box(ball, net, box, radius, rng, n_theta=12, n_x=60) -> float:
+    names, shapes, theta = ball.flat(net)
     worst = 0.0
     for i in range(n_theta):
         d = _direction(names, shapes, rng, theta.size)
         r = radius if i % 2 == 0 else radius * rng.random() ** (1.0 / theta.size)
-        params = _unflat(names, shapes, theta + r * d)
-        x, y, yh = _random_in_box(box, rng, n_x, corners=i % 3 == 0)
+        params = ball.unflat(names, shapes, theta + r * d)
+        x, y, yh = ball.random_in_box(box, rng, n_x, corners=i % 3 == 0)
         norms = ensemble_gradient_norms(net, x, y, yh, params=params, dtype=torch.float64)
         worst = max(worst, float(norms.max()))
     return worst
@@ -129,10 +102,10 @@ def _ids(cfg: ModelConfig) -> str:
 
 
 @pytest.mark.parametrize("cfg", CONFIGS, ids=_ids)
-def test_gradient_norms_match_a_plain_autograd_loop_through_the_network_s_own_forward(cfg):
+def test_gradient_norms_match_a_plain_autograd_loop_through_the_network_s_own_forward(cfg, ball):
     net = _network(cfg, seed=1)
-    names, shapes, theta = _flat(net)
-    params = _unflat(names, shapes, theta + 0.05 * np.random.default_rng(0).standard_normal(theta.size))
+    names, shapes, theta = ball.flat(net)
+    params = ball.unflat(names, shapes, theta + 0.05 * np.random.default_rng(0).standard_normal(theta.size))
     x, y, yh = (a[:6] for a in _data(cfg))
     fast = ensemble_gradient_norms(net, x, y, yh, params=params, dtype=torch.float64)
     ref_net = copy.deepcopy(net).double()
@@ -202,23 +175,23 @@ def test_the_score_gradient_lemma_holds_and_is_attained():
 @pytest.mark.parametrize("cfg", CONFIGS, ids=_ids)
 @pytest.mark.parametrize("radius", [0.0, 0.05, 0.5])
 @pytest.mark.parametrize("scale", [0.05, 0.7])
-def test_sound_bound_dominates_gradients_in_the_ball_and_box(cfg, radius, scale):
+def test_sound_bound_dominates_gradients_in_the_ball_and_box(cfg, radius, scale, ball):
     """Small weights (the bound within a factor ~5-50 of the largest gradient found) and large ones."""
     net = _network(cfg, seed=int(radius * 100) + cfg.members, scale=scale)
     box = _box(cfg)
     bound = sound_lipschitz(IPCModel(net), box, radius=radius).value
-    worst = _max_gradient_in_ball_and_box(net, box, radius, np.random.default_rng(17))
+    worst = _max_gradient_in_ball_and_box(ball, net, box, radius, np.random.default_rng(17))
     assert 0 < worst <= bound
 
 
 @pytest.mark.parametrize("diag_bias", [-LOGDIAG_CLAMP, -11.9, LOGDIAG_CLAMP - 0.05, 14.0, -14.0])
-def test_sound_bound_holds_around_the_log_diagonal_clamp(diag_bias):
+def test_sound_bound_holds_around_the_log_diagonal_clamp(diag_bias, ball):
     """Log-diagonals near or beyond the clamp at +/-12 (exp saturates, its derivative vanishes)."""
     cfg = ModelConfig(x_dim=6, y_dim=3, hidden=(6,), members=2)
     net = _network(cfg, seed=5, scale=0.05, diag_bias=diag_bias)
     box = _box(cfg)
     bound = sound_lipschitz(IPCModel(net), box, radius=0.2).value
-    assert _max_gradient_in_ball_and_box(net, box, 0.2, np.random.default_rng(3), n_theta=8) <= bound
+    assert _max_gradient_in_ball_and_box(ball, net, box, 0.2, np.random.default_rng(3), n_theta=8) <= bound
 
 
 def _engine_scores(net: LowRankEnsemble, params: dict[str, torch.Tensor], x, y, yh) -> np.ndarray:
@@ -231,19 +204,19 @@ def _engine_scores(net: LowRankEnsemble, params: dict[str, torch.Tensor], x, y, 
 
 
 @pytest.mark.parametrize("cfg", CONFIGS[:3], ids=_ids)
-def test_lipschitz_inequality_on_function_values(cfg):
+def test_lipschitz_inequality_on_function_values(cfg, ball):
     """|g(theta1) - g(theta2)| <= L ||theta1 - theta2|| for pairs in the ball (no gradients involved)."""
     net = _network(cfg, seed=8, scale=0.05)  # small weights: the bound is within ~10x of the truth
     box = _box(cfg)
     radius = 0.3
     bound = sound_lipschitz(IPCModel(net), box, radius=radius).value
-    names, shapes, theta = _flat(net)
+    names, shapes, theta = ball.flat(net)
     rng = np.random.default_rng(9)
-    x, y, yh = _random_in_box(box, rng, 200, corners=False)
+    x, y, yh = ball.random_in_box(box, rng, 200, corners=False)
     for _ in range(10):
         t1 = theta + radius * _direction(names, shapes, rng, theta.size)
         t2 = theta + radius * rng.random() * _direction(names, shapes, rng, theta.size)
-        g1, g2 = (_engine_scores(net, _unflat(names, shapes, t), x, y, yh) for t in (t1, t2))
+        g1, g2 = (_engine_scores(net, ball.unflat(names, shapes, t), x, y, yh) for t in (t1, t2))
         assert (np.abs(g1 - g2) <= bound * np.linalg.norm(t1 - t2) * (1 + 1e-9)).all()
 
 
@@ -258,7 +231,7 @@ def test_lipschitz_inequality_on_function_values(cfg):
     radius=st.floats(0.0, 1.0),
     scale=st.floats(0.05, 1.5),
 )
-def test_sound_bound_property(hidden, y_dim, members, linear_center, activation, seed, radius, scale):
+def test_sound_bound_property(hidden, y_dim, members, linear_center, activation, seed, radius, scale, ball):
     cfg = ModelConfig(
         x_dim=3,
         y_dim=y_dim,
@@ -270,7 +243,7 @@ def test_sound_bound_property(hidden, y_dim, members, linear_center, activation,
     net = _network(cfg, seed=seed, scale=scale)
     box = _box(cfg)
     bound = sound_lipschitz(IPCModel(net), box, radius=radius).value
-    assert _max_gradient_in_ball_and_box(net, box, radius, np.random.default_rng(seed), 6, 40) <= bound
+    assert _max_gradient_in_ball_and_box(ball, net, box, radius, np.random.default_rng(seed), 6, 40) <= bound
 
 
 def test_sound_bound_grows_with_the_radius_and_the_box():
