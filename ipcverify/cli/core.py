@@ -156,7 +156,8 @@ def train_cmd(
     """Train an IPC on DATA (CSV, Parquet or NPZ) and save it to --out.
 
     The default recipe "tight" gives the smallest calibrated sets; "v1" and "paper" are
-    ipcverify's earlier default and the paper's settings (Theorem 1 is computed for those two).
+    ipcverify's earlier default and the paper's settings. Every recipe stores the statistics
+    Theorem 1 needs in the model file.
     """
     ds = load_dataset(data, _columns(x_columns), _columns(y_columns), _columns(yhat_columns))
     mc = ModelConfig.recipe(
