@@ -8,7 +8,15 @@ Measures, for n = 3:
 * the exact re-check ``verify`` of closed-form and SDP certificates;
 * ``landing_decision`` per measurement (what the landing state machine calls);
 * how often each prover answers UNKNOWN over a sweep of conditioning (1 to 1e6) and
-  relative margins (1e-1 to 1e-12, contained and not).
+  relative margins (1e-1 to 1e-12, contained and not);
+* the S-lemma SDP route for Proposition 1 (``prove(..., method="sdp")`` against the box
+  ``{P} ⊕ (-G_tau)``) on landing decisions of a trained IPC (``tests/data/landing_sets.npz``,
+  ``python -m benchmarks.landing_sets``): its cost per decision (Clarabel alone, the whole
+  route with its exact certificate, ``verify``) beside the closed form's (``landing_decision``)
+  and the controller's (``LandingRule.decide``), wall and CPU time; its agreement with the
+  closed form; how far Clarabel's multipliers lie from the program's exact solution ``s / 2``;
+  which faces the solver's own multiplier certifies and which need the centre. It draws
+  ``docs/img/containment_sdp.png``.
 
 Run ``python -m benchmarks.bench_containment``; results are printed and written to
 ``benchmarks/containment_results.json``.
@@ -31,11 +39,18 @@ import numpy as np
 from benchmarks.common import machine_info
 from case_studies.quad_landing.landing.state_machine import LandingParams
 from ipcverify.containment import Status, contained_float, prove, support_slack, verify
+from ipcverify.containment.face_lmi import FaceSystem, face_centre
+from ipcverify.containment.face_sdp import solve_face_sdp
 from ipcverify.containment.sdp import sdp_problem
-from ipcverify.landing import landing_decision
+from ipcverify.files import atomic_write
+from ipcverify.landing import LandingRule, landing_decision
+from ipcverify.report import figure_to_png
 from ipcverify.sets import Box, Ellipsoid, Polytope
 
+ROOT = Path(__file__).resolve().parents[1]
 OUT = Path(__file__).with_name("containment_results.json")
+LANDING_SETS = ROOT / "tests" / "data" / "landing_sets.npz"
+SDP_FIGURE = ROOT / "docs" / "img" / "containment_sdp.png"
 
 
 def _orth(rng, n):
@@ -184,16 +199,19 @@ def unknown_rates(rng, per_cell=8):
     cases = {
         "closed_form_box": (_box, None),
         "socp_box": (_box, "socp"),
+        "sdp_box": (_box, "sdp"),
         "sdp_homothetic": (_homothetic, None),
         "sdp_general": (_general, None),
     }
     table = {}
     for name, (make, method) in cases.items():
-        total, unknown, wrong = Counter(), Counter(), 0
+        total, unknown, wrong, closed_disagree = Counter(), Counter(), 0, 0
         for log_cond, margin, sign in itertools.product(conds, margins, [-1.0, 1.0]):
             for _ in range(per_cell):
                 inner, outer, truth = make(rng, 3, log_cond, margin, sign)
                 cert = prove(inner, outer, method=method)
+                if name == "sdp_box" and cert.status is not Status.UNKNOWN:
+                    closed_disagree += cert.status is not prove(inner, outer).status
                 total[margin] += 1
                 unknown[margin] += cert.status is Status.UNKNOWN
                 if truth is not None and cert.status is not Status.UNKNOWN:
@@ -204,18 +222,159 @@ def unknown_rates(rng, per_cell=8):
             "unknown_rate": sum(unknown.values()) / sum(total.values()),
             "unknown_by_margin": {f"{m:g}": unknown[m] / total[m] for m in margins},
             "wrong_against_exact_oracle": wrong if name == "sdp_homothetic" else None,
+            "disagreements_with_closed_form": closed_disagree if name == "sdp_box" else None,
         }
     return {"conditioning": ["1", "1e3", "1e6"], "margins": margins, "per_cell": per_cell, "cases": table}
 
 
+# ------------------------------------------------- Proposition 1 by the SDP route
+def _timed(fn, items):
+    """Per-call wall times (s) and the total CPU seconds of ``fn`` over ``items``; the results."""
+    wall, out = [], []
+    cpu0 = time.process_time()
+    for item in items:
+        t = time.perf_counter()
+        out.append(fn(item))
+        wall.append(time.perf_counter() - t)
+    return {**_ms(wall), "cpu_s_total": time.process_time() - cpu0, "wall_s_total": sum(wall)}, out
+
+
+def _face_kinds(cert, e, box):
+    """Per face: "centre" if the certified multiplier is the exact s/2, else "solver"."""
+    system = FaceSystem(e, box)
+    return [
+        "centre" if q == face_centre(system, j) else "solver"
+        for j, q in enumerate(cert.multipliers["lambda"])
+    ]
+
+
+def bench_landing_sdp(count=None):
+    """Every decision of the file (or the first ``count``), each path timed in its own loop."""
+    with np.load(LANDING_SETS) as f:
+        centers, shapes = f["centers"][:count], f["shapes"][:count]
+        target = Box(f["target_lower"], f["target_upper"])
+    count = len(centers)
+    sets = [Ellipsoid(c, C) for c, C in zip(centers, shapes, strict=True)]
+    rule = LandingRule(target)
+    t_rule, _ = _timed(lambda e: rule.decide(e.centers[0], e.shapes[0]), sets)
+    t_closed, decisions = _timed(lambda e: landing_decision(e, target), sets)
+    problems = [(e, d.certificate.outer) for e, d in zip(sets, decisions, strict=True)]
+    t_solve, solutions = _timed(lambda p: solve_face_sdp(*p), problems)
+    t_sdp, certs = _timed(lambda p: prove(*p, method="sdp"), problems)
+    t_verify, checks = _timed(verify, certs)
+    pairs = Counter(
+        (d.certificate.status.value, c.status.value) for d, c in zip(decisions, certs, strict=True)
+    )
+    disagree = sum(v for (a, b), v in pairs.items() if b != "UNKNOWN" and a != b)
+    reverified = sum(v.status is c.status for v, c in zip(checks, certs, strict=True))
+    # on the faces that hold: the solver's multiplier against the program's exact solution s/2
+    dist, rel_slack, kinds = [], [], []
+    for (e, box), sol, cert in zip(problems, solutions, certs, strict=True):
+        system = FaceSystem(e, box)
+        centre = np.array([float(face_centre(system, j)) for j in range(len(system))])
+        rel = support_slack(e, box)[0] / np.concatenate([e.half_widths()[0]] * 2)
+        holds = (rel >= 0) & (centre > 0)
+        dist += np.abs(sol.lam[holds] / centre[holds] - 1.0).tolist()
+        if cert.status is Status.PROVEN:
+            rel_slack += rel.tolist()
+            kinds += _face_kinds(cert, e, box)
+    rel_slack, kinds = np.array(rel_slack), np.array(kinds)
+    return {
+        "decisions": count,
+        "source": "tests/data/landing_sets.npz (python -m benchmarks.landing_sets): a trained IPC's sets "
+        "on the case study's flights, world frame, against {P} + (-G_tau)",
+        "per_decision": {
+            "landing_rule_decide (controller, float64 with rounding bound)": t_rule,
+            "landing_decision (closed form, exact)": t_closed,
+            "sdp_clarabel_solve_only": t_solve,
+            "prove_sdp (solve + exact certificate + witness)": t_sdp,
+            "verify_sdp_certificate (exact)": t_verify,
+        },
+        "closed_form_vs_sdp": {f"{a}/{b}": v for (a, b), v in sorted(pairs.items())},
+        "disagreements": disagree,
+        "sdp_unknown": sum(v for (_, b), v in pairs.items() if b == "UNKNOWN"),
+        "sdp_certificates_reverified": reverified,
+        "faces_that_hold_solver_multiplier_relative_distance_to_s_over_2": {
+            "median": float(np.median(dist)),
+            "p99": float(np.quantile(dist, 0.99)),
+            "max": float(np.max(dist)),
+        },
+        "faces_of_proven_certificates": {
+            "certified_by_solver_multiplier": int((kinds == "solver").sum()),
+            "certified_by_centre_s_over_2": int((kinds == "centre").sum()),
+            "smallest_relative_slack_certified_by_solver": float(rel_slack[kinds == "solver"].min())
+            if (kinds == "solver").any()
+            else None,
+        },
+        "_figure": {"rel_slack": rel_slack, "kinds": kinds},
+    }
+
+
+def plot_landing_sdp(fig_data, summary):
+    """Left: CPU cost per decision of each route. Right: which multiplier certified each face."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(9.0, 3.7), layout="constrained")
+    left, right = fig.subplots(1, 2)
+    per = summary["per_decision"]
+    names = {
+        "landing_rule_decide (controller, float64 with rounding bound)": (
+            "LandingRule.decide\n(controller, proof)"
+        ),
+        "landing_decision (closed form, exact)": "landing_decision\n(closed form, exact)",
+        "sdp_clarabel_solve_only": "Clarabel solve only",
+        "prove_sdp (solve + exact certificate + witness)": 'prove(method="sdp")\n(solve + exact check)',
+        "verify_sdp_certificate (exact)": "verify(SDP certificate)",
+    }
+    ms = [1e3 * per[k]["cpu_s_total"] / per[k]["n"] for k in names]
+    y = np.arange(len(names))[::-1]
+    left.barh(y, ms, color=["tab:gray", "tab:green", "tab:blue", "tab:blue", "tab:purple"])
+    for yi, v in zip(y, ms, strict=True):
+        left.text(v * 1.1, yi, f"{v:.3g} ms", va="center", fontsize=7)
+    left.set_yticks(y, list(names.values()), fontsize=7)
+    left.set_xscale("log")
+    left.set_xlim(right=20 * max(ms))
+    left.set_xlabel("CPU time per landing decision (ms)")
+    left.set_title("cost of each route (n = 3, six faces)", fontsize=9)
+    rel, kinds = fig_data["rel_slack"], fig_data["kinds"]
+    edges = np.array([0.0, 1e-15, 1e-9, 1e-6, 1e-3, 1.0, np.inf])
+    labels = ["< 1e-15", "1e-15..1e-9", "1e-9..1e-6", "1e-6..1e-3", "1e-3..1", "> 1"]
+    idx = np.clip(np.searchsorted(edges, rel, side="right") - 1, 0, len(labels) - 1)
+    solver = np.bincount(idx[kinds == "solver"], minlength=len(labels))
+    centre = np.bincount(idx[kinds == "centre"], minlength=len(labels))
+    x = np.arange(len(labels))
+    right.bar(x, solver, color="tab:blue", label="Clarabel's own multiplier")
+    right.bar(x, centre, bottom=solver, color="tab:orange", label="polished to the centre s/2")
+    right.set_xticks(x, labels, fontsize=7, rotation=20)
+    right.set_yscale("log")
+    right.set_ylim(bottom=0.8)
+    right.set_xlabel("relative slack of the face (slack / half-width)")
+    right.set_ylabel("faces of PROVEN certificates")
+    right.set_title("which multiplier passed the exact check", fontsize=9)
+    right.legend(fontsize=7, loc="upper center")
+    pairs = summary["closed_form_vs_sdp"]
+    fig.suptitle(
+        f"Proposition 1 by the S-lemma SDP, {summary['decisions']} landing decisions of a trained IPC:\n"
+        f"{pairs.get('PROVEN/PROVEN', 0)} PROVEN and {pairs.get('REFUTED/REFUTED', 0)} REFUTED by both "
+        f"routes, {summary['disagreements']} disagreements, {summary['sdp_unknown']} UNKNOWN",
+        fontsize=9,
+    )
+    return fig
+
+
 def main() -> None:
     rng = np.random.default_rng(20240601)
+    landing = bench_landing_sdp()
+    fig_data = landing.pop("_figure")
+    png = figure_to_png(plot_landing_sdp(fig_data, landing), dpi=110)
+    atomic_write(SDP_FIGURE, lambda f: f.write(png))
     results = {
         "machine": {**machine_info(), "cvxpy": cp.__version__, "clarabel": clarabel.__version__},
         "closed_form_batch_n3": bench_closed_form_batch(rng),
         "sdp_per_problem_n3": bench_sdp(rng),
         "exact_recheck_n3": bench_exact(rng),
         "unknown_rates_n3": unknown_rates(rng),
+        "proposition1_sdp_route": landing,
     }
     OUT.write_text(json.dumps(results, indent=2) + "\n")
     print(json.dumps(results, indent=2))

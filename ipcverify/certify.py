@@ -53,7 +53,7 @@ from ipcverify.errors import InvalidInputError
 from ipcverify.evaluation import BinCoverage, WorstBin, coverage_by_bin, worst_bin_coverage
 from ipcverify.files import atomic_write, file_sha256, write_json
 from ipcverify.group_test import group_test_step
-from ipcverify.lipschitz import DEFAULT_RADIUS, theorem1_unavailable
+from ipcverify.lipschitz import DEFAULT_RADIUS
 from ipcverify.model import IPCModel, network_fingerprint
 from ipcverify.modelio import load_data_for_model, load_model
 from ipcverify.report import render_report
@@ -62,6 +62,7 @@ from ipcverify.theorem1 import Theorem1Result, TrainingStatistics, theorem1
 
 __all__ = [
     "DEFAULT_DELTA",
+    "NO_STATISTICS",
     "TestScores",
     "certify",
     "check_inputs",
@@ -80,6 +81,12 @@ PathLike = str | os.PathLike[str]
 DEFAULT_DELTA = 0.001
 #: Number of example ellipsoids kept for the report's projections.
 N_EXAMPLES = 4
+#: Why Theorem 1 is not computed for a model file without training statistics and no training data.
+NO_STATISTICS = (
+    "not computed: training data not given, and the model records no training statistics (a model "
+    "not built by ipcverify.training.train, or a default-recipe model file written before Theorem 1 "
+    "covered the default recipe); pass the training data (--train-data), or retrain the model"
+)
 
 
 def _check_dims(model: IPCModel, data: PerceptionDataset, role: str) -> None:
@@ -202,18 +209,15 @@ def theorem1_step(
     """Step 4: Theorem 1 and where its training terms came from, or the reason it was not computed.
 
     From the training data if given, else from the statistics :func:`ipcverify.training.train`
-    stored in the model file. For an architecture without a derived Lipschitz bound (the
-    default low-rank ensemble) the reason is returned instead: the PAC certificate does
-    not depend on Theorem 1.
+    stored in the model file (for every recipe). A model file without them (a default-recipe
+    model written before they were stored for it) gets a reason instead: the PAC certificate
+    does not depend on Theorem 1.
     """
-    unavailable = theorem1_unavailable(model)
-    if unavailable is not None:
-        return None, unavailable, ""
     if train_data is not None:
         return theorem1(model, train_data, delta, radius=radius), "", "training data"
     stored = model.metadata.get("training_statistics")
     if stored is None:
-        return None, "not computed: training data not given (pass --train-data)", ""
+        return None, NO_STATISTICS, ""
     stats = TrainingStatistics.from_dict(stored)
     return theorem1(model, stats, delta, radius=radius), "", "statistics stored at training time"
 

@@ -12,22 +12,22 @@ Theorem 1 of the paper needs ``L_g``. Two numbers are computed, and labelled:
   (``r`` fixed in advance: :data:`DEFAULT_RADIUS`), for every ``X`` in a box
   (by default the bounding box of the data). It propagates norm bounds layer by
   layer and multiplies the result by ``1 + FLOAT_MARGIN`` to cover rounding in
-  the float64 arithmetic. The derivation is ``proofs/lipschitz.md``.
+  the float64 arithmetic.
 
-Only the network's trainable parameters (the MLP ``body``) count as ``theta``;
-the normalisation buffers are fixed statistics of the training data.
-
-Both are derived for one MLP with the paper's heads (``"cholesky"``, ``"full"``). For the
-default recipe's network -- the low-rank head (a Cholesky factor of a sum), the linear
-centre stage and the ensemble's moment matching -- no bound is derived yet:
-:func:`theorem1_unavailable` says so, and these functions refuse such models.
+Both take either network kind. For the paper's heads (``"cholesky"``, ``"full"``: one MLP)
+they are computed here (derivation: ``proofs/lipschitz.md``); for the default low-rank
+ensemble by :mod:`ipcverify.lipschitz_lowrank` (derivation: ``proofs/lipschitz_lowrank.md``).
+Only the network's trainable parameters count as ``theta``; the normalisation buffers (and
+the ensemble's linear centre stage) are fixed statistics of the training data. The box, the
+bound's record and the MLP's layer-by-layer bounds are shared
+(:mod:`ipcverify.lipschitz_ball`, re-exported here).
 """
 
 from __future__ import annotations
 
 import copy
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -39,7 +39,20 @@ from torch.func import functional_call, grad, vmap
 from ipcverify.architecture import LOGDIAG_CLAMP
 from ipcverify.data import PerceptionDataset
 from ipcverify.errors import InvalidInputError
-from ipcverify.model import IPCModel, IPCNetwork
+from ipcverify.lipschitz_ball import (
+    DEFAULT_RADIUS,
+    FLOAT_MARGIN,
+    SVD_MARGIN,
+    DataBox,
+    LipschitzBound,
+    check_radius,
+    hidden_norm_bounds,
+    jacobian_bound,
+    operator_norm,
+)
+from ipcverify.lipschitz_lowrank import ensemble_gradient_norms, sound_lipschitz_lowrank
+from ipcverify.lowrank import LowRankEnsemble
+from ipcverify.model import IPCModel, IPCNetwork, Network
 
 __all__ = [
     "DEFAULT_RADIUS",
@@ -56,19 +69,17 @@ __all__ = [
 
 FloatArray = NDArray[np.float64]
 
-#: Radius of the parameter ball of the sound bound. Fixed here, never tuned on data.
-DEFAULT_RADIUS = 0.1
-#: Relative safety margin on the sound bound (float64 rounding in norms and SVDs).
-FLOAT_MARGIN = 1e-6
-_SVD_MARGIN = 1e-9
-
 
 class Theorem1UnavailableError(InvalidInputError):
-    """Theorem 1 (its Lipschitz constant) is not derived for the model's architecture."""
+    """Theorem 1 (its Lipschitz constant) is not derived for the model's network."""
 
 
 def theorem1_unavailable(model: IPCModel) -> str | None:
     """Why the Lipschitz constants (hence Theorem 1) cannot be computed for ``model``; None if they can.
+
+    Both network kinds ipcverify builds are covered: the paper's heads
+    (``proofs/lipschitz.md``) and the default low-rank ensemble
+    (``proofs/lipschitz_lowrank.md``). Only a network of another class is refused.
 
     Examples
     --------
@@ -76,77 +87,27 @@ def theorem1_unavailable(model: IPCModel) -> str | None:
     >>> from ipcverify.architecture import ModelConfig
     >>> theorem1_unavailable(IPCModel(build_network(ModelConfig.recipe("v1", x_dim=2, y_dim=3)))) is None
     True
-    >>> default = IPCModel(build_network(ModelConfig(x_dim=2, y_dim=3)))
-    >>> print(theorem1_unavailable(default))  # doctest: +ELLIPSIS
-    not available for this architecture: ...
+    >>> theorem1_unavailable(IPCModel(build_network(ModelConfig(x_dim=2, y_dim=3)))) is None
+    True
     """
-    if isinstance(model.network, IPCNetwork):
+    return _unsupported(model.network)
+
+
+def _unsupported(network: Any) -> str | None:
+    if isinstance(network, (IPCNetwork, LowRankEnsemble)):
         return None
-    cfg = model.config
-    parts = ["the low-rank covariance head"]
-    if cfg.linear_center:
-        parts.append("a linear centre stage")
-    if cfg.members > 1:
-        parts.append(f"an ensemble of {cfg.members} networks")
     return (
-        "not available for this architecture: the sound Lipschitz bound of Theorem 1 (proofs/lipschitz.md) "
-        "is derived for one network with the paper's 'cholesky' or 'full' head, and this model has "
-        f"{', '.join(parts)}, for which no bound is derived. The PAC calibration certificate does not depend "
-        "on it; train with --recipe v1 to get Theorem 1"
+        f"no Lipschitz bound is derived for a network of class {type(network).__name__}: Theorem 1 covers "
+        "IPCNetwork (the paper's heads) and LowRankEnsemble (the default); build the network with "
+        "ipcverify.model.build_network"
     )
 
 
-def _require_supported(model: IPCModel) -> IPCNetwork:
-    reason = theorem1_unavailable(model)
-    if reason is not None or not isinstance(model.network, IPCNetwork):
-        raise Theorem1UnavailableError(reason or "unsupported network")
-    return model.network
-
-
-@dataclass(frozen=True)
-class DataBox:
-    """An axis-aligned box for ``X = (x, y, yhat)``: per-coordinate lower and upper bounds.
-
-    Examples
-    --------
-    >>> from ipcverify.synthetic import make_lagged_perception
-    >>> box = DataBox.from_dataset(make_lagged_perception(50, seed=0))
-    >>> box.x_lo.shape, box.y_hi.shape
-    ((6,), (3,))
-    """
-
-    x_lo: FloatArray
-    x_hi: FloatArray
-    y_lo: FloatArray
-    y_hi: FloatArray
-    yhat_lo: FloatArray
-    yhat_hi: FloatArray
-
-    def __post_init__(self) -> None:
-        for name in ("x", "y", "yhat"):
-            lo = np.array(getattr(self, f"{name}_lo"), dtype=np.float64).ravel()
-            hi = np.array(getattr(self, f"{name}_hi"), dtype=np.float64).ravel()
-            if lo.shape != hi.shape or not (np.isfinite(lo).all() and np.isfinite(hi).all()):
-                raise InvalidInputError(f"box bounds of {name} must be finite arrays of equal shape")
-            if (lo > hi).any():
-                raise InvalidInputError(f"box of {name}: a lower bound exceeds its upper bound")
-            lo.setflags(write=False)
-            hi.setflags(write=False)
-            object.__setattr__(self, f"{name}_lo", lo)
-            object.__setattr__(self, f"{name}_hi", hi)
-        if self.y_lo.shape != self.yhat_lo.shape:
-            raise InvalidInputError("y and yhat boxes must have the same dimension")
-
-    @classmethod
-    def from_dataset(cls, data: PerceptionDataset) -> DataBox:
-        """The bounding box of a dataset's ``x``, ``y`` and ``yhat``."""
-        return cls(
-            data.x.min(0), data.x.max(0), data.y.min(0), data.y.max(0), data.yhat.min(0), data.yhat.max(0)
-        )
-
-    def to_dict(self) -> dict[str, list[float]]:
-        """Plain-data form."""
-        return {k: getattr(self, k).tolist() for k in ("x_lo", "x_hi", "y_lo", "y_hi", "yhat_lo", "yhat_hi")}
+def _require_supported(network: Any) -> Network:
+    reason = _unsupported(network)
+    if reason is not None:
+        raise Theorem1UnavailableError(reason)
+    return network  # type: ignore[no-any-return]
 
 
 @dataclass(frozen=True)
@@ -163,44 +124,6 @@ class LipschitzEstimate:
         return {"value": self.value, "n_samples": self.n_samples, "argmax": self.argmax, "kind": self.kind}
 
 
-@dataclass(frozen=True)
-class LipschitzBound:
-    """An **upper bound** on ``L_g`` over ``B(theta_hat, radius)`` and a box of ``X``.
-
-    Attributes
-    ----------
-    value : float
-        The bound (already multiplied by ``1 + FLOAT_MARGIN``).
-    radius : float
-        Radius of the parameter ball.
-    jacobian_bound : float
-        Bound on the operator norm of ``d(network output) / d theta``.
-    output_gradient_bound : float
-        Bound on the operator norm of ``d(C (y - c)) / d(network output)``.
-    hidden_norm_bounds : tuple of float
-        Bounds on the Euclidean norm of each layer's input (normalised input first).
-    """
-
-    value: float
-    radius: float
-    jacobian_bound: float
-    output_gradient_bound: float
-    hidden_norm_bounds: tuple[float, ...]
-    box: DataBox = field(repr=False)
-    kind: str = "sound (upper bound over the parameter ball and the data box)"
-
-    def to_dict(self) -> dict[str, Any]:
-        """Plain-data form."""
-        return {
-            "value": self.value,
-            "radius": self.radius,
-            "jacobian_bound": self.jacobian_bound,
-            "output_gradient_bound": self.output_gradient_bound,
-            "hidden_norm_bounds": list(self.hidden_norm_bounds),
-            "kind": self.kind,
-        }
-
-
 def _score_function(net: IPCNetwork) -> Any:
     buffers = dict(net.named_buffers())
 
@@ -215,7 +138,7 @@ def _score_function(net: IPCNetwork) -> Any:
 
 
 def per_sample_gradient_norms(
-    network: IPCNetwork,
+    network: Network,
     x: FloatArray,
     y: FloatArray,
     yhat: FloatArray,
@@ -223,12 +146,16 @@ def per_sample_gradient_norms(
     chunk_size: int = 4096,
     dtype: torch.dtype = torch.float64,
 ) -> FloatArray:
-    """``||grad_theta g(X_i)||`` for every sample, in float64 (``torch.func``: vmap of grad).
+    """``||grad_theta g(X_i)||`` for every sample, in float64.
+
+    For the paper's heads by ``torch.func`` (vmap of grad); for the low-rank ensemble by
+    :func:`ipcverify.lipschitz_lowrank.ensemble_gradient_norms` (the same numbers from one
+    backward pass per chunk; its members in ``dtype``, its moment matching in float64).
 
     Parameters
     ----------
-    network : IPCNetwork
-        The network (not modified; a float64 copy is used).
+    network : IPCNetwork or LowRankEnsemble
+        The network (not modified; a copy in ``dtype`` is used).
     x, y, yhat : arrays (B, d), (B, n), (B, n)
         The samples.
     params : dict, optional
@@ -246,7 +173,10 @@ def per_sample_gradient_norms(
     >>> per_sample_gradient_norms(net, np.ones((3, 2)), np.ones((3, 2)), np.zeros((3, 2))).shape
     (3,)
     """
-    net = copy.deepcopy(network).to(dtype).eval()
+    checked = _require_supported(network)
+    if isinstance(checked, LowRankEnsemble):
+        return ensemble_gradient_norms(checked, x, y, yhat, params, chunk_size=chunk_size, dtype=dtype)
+    net = copy.deepcopy(checked).to(dtype).eval()
     if params is None:
         params = {k: v.detach() for k, v in net.named_parameters()}
     else:
@@ -282,18 +212,12 @@ def empirical_lipschitz(
     (True, 100)
     """
     norms = per_sample_gradient_norms(
-        _require_supported(model), data.x, data.y, data.yhat, chunk_size=chunk_size, dtype=dtype
+        model.network, data.x, data.y, data.yhat, chunk_size=chunk_size, dtype=dtype
     )
     if not np.isfinite(norms).all():
         raise InvalidInputError("a per-sample gradient is not finite; the network output overflowed")
     i = int(np.argmax(norms))
     return LipschitzEstimate(value=float(norms[i]), n_samples=len(norms), argmax=i)
-
-
-def _opnorm(w: FloatArray) -> float:
-    if w.size == 0:
-        return 0.0
-    return float(np.linalg.norm(w, 2)) * (1.0 + _SVD_MARGIN) + 1e-300
 
 
 def _linear_layers(net: IPCNetwork) -> list[tuple[FloatArray, FloatArray]]:
@@ -315,7 +239,9 @@ def sound_lipschitz(
 
     Valid for every ``theta`` with ``||theta - theta_hat||_2 <= radius`` (all trainable
     parameters stacked) and every ``X = (x, y, yhat)`` in ``box``. See
-    ``proofs/lipschitz.md`` for the derivation.
+    ``proofs/lipschitz.md`` for the derivation (the paper's heads) and
+    ``proofs/lipschitz_lowrank.md`` for the default ensemble
+    (:func:`ipcverify.lipschitz_lowrank.sound_lipschitz_lowrank`).
 
     Parameters
     ----------
@@ -336,17 +262,14 @@ def sound_lipschitz(
     >>> sound_lipschitz(m, ds).value >= empirical_lipschitz(m, ds).value
     True
     """
-    if not (math.isfinite(radius) and radius >= 0):
-        raise InvalidInputError(f"radius must be finite and >= 0; got {radius!r}")
+    radius = check_radius(radius)
     if isinstance(box, PerceptionDataset):
         box = DataBox.from_dataset(box)
-    net = _require_supported(model)
+    net = _require_supported(model.network)
+    if isinstance(net, LowRankEnsemble):
+        return sound_lipschitz_lowrank(net, box, radius)
     cfg = net.config
-    if box.x_lo.shape != (cfg.x_dim,) or box.y_lo.shape != (cfg.y_dim,):
-        raise InvalidInputError(
-            f"box has x_dim={box.x_lo.size}, y_dim={box.y_lo.size}; the model expects "
-            f"x_dim={cfg.x_dim}, y_dim={cfg.y_dim}"
-        )
+    box.check_dims(cfg.x_dim, cfg.y_dim)
     n = cfg.y_dim
     in_mean = net.in_mean.double().numpy()
     in_std = net.in_std.double().numpy()
@@ -362,17 +285,14 @@ def sound_lipschitz(
 
     # 2. hidden layers: ||h_l|| <= ||W|| ||h|| + ||b|| + r sqrt(||h||^2 + 1)   (|phi(t)| <= |t|)
     layers = _linear_layers(net)
-    ops = [_opnorm(W) for W, _ in layers]
-    for (_, b), op in zip(layers[:-1], ops[:-1], strict=True):
-        h = H[-1]
-        H.append((op * h + float(np.linalg.norm(b)) + radius * math.sqrt(h * h + 1.0)) * up)
+    H = hidden_norm_bounds(layers, H[0], radius)
 
     # 3. output bounds: centre part o (rows :n) as a whole, each shape output separately
     W_L, b_L = layers[-1]
     h = H[-1]
     pert = radius * math.sqrt(h * h + 1.0)
-    o_bound = (_opnorm(W_L[:n]) * h + float(np.linalg.norm(b_L[:n])) + pert) * up
-    s_bound = (np.linalg.norm(W_L[n:], axis=1) * (1.0 + _SVD_MARGIN) * h + np.abs(b_L[n:]) + pert) * up
+    o_bound = (operator_norm(W_L[:n]) * h + float(np.linalg.norm(b_L[:n])) + pert) * up
+    s_bound = (np.linalg.norm(W_L[n:], axis=1) * (1.0 + SVD_MARGIN) * h + np.abs(b_L[n:]) + pert) * up
 
     # 4. d = r - o with r = (y - base) / sigma over the box
     if cfg.center == "offset":
@@ -395,18 +315,14 @@ def sound_lipschitz(
     out_grad = math.sqrt(L_fro_sq + ds_fro_sq) * up
 
     # 6. Jacobian of the output w.r.t. all parameters: sum_l P_l^2 (||h_{l-1}||^2 + 1)
-    n_layers = len(layers)
-    P = [1.0] * n_layers
-    for i in range(n_layers - 2, -1, -1):
-        P[i] = P[i + 1] * (ops[i + 1] + radius) * up
-    jac = math.sqrt(sum(P[i] ** 2 * (H[i] ** 2 + 1.0) for i in range(n_layers))) * up
+    jac = jacobian_bound(layers, H, radius)
 
     value = out_grad * jac * (1.0 + FLOAT_MARGIN)
     if not math.isfinite(value):
         raise InvalidInputError("the sound Lipschitz bound overflowed; the box or the weights are too large")
     return LipschitzBound(
         value=value,
-        radius=float(radius),
+        radius=radius,
         jacobian_bound=jac,
         output_gradient_bound=out_grad,
         hidden_norm_bounds=tuple(H),

@@ -11,7 +11,14 @@ with ``l(t) = max(0, t / alpha + 1)``, ``p`` the number of parameters and ``L_g`
 the Lipschitz constant of ``g`` in ``theta`` (paper, Section "Probabilistic
 correctness"; the paper's ``epsilon`` is solved from ``2 exp(-2 N epsilon^2) = delta``).
 
-It is evaluated with both Lipschitz values of :mod:`ipcverify.lipschitz`. Only the
+The hinge margin ``alpha`` is the one recorded at training (``TrainConfig.alpha``). The
+theorem holds for any ``alpha > 0`` fixed before the data are seen, whatever objective
+chose ``theta_hat``: ``1{g > 1} <= min(1, l(g - 1))`` for every ``alpha > 0``, and the
+bound is uniform over the parameter set. The default recipe trains by likelihood and does
+not use ``alpha``; its recorded value is the fixed default 1.0.
+
+It is evaluated with both Lipschitz values of :mod:`ipcverify.lipschitz` (for either network
+kind: the paper's heads or the default low-rank ensemble). Only the
 sound (upper) ``L_g`` can give a valid bound; the empirical one gives an optimistic
 number that proves nothing. A bound above 1 says nothing about a probability and is
 flagged vacuous, with the training-set size ``N`` that would bring it below 1 (the
@@ -30,14 +37,7 @@ from numpy.typing import ArrayLike
 
 from ipcverify.data import PerceptionDataset
 from ipcverify.errors import InvalidInputError
-from ipcverify.lipschitz import (
-    DEFAULT_RADIUS,
-    DataBox,
-    Theorem1UnavailableError,
-    empirical_lipschitz,
-    sound_lipschitz,
-    theorem1_unavailable,
-)
+from ipcverify.lipschitz import DEFAULT_RADIUS, DataBox, empirical_lipschitz, sound_lipschitz
 from ipcverify.model import IPCModel
 
 __all__ = [
@@ -368,15 +368,11 @@ def theorem1(
     delta : float
         Confidence parameter, ``0 < delta < 1``.
     alpha : float, optional
-        Hinge margin; default: the ``alpha`` recorded at training.
+        Hinge margin; default: the ``alpha`` recorded at training (for the default recipe,
+        which trains by likelihood, its fixed default 1.0; any ``alpha > 0`` fixed before
+        seeing the data is valid, see ``proofs/theorem1.md``).
     radius : float
         Parameter-ball radius of the sound Lipschitz bound.
-
-    Raises
-    ------
-    Theorem1UnavailableError
-        For an architecture without a derived Lipschitz bound (the default low-rank
-        ensemble; :func:`~ipcverify.lipschitz.theorem1_unavailable` says why).
 
     Examples
     --------
@@ -387,10 +383,11 @@ def theorem1(
     >>> res = theorem1(model, ds, delta=0.01)
     >>> res.sound.vacuous, res.sound.lipschitz >= res.optimistic.lipschitz
     (True, True)
+    >>> default = train(ds, train_config=TrainConfig(epochs=1)).model  # the low-rank ensemble
+    >>> res = theorem1(default, ds, delta=0.01)
+    >>> res.alpha, res.n_parameters, res.sound.vacuous, res.sound.lipschitz >= res.optimistic.lipschitz
+    (1.0, 29475, True, True)
     """
-    reason = theorem1_unavailable(model)
-    if reason is not None:
-        raise Theorem1UnavailableError(reason)
     if alpha is None:
         alpha = (model.metadata.get("train_config") or {}).get("alpha")
         if alpha is None:

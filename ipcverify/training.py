@@ -22,7 +22,6 @@ from rich.progress import Progress
 from ipcverify.architecture import DEFAULT_RECIPE, ModelConfig
 from ipcverify.data import PerceptionDataset
 from ipcverify.errors import InvalidInputError
-from ipcverify.lipschitz import theorem1_unavailable
 from ipcverify.lowrank_training import train_lowrank
 from ipcverify.model import IPCModel, IPCNetwork, Network
 from ipcverify.objectives import (
@@ -311,7 +310,9 @@ def train(
     Returns
     -------
     TrainResult
-        The model (uncalibrated) and the per-epoch history.
+        The model (uncalibrated) and the per-epoch history. The model's metadata holds the
+        :class:`~ipcverify.theorem1.TrainingStatistics` of ``train_data`` (for every recipe),
+        so that Theorem 1 can be evaluated from the model file alone.
 
     Raises
     ------
@@ -352,7 +353,7 @@ def train(
     metadata: dict[str, Any] = {
         "train_config": tc.to_dict(),
         # what Theorem 1 needs, so that `ipcverify certify model.pt` works without the training file
-        "training_statistics": None,
+        "training_statistics": TrainingStatistics.compute(model, train_data, tc.alpha).to_dict(),
         "train_data_hash": train_data.content_hash(),
         "train_n": len(train_data),
         "x_columns": list(train_data.x_columns),
@@ -362,9 +363,4 @@ def train(
     }
     if record is not None:
         metadata["selection"] = record.to_dict()
-    unavailable = theorem1_unavailable(model)
-    if unavailable is None:
-        metadata["training_statistics"] = TrainingStatistics.compute(model, train_data, tc.alpha).to_dict()
-    else:
-        metadata["theorem1_unavailable"] = unavailable
     return TrainResult(IPCModel(net, None, metadata), history)

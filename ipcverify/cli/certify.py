@@ -238,9 +238,11 @@ def certify_cmd(
     else:
         t1 = cert.theorem1
         verdict = "VACUOUS" if t1.sound.vacuous else "usable"
+        need = "no N" if t1.sound.n_needed is None else f"N >= {t1.sound.n_needed:.3g}"
         table.add_row(
             "Theorem 1",
-            f"{verdict}: bound {t1.sound.bound:.3g} (sound L_g {t1.sound.lipschitz:.3g}); "
+            f"{verdict}: bound {t1.sound.bound:.3g} (sound L_g {t1.sound.lipschitz:.3g}, p = "
+            f"{t1.n_parameters:,}, N = {t1.n_train:,}; below 1 needs {need}); "
             f"{t1.optimistic.bound:.3g} with empirical L_g {t1.optimistic.lipschitz:.3g} (not a guarantee)",
         )
     console.print(table)

@@ -15,11 +15,13 @@ import click
 from ipcverify.cli.app import app, console
 from ipcverify.containment import (
     ContainmentCertificate,
+    Method,
     certificate_from_dict,
     problem_from_dict,
     prove,
     verify,
 )
+from ipcverify.containment.status import check_method
 from ipcverify.errors import InvalidInputError
 from ipcverify.files import atomic_write
 
@@ -65,7 +67,15 @@ def _fmt_margin(m: float | None) -> str:
     required=True,
     help="Where to write the certificates (JSON list, same order as the problems).",
 )
-def prove_containment_cmd(problems: Path, out: Path) -> None:
+@click.option(
+    "--method",
+    type=click.Choice([m.value for m in Method]),
+    default=None,
+    help="Method for the problems that do not name one: closed-form (boxes and polytopes; exact, "
+    "the default), socp (cross-check) or sdp (S-lemma by Clarabel, re-checked exactly; the only "
+    "one for ellipsoids).",
+)
+def prove_containment_cmd(problems: Path, out: Path, method: str | None) -> None:
     """Prove or refute 'inner ellipsoid inside outer set' for every problem in PROBLEMS.
 
     PROBLEMS is a JSON object {"inner": ..., "outer": ...} or a list of them; the
@@ -76,12 +86,20 @@ def prove_containment_cmd(problems: Path, out: Path) -> None:
     parsed = []
     for i, item in enumerate(items):
         try:
-            parsed.append(problem_from_dict(item))
+            inner, outer, own = problem_from_dict(item)
         except InvalidInputError as exc:
             raise InvalidInputError(f"{problems}: problem {i}: {exc}") from None
+        chosen = own if own is not None or method is None else Method(method)
+        if chosen is not None and own is None:  # a problem's own method was checked when parsed
+            try:
+                check_method(chosen, outer)
+            except InvalidInputError as exc:
+                hint = f"--method {method}; or give the problem its own 'method'"
+                raise InvalidInputError(f"{problems}: problem {i}: {exc} ({hint})") from None
+        parsed.append((inner, outer, chosen))
     certs: list[ContainmentCertificate] = []
-    for inner, outer, method in parsed:
-        certs.append(prove(inner, outer, method=method))
+    for inner, outer, chosen in parsed:
+        certs.append(prove(inner, outer, method=chosen))
     # one certificate per line: readable, and floats round-trip exactly (json uses repr)
     lines = [json.dumps(c.to_dict(), allow_nan=False) for c in certs]
     payload = "[\n" + ",\n".join(lines) + "\n]\n" if lines else "[]\n"

@@ -158,7 +158,8 @@ def train_cmd(
     The default recipe "tight" gives the smallest calibrated sets; "v1" is ipcverify's earlier
     default; "paper" is the paper's network and loss (12 outputs, hinge, Adam 1e-3, 20 epochs),
     whose unstated alpha, lambda and batch size are chosen on held-out training rows unless
-    --alpha, --lam or --batch-size is given.
+    --alpha, --lam or --batch-size is given. Every recipe stores the statistics Theorem 1
+    needs in the model file.
     """
     ds = load_dataset(data, _columns(x_columns), _columns(y_columns), _columns(yhat_columns))
     mc = ModelConfig.recipe(

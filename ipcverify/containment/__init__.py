@@ -12,7 +12,9 @@ per job:
 * :mod:`~ipcverify.containment.rounding` -- the same slacks with rigorous rounding bounds
   (a slack beyond its bound is a proof; the closed form tries them first);
 * :mod:`~ipcverify.containment.closed_form`, :mod:`~ipcverify.containment.socp`,
-  :mod:`~ipcverify.containment.sdp` -- the provers, behind :func:`prove`.
+  :mod:`~ipcverify.containment.sdp`, :mod:`~ipcverify.containment.face_sdp` -- the provers,
+  behind :func:`prove`; :mod:`~ipcverify.containment.face_lmi` -- the exact check of the
+  per-face S-lemma certificates.
 
 The set types themselves live in :mod:`ipcverify.sets`.
 
@@ -27,6 +29,10 @@ The set types themselves live in :mod:`ipcverify.sets`.
   ``tau`` gives ``tau* = max_{y in E1} ||C2 (y - c2)||^2``, so ``E1`` is inside ``E2``
   iff ``tau* <= 1`` (derivation in ``proofs/containment.md``). Clarabel proposes
   ``(lam, tau)``; the certificate holds multipliers that pass an exact PSD test.
+* **SDP** (box, polytope; ``method="sdp"``): one S-lemma LMI per face,
+  ``[[lam_j A, -a_j/2], [-a_j^T/2, b_j - a_j^T c - lam_j]] >= 0``, solved together by
+  Clarabel; each multiplier passes an exact integer definiteness test. An independent
+  second route: the closed form stays the default and the decision of record.
 
 :func:`verify` re-checks any certificate in exact arithmetic, independently of the
 float code and of the solver. A certificate is PROVEN only if that check passes;
@@ -44,6 +50,9 @@ Examples
 >>> cert = prove(inner, Box([-0.4, -1.0], [0.4, 1.0]))
 >>> cert.status.name, cert.witness_floats()
 ('REFUTED', (0.5, 0.0))
+>>> sdp = prove(inner, Box([-0.5, -0.25], [0.5, 0.25]), method="sdp")   # the second route
+>>> sdp.status.name, verify(sdp).status.name
+('PROVEN', 'PROVEN')
 """
 
 from __future__ import annotations

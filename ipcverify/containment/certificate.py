@@ -26,6 +26,7 @@ from fractions import Fraction
 from types import MappingProxyType
 from typing import Any
 
+from ipcverify.containment.face_lmi import check_face_lmis
 from ipcverify.containment.geometry import ExactEllipsoid, check_faces, check_lmi, is_outside
 from ipcverify.containment.io import json_field, json_number, set_from_dict, set_to_dict
 from ipcverify.containment.status import Method, Status, check_method, parse_method
@@ -59,14 +60,18 @@ class ContainmentCertificate:
     status : Status
         PROVEN, REFUTED or UNKNOWN; only exactly-checked evidence gives the first two.
     multipliers : mapping of str to tuple of Fraction
-        Method data. ``sdp``: ``{"lambda": (lam,), "tau": (tau,)}``, exact rationals
-        with ``lam Q1 - Q2 + tau e e^T >= 0`` and ``tau <= 1`` for PROVEN.
+        Method data. ``sdp`` against an ellipsoid: ``{"lambda": (lam,), "tau": (tau,)}``, exact
+        rationals with ``lam Q1 - Q2 + tau e e^T >= 0`` and ``tau <= 1`` for PROVEN. ``sdp``
+        against a box or polytope: ``{"lambda": (lam_1, ..., lam_m)}``, one per face (in the
+        order of ``outer.faces()``) with ``[[lam_j A, -a_j/2], [-a_j^T/2, b_j - a_j^T c - lam_j]]
+        >= 0`` for PROVEN.
         ``closed-form`` / ``socp``: ``{"support": (h_1, ..., h_m)}``, float estimates
         of ``max_{y in E} a_j^T y - a_j^T c`` (informative; :func:`verify` re-derives
         them exactly and does not read them).
     margin : float or None
         Float estimate of the slack: ``min_j (b_j - max_E a_j^T y)`` for boxes and
-        polytopes (units of ``b``); for ellipsoids ``1 - tau_solver``, where ``tau_solver``
+        polytopes (units of ``b``; by the ``sdp`` method, the solver's estimate); for
+        ellipsoids ``1 - tau_solver``, where ``tau_solver``
         estimates ``max_{y in E1} ||C2 (y - c2)||^2`` (the certified bound is the
         ``tau`` multiplier). ``>= 0`` when contained, up to rounding.
     witness : tuple of Fraction or None
@@ -115,9 +120,17 @@ class ContainmentCertificate:
                 raise InvalidInputError("certificate margin must be finite or None")
             object.__setattr__(self, "margin", m)
         if method is Method.SDP and status is Status.PROVEN:
-            for key in ("lambda", "tau"):
-                if len(self.multipliers.get(key, ())) != 1:
-                    raise InvalidInputError(f"a PROVEN sdp certificate needs one '{key}' multiplier")
+            if isinstance(self.outer, Ellipsoid):
+                for key in ("lambda", "tau"):
+                    if len(self.multipliers.get(key, ())) != 1:
+                        raise InvalidInputError(f"a PROVEN sdp certificate needs one '{key}' multiplier")
+            else:
+                faces = self.outer.faces()[1].shape[0]
+                if len(self.multipliers.get("lambda", ())) != faces:
+                    raise InvalidInputError(
+                        f"a PROVEN sdp certificate for a {type(self.outer).__name__.lower()} needs one "
+                        f"'lambda' multiplier per face ({faces})"
+                    )
         if status is Status.REFUTED:
             if self.witness is None or len(self.witness) != self.inner.dim:
                 raise InvalidInputError(
@@ -252,7 +265,9 @@ def verify(certificate: ContainmentCertificate) -> Verification:
     closed-form / socp re-derive ``b - a^T c >= 0`` and ``(b - a^T c)^2 >=
     ||C^{-T} a||^2`` for every face; sdp builds ``M = lam Q1 - Q2 + tau e e^T``
     exactly and tests ``lam >= 0``, ``tau <= 1`` and ``M >= 0`` (exact ``LDL^T``;
-    if a pivot is not positive, an exact pivoted PSD test). REFUTED claims: the
+    if a pivot is not positive, an exact pivoted PSD test); sdp against a box or polytope
+    tests every face LMI the same way, in integers
+    (:func:`~ipcverify.containment.face_lmi.check_face_lmis`). REFUTED claims: the
     witness must satisfy ``||C1 (w - c1)||^2 <= 1`` and lie outside the outer set,
     exactly. Anything that fails gives UNKNOWN, never PROVEN.
 
@@ -286,6 +301,8 @@ def verify(certificate: ContainmentCertificate) -> Verification:
         lam = certificate.multipliers["lambda"][0]
         tau = certificate.multipliers["tau"][0]
         ok, why = check_lmi(inner.quadratic_form(1), ExactEllipsoid.of(outer).quadratic_form(0), lam, tau)
+    elif certificate.method is Method.SDP:
+        ok, why = check_face_lmis(certificate.inner, outer, certificate.multipliers["lambda"])
     else:
         ok, why = check_faces(inner, outer)
     return Verification(claimed, Status.PROVEN if ok else Status.UNKNOWN, why)

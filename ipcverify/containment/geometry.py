@@ -162,10 +162,17 @@ def _as_float_witness(ex: ExactEllipsoid, outer: OuterSet, y: Sequence[Fraction]
     return None
 
 
-def witness_from_direction(ex: ExactEllipsoid, outer: OuterSet, u: Sequence[Fraction]) -> ExactVector | None:
-    """``c + C^{-1} u`` pulled exactly into the inner ellipsoid; returned if outside ``outer``."""
+def witness_from_direction(
+    ex: ExactEllipsoid, outer: OuterSet, u: Sequence[Fraction], *, boundary: bool = False
+) -> ExactVector | None:
+    """``c + C^{-1} u`` pulled exactly into the inner ellipsoid; returned if outside ``outer``.
+
+    ``boundary=True`` first scales any non-zero ``u`` to just inside the unit sphere
+    (``u / r`` with a rational ``r >= ||u||`` within ``2^-64`` relative), so the point lies on
+    the boundary of the inner set up to that: the farthest point along ``u``.
+    """
     uu = sqnorm(u)
-    if uu > 1:
+    if uu > 1 or (boundary and uu > 0):
         r = sqrt_upper(uu, 64)
         u = [v / r for v in u]
     y = ex.point(u)

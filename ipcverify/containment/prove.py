@@ -1,13 +1,16 @@
 """One entry point for containment proofs: :func:`prove` (and :func:`prove_batch`).
 
 ``prove(inner, outer, method=...)`` dispatches to the closed-form prover (boxes and
-polytopes, the default), the SOCP cross-check, or the S-lemma SDP (ellipsoids).
+polytopes, the default and the decision of record), the SOCP cross-check, or the S-lemma
+SDP (ellipsoids, where it is the only method; boxes and polytopes, one LMI per face, as an
+independent second route).
 """
 
 from __future__ import annotations
 
 from ipcverify.containment.certificate import ContainmentCertificate
 from ipcverify.containment.closed_form import prove_closed_form
+from ipcverify.containment.face_sdp import prove_sdp_faces
 from ipcverify.containment.geometry import ExactEllipsoid
 from ipcverify.containment.sdp import prove_sdp
 from ipcverify.containment.socp import prove_socp
@@ -28,8 +31,9 @@ def prove(inner: Ellipsoid, outer: OuterSet, *, method: Method | str | None = No
     outer : Box, Polytope or Ellipsoid
         The outer set (an ellipsoid must be a batch of one).
     method : Method or str, optional
-        ``"closed-form"`` (default for boxes/polytopes), ``"socp"`` (cross-check) or
-        ``"sdp"`` (the only method, and default, for ellipsoids).
+        ``"closed-form"`` (default for boxes/polytopes: exact, never UNKNOWN), ``"socp"``
+        (cross-check) or ``"sdp"`` (the only method, and default, for ellipsoids; for boxes and
+        polytopes the per-face S-lemma, :func:`~ipcverify.containment.face_sdp.prove_sdp_faces`).
 
     Returns
     -------
@@ -42,6 +46,9 @@ def prove(inner: Ellipsoid, outer: OuterSet, *, method: Method | str | None = No
     >>> e = Ellipsoid(np.zeros(2), np.eye(2))
     >>> prove(e, Polytope([[1.0, 1.0]], [1.5])).status.name
     'PROVEN'
+    >>> cert = prove(e, Box([-1.0, -1.0], [1.0, 1.0]), method="sdp")   # touching: still PROVEN
+    >>> cert.method.value, cert.status.name, len(cert.multipliers["lambda"])
+    ('sdp', 'PROVEN', 4)
     """
     inner = single_ellipsoid(inner, "inner")
     if not isinstance(outer, (Box, Polytope, Ellipsoid)):
@@ -59,6 +66,8 @@ def prove(inner: Ellipsoid, outer: OuterSet, *, method: Method | str | None = No
         return prove_sdp(inner, single_ellipsoid(outer, "outer"), ex)
     if m is Method.SOCP:
         return prove_socp(inner, outer, ex)
+    if m is Method.SDP:
+        return prove_sdp_faces(inner, outer, ex)
     return prove_closed_form(inner, outer, ex)
 
 

@@ -61,7 +61,9 @@ _ADVICE = {
 class Method(Enum):
     """How a containment was decided.
 
-    ``closed-form`` and ``socp`` apply to boxes and polytopes, ``sdp`` to ellipsoids.
+    ``closed-form`` (exact, the decision of record) and ``socp`` (a cross-check) apply to
+    boxes and polytopes; ``sdp`` (the S-lemma, solved by Clarabel and re-checked exactly)
+    applies to every outer set: one LMI for an ellipsoid, one per face for a box or polytope.
     """
 
     CLOSED_FORM = "closed-form"
@@ -79,13 +81,23 @@ def parse_method(v: Any, where: str) -> Method:
 
 
 def check_method(method: Method, outer: OuterSet) -> None:
-    """Refuse a method that does not apply to the outer set (``sdp`` is for ellipsoids only)."""
-    ok = method is Method.SDP if isinstance(outer, Ellipsoid) else method is not Method.SDP
-    if not ok:
+    """Refuse a method that does not apply to the outer set (an ellipsoid needs ``sdp``).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from ipcverify.sets import Box
+    >>> check_method(Method.SOCP, Ellipsoid(np.zeros(1), np.eye(1)))  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    ipcverify.errors.InvalidInputError: method 'socp' does not apply to an ellipsoid outer set: ...
+    >>> check_method(Method.SDP, Box([0.0], [1.0])) is None       # the S-lemma applies to every set
+    True
+    """
+    if isinstance(outer, Ellipsoid) and method is not Method.SDP:
         raise InvalidInputError(
-            f"method '{method.value}' does not apply to a "
-            f"{type(outer).__name__.lower()} outer set: "
-            "use 'sdp' for ellipsoids, 'closed-form' or 'socp' for boxes and polytopes"
+            f"method '{method.value}' does not apply to an ellipsoid outer set: "
+            "use 'sdp' for ellipsoids; 'closed-form', 'socp' or 'sdp' for boxes and polytopes"
         )
 
 

@@ -34,42 +34,15 @@ def _network(cfg: ModelConfig, seed: int, weight_scale: float = 1.0, shape_bias:
     return net.eval()
 
 
-def _flat(net: IPCNetwork) -> tuple[list[str], list[torch.Size], np.ndarray]:
-    names, shapes, parts = [], [], []
-    for k, v in net.named_parameters():
-        names.append(k)
-        shapes.append(v.shape)
-        parts.append(v.detach().double().numpy().ravel())
-    return names, shapes, np.concatenate(parts)
-
-
-def _unflat(names, shapes, vec) -> dict[str, torch.Tensor]:
-    out, i = {}, 0
-    for k, s in zip(names, shapes, strict=True):
-        n = int(np.prod(s))
-        out[k] = torch.tensor(vec[i : i + n].reshape(s), dtype=torch.float64)
-        i += n
-    return out
-
-
-def _random_in_box(box: DataBox, rng: np.random.Generator, m: int, corners: bool) -> tuple[np.ndarray, ...]:
-    def draw(lo, hi):
-        if corners:
-            return np.where(rng.random((m, lo.size)) < 0.5, lo, hi)
-        return lo + (hi - lo) * rng.random((m, lo.size))
-
-    return draw(box.x_lo, box.x_hi), draw(box.y_lo, box.y_hi), draw(box.yhat_lo, box.yhat_hi)
-
-
-def _max_gradient_in_ball_and_box(net, box, radius, rng, n_theta=12, n_x=60) -> float:
-    names, shapes, theta = _flat(net)
+def _max_gradient_in_ball_and_box(ball, net, box, radius, rng, n_theta=12, n_x=60) -> float:
+    names, shapes, theta = ball.flat(net)
     worst = 0.0
     for i in range(n_theta):
         d = rng.standard_normal(theta.size)
         d /= np.linalg.norm(d)
         r = radius if i % 2 == 0 else radius * rng.random() ** (1.0 / theta.size)
-        params = _unflat(names, shapes, theta + r * d)
-        x, y, yh = _random_in_box(box, rng, n_x, corners=i % 3 == 0)
+        params = ball.unflat(names, shapes, theta + r * d)
+        x, y, yh = ball.random_in_box(box, rng, n_x, corners=i % 3 == 0)
         worst = max(worst, float(per_sample_gradient_norms(net, x, y, yh, params=params).max()))
     return worst
 
@@ -113,7 +86,7 @@ CONFIGS = [
 
 @pytest.mark.parametrize("cfg", CONFIGS, ids=lambda c: f"{c.param}-{c.center}-{c.activation}-{len(c.hidden)}")
 @pytest.mark.parametrize("radius", [0.0, 0.05, 0.5])
-def test_sound_bound_dominates_gradients_in_the_ball_and_box(cfg, radius):
+def test_sound_bound_dominates_gradients_in_the_ball_and_box(cfg, radius, ball):
     net = _network(cfg, seed=int(radius * 100) + cfg.y_dim, weight_scale=2.0)
     model = IPCModel(net)
     box = DataBox(
@@ -125,38 +98,38 @@ def test_sound_bound_dominates_gradients_in_the_ball_and_box(cfg, radius):
         DATA.yhat[:, : cfg.y_dim].max(0),
     )
     bound = sound_lipschitz(model, box, radius=radius).value
-    worst = _max_gradient_in_ball_and_box(net, box, radius, np.random.default_rng(17))
+    worst = _max_gradient_in_ball_and_box(ball, net, box, radius, np.random.default_rng(17))
     assert worst <= bound
 
 
 @pytest.mark.parametrize("shape_bias", [-12.0, 11.95, 14.0])
-def test_sound_bound_holds_around_the_log_diagonal_clamp(shape_bias):
+def test_sound_bound_holds_around_the_log_diagonal_clamp(shape_bias, ball):
     """Diagonal logits near or beyond the clamp at +/-12 (exp saturates, its derivative vanishes)."""
     cfg = ModelConfig(x_dim=6, y_dim=3, hidden=(6,), param="cholesky")
     net = _network(cfg, seed=5, weight_scale=0.3, shape_bias=shape_bias)
     model = IPCModel(net)
     box = DataBox.from_dataset(DATA)
     bound = sound_lipschitz(model, box, radius=0.2).value
-    assert _max_gradient_in_ball_and_box(net, box, 0.2, np.random.default_rng(3), n_theta=8) <= bound
+    assert _max_gradient_in_ball_and_box(ball, net, box, 0.2, np.random.default_rng(3), n_theta=8) <= bound
 
 
-def test_lipschitz_inequality_on_function_values():
+def test_lipschitz_inequality_on_function_values(ball):
     """|g(theta1) - g(theta2)| <= L ||theta1 - theta2|| for pairs in the ball (no gradients involved)."""
     cfg = ModelConfig(x_dim=6, y_dim=3, hidden=(6, 6), param="cholesky")
     net = _network(cfg, seed=8, weight_scale=1.5).double()
     box = DataBox.from_dataset(DATA)
     radius = 0.3
     bound = sound_lipschitz(IPCModel(_network(cfg, seed=8, weight_scale=1.5)), box, radius=radius).value
-    names, shapes, theta = _flat(net)
+    names, shapes, theta = ball.flat(net)
     rng = np.random.default_rng(9)
-    x, y, yh = (torch.tensor(a) for a in _random_in_box(box, rng, 200, corners=False))
+    x, y, yh = (torch.tensor(a) for a in ball.random_in_box(box, rng, 200, corners=False))
     for _ in range(20):
         a, b = (rng.standard_normal(theta.size) for _ in range(2))
         t1 = theta + radius * a / np.linalg.norm(a)
         t2 = theta + radius * rng.random() * b / np.linalg.norm(b)
         vals = []
         for t in (t1, t2):
-            params = _unflat(names, shapes, t)
+            params = ball.unflat(names, shapes, t)
             c, C, _ = torch.func.functional_call(net, params, (x, yh))
             vals.append(torch.linalg.vector_norm(torch.einsum("bij,bj->bi", C, y - c), dim=1).numpy())
         assert (np.abs(vals[0] - vals[1]) <= bound * np.linalg.norm(t1 - t2) * (1 + 1e-9)).all()
@@ -172,7 +145,7 @@ def test_lipschitz_inequality_on_function_values():
     seed=st.integers(0, 1000),
     radius=st.floats(0.0, 1.0),
 )
-def test_sound_bound_property(hidden, y_dim, param, center, activation, seed, radius):
+def test_sound_bound_property(hidden, y_dim, param, center, activation, seed, radius, ball):
     cfg = ModelConfig(
         x_dim=3, y_dim=y_dim, hidden=tuple(hidden), param=param, center=center, activation=activation
     )
@@ -186,7 +159,7 @@ def test_sound_bound_property(hidden, y_dim, param, center, activation, seed, ra
         DATA.yhat[:, :y_dim].max(0),
     )
     bound = sound_lipschitz(IPCModel(net), box, radius=radius).value
-    assert _max_gradient_in_ball_and_box(net, box, radius, np.random.default_rng(seed), 6, 40) <= bound
+    assert _max_gradient_in_ball_and_box(ball, net, box, radius, np.random.default_rng(seed), 6, 40) <= bound
 
 
 def test_bad_inputs():

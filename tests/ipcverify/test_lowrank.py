@@ -11,13 +11,13 @@ import torch
 from ipcverify.architecture import ModelConfig
 from ipcverify.data import PerceptionDataset
 from ipcverify.errors import InvalidInputError
-from ipcverify.lipschitz import Theorem1UnavailableError, sound_lipschitz, theorem1_unavailable
+from ipcverify.lipschitz import theorem1_unavailable
 from ipcverify.lowrank import SIGMA_FLOOR, LowRankEnsemble, fit_linear_stage, member_covariances, moment_match
 from ipcverify.lowrank_engine import LowRankEngine, cholesky_lower, lower_inverse
 from ipcverify.lowrank_training import train_lowrank
-from ipcverify.model import IPCModel, build_network, network_fingerprint
+from ipcverify.model import IPCModel, network_fingerprint
 from ipcverify.synthetic import make_lagged_perception
-from ipcverify.theorem1 import theorem1
+from ipcverify.theorem1 import TrainingStatistics, theorem1
 from ipcverify.training import TrainConfig, train
 
 
@@ -223,28 +223,26 @@ def test_early_stopping_freezes_members_one_by_one_at_their_best_epoch():
     assert all(torch.isfinite(p).all() for p in net.parameters())
 
 
-def test_fingerprint_covers_every_member_and_theorem1_is_refused_with_a_reason():
+def test_fingerprint_covers_every_member():
     net = _random_network(ModelConfig(x_dim=2, y_dim=3, hidden=(4,)), seed=10)
     before = network_fingerprint(net)
     with torch.no_grad():
         net.body.layers[1].weight[4, 0, 0] += 1e-3  # the last member only
     assert network_fingerprint(net) != before
-    model = IPCModel(net)
-    reason = theorem1_unavailable(model)
-    assert reason is not None and "an ensemble of 5 networks" in reason and "--recipe v1" in reason
-    data = make_lagged_perception(50, seed=0)
-    with pytest.raises(Theorem1UnavailableError, match="not available for this architecture"):
-        theorem1(model, data, 0.01)
-    with pytest.raises(Theorem1UnavailableError, match="not available for this architecture"):
-        sound_lipschitz(model, data)
-    assert theorem1_unavailable(IPCModel(build_network(ModelConfig.recipe("v1", x_dim=2, y_dim=3)))) is None
 
 
-def test_default_training_records_no_theorem1_statistics_but_a_reason():
-    model = train(make_lagged_perception(300, seed=11), train_config=TrainConfig(epochs=1)).model
-    assert model.metadata["training_statistics"] is None
-    assert model.metadata["theorem1_unavailable"].startswith("not available for this architecture")
+def test_default_training_records_theorem1_statistics():
+    data = make_lagged_perception(300, seed=11)
+    model = train(data, train_config=TrainConfig(epochs=1)).model
+    assert theorem1_unavailable(model) is None and "theorem1_unavailable" not in model.metadata
+    stats = TrainingStatistics.from_dict(model.metadata["training_statistics"])
+    assert (stats.n, stats.alpha, stats.data_sha256) == (300, 1.0, data.content_hash())
     assert model.metadata["train_config"]["loss"] == "likelihood"
+    # the same numbers as computing them again from the training data
+    res_stored, res_fresh = theorem1(model, stats, 0.01), theorem1(model, data, 0.01)
+    assert res_stored.to_dict() == res_fresh.to_dict()
+    assert res_stored.n_parameters == model.n_parameters == sum(p.numel() for p in model.network.parameters())
+    assert res_stored.sound.vacuous and res_stored.sound.lipschitz >= res_stored.optimistic.lipschitz > 0
 
 
 def test_lowrank_network_refuses_a_paper_head_config():

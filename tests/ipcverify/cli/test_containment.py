@@ -113,3 +113,42 @@ def test_existing_output_survives_a_failed_run(tmp_path, run_cli):
     p.write_text("[{}]")
     assert run_cli("prove-containment", p, "--out", out).code == 2
     assert out.read_text() == "old"
+
+
+def test_method_sdp_decides_boxes_and_polytopes_by_the_s_lemma(tmp_path, run_cli):
+    out = tmp_path / "certs.json"
+    res = run_cli("prove-containment", _write(tmp_path / "p.json", PROBLEMS), "--out", out, "--method", "sdp")
+    assert res.code == 0, res.stderr
+    certs = json.loads(out.read_text())
+    assert [c["status"] for c in certs] == EXPECTED  # the same verdicts as the closed form
+    # every problem without its own method is decided by the SDP; problem 5 names socp
+    assert [c["method"] for c in certs] == ["sdp"] * 5 + ["socp"]
+    assert "problem 0: PROVEN (sdp, box" in res.stdout
+    assert len(certs[0]["multipliers"]["lambda"]) == 4  # one multiplier per face
+    res = run_cli("check-certificate", out)
+    assert res.code == 0, res.stdout
+    assert "face LMIs" in res.stdout
+
+
+def test_method_that_does_not_apply_names_the_problem(tmp_path, run_cli):
+    out = tmp_path / "certs.json"
+    res = run_cli(
+        "prove-containment", _write(tmp_path / "p.json", PROBLEMS), "--out", out, "--method", "socp"
+    )
+    assert res.code == 2
+    assert "error: " in res.stderr and "problem 2: method 'socp' does not apply to an ellipsoid" in res.stderr
+    assert "--method socp" in res.stderr
+    assert not out.exists()  # nothing is written when a problem is refused
+
+
+def test_unknown_method_option_is_a_usage_error(tmp_path, run_cli):
+    res = run_cli(
+        "prove-containment",
+        _write(tmp_path / "p.json", PROBLEMS),
+        "--out",
+        tmp_path / "c.json",
+        "--method",
+        "lmi",
+    )
+    assert res.code == 2
+    assert "Invalid value for '--method'" in res.stderr and "'closed-form', 'socp', 'sdp'" in res.stderr

@@ -161,14 +161,13 @@ def test_bare_certify_works_from_the_model_file_alone(run_cli, model_path, tmp_p
     assert cert["status"] == "UNTESTED" and cert["test"] is None
     assert cert["calibration"]["k"] == cert["calibration"]["groups"][0]["k"]
     assert cert["domain"]["n_reference"] == 1000 and cert["domain"]["n"] == 0
-    # the default (low-rank ensemble) has no derived Lipschitz bound: Theorem 1 says why, nothing crashes
+    # Theorem 1 of the default (low-rank ensemble) from the statistics stored at training time
     t1 = cert["theorem1"]
-    assert not t1["computed"] and t1["bound"] is None
-    assert t1["reason"].startswith("not available for this architecture") and "--recipe v1" in t1["reason"]
-    assert load_model(model_path).metadata["training_statistics"] is None
+    assert t1["computed"] and t1["source"] == "statistics stored at training time"
+    assert t1["vacuous"] and t1["bound"] >= 1 and t1["lipschitz_sound"] >= t1["lipschitz_empirical"] > 0
     page = (tmp_path / "cert" / "report.html").read_text()
     assert "No test data was given" in page and "Domain of validity" in page
-    assert "Not available for this architecture" in page
+    assert "Theorem 1 is vacuous" in page
 
 
 def test_demo(run_cli, tmp_path):

@@ -190,6 +190,19 @@ def test_socp_agrees_with_closed_form_when_decisive(seed, n, log_cond, margin, s
         assert socp.status is closed.status, socp.detail
 
 
+@settings(derandomize=True, max_examples=200, deadline=None)
+@given(seed=seeds, n=dims, log_cond=log_conds, margin=margins, sign=signs, box=st.booleans())
+def test_sdp_faces_agree_with_the_closed_form_and_the_oracle(seed, n, log_cond, margin, sign, box):
+    make = _near_tight_box if box else _near_tight_polytope
+    e, outer = make(seed, n, log_cond, margin, sign)
+    truth = _faces_hold_oracle(e, *outer.faces())
+    sdp = prove(e, outer, method="sdp")
+    _check_against_truth(sdp, truth)
+    # conditioning to 1e6 and margins down to a few ulps: the S-lemma route still decides
+    assert sdp.status is not Status.UNKNOWN, sdp.detail
+    assert sdp.status is prove(e, outer).status
+
+
 # ------------------------------------------------------------------ ellipsoids
 def _homothetic_contains(e1: Ellipsoid, c2: np.ndarray, f: float) -> bool:
     """Exact: E(c1, C1) ⊆ E(c2, C1 / f) iff ||C1 (c1 - c2)|| <= f - 1 (f a power of two)."""

@@ -48,9 +48,10 @@ def test_axis_aligned_ellipsoid_touching_box_is_proven_with_zero_margin():
     assert verify(cert).status is Status.PROVEN
 
 
+@pytest.mark.parametrize("method", ["closed-form", "sdp"])
 @pytest.mark.parametrize("coord", [0, 1, 2])
 @pytest.mark.parametrize("side", ["upper", "lower"])
-def test_box_one_ulp_too_small_is_refuted_with_exact_touching_witness(coord, side):
+def test_box_one_ulp_too_small_is_refuted_with_exact_touching_witness(coord, side, method):
     c = np.array([1.0, -2.0, 0.5])
     e = Ellipsoid(c, np.diag([2.0, 4.0, 8.0]))
     h = np.array([0.5, 0.25, 0.125])
@@ -59,7 +60,7 @@ def test_box_one_ulp_too_small_is_refuted_with_exact_touching_witness(coord, sid
         up[coord] = math.nextafter(up[coord], -math.inf)
     else:
         lo[coord] = math.nextafter(lo[coord], math.inf)
-    cert = prove(e, Box(lo, up))
+    cert = prove(e, Box(lo, up), method=method)
     assert cert.status is Status.REFUTED
     expected = c.copy()
     expected[coord] += h[coord] if side == "upper" else -h[coord]
@@ -67,13 +68,14 @@ def test_box_one_ulp_too_small_is_refuted_with_exact_touching_witness(coord, sid
     assert verify(cert).status is Status.REFUTED
 
 
-def test_halfspace_at_rounded_sqrt2():
+@pytest.mark.parametrize("method", ["closed-form", "sdp"])
+def test_halfspace_at_rounded_sqrt2(method):
     # float(sqrt 2) > sqrt 2, so the unit disc lies in x + y <= fl(sqrt 2); one ulp less, not
     disc = Ellipsoid(np.zeros(2), np.eye(2))
     s = math.sqrt(2.0)
     assert F(s) ** 2 > 2
-    assert prove(disc, Polytope([[1.0, 1.0]], [s])).status is Status.PROVEN
-    cert = prove(disc, Polytope([[1.0, 1.0]], [math.nextafter(s, 0.0)]))
+    assert prove(disc, Polytope([[1.0, 1.0]], [s]), method=method).status is Status.PROVEN
+    cert = prove(disc, Polytope([[1.0, 1.0]], [math.nextafter(s, 0.0)]), method=method)
     assert cert.status is Status.REFUTED
     assert verify(cert).status is Status.REFUTED
     assert _inside_exact(disc, cert.witness)
@@ -312,10 +314,12 @@ def test_constructor_validation():
         ContainmentCertificate(e, box, Method.CLOSED_FORM, Status.REFUTED)
     with pytest.raises(InvalidInputError, match="only a REFUTED"):
         ContainmentCertificate(e, box, Method.CLOSED_FORM, Status.PROVEN, witness=(F(0), F(0)))
-    with pytest.raises(InvalidInputError, match="does not apply"):
-        ContainmentCertificate(e, box, Method.SDP, Status.UNKNOWN)
+    with pytest.raises(InvalidInputError, match="does not apply to an ellipsoid"):
+        ContainmentCertificate(e, e, Method.CLOSED_FORM, Status.UNKNOWN)
     with pytest.raises(InvalidInputError, match="lambda"):
         ContainmentCertificate(e, e, Method.SDP, Status.PROVEN)
+    with pytest.raises(InvalidInputError, match=r"one 'lambda' multiplier per face \(4\)"):
+        ContainmentCertificate(e, box, Method.SDP, Status.PROVEN, {"lambda": [F(1, 2)] * 3})
     with pytest.raises(SetError, match="dimension"):
         ContainmentCertificate(e, Box([0.0], [1.0]), Method.CLOSED_FORM, Status.UNKNOWN)
 
@@ -336,8 +340,10 @@ def test_prove_rejects_batches_and_mismatches():
     e = e2[0]
     with pytest.raises(SetError, match="dimension"):
         prove(e, Box([-1.0], [1.0]))
-    with pytest.raises(InvalidInputError, match="sdp"):
-        prove(e, Box([-1.0, -1.0], [1.0, 1.0]), method="sdp")
+    with pytest.raises(InvalidInputError, match="use 'sdp' for ellipsoids"):
+        prove(e, e, method="closed-form")
+    with pytest.raises(InvalidInputError, match="use 'sdp' for ellipsoids"):
+        prove(e, e, method=Method.SOCP)
     with pytest.raises(InvalidInputError, match="not one of"):
         prove(e, Box([-1.0, -1.0], [1.0, 1.0]), method="magic")
 
@@ -388,10 +394,10 @@ def test_prove_rejects_batches_and_mismatches():
         (
             {
                 "inner": {"type": "ellipsoid", "center": [0.0], "shape": [[1.0]]},
-                "outer": {"type": "box", "lower": [0.0], "upper": [1.0]},
-                "method": "sdp",
+                "outer": {"type": "ellipsoid", "center": [0.0], "shape": [[1.0]]},
+                "method": "closed-form",
             },
-            "does not apply",
+            "does not apply to an ellipsoid",
         ),
         (
             {
