@@ -25,7 +25,8 @@ h1{font-size:1.7em;margin-bottom:.2em} h2{font-size:1.3em;margin-top:2em;border-
 h3{font-size:1.08em;margin-top:1.4em} p.lead{font-size:1.05em}
 table{border-collapse:collapse;margin:.6em 0 1.2em;font-family:system-ui,sans-serif;font-size:.88em}
 td,th{border:1px solid #bbb;padding:.28em .6em;text-align:right;font-variant-numeric:tabular-nums;
-white-space:nowrap} th{background:#eef1f5} td.l,th.l{text-align:left;white-space:normal}
+white-space:nowrap} th{background:#eef1f5;white-space:normal} td.l,th.l{text-align:left;white-space:normal}
+div.wide{max-width:100%;overflow-x:auto}
 caption{caption-side:top;text-align:left;font-style:italic;padding-bottom:.3em}
 .ok{color:#1b7f3b;font-weight:600} .no{color:#b42318;font-weight:600} .muted{color:#555;font-size:.92em}
 figure{margin:1em 0} figure img{max-width:100%} figcaption{font-size:.9em;color:#333}
@@ -70,7 +71,7 @@ def table(
     th = "".join(f"<th{cls(i)}>{esc(h)}</th>" for i, h in enumerate(header))
     body = "".join("<tr>" + "".join(f"<td{cls(i)}>{c}</td>" for i, c in enumerate(r)) + "</tr>" for r in rows)
     cap = f"<caption>{esc(caption)}</caption>" if caption else ""
-    return f"<table>{cap}<thead><tr>{th}</tr></thead><tbody>{body}</tbody></table>"
+    return f"<div class=\"wide\"><table>{cap}<thead><tr>{th}</tr></thead><tbody>{body}</tbody></table></div>"
 
 
 def figure(figs: Mapping[str, bytes], name: str, caption: str) -> str:
