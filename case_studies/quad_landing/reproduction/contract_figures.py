@@ -13,7 +13,9 @@ from collections.abc import Mapping
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.ticker import FuncFormatter
 
+from case_studies.quad_landing.reproduction.campaign import CampaignSummary
 from case_studies.quad_landing.reproduction.contracts import CONTRACTS, ContractSummary
 from case_studies.quad_landing.reproduction.table1 import PAPER_TABLE1
 
@@ -24,14 +26,19 @@ CONTRACT_COLORS = {"paper_raw": "#9467bd", "paper_calibrated": "#8c564b", "defau
 _AXES = ("x", "y", "z")
 
 
-def _share(contract: ContractSummary, outcome: str) -> float:
-    """The share of the contract's Monte Carlo runs with ``outcome`` (0 if it was not flown)."""
-    mc = contract.monte_carlo
+def _share(mc: CampaignSummary | None, outcome: str) -> float:
+    """The share of a campaign's runs with ``outcome`` (0 if it was not flown)."""
     return 0.0 if mc is None or mc.runs == 0 else getattr(mc, outcome) / mc.runs
 
 
-def plot_contracts(contracts: Mapping[str, ContractSummary], floor: float = 1e-3) -> Figure:
-    """Table I per contract (left), landing outcomes (middle), hover half-widths against ``G`` (right).
+#: Plain numbers on log axes (2, 5, 10 rather than 2 x 10^0).
+_PLAIN = FuncFormatter(lambda v, _: f"{v:g}")
+
+
+def plot_contracts(
+    contracts: Mapping[str, ContractSummary], baseline: CampaignSummary | None = None, floor: float = 1e-3
+) -> Figure:
+    """Table I per contract (left), landing outcomes with the baseline's (middle), hover half-widths (right).
 
     Rates of zero are drawn at the bottom of the log axis; a contract that was not flown has
     no bars.
@@ -51,20 +58,24 @@ def plot_contracts(contracts: Mapping[str, ContractSummary], floor: float = 1e-3
             ks, [max(r.rate, floor) for r in rows], "o-", color=CONTRACT_COLORS[name], lw=1.6, label=name
         )
     ax_t.set_yscale("log")
+    ax_t.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{100 * v:g} %"))
     ax_t.set_ylim(floor * 0.8, 1.0)
     ax_t.set_xlabel("camera buffer size")
-    ax_t.set_ylabel("Table I: share of truths outside the set")
+    ax_t.set_ylabel("Table I: truths outside the set")
     ax_t.set_title("Table I (bands: simultaneous 95 % intervals)", fontsize=10)
     ax_t.grid(alpha=0.3, which="both")
     ax_t.legend(fontsize=8)
 
-    x = np.arange(len(names))
-    bottom = np.zeros(len(names))
+    flown = [(n, contracts[n].monte_carlo) for n in names]
+    if baseline is not None:
+        flown.append(("baseline", baseline))
+    x = np.arange(len(flown))
+    bottom = np.zeros(len(flown))
     for outcome, color in (("safe", "#2ca02c"), ("unsafe", "#d62728"), ("aborted", "#bbbbbb")):
-        share = np.array([_share(contracts[n], outcome) for n in names])
+        share = np.array([_share(mc, outcome) for _, mc in flown])
         ax_l.bar(x, 100 * share, bottom=100 * bottom, color=color, label=outcome, width=0.6)
         bottom += share
-    ax_l.set_xticks(x, names, fontsize=8)
+    ax_l.set_xticks(x, [n.replace("_", "\n") for n, _ in flown], fontsize=8)
     ax_l.set_ylabel("Monte Carlo landings (%)")
     ax_l.set_ylim(0, 100)
     ax_l.set_title("landings at buffer size 1", fontsize=10)
@@ -88,6 +99,8 @@ def plot_contracts(contracts: Mapping[str, ContractSummary], floor: float = 1e-3
     ax_h.set_xticks(range(3), [f"{a} (world)" for a in _AXES])
     ax_h.set_ylabel("half-width of the set (cm)")
     ax_h.set_yscale("log")
+    ax_h.yaxis.set_major_formatter(_PLAIN)
+    ax_h.yaxis.set_minor_formatter(_PLAIN)
     ax_h.set_title("sets at the hover (measurements after the first)", fontsize=10)
     ax_h.grid(alpha=0.3, axis="y", which="both")
     if limit is not None:

@@ -71,7 +71,7 @@ def table(
     th = "".join(f"<th{cls(i)}>{esc(h)}</th>" for i, h in enumerate(header))
     body = "".join("<tr>" + "".join(f"<td{cls(i)}>{c}</td>" for i, c in enumerate(r)) + "</tr>" for r in rows)
     cap = f"<caption>{esc(caption)}</caption>" if caption else ""
-    return f"<div class=\"wide\"><table>{cap}<thead><tr>{th}</tr></thead><tbody>{body}</tbody></table></div>"
+    return f'<div class="wide"><table>{cap}<thead><tr>{th}</tr></thead><tbody>{body}</tbody></table></div>'
 
 
 def figure(figs: Mapping[str, bytes], name: str, caption: str) -> str:

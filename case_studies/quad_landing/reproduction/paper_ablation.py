@@ -36,6 +36,7 @@ import numpy as np
 import pandas as pd
 import torch
 from matplotlib.figure import Figure
+from matplotlib.ticker import FuncFormatter
 
 from case_studies.quad_landing.data.datasets import as_dataset
 from case_studies.quad_landing.landing.contracts import LearnedContract
@@ -260,6 +261,8 @@ def plot_paper_ablation(result: dict[str, Any]) -> Figure:
     ax.axhline(100 * result["limit_z"], color="k", ls="--", lw=1.2, label="largest half-height G allows")
     ax.set_xticks(x, [r["name"].replace("_", "\n") for r in rows], fontsize=8)
     ax.set_yscale("log")
+    ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+    ax.yaxis.set_minor_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
     ax.set_ylabel("vertical half-height of the set (cm, median)")
     ax.set_title("the paper's method, one change at a time (held-out test rows)", fontsize=10)
     ax.grid(alpha=0.3, axis="y", which="both")

@@ -543,7 +543,7 @@ def reproduce(
         with run.stages.stage("figures and report", 1):
             figures = draw_figures(table, ablation, flights.paper_ipc, flights.paper_baseline, flights.mc_ipc,
                                    flights.mc_baseline, coverage, frames, sizes.buffers)  # fmt: skip
-            figures["contracts"] = figure_png(plot_contracts(contracts))
+            figures["contracts"] = figure_png(plot_contracts(contracts, landing.baseline.monte_carlo))
     summary = ReproductionSummary(
         quick=cfg.quick,
         settings=cfg,
