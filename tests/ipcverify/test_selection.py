@@ -146,3 +146,26 @@ def test_the_papers_contract_as_trained_covers_unseen_data_with_sets_smaller_tha
     assert clopper_pearson_upper(misses, len(te), 0.05) <= 0.02, (misses, len(te))
     glob = fit_global_mahalanobis(tr).calibrate(cal, 0.01, 0.001).predict(te.x, te.yhat)
     assert volume < float(np.mean(-np.linalg.slogdet(np.asarray(glob.shapes))[1]))
+
+
+def test_the_certificate_records_the_rule_and_the_chosen_values(tmp_path, run_cli):
+    """Issue 26: the rule and the values it chose are in the model file and in the certificate."""
+    import json
+
+    from ipcverify.modelio import save_model
+
+    ds = make_lagged_perception(400, seed=0)
+    rule = HingeSelection(alphas=(0.1, 1.0), lams=(0.01,))
+    mc = ModelConfig.recipe("paper", x_dim=6, y_dim=3, hidden=(8, 8))
+    model = train(ds, mc, TrainConfig.recipe("paper", epochs=1), select=rule).model
+    save_model(model, tmp_path / "m.pt")
+    r = run_cli("certify", tmp_path / "m.pt", "--out", tmp_path / "cert")
+    assert r.code in (0, 1, 2) and "unstated settings chosen" in r.stdout, r.stdout + r.stderr
+    cert = json.loads((tmp_path / "cert" / "certificate.json").read_text())
+    chosen = cert["model"]["selection"]["chosen"]
+    assert (chosen["alpha"], chosen["lam"]) == (
+        cert["model"]["training"]["alpha"],
+        cert["model"]["training"]["lam"],
+    )
+    assert "smallest held-out mean log-volume" in cert["model"]["selection"]["rule"]["rule"]
+    assert "the rule" in (tmp_path / "cert" / "report.html").read_text()
