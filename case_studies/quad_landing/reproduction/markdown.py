@@ -36,15 +36,17 @@ def _pct(v: float) -> str:
     return f"{100 * v:.2f} %"
 
 
+def _cell(row: Mapping[str, Any]) -> str:
+    """``rate (k/n; [lo, hi] %)`` of one Table I row."""
+    lo, hi = row["interval"]
+    return f"{_pct(row['rate'])} ({row['violations']}/{row['n']}; [{100 * lo:.2f}, {100 * hi:.2f}] %)"
+
+
 def table1_markdown(summary: Mapping[str, Any]) -> str:
     """Table I with exact intervals, and the paper's row."""
     rows = summary["table1"]
     keys = sorted(rows, key=int)
-    cells = [
-        f"{_pct(rows[k]['rate'])} ({rows[k]['violations']}/{rows[k]['n']}; "
-        f"[{100 * rows[k]['interval'][0]:.2f}, {100 * rows[k]['interval'][1]:.2f}] %)"
-        for k in keys
-    ]
+    cells = [_cell(rows[k]) for k in keys]
     lines = ["| buffer size | " + " | ".join(keys) + " |", "|---|" + "---|" * len(keys)]
     lines.append("| this reproduction | " + " | ".join(cells) + " |")
     lines.append("| paper | " + " | ".join(f"{_PAPER[k]:.2f} %" if k in _PAPER else "—" for k in keys) + " |")
@@ -164,6 +166,20 @@ def contracts_markdown(summary: Mapping[str, Any]) -> str:
         med = hover.get("median")
         widths = "—" if med is None else " / ".join(f"{100 * v:.1f}" for v in med)
         lines.append(f"| {name} | {t1} | {paper} | {monte} | {widths} |")
+    detail = [
+        "",
+        "| Table I with exact intervals | " + " | ".join(f"b = {b}" for b in buffers) + " |",
+        "|---|" + "---|" * len(buffers),
+    ]
+    for name, c in contracts.items():
+        rows = c.get("table1_detail") or {}
+        if rows:
+            detail.append(f"| {name} | " + " | ".join(_cell(rows[b]) for b in buffers) + " |")
+    if len(detail) > 3:
+        detail.append(
+            "| paper | " + " | ".join(f"{_PAPER[b]:.2f} %" if b in _PAPER else "—" for b in buffers) + " |"
+        )
+        lines += detail
     claims = [
         f"- {name}: " + "; ".join(
             f"{cl['statement']}: {'holds' if cl['holds'] else 'does not hold'} ({cl['detail']})"
