@@ -96,7 +96,7 @@ def ingest_trajectories(
     >>> np.savetxt(os.path.join(d, "gt.txt"), rows)
     >>> np.savetxt(os.path.join(d, "est.txt"), rows[::2])
     >>> df = ingest_trajectories(os.path.join(d, "gt.txt"), [os.path.join(d, "est.txt")])
-    >>> len(df), df["run"].iloc[0], df["y_0"].round(12).iloc[0]
+    >>> len(df), df["run"].iloc[0], float(df["y_0"].round(12).iloc[0])
     (6, 'est', 0.5)
     """
     options = options or IngestOptions()
@@ -105,7 +105,8 @@ def ingest_trajectories(
         raise DataError("no estimate file; give at least one --estimate")
     if len(truths) not in (1, len(estimates)):
         raise DataError(
-            f"{len(truths)} truth files for {len(estimates)} estimates; give one truth file, or one per estimate"
+            f"{len(truths)} truth files for {len(estimates)} estimates; "
+            "give one truth file, or one per estimate"
         )
     names = run_names(estimates, runs)
     kitti_times = {"kitti"} & {truth_format, estimate_format}
@@ -183,7 +184,12 @@ def ingest_bags(
     run_list, repeated = [], {}
     for name, path in zip(names, paths, strict=True):
         got = read_bag(
-            path, requests, stamp=stamp, state_topic=state_topic, state_fields=state_fields, typestore=typestore
+            path,
+            requests,
+            stamp=stamp,
+            state_topic=state_topic,
+            state_fields=state_fields,
+            typestore=typestore,
         )
         repeated[name] = dict(got.repeated_stamps)
         run_list.append(RunData(name, got.poses["truth"], got.poses["estimate"], got.state))

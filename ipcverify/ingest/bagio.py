@@ -228,7 +228,9 @@ def read_bag(
                 state_rows.append([read(msg) for read in readers])
                 header = getattr(msg, "header", None) if state_header else None
                 state_stamps.append(
-                    ts if header is None else int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
+                    ts
+                    if header is None
+                    else int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
                 )
     trajectories: dict[str, Trajectory] = {}
     repeated: dict[str, int] = {}
@@ -257,5 +259,7 @@ def read_bag(
         order = np.argsort(ns, kind="stable")
         ns = ns[order]
         values = np.asarray(state_rows, dtype=np.float64).reshape(-1, len(readers))[order]
-        state = StateSeries(_seconds(ns // 1_000_000_000, ns % 1_000_000_000), values, tuple(state_fields), state_topic)
+        state = StateSeries(
+            _seconds(ns // 1_000_000_000, ns % 1_000_000_000), values, tuple(state_fields), state_topic
+        )
     return BagContents(trajectories, repeated, state)

@@ -73,7 +73,8 @@ def _rows(
                 parts = [s for s in _SPLIT.split(text) if s]
                 if len(parts) < width or (len(parts) > width and not at_least):
                     raise DataError(
-                        f"{path}, line {lineno}: {len(parts)} values; a {fmt.upper()} line holds {_LAYOUT[fmt]}"
+                        f"{path}, line {lineno}: {len(parts)} values; "
+                        f"a {fmt.upper()} line holds {_LAYOUT[fmt]}"
                         + ("; pick the right --format" if fmt != "kitti" or len(parts) != 8 else "")
                     )
                 try:
@@ -164,7 +165,9 @@ def read_trajectory(
         pos, quat = a[:, 0:3], a[:, [4, 5, 6, 3]]
     else:
         if times is None:
-            raise DataError(f"{p}: KITTI poses carry no stamps; give the times file (--times, one time a line)")
+            raise DataError(
+                f"{p}: KITTI poses carry no stamps; give the times file (--times, one time a line)"
+            )
         a, _ = _rows(p, fmt, 12, at_least=False, first_as_int=False)
         t = read_times(times)
         if t.shape[0] != a.shape[0]:

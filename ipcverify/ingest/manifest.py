@@ -43,7 +43,8 @@ def input_record(path: str | os.PathLike[str], role: str) -> dict[str, Any]:
             "path": str(p),
             "role": role,
             "files": [
-                {"path": str(f.relative_to(p)), "bytes": f.stat().st_size, "sha256": file_sha256(f)} for f in files
+                {"path": str(f.relative_to(p)), "bytes": f.stat().st_size, "sha256": file_sha256(f)}
+                for f in files
             ],
         }
     return {"path": str(p), "role": role, "bytes": p.stat().st_size, "sha256": file_sha256(p)}
@@ -99,7 +100,12 @@ def write_ingested(frame: pd.DataFrame, out: str | os.PathLike[str]) -> Path:
     manifest = {
         "ipcverify_version": ipcverify.__version__,
         **account,
-        "output": {"path": str(p), "rows": len(frame), "columns": list(frame.columns), "sha256": file_sha256(p)},
+        "output": {
+            "path": str(p),
+            "rows": len(frame),
+            "columns": list(frame.columns),
+            "sha256": file_sha256(p),
+        },
     }
     m = manifest_path(p)
     write_json(m, manifest)

@@ -79,7 +79,9 @@ def check_pose_type(topic: str, msgtype: str, child_frame: str | None) -> None:
             f"topic {topic} has type {msgtype}, which holds no pose; supported: {', '.join(POSE_TYPES)}"
         )
     if msgtype == TF_TYPE and not child_frame:
-        raise DataError(f"topic {topic} is a transform tree ({TF_TYPE}); name the body's frame with --child-frame")
+        raise DataError(
+            f"topic {topic} is a transform tree ({TF_TYPE}); name the body's frame with --child-frame"
+        )
 
 
 def pose_rows(message: Any, msgtype: str, child_frame: str | None) -> list[PoseRow]:
@@ -115,7 +117,9 @@ def field_reader(path: str) -> Callable[[Any], float]:
     for part in path.split("."):
         m = _STEP.match(part)
         if not m:
-            raise DataError(f"state field {path!r}: {part!r} is not a field name (use e.g. twist.linear.x or a[0])")
+            raise DataError(
+                f"state field {path!r}: {part!r} is not a field name (use e.g. twist.linear.x or a[0])"
+            )
         steps.append((m.group(1), None if m.group(2) is None else int(m.group(2))))
 
     def read(message: Any) -> float:
@@ -124,7 +128,8 @@ def field_reader(path: str) -> Callable[[Any], float]:
             if not hasattr(value, name):
                 have = sorted(k for k in getattr(value, "__dataclass_fields__", {}) if not k.startswith("__"))
                 raise DataError(
-                    f"state field {path!r}: no field {name!r} in {getattr(value, '__msgtype__', 'the message')}; "
+                    f"state field {path!r}: no field {name!r} in "
+                    f"{getattr(value, '__msgtype__', 'the message')}; "
                     f"it has {', '.join(have) or 'no fields'}"
                 )
             value = getattr(value, name)
@@ -136,6 +141,8 @@ def field_reader(path: str) -> Callable[[Any], float]:
         try:
             return float(value)
         except (TypeError, ValueError):
-            raise DataError(f"state field {path!r} is not a number (it is a {type(value).__name__})") from None
+            raise DataError(
+                f"state field {path!r} is not a number (it is a {type(value).__name__})"
+            ) from None
 
     return read

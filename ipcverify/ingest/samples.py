@@ -98,8 +98,9 @@ class IngestOptions:
             )
         if self.align != "none" and not self.align_runs:
             raise DataError(
-                f"--align {self.align}: name the runs to fit the alignment on with --align-runs; rows of those "
-                "runs depend on each other through the fit, so keep them out of calibration and test"
+                f"--align {self.align}: name the runs to fit the alignment on with --align-runs; "
+                "rows of those runs depend on each other through the fit, "
+                "so keep them out of calibration and test"
             )
         if self.align == "none" and self.align_runs:
             raise DataError("--align-runs is given but --align is none; choose --align se3 or sim3")
@@ -153,11 +154,12 @@ def _prepare(run: RunData, options: IngestOptions, hint: str) -> _Prepared:
     if truth.span[1] <= 0.0 or truth.span[0] >= est.span[1]:
         raise _overlap_error(run, options, hint)
     k = np.arange(int(math.floor((est.span[1] - options.horizon) / options.stride)) + 2)
-    t0 = options.stride * k
+    t0 = np.asarray(options.stride * k, dtype=np.float64)
     t0 = t0[t0 + options.horizon < est.span[1]]
     if t0.shape[0] == 0:
         raise DataError(
-            f"run {run.name}: the estimate spans {est.span[1]:.6g} s, less than the horizon {options.horizon:g} s; "
+            f"run {run.name}: the estimate spans {est.span[1]:.6g} s, "
+            f"less than the horizon {options.horizon:g} s; "
             "use a shorter --horizon"
         )
     t1 = t0 + options.horizon
@@ -197,14 +199,19 @@ def _no_rows_error(p: _Prepared, counts: dict[str, int], options: IngestOptions)
         largest = float(np.diff(around).max()) if around.shape[0] > 1 else math.inf
         who = "truth" if worst == "truth_gap" else "estimate"
         return DataError(
-            f"run {run.name}: no sample kept: the {who} has {inside.shape[0]} stamps within the estimate's span "
-            f"and its largest gap there is {largest:.6g} s, above --max-gap {gap:g} s; raise --max-gap, or check "
-            f"the {who} topic's rate and stamps"
+            f"run {run.name}: no sample kept: the {who} has {inside.shape[0]} stamps within the "
+            f"estimate's span and its largest gap there is {largest:.6g} s, above --max-gap {gap:g} s; "
+            f"raise --max-gap, or check the {who} topic's rate and stamps"
         )
     if worst == "no_state":
-        first = f"its first stamp is {p.run.state.t[0]:.6f} s" if p.run.state and len(p.run.state.t) else "it is empty"
+        first = (
+            f"its first stamp is {p.run.state.t[0]:.6f} s"
+            if p.run.state and len(p.run.state.t)
+            else "it is empty"
+        )
         return DataError(
-            f"run {run.name}: no sample kept: the state topic has no message at or before any sample start ({first})"
+            f"run {run.name}: no sample kept: the state topic has no message at or before "
+            f"any sample start ({first})"
         )
     return DataError(
         f"run {run.name}: no sample kept: the truth ({_span(run.truth, options.t_offset)}) does not cover "
@@ -293,14 +300,18 @@ def build_samples(runs: Sequence[RunData], options: IngestOptions, hint: str = "
         raise DataError("no run to ingest")
     if len(set(names)) != len(names):
         twice = sorted({n for n in names if names.count(n) > 1})
-        raise DataError(f"run name(s) {', '.join(twice)} used twice; name the runs apart (--run NAME per input)")
+        raise DataError(
+            f"run name(s) {', '.join(twice)} used twice; name the runs apart (--run NAME per input)"
+        )
     widths = {0 if r.state is None else r.state.values.shape[1] for r in runs}
     prepared = [_prepare(r, options, hint) for r in runs]
     alignment = None
     if options.align != "none":
         alignment = _fit(prepared, options)
         prepared = [
-            dataclasses.replace(p, estimate=(_aligned(p.estimate[0], alignment), _aligned(p.estimate[1], alignment)))
+            dataclasses.replace(
+                p, estimate=(_aligned(p.estimate[0], alignment), _aligned(p.estimate[1], alignment))
+            )
             for p in prepared
         ]
     parts = [_rows(p, options, max(widths)) for p in prepared]
@@ -315,4 +326,3 @@ def build_samples(runs: Sequence[RunData], options: IngestOptions, hint: str = "
         "alignment": None if alignment is None else alignment.to_dict(),
     }
     return frame
-
