@@ -133,8 +133,8 @@ def _overlap_error(run: RunData, options: IngestOptions, hint: str) -> DataError
     a, b = run.truth.span
     c, d = run.estimate.span
     a, b = a + options.t_offset, b + options.t_offset
-    scale = max(abs(a), abs(b), 1e-300) / max(abs(c), abs(d), 1e-300)
-    if scale > 1e6 or scale < 1e-6:
+    big, small = sorted((max(abs(a), abs(b)), max(abs(c), abs(d))), reverse=True)
+    if big > 1e12 and big > 1e6 * small:  # seconds since 1970 are about 1.7e9; nanoseconds 1.7e18
         why = "one set of stamps looks like nanoseconds and the other like seconds: convert them to seconds"
     else:
         why = (

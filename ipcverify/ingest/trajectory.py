@@ -83,7 +83,7 @@ class Trajectory:
         if back.size:
             i = int(back[0]) + 1
             raise DataError(
-                f"{self.source}: pose {i}: stamp {t[i]!r} does not follow {t[i - 1]!r}; stamps must "
+                f"{self.source}: pose {i}: stamp {float(t[i])!r} does not follow {float(t[i - 1])!r}; stamps must "
                 "increase (Trajectory.from_unsorted sorts and drops repeated stamps)"
             )
         q = q / norm[:, None]

@@ -12,14 +12,13 @@ import dataclasses
 import sqlite3
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
 from ipcverify.ingest.trajectory import Trajectory
-
-CONTAINERS = ("ros1", "ros2_sqlite3", "ros2_mcap", "mcap")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -67,9 +66,13 @@ def motions() -> tuple[Motion, Motion]:
 
 
 def _typestore(container: str):
-    from rosbags.typesys import Stores, get_typestore
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
-    return get_typestore(Stores.ROS1_NOETIC if container == "ros1" else Stores.ROS2_HUMBLE)
+    if container != "ros1":
+        return get_typestore(Stores.ROS2_HUMBLE)
+    ts = get_typestore(Stores.ROS1_NOETIC)  # its store lacks tf2_msgs, which ROS 1 bags of /tf carry
+    ts.register(get_types_from_msg("geometry_msgs/TransformStamped[] transforms", "tf2_msgs/msg/TFMessage"))
+    return ts
 
 
 def _header(ts, stamp: float, frame: str):
@@ -161,16 +164,21 @@ def write_bag(container: str, path: Path, topics: Sequence[Topic]) -> Path:
 
 
 def pose_topic(
-    topic: str, msgtype: str, motion: Motion, stamps: np.ndarray, receive_delay: float = 0.0
+    topic: str,
+    msgtype: str,
+    motion: Motion,
+    t: np.ndarray,
+    stamp_clock: float = 0.0,
+    receive_clock: float = 0.0,
 ) -> Topic:
-    """The motion's poses at ``stamps`` (header stamps), received ``receive_delay`` later."""
-    p = motion.position(stamps)
-    q = motion.rotation(stamps).as_quat()
+    """The motion's poses at times ``t``: header stamps ``stamp_clock + t``, received at ``receive_clock + t``."""
+    p = motion.position(t)
+    q = motion.rotation(t).as_quat()
 
     def builder(k: int) -> Callable:
-        return lambda ts: make_message(ts, msgtype, float(stamps[k]), p[k], q[k])
+        return lambda ts: make_message(ts, msgtype, stamp_clock + float(t[k]), p[k], q[k])
 
-    return topic, msgtype, [(float(stamps[k]) + receive_delay, builder(k)) for k in range(len(stamps))]
+    return topic, msgtype, [(receive_clock + float(t[k]), builder(k)) for k in range(len(t))]
 
 
 def strip_definitions(bag_dir: Path) -> None:
@@ -178,3 +186,14 @@ def strip_definitions(bag_dir: Path) -> None:
     db = next(bag_dir.glob("*.db3"))
     with sqlite3.connect(db) as con:
         con.execute("DELETE FROM message_definitions")
+
+
+@pytest.fixture
+def bagkit():
+    """The bag-writing helpers above, for test modules (which cannot import conftest)."""
+    return SimpleNamespace(
+        write_bag=write_bag,
+        pose_topic=pose_topic,
+        make_message=make_message,
+        strip_definitions=strip_definitions,
+    )
