@@ -83,8 +83,8 @@ class Trajectory:
         if back.size:
             i = int(back[0]) + 1
             raise DataError(
-                f"{self.source}: pose {i}: stamp {float(t[i])!r} does not follow {float(t[i - 1])!r}; stamps must "
-                "increase (Trajectory.from_unsorted sorts and drops repeated stamps)"
+                f"{self.source}: pose {i}: stamp {float(t[i])!r} does not follow {float(t[i - 1])!r}; "
+                "stamps must increase (Trajectory.from_unsorted sorts and drops repeated stamps)"
             )
         q = q / norm[:, None]
         for a in (t, p, q):

@@ -171,7 +171,7 @@ def pose_topic(
     stamp_clock: float = 0.0,
     receive_clock: float = 0.0,
 ) -> Topic:
-    """The motion's poses at times ``t``: header stamps ``stamp_clock + t``, received at ``receive_clock + t``."""
+    """The motion's poses at times ``t``: stamped ``stamp_clock + t``, received at ``receive_clock + t``."""
     p = motion.position(t)
     q = motion.rotation(t).as_quat()
 
