@@ -119,6 +119,7 @@ def _report(frame: pd.DataFrame, out: Path, manifest: Path) -> None:
             f"run {run['run']}: {run['rows']} of {run['sample_starts']} samples kept; dropped: {dropped}",
             markup=False,
             highlight=False,
+            soft_wrap=True,
         )
     if account["alignment"]:
         a = account["alignment"]
@@ -127,9 +128,13 @@ def _report(frame: pd.DataFrame, out: Path, manifest: Path) -> None:
             f"({a['pairs']} pairs, rmse {a['rmse']:.4g}); keep those runs out of calibration and test",
             markup=False,
             highlight=False,
+            soft_wrap=True,
         )
     console.print(
-        f"wrote {len(frame)} rows to {out} and the manifest {manifest}", markup=False, highlight=False
+        f"wrote {len(frame)} rows to {out} and the manifest {manifest}",
+        markup=False,
+        highlight=False,
+        soft_wrap=True,
     )
 
 
@@ -141,7 +146,7 @@ def _report(frame: pd.DataFrame, out: Path, manifest: Path) -> None:
 def topics_cmd(path: Path, typestore: str | None) -> None:
     """List the topics of a bag or MCAP file: type, message count and time span (receive times)."""
     for info in list_topics(path, typestore):
-        console.print(info.describe(), markup=False, highlight=False)
+        console.print(info.describe(), markup=False, highlight=False, soft_wrap=True)
 
 
 @ingest_group.command("bag")
