@@ -28,6 +28,7 @@ from numpy.typing import NDArray
 
 from ipcverify.errors import DataError
 from ipcverify.ingest.messages import TF_TYPE, check_pose_type, field_reader, pose_rows
+from ipcverify.ingest.rawpose import raw_pose_parser
 from ipcverify.ingest.trajectory import Trajectory
 
 __all__ = [
@@ -217,14 +218,24 @@ def read_bag(
         state_rows: list[list[float]] = []
         state_stamps: list[int] = []
         state_header = stamp == "header"
+        ros1 = not reader.is2
+        parsers = {t: raw_pose_parser(by_topic[t].msgtype, ros1, reader.typestore) for t in topics}
+        names_of = {t: [n for n, r in poses.items() if r.topic == t] for t in topics}
         for conn, ts, raw in reader.messages(connections=conns):
+            topic = conn.topic
+            parse = parsers[topic] if topic != state_topic else None
+            row = parse(raw) if parse is not None else None
+            if row is not None:
+                for name in names_of[topic]:
+                    rows[name].append(row)
+                    receive[name].append(ts)
+                continue
             msg = reader.deserialize(raw, conn.msgtype)
-            for name, req in poses.items():
-                if req.topic == conn.topic:
-                    got = pose_rows(msg, conn.msgtype, req.child_frame)
-                    rows[name] += got
-                    receive[name] += [ts] * len(got)
-            if conn.topic == state_topic:
+            for name in names_of[topic]:
+                got = pose_rows(msg, conn.msgtype, poses[name].child_frame)
+                rows[name] += got
+                receive[name] += [ts] * len(got)
+            if topic == state_topic:
                 state_rows.append([read(msg) for read in readers])
                 header = getattr(msg, "header", None) if state_header else None
                 state_stamps.append(

@@ -1,0 +1,169 @@
+"""Ingesting a large bag: 10^6 pose messages to perception triples (target: at most 30 s on 2 cores).
+
+Run ``python -m benchmarks.bench_ingest`` (about 2 minutes on 2 cores, most of it writing the
+bags). It writes ``benchmarks/ingest_results.json``.
+
+For each container (a ROS 1 bag and a ROS 2 MCAP bag) one bag is written with rosbags:
+a motion-capture topic (``geometry_msgs/PoseStamped``, 200 Hz) and an odometry topic
+(``nav_msgs/Odometry``, 50 Hz) of one long flight, ``messages`` pose messages in all, the
+odometry on a clock offset from the motion capture's. Then ``ipcverify.ingest.ingest_bags``
+(read, deserialize, interpolate, build the samples) and ``write_ingested`` (Parquet and the
+manifest, with the input's SHA-256) are timed together: wall time and the process's CPU time.
+The rows are checked against the motion's own displacement, so a fast wrong answer fails.
+"""
+
+from __future__ import annotations
+
+import argparse
+import resource
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from benchmarks.common import machine_info, write_json
+from ipcverify.ingest import IngestOptions, ingest_bags, write_ingested
+
+__all__ = ["TARGET_SECONDS", "write_flight", "bench_ingest", "main"]
+
+OUT = Path(__file__).with_name("ingest_results.json")
+TARGET_SECONDS = 30.0
+RATE_TRUTH, RATE_EST = 200.0, 50.0
+OFFSET = 1000.0  # the estimator's clock runs 1000 s behind the motion capture's
+
+
+def _motion(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A smooth flight: positions on a slow Lissajous curve, yaw turning, small roll and pitch."""
+    p = np.column_stack([3 * np.sin(0.05 * t), 2 * np.sin(0.07 * t), 1 + 0.3 * np.sin(0.11 * t)])
+    from scipy.spatial.transform import Rotation
+
+    q = Rotation.from_euler("zyx", np.column_stack([0.1 * t, 0.05 * np.sin(t), 0.05 * np.cos(t)])).as_quat()
+    return p, q
+
+
+def write_flight(container: str, path: Path, messages: int) -> Path:
+    """Write the flight's bag with ``messages`` pose messages in all; returns its path."""
+    from rosbags.typesys import Stores, get_typestore
+
+    duration = messages / (RATE_TRUTH + RATE_EST)
+    t_truth = np.arange(0.0, duration, 1 / RATE_TRUTH)
+    t_est = np.arange(0.0, duration, 1 / RATE_EST)[: messages - len(t_truth)]
+    ts = get_typestore(Stores.ROS1_NOETIC if container == "ros1" else Stores.ROS2_HUMBLE)
+    T = ts.types
+    ros1 = container == "ros1"
+
+    def header(stamp: float) -> Any:
+        sec = int(stamp)
+        time_ = T["builtin_interfaces/msg/Time"](sec=sec, nanosec=int(round((stamp - sec) * 1e9)) % 1_000_000_000)
+        if ros1:
+            return T["std_msgs/msg/Header"](seq=0, stamp=time_, frame_id="world")
+        return T["std_msgs/msg/Header"](stamp=time_, frame_id="world")
+
+    def pose(p: np.ndarray, q: np.ndarray) -> Any:
+        return T["geometry_msgs/msg/Pose"](
+            position=T["geometry_msgs/msg/Point"](x=p[0], y=p[1], z=p[2]),
+            orientation=T["geometry_msgs/msg/Quaternion"](x=q[0], y=q[1], z=q[2], w=q[3]),
+        )
+
+    cov = np.zeros(36)
+    zero = T["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0)
+    twist = T["geometry_msgs/msg/TwistWithCovariance"](
+        twist=T["geometry_msgs/msg/Twist"](linear=zero, angular=zero), covariance=cov
+    )
+    serialize = ts.serialize_ros1 if ros1 else ts.serialize_cdr
+    pt, qt = _motion(t_truth)
+    pe, qe = _motion(t_est)
+    records = [(t, 0, i) for i, t in enumerate(t_truth)] + [(t, 1, i) for i, t in enumerate(t_est)]
+    records.sort()
+    if ros1:
+        from rosbags.rosbag1 import Writer as Writer1
+
+        out = path.with_suffix(".bag")
+        writer: Any = Writer1(out)
+    else:
+        from rosbags.rosbag2 import StoragePlugin, Writer
+
+        out = path
+        writer = Writer(path, version=9, storage_plugin=StoragePlugin.MCAP)
+    with writer as w:
+        mocap = w.add_connection("/mocap", "geometry_msgs/msg/PoseStamped", typestore=ts)
+        odom = w.add_connection("/odom", "nav_msgs/msg/Odometry", typestore=ts)
+        for t, which, i in records:
+            if which == 0:
+                msg = T["geometry_msgs/msg/PoseStamped"](header=header(OFFSET + t), pose=pose(pt[i], qt[i]))
+                w.write(mocap, int((5.0 + t) * 1e9), serialize(msg, mocap.msgtype))
+            else:
+                msg = T["nav_msgs/msg/Odometry"](
+                    header=header(t),
+                    child_frame_id="body",
+                    pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=pose(pe[i], qe[i]), covariance=cov),
+                    twist=twist,
+                )
+                w.write(odom, int((5.0 + t) * 1e9), serialize(msg, odom.msgtype))
+    return out
+
+
+def _cpu() -> float:
+    r = resource.getrusage(resource.RUSAGE_SELF)
+    return r.ru_utime + r.ru_stime
+
+
+def bench_ingest(container: str, messages: int, workdir: Path) -> dict[str, Any]:
+    """Write one bag of ``messages`` pose messages, ingest it, check the rows; the timings."""
+    t0 = time.perf_counter()
+    bag = write_flight(container, workdir / f"flight_{container}", messages)
+    write_s = time.perf_counter() - t0
+    wall, cpu = time.perf_counter(), _cpu()
+    frame = ingest_bags(
+        [bag], truth_topic="/mocap", estimate_topic="/odom", options=IngestOptions(t_offset=-OFFSET)
+    )
+    write_ingested(frame, workdir / f"flight_{container}.parquet")
+    wall, cpu = time.perf_counter() - wall, _cpu() - cpu
+    from scipy.spatial.transform import Rotation
+
+    t0s = frame["t"].to_numpy()
+    p0, q0 = _motion(t0s)
+    p1, _ = _motion(t0s + 0.5)
+    direct = Rotation.from_quat(q0).inv().apply(p1 - p0)
+    # 200 Hz linear interpolation of a smooth curve: error about v'' dt^2 / 8, far below 1e-4 m
+    err = float(np.abs(frame[["y_0", "y_1", "y_2"]].to_numpy() - direct).max())
+    return {
+        "container": container,
+        "messages": messages,
+        "bag_bytes": sum(f.stat().st_size for f in ([bag] if bag.is_file() else bag.iterdir())),
+        "rows": len(frame),
+        "ingest_wall_s": wall,
+        "ingest_cpu_s": cpu,
+        "messages_per_s": messages / wall,
+        "write_bag_wall_s": write_s,
+        "max_truth_error_vs_motion_m": err,
+        "meets_target": wall <= TARGET_SECONDS and err < 1e-4,
+    }
+
+
+def main(argv: list[str] | None = None) -> dict[str, Any]:
+    """Run the benchmark and write ``benchmarks/ingest_results.json`` (or ``--out``)."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--messages", type=int, default=1_000_000)
+    parser.add_argument("--containers", default="ros1,ros2_mcap")
+    parser.add_argument("--out", type=Path, default=OUT)
+    args = parser.parse_args(argv)
+    results: dict[str, Any] = {"machine": machine_info(), "target_seconds": TARGET_SECONDS, "runs": []}
+    with tempfile.TemporaryDirectory() as d:
+        for container in args.containers.split(","):
+            r = bench_ingest(container, args.messages, Path(d))
+            results["runs"].append(r)
+            print(
+                f"{container}: {r['messages']:,} messages, {r['rows']:,} rows in {r['ingest_wall_s']:.1f} s "
+                f"({r['ingest_cpu_s']:.1f} CPU-s; target {TARGET_SECONDS:.0f} s)",
+                flush=True,
+            )
+    results["meets_target"] = all(r["meets_target"] for r in results["runs"])
+    write_json(args.out, results)
+    return results
+
+
+if __name__ == "__main__":
+    main()
