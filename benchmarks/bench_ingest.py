@@ -18,15 +18,18 @@ import argparse
 import resource
 import tempfile
 import time
+from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from benchmarks.common import machine_info, write_json
 from ipcverify.ingest import IngestOptions, ingest_bags, write_ingested
 
-__all__ = ["TARGET_SECONDS", "write_flight", "bench_ingest", "main"]
+__all__ = ["TARGET_SECONDS", "PoseStream", "write_pose_bag", "write_flight", "bench_ingest", "main"]
 
 OUT = Path(__file__).with_name("ingest_results.json")
 TARGET_SECONDS = 30.0
@@ -37,26 +40,33 @@ OFFSET = 1000.0  # the estimator's clock runs 1000 s behind the motion capture's
 def _motion(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """A smooth flight: positions on a slow Lissajous curve, yaw turning, small roll and pitch."""
     p = np.column_stack([3 * np.sin(0.05 * t), 2 * np.sin(0.07 * t), 1 + 0.3 * np.sin(0.11 * t)])
-    from scipy.spatial.transform import Rotation
-
     q = Rotation.from_euler("zyx", np.column_stack([0.1 * t, 0.05 * np.sin(t), 0.05 * np.cos(t)])).as_quat()
     return p, q
 
 
-def write_flight(container: str, path: Path, messages: int) -> Path:
-    """Write the flight's bag with ``messages`` pose messages in all; returns its path."""
+@dataclass(frozen=True)
+class PoseStream:
+    """A pose topic to write: header stamps and receive times (s), positions (N, 3), quaternions (N, 4)."""
+
+    topic: str
+    msgtype: str
+    stamps: np.ndarray
+    receive: np.ndarray
+    p: np.ndarray
+    q: np.ndarray
+
+
+def write_pose_bag(container: str, path: Path, streams: Sequence[PoseStream]) -> Path:
+    """Write pose streams (PoseStamped or Odometry) into a ROS 1 bag or a ROS 2 bag; returns its path."""
     from rosbags.typesys import Stores, get_typestore
 
-    duration = messages / (RATE_TRUTH + RATE_EST)
-    t_truth = np.arange(0.0, duration, 1 / RATE_TRUTH)
-    t_est = np.arange(0.0, duration, 1 / RATE_EST)[: messages - len(t_truth)]
-    ts = get_typestore(Stores.ROS1_NOETIC if container == "ros1" else Stores.ROS2_HUMBLE)
-    T = ts.types
     ros1 = container == "ros1"
+    ts = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
+    T = ts.types
 
     def header(stamp: float) -> Any:
-        sec = int(stamp)
-        time_ = T["builtin_interfaces/msg/Time"](sec=sec, nanosec=int(round((stamp - sec) * 1e9)) % 1_000_000_000)
+        ns = int(round(stamp * 1e9))
+        time_ = T["builtin_interfaces/msg/Time"](sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
         if ros1:
             return T["std_msgs/msg/Header"](seq=0, stamp=time_, frame_id="world")
         return T["std_msgs/msg/Header"](stamp=time_, frame_id="world")
@@ -72,11 +82,19 @@ def write_flight(container: str, path: Path, messages: int) -> Path:
     twist = T["geometry_msgs/msg/TwistWithCovariance"](
         twist=T["geometry_msgs/msg/Twist"](linear=zero, angular=zero), covariance=cov
     )
+
+    def message(s: PoseStream, i: int) -> Any:
+        if s.msgtype == "geometry_msgs/msg/PoseStamped":
+            return T[s.msgtype](header=header(s.stamps[i]), pose=pose(s.p[i], s.q[i]))
+        return T["nav_msgs/msg/Odometry"](
+            header=header(s.stamps[i]),
+            child_frame_id="body",
+            pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=pose(s.p[i], s.q[i]), covariance=cov),
+            twist=twist,
+        )
+
     serialize = ts.serialize_ros1 if ros1 else ts.serialize_cdr
-    pt, qt = _motion(t_truth)
-    pe, qe = _motion(t_est)
-    records = [(t, 0, i) for i, t in enumerate(t_truth)] + [(t, 1, i) for i, t in enumerate(t_est)]
-    records.sort()
+    records = sorted((float(r), k, i) for k, s in enumerate(streams) for i, r in enumerate(s.receive))
     if ros1:
         from rosbags.rosbag1 import Writer as Writer1
 
@@ -88,21 +106,24 @@ def write_flight(container: str, path: Path, messages: int) -> Path:
         out = path
         writer = Writer(path, version=9, storage_plugin=StoragePlugin.MCAP)
     with writer as w:
-        mocap = w.add_connection("/mocap", "geometry_msgs/msg/PoseStamped", typestore=ts)
-        odom = w.add_connection("/odom", "nav_msgs/msg/Odometry", typestore=ts)
-        for t, which, i in records:
-            if which == 0:
-                msg = T["geometry_msgs/msg/PoseStamped"](header=header(OFFSET + t), pose=pose(pt[i], qt[i]))
-                w.write(mocap, int((5.0 + t) * 1e9), serialize(msg, mocap.msgtype))
-            else:
-                msg = T["nav_msgs/msg/Odometry"](
-                    header=header(t),
-                    child_frame_id="body",
-                    pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=pose(pe[i], qe[i]), covariance=cov),
-                    twist=twist,
-                )
-                w.write(odom, int((5.0 + t) * 1e9), serialize(msg, odom.msgtype))
+        conns = [w.add_connection(s.topic, s.msgtype, typestore=ts) for s in streams]
+        for r, k, i in records:
+            w.write(conns[k], int(round(r * 1e9)), serialize(message(streams[k], i), conns[k].msgtype))
     return out
+
+
+def write_flight(container: str, path: Path, messages: int) -> Path:
+    """Write the flight's bag with ``messages`` pose messages in all; returns its path."""
+    duration = messages / (RATE_TRUTH + RATE_EST)
+    t_truth = np.arange(0.0, duration, 1 / RATE_TRUTH)
+    t_est = np.arange(0.0, duration, 1 / RATE_EST)[: messages - len(t_truth)]
+    pt, qt = _motion(t_truth)
+    pe, qe = _motion(t_est)
+    streams = [
+        PoseStream("/mocap", "geometry_msgs/msg/PoseStamped", OFFSET + t_truth, 5.0 + t_truth, pt, qt),
+        PoseStream("/odom", "nav_msgs/msg/Odometry", t_est, 5.0 + t_est, pe, qe),
+    ]
+    return write_pose_bag(container, path, streams)
 
 
 def _cpu() -> float:
@@ -121,8 +142,6 @@ def bench_ingest(container: str, messages: int, workdir: Path) -> dict[str, Any]
     )
     write_ingested(frame, workdir / f"flight_{container}.parquet")
     wall, cpu = time.perf_counter() - wall, _cpu() - cpu
-    from scipy.spatial.transform import Rotation
-
     t0s = frame["t"].to_numpy()
     p0, q0 = _motion(t0s)
     p1, _ = _motion(t0s + 0.5)
