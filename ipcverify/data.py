@@ -68,7 +68,7 @@ def _checked_blocks(
             r, c = np.argwhere(bad)[0]
             raise DataError(
                 f"{source}: row {int(r)}, column {cols[kind][int(c)]!r}: non-finite value "
-                f"{a[r, c]!r}; drop or repair that row"
+                f"{float(a[r, c])!r}; drop or repair that row"
             )
         a.setflags(write=False)
     return arrays, cols

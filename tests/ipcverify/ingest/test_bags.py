@@ -236,3 +236,14 @@ def test_not_a_bag(tmp_path):
     (tmp_path / "x.txt").write_text("")
     with pytest.raises(DataError, match="not a bag: use a ROS 1 .bag file"):
         list_topics(tmp_path / "x.txt")
+
+
+def test_without_rosbags_the_error_says_what_to_install(tmp_path, monkeypatch):
+    import sys
+
+    for name in [m for m in sys.modules if m == "rosbags" or m.startswith("rosbags.")]:
+        monkeypatch.delitem(sys.modules, name)
+    monkeypatch.setitem(sys.modules, "rosbags", None)  # an import of rosbags now fails
+    (tmp_path / "a.bag").write_bytes(b"")
+    with pytest.raises(DataError, match=r"reading bags needs rosbags: pip install 'ipcverify\[ros\]'"):
+        list_topics(tmp_path / "a.bag")

@@ -174,3 +174,20 @@ def test_repeated_run_names_and_unknown_alignment_runs_are_refused(motions):
         build_samples([run, run], IngestOptions())
     with pytest.raises(DataError, match="--align-runs: no run named b; the runs are a"):
         build_samples([run], IngestOptions(quantity="position", align="sim3", align_runs=("b",)))
+
+
+def test_from_frame_validates_like_a_file():
+    import pandas as pd
+
+    bad = pd.DataFrame({"x_0": [0.1, np.nan], "y_0": [1.0, 2.0], "yhat_0": [1.1, 1.9]})
+    with pytest.raises(DataError, match=r"<frame>: row 1, column 'x_0': non-finite value nan"):
+        PerceptionDataset.from_frame(bad)
+    with pytest.raises(DataError, match=r"log: no yhat columns"):
+        PerceptionDataset.from_frame(bad.drop(columns="yhat_0"), source="log")
+    with pytest.raises(DataError, match="the table has no rows"):
+        PerceptionDataset.from_frame(bad.iloc[:0])
+    named = PerceptionDataset.from_frame(
+        pd.DataFrame({"speed": [1.0], "gt": [2.0], "est": [2.5], "run": ["a"]}),
+        x_columns=["speed"], y_columns=["gt"], yhat_columns=["est"],
+    )  # fmt: skip
+    assert named.x_columns == ("speed",) and named.extra["run"].tolist() == ["a"]
