@@ -80,25 +80,19 @@ def _sampling(f: Callable[..., Any]) -> Callable[..., Any]:
     return f
 
 
-def _options(
-    quantity: str,
-    horizon: float,
-    stride: float,
-    max_gap: float,
-    t_offset: float,
-    align: str,
-    align_runs: str | None,
-) -> IngestOptions:
-    runs = tuple(r.strip() for r in align_runs.split(",") if r.strip()) if align_runs else ()
-    return IngestOptions(
-        quantity=quantity,  # type: ignore[arg-type]
-        horizon=horizon,
-        stride=stride,
-        max_gap=max_gap,
-        t_offset=t_offset,
-        align=align,  # type: ignore[arg-type]
-        align_runs=runs,
+def _common(sampling: dict[str, Any]) -> tuple[Path, IngestOptions, list[str] | None, dict[str, str]]:
+    """The output path, the options, the run names and the tags from the shared options' values."""
+    align_runs = sampling["align_runs"]
+    options = IngestOptions(
+        quantity=sampling["quantity"],
+        horizon=sampling["horizon"],
+        stride=sampling["stride"],
+        max_gap=sampling["max_gap"],
+        t_offset=sampling["t_offset"],
+        align=sampling["align"],
+        align_runs=tuple(r.strip() for r in align_runs.split(",") if r.strip()) if align_runs else (),
     )
+    return sampling["out"], options, list(sampling["runs"]) or None, _tags(sampling["tags"])
 
 
 def _tags(items: tuple[str, ...]) -> dict[str, str]:
@@ -186,18 +180,10 @@ def bag_cmd(
     state_topic: str | None,
     state_fields: str | None,
     typestore: str | None,
-    out: Path,
-    quantity: str,
-    horizon: float,
-    stride: float,
-    max_gap: float,
-    t_offset: float,
-    align: str,
-    align_runs: str | None,
-    runs: tuple[str, ...],
-    tags: tuple[str, ...],
+    **sampling: Any,
 ) -> None:
     """Build samples from ROS 1 bags, ROS 2 bags (.db3 or .mcap) or raw MCAP files; each PATH is a run."""
+    out, options, runs, tags = _common(sampling)
     frame = ingest_bags(
         list(paths),
         truth_topic=truth_topic,
@@ -209,9 +195,9 @@ def bag_cmd(
         state_topic=state_topic,
         state_fields=[f.strip() for f in (state_fields or "").split(",") if f.strip()],
         typestore=typestore,
-        runs=list(runs) or None,
-        tags=_tags(tags),
-        options=_options(quantity, horizon, stride, max_gap, t_offset, align, align_runs),
+        runs=runs,
+        tags=tags,
+        options=options,
     )
     _report(frame, out, write_ingested(frame, out))
 
@@ -247,26 +233,18 @@ def trajectories_cmd(
     truth_format: str | None,
     estimate_format: str | None,
     times: Path | None,
-    out: Path,
-    quantity: str,
-    horizon: float,
-    stride: float,
-    max_gap: float,
-    t_offset: float,
-    align: str,
-    align_runs: str | None,
-    runs: tuple[str, ...],
-    tags: tuple[str, ...],
+    **sampling: Any,
 ) -> None:
     """Build samples from TUM, EuRoC or KITTI trajectory files; each --estimate is a run."""
+    out, options, runs, tags = _common(sampling)
     frame = ingest_trajectories(
         list(truth),
         list(estimates),
         truth_format=truth_format or fmt or "tum",  # type: ignore[arg-type]
         estimate_format=estimate_format or fmt or "tum",  # type: ignore[arg-type]
         times=times,
-        runs=list(runs) or None,
-        tags=_tags(tags),
-        options=_options(quantity, horizon, stride, max_gap, t_offset, align, align_runs),
+        runs=runs,
+        tags=tags,
+        options=options,
     )
     _report(frame, out, write_ingested(frame, out))
