@@ -221,7 +221,9 @@ def read_bag(
         ros1 = not reader.is2
         parsers = {t: raw_pose_parser(by_topic[t].msgtype, ros1, reader.typestore) for t in topics}
         names_of = {t: [n for n, r in poses.items() if r.topic == t] for t in topics}
-        for conn, ts, raw in reader.messages(connections=conns):
+        # one file is one reader: iterate it directly, without AnyReader's merge of several
+        source = reader.readers[0] if len(reader.readers) == 1 else reader
+        for conn, ts, raw in source.messages(connections=conns):
             topic = conn.topic
             parse = parsers[topic] if topic != state_topic else None
             row = parse(raw) if parse is not None else None
