@@ -1,7 +1,9 @@
 """Ingesting a large bag: 10^6 pose messages to perception triples (target: at most 30 s on 2 cores).
 
 Run ``python -m benchmarks.bench_ingest`` (about 2 minutes on 2 cores, most of it writing the
-bags). It writes ``benchmarks/ingest_results.json``.
+bags). It writes ``benchmarks/ingest_results.json``. The work is single-threaded: on a machine
+shared with other jobs the wall time exceeds the CPU time by the share of a core it gets, so
+both are recorded, with the load average before and after.
 
 For each container (a ROS 1 bag and a ROS 2 MCAP bag) one bag is written with rosbags:
 a motion-capture topic (``geometry_msgs/PoseStamped``, 200 Hz) and an odometry topic
@@ -15,6 +17,7 @@ The rows are checked against the motion's own displacement, so a fast wrong answ
 from __future__ import annotations
 
 import argparse
+import os
 import resource
 import tempfile
 import time
@@ -158,7 +161,10 @@ def bench_ingest(container: str, messages: int, workdir: Path) -> dict[str, Any]
         "messages_per_s": messages / wall,
         "write_bag_wall_s": write_s,
         "max_truth_error_vs_motion_m": err,
+        "load_average_after": [round(v, 2) for v in os.getloadavg()],
+        # single-threaded: on cores it has to itself its wall time is about its CPU time
         "meets_target": wall <= TARGET_SECONDS and err < 1e-4,
+        "meets_target_in_cpu_seconds": cpu <= TARGET_SECONDS and err < 1e-4,
     }
 
 
@@ -180,6 +186,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                 flush=True,
             )
     results["meets_target"] = all(r["meets_target"] for r in results["runs"])
+    results["meets_target_in_cpu_seconds"] = all(r["meets_target_in_cpu_seconds"] for r in results["runs"])
     write_json(args.out, results)
     return results
 
