@@ -25,7 +25,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ipcverify.errors import DataError
 from ipcverify.files import atomic_write
-from ipcverify.tables import SUFFIXES, data_file, read_blocks
+from ipcverify.tables import SUFFIXES, data_file, frame_blocks, read_blocks
 
 __all__ = [
     "PerceptionDataset",
@@ -68,7 +68,7 @@ def _checked_blocks(
             r, c = np.argwhere(bad)[0]
             raise DataError(
                 f"{source}: row {int(r)}, column {cols[kind][int(c)]!r}: non-finite value "
-                f"{a[r, c]!r}; drop or repair that row"
+                f"{float(a[r, c])!r}; drop or repair that row"
             )
         a.setflags(write=False)
     return arrays, cols
@@ -141,6 +141,48 @@ class PerceptionDataset:
         object.__setattr__(self, "y_columns", cols["y"])
         object.__setattr__(self, "yhat_columns", cols["yhat"])
         object.__setattr__(self, "extra", extra)
+
+    @classmethod
+    def from_frame(
+        cls,
+        frame: pd.DataFrame,
+        x_columns: Sequence[str] | None = None,
+        y_columns: Sequence[str] | None = None,
+        yhat_columns: Sequence[str] | None = None,
+        source: str = "<frame>",
+    ) -> PerceptionDataset:
+        """A dataset from a DataFrame in memory, validated as :func:`load_dataset` validates a file.
+
+        The columns are found as in a file (``x_0..``, ``y_0..``, ``yhat_0..`` unless named);
+        every other column (``run``, ``t`` ...) is kept in :attr:`extra`. What
+        :func:`ipcverify.ingest.ingest_bags` returns goes in directly, with no temporary file.
+
+        Raises
+        ------
+        DataError
+            As :func:`load_dataset`: missing columns, a non-number, y and yhat of different
+            dimension, a non-finite value, no rows.
+
+        Examples
+        --------
+        >>> import pandas as pd
+        >>> df = pd.DataFrame({"x_0": [0.1, 0.2], "y_0": [1.0, 2.0], "yhat_0": [1.1, 1.9], "run": ["a", "b"]})
+        >>> ds = PerceptionDataset.from_frame(df)
+        >>> len(ds), ds.x_dim, ds.column("run").tolist()
+        (2, 1, ['a', 'b'])
+        """
+        names = {"x": x_columns, "y": y_columns, "yhat": yhat_columns}
+        arrays, cols, extra = frame_blocks(frame, names, source)
+        return cls(
+            arrays["x"],
+            arrays["y"],
+            arrays["yhat"],
+            source=source,
+            x_columns=cols["x"],
+            y_columns=cols["y"],
+            yhat_columns=cols["yhat"],
+            extra=extra,
+        )
 
     def __len__(self) -> int:
         return int(self.x.shape[0])

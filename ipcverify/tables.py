@@ -21,7 +21,14 @@ from numpy.typing import NDArray
 
 from ipcverify.errors import DataError
 
-__all__ = ["SUFFIXES", "data_file", "numbered_columns", "read_blocks", "refuse_unknown_columns"]
+__all__ = [
+    "SUFFIXES",
+    "data_file",
+    "frame_blocks",
+    "numbered_columns",
+    "read_blocks",
+    "refuse_unknown_columns",
+]
 
 SUFFIXES = (".csv", ".parquet", ".pq", ".npz")
 
@@ -101,7 +108,27 @@ def read_blocks(
     df = _read_table(p)
     if len(df) == 0:
         raise DataError(f"{p}: the file has a header but no samples")
-    cols = [str(c) for c in df.columns]
+    return frame_blocks(df, names, str(p))
+
+
+def frame_blocks(
+    df: pd.DataFrame, names: Mapping[str, Sequence[str] | None], source: str = "<frame>"
+) -> tuple[dict[str, NDArray[Any]], dict[str, tuple[str, ...]], dict[str, NDArray[Any]]]:
+    """The numeric blocks of a table already in memory, their columns, and the other columns.
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> arrays, cols, extra = frame_blocks(pd.DataFrame({"x_0": [1.0], "y_0": [2.0], "run": ["a"]}),
+    ...                                    {"x": None, "y": None})
+    >>> arrays["y"].tolist(), cols["x"], list(extra)
+    ([[2.0]], ('x_0',), ['run'])
+    """
+    p = source
+    if len(df) == 0:
+        raise DataError(f"{p}: the table has no rows")
+    df = df.rename(columns=str)
+    cols = list(df.columns)
     chosen = {k: list(v) if v else numbered_columns(k, cols) for k, v in names.items()}
     for kind, ks in chosen.items():
         if not ks:
