@@ -16,7 +16,9 @@ box -- and answers only when the answer is certain; the error analysis is in
 * **Exact turn-off height (tier 2).** ``P_z`` is found in float when the enclosure of
   ``c_z + h_z`` rounds up to a single float; otherwise it, and the two ``z`` faces, are
   decided in exact integer arithmetic (the matrix scaled to integers by one power of two:
-  ``h_z^2 = ||cof col 2||^2 / det^2`` compared with squares of exact dyadic slacks).
+  ``h_z^2 = ||cof col 2||^2 / det^2`` compared with squares of exact dyadic slacks). When
+  ``c_z + h_z`` lies within ``2^-64 h_z`` of a float, ``P_z`` is the exact path's own
+  ``float_up(c_z + sqrt_upper(h_z^2, 64))`` on the same rational ``h_z^2``.
 * Anything else -- a face within its rounding band, a matrix out of the range the analysis
   covers, a nearly singular matrix -- returns None: the caller falls back to the exact
   rational :func:`~ipcverify.landing.landing_decision`.
