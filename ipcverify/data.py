@@ -346,7 +346,7 @@ def group_codes(labels: ArrayLike, what: str = "group column") -> tuple[NDArray[
     missing = pd.isna(arr)
     if missing.any():
         r = int(np.flatnonzero(missing)[0])
-        raise DataError(f"{what}: row {r} has no group label ({arr[r]!r}); every sample needs its group")
+        raise DataError(f"{what}: row {r} has no group label (it is empty); every sample needs its group")
     try:
         distinct, codes = np.unique(arr, return_inverse=True)
     except TypeError:  # mixed types in an object array: compare as text

@@ -186,7 +186,8 @@ class TrainConfig:
             ),
             (
                 self.patience is None or self.val_fraction > 0,
-                "patience (early stopping) needs a validation split: set val_fraction > 0",
+                "patience (early stopping) needs a validation split: set --val-fraction above 0 "
+                "(Python: val_fraction > 0), or leave --patience out",
             ),
             (
                 0 <= self.warmup_epochs < self.epochs,
