@@ -15,8 +15,9 @@ import numpy as np
 from rich.table import Table
 
 from ipcverify.architecture import DEFAULT_RECIPE, RECIPES, ModelConfig
-from ipcverify.cli.app import app, console, err_console
+from ipcverify.cli.app import EXIT_VERDICT, app, console, err_console
 from ipcverify.data import load_dataset
+from ipcverify.data_checks import warn_correlated_rows
 from ipcverify.demo import run_demo
 from ipcverify.domain import DomainReport
 from ipcverify.errors import InvalidInputError
@@ -278,15 +279,25 @@ def predict_cmd(model: Path, data: Path, out: Path) -> None:
 @click.option(
     "--delta", type=float, default=None, help="False-alarm bound (default: the calibration's delta)."
 )
-def monitor_cmd(model: Path, log: Path, out: Path, delta: float | None) -> None:
+@click.option(
+    "--group-column",
+    default=None,
+    help="One observation per group of this column (flights, runs), taken at its last row. Default: "
+    "a flight-level calibration's column; otherwise one observation per row.",
+)
+def monitor_cmd(model: Path, log: Path, out: Path, delta: float | None, group_column: str | None) -> None:
     """Replay a labelled deployment LOG (rows in time order) through the online monitor.
 
     An anytime-valid test of "the violation rate is at most the calibrated rate": it raises an
-    alarm at the first row where the violations so far refute the certificate, with a false-alarm
-    probability of at most --delta. Exits with status 1 on an alarm.
+    alarm at the first observation where the violations so far refute the certificate, with a
+    false-alarm probability of at most --delta. A flight-level model is monitored one flight at a
+    time. Exits with status 1 on an alarm.
     """
     m = load_model(model)
-    res = monitor_log(m, load_data_for_model(log, m), delta=delta)
+    data = load_data_for_model(log, m)
+    res = monitor_log(m, data, delta=delta, group_column=group_column)
+    if not res.labels:
+        warn_correlated_rows(data, "monitoring", "to monitor one observation per group")
     write_json(out / "monitor.json", res)
     png = figure_to_png(plot_monitor(res.result, title=f"{log.name}: anytime-valid test of the certificate"))
     atomic_write(out / "monitor.png", lambda f: f.write(png))
@@ -296,7 +307,7 @@ def monitor_cmd(model: Path, log: Path, out: Path, delta: float | None) -> None:
     )
     console.print(f"wrote {out / 'monitor.json'} and {out / 'monitor.png'}", markup=False)
     if res.alarm_index is not None:
-        sys.exit(1)
+        sys.exit(EXIT_VERDICT)
 
 
 @app.command("demo")
