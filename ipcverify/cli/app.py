@@ -107,6 +107,9 @@ def run_group(group: click.Group, argv: list[str] | None, prog_name: str) -> NoR
             rc: Any = group.main(args=argv, prog_name=prog_name, standalone_mode=False)
         except InvalidInputError as exc:
             _fail(str(exc), EXIT_USER, exc)
+        except click.exceptions.NoArgsIsHelpError as exc:  # the bare program name: its help, as --help does
+            click.echo(exc.ctx.get_help() if exc.ctx is not None else exc.format_message())
+            sys.exit(0)
         except click.UsageError as exc:
             _fail(exc.format_message(), EXIT_USER, exc)
         except click.ClickException as exc:  # FileError, BadParameter outside parsing, ...
@@ -130,6 +133,8 @@ def _os_message(exc: OSError) -> str:
         return f"{name} is a directory; give a file"
     if isinstance(exc, NotADirectoryError):
         return f"{name}: a part of this path is a file, not a directory"
+    if isinstance(exc, FileExistsError):
+        return f"{name} exists and is not a directory; choose another output path"
     if isinstance(exc, PermissionError):
         return f"permission denied: {name} (choose a path you can read and write)"
     return f"{name}: {exc.strerror or exc}"
