@@ -19,6 +19,7 @@ from collections.abc import Mapping
 from typing import Any, Literal
 
 import numpy as np
+from scipy import stats
 
 from ipcverify.data import PerceptionDataset
 from ipcverify.errors import DataError, DataWarning, Hint
@@ -27,6 +28,7 @@ __all__ = [
     "GROUP_NAMES",
     "MIN_DISTINCT_SHARE",
     "MOSTLY_OUTSIDE",
+    "SURPRISE",
     "check_informative",
     "group_like_columns",
     "input_ranges",
@@ -38,8 +40,10 @@ __all__ = [
 GROUP_NAMES = ("run", "flight", "sequence", "group", "episode", "trajectory", "session")
 #: Data with fewer distinct rows than this share of its rows are refused.
 MIN_DISTINCT_SHARE = 0.5
-#: Calibration inputs outside the training ranges above this share are a warning.
+#: Calibration inputs outside the training ranges above this share are a warning (if surprising).
 MOSTLY_OUTSIDE = 0.5
+#: ... and if data drawn like the training data would leave that many out with probability below this.
+SURPRISE = 1e-3
 
 Purpose = Literal["training", "calibration"]
 
@@ -113,37 +117,47 @@ def check_informative(data: PerceptionDataset, purpose: Purpose) -> None:
 
 
 def input_ranges(data: PerceptionDataset) -> dict[str, Any]:
-    """The ranges of the inputs ``(x, yhat)``, stored in the model at training (plain data).
+    """The ranges of the inputs ``(x, yhat)`` and their number, stored in the model at training.
 
     Examples
     --------
     >>> d = PerceptionDataset(np.array([[0.0], [2.0]]), np.zeros((2, 1)), np.array([[1.0], [-1.0]]))
     >>> input_ranges(d)
-    {'columns': ['x_0', 'yhat_0'], 'lower': [0.0, -1.0], 'upper': [2.0, 1.0]}
+    {'columns': ['x_0', 'yhat_0'], 'lower': [0.0, -1.0], 'upper': [2.0, 1.0], 'n': 2}
     """
     z = np.hstack([data.x, data.yhat])
     return {
         "columns": [*data.x_columns, *data.yhat_columns],
         "lower": [float(v) for v in z.min(axis=0)],
         "upper": [float(v) for v in z.max(axis=0)],
+        "n": len(z),
     }
 
 
 def warn_outside_training(metadata: Mapping[str, Any], data: PerceptionDataset) -> float | None:
     """Warn if most calibration inputs lie outside the ranges of the training inputs.
 
+    A calibration input exchangeable with the ``n`` training inputs lies outside their range in a
+    given column with probability at most ``2 / (n + 1)`` (it would have to be the smallest or the
+    largest of ``n + 1``), so outside the box of ``D`` columns with probability at most
+    ``p0 = min(1, 2 D / (n + 1))``. The warning needs more than :data:`MOSTLY_OUTSIDE` of the rows
+    outside *and* a count that a binomial ``(m, p0)`` reaches with probability below ``1e-3``:
+    calibration data drawn like the training data trigger it at most that often (fewer training
+    rows than ``4 D`` can never trigger it).
+
     Returns the share of rows with some input outside the training range (None if the model
     stores no ranges: models trained before ipcverify stored them).
 
     Examples
     --------
-    >>> train = PerceptionDataset(np.array([[0.0], [1.0]]), np.zeros((2, 1)), np.array([[0.0], [1.0]]))
-    >>> far = PerceptionDataset(np.array([[5.0], [6.0]]), np.zeros((2, 1)), np.array([[0.5], [0.5]]))
+    >>> rng = np.random.default_rng(0)
+    >>> train = PerceptionDataset(rng.normal(size=(500, 1)), np.zeros((500, 1)), rng.normal(size=(500, 1)))
+    >>> far = PerceptionDataset(train.x + 9.0, train.y, train.yhat)
     >>> import warnings
     >>> with warnings.catch_warnings(record=True) as w:
     ...     warnings.simplefilter("always")
     ...     share = warn_outside_training({"training_inputs": input_ranges(train)}, far)
-    >>> share, "x_0" in str(w[0].message)
+    >>> share, "x_0: 100 % outside" in str(w[0].message)
     (1.0, True)
     """
     ranges = metadata.get("training_inputs")
@@ -154,8 +168,11 @@ def warn_outside_training(metadata: Mapping[str, Any], data: PerceptionDataset) 
     if z.shape[1] != len(lower):
         return None
     out = (z < lower) | (z > upper)
-    share = float(out.any(axis=1).mean())
-    if share > MOSTLY_OUTSIDE:
+    outside = int(out.any(axis=1).sum())
+    share = outside / len(z)
+    n_train = int(ranges.get("n", metadata.get("train_n", 0)))
+    p0 = min(1.0, 2.0 * len(lower) / (n_train + 1))
+    if share > MOSTLY_OUTSIDE and stats.binom.sf(outside - 1, len(z), p0) < SURPRISE:
         names = [*data.x_columns, *data.yhat_columns]
         counts = out.sum(axis=0)
         worst = [i for i in np.argsort(-counts, kind="stable")[:3] if counts[i]]
@@ -166,9 +183,10 @@ def warn_outside_training(metadata: Mapping[str, Any], data: PerceptionDataset) 
         warnings.warn(
             DataWarning(
                 f"{data.source}: {100 * share:.0f} % of the calibration inputs lie outside the ranges of the "
-                f"training inputs ({detail}); the network extrapolates there, so the calibration will "
-                "make its sets large to cover it -- calibrate on data drawn like the training data, or "
-                "train on data that covers these inputs"
+                f"training inputs ({detail}; rows exchangeable with the {n_train} training rows would leave at most "
+                f"{100 * p0:.2g} %); the network extrapolates there, so the calibration will make its sets "
+                "large to cover it -- calibrate on data drawn like the training data, or train on data that "
+                "covers these inputs"
             ),
             stacklevel=2,
         )

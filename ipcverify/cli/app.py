@@ -100,8 +100,7 @@ def run_group(group: click.Group, argv: list[str] | None, prog_name: str) -> NoR
     if not any(p.name == "debug" for p in group.params):
         group.params.append(_debug_option())
     _DEBUG[0] = False
-    with warnings.catch_warnings():
-        warnings.simplefilter("default")
+    with warnings.catch_warnings():  # the filters stay as they are; only the display changes
         warnings.showwarning = _show_warning
         try:
             rc: Any = group.main(args=argv, prog_name=prog_name, standalone_mode=False)

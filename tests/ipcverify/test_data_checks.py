@@ -88,6 +88,10 @@ def test_calibration_far_from_the_training_inputs_is_a_warning():
     ):
         assert warn_outside_training(meta, far) == 1.0
     assert warn_outside_training({}, far) is None  # a model from before the ranges were stored
+    few = make_lagged_perception(10, seed=3)  # 10 training rows, 9 inputs: any share outside is expected
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert warn_outside_training({"training_inputs": input_ranges(few)}, near) > 0.5
 
 
 def test_calibrate_warns_far_from_training_and_hints_at_runs(recwarn):
