@@ -183,10 +183,10 @@ def warn_outside_training(metadata: Mapping[str, Any], data: PerceptionDataset) 
         warnings.warn(
             DataWarning(
                 f"{data.source}: {100 * share:.0f} % of the calibration inputs lie outside the ranges of the "
-                f"training inputs ({detail}; rows exchangeable with the {n_train} training rows would leave at most "
-                f"{100 * p0:.2g} %); the network extrapolates there, so the calibration will make its sets "
-                "large to cover it -- calibrate on data drawn like the training data, or train on data that "
-                "covers these inputs"
+                f"training inputs ({detail}; rows exchangeable with the {n_train} training rows would leave "
+                f"at most {100 * p0:.2g} %); the network extrapolates there, so the calibration will make "
+                "its sets large to cover it -- calibrate on data drawn like the training data, or train on "
+                "data that covers these inputs"
             ),
             stacklevel=2,
         )
