@@ -235,11 +235,12 @@ def warn_correlated_rows(data: PerceptionDataset, what: str, remedy: str) -> Non
         return
     col = columns[0]
     groups = len(np.unique(np.asarray(data.extra[col]).astype(str)))
+    others = "".join(f" (or --group-column {c})" for c in columns[1:])
     warnings.warn(
         Hint(
             f"{data.source} has a {col!r} column ({groups} groups): rows of one {col} are usually "
             f"correlated, and {what} row by row treats every row as an independent sample; pass "
-            f"--group-column {col} (Python: group_column={col!r}) {remedy}"
+            f"--group-column {col}{others} (Python: group_column={col!r}) {remedy}"
         ),
         stacklevel=3,
     )

@@ -123,6 +123,10 @@ def test_group_like_columns_need_a_fitting_name_and_more_than_one_group():
         t=np.arange(n),
     )
     assert group_like_columns(ds) == ["Flight_ID"]
+    two = _ds(np.arange(n), run=np.tile([0, 1], 6), flight=np.repeat(["a", "b", "c"], 4))
+    assert group_like_columns(two) == ["flight", "run"]  # the most groups first
+    with pytest.warns(Hint, match=r"--group-column flight \(or --group-column run\)"):
+        warn_correlated_rows(two, "calibrating", "to calibrate by group")
     with pytest.warns(Hint, match=r"log.csv has a 'Flight_ID' column \(3 groups\).*certifying row by row"):
         warn_correlated_rows(ds, "certifying", "to count per group")
     with warnings.catch_warnings():
