@@ -56,7 +56,7 @@ def _check_probability(name: str, value: float, *, open_interval: bool = True) -
     v = float(value)
     ok = 0.0 < v < 1.0 if open_interval else 0.0 <= v <= 1.0
     if not (math.isfinite(v) and ok):
-        raise InvalidInputError(f"{name} must lie strictly between 0 and 1; got {value!r}")
+        raise InvalidInputError(f"{name} must lie strictly between 0 and 1; got {v!r}")
     return v
 
 
@@ -200,7 +200,7 @@ def _pac_index(n: int, epsilon: float, delta: float) -> int:
         raise SampleSizeError(
             f"{n} calibration samples are too few for a PAC calibration at epsilon={epsilon:g}, "
             f"delta={delta:g}: at least {need} are needed (n >= ln(delta) / ln(1 - epsilon)); "
-            "use more calibration data, a larger epsilon or delta, or --mode marginal"
+            "use more calibration data, a larger --epsilon or --delta, or --mode marginal"
         )
     # largest m in [0, n - 1] with cdf(m) <= threshold; cdf is increasing in m
     lo, hi = 0, n - 1

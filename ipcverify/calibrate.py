@@ -19,8 +19,9 @@ from ipcverify.calibration.mondrian import MondrianCalibration
 from ipcverify.calibration.protocol import Calibration
 from ipcverify.calibration.threshold import check_eps_delta, check_mode
 from ipcverify.data import PerceptionDataset
+from ipcverify.data_checks import check_informative, warn_correlated_rows, warn_outside_training
 from ipcverify.domain import DEFAULT_ALPHA, DomainModel
-from ipcverify.errors import InvalidInputError
+from ipcverify.errors import InvalidInputError, SampleSizeError
 from ipcverify.model import IPCModel, network_fingerprint
 
 __all__ = ["calibrate"]
@@ -109,10 +110,21 @@ def calibrate(
     Raises
     ------
     SampleSizeError
-        If there are too few samples (overall or in a group) for ``(epsilon, delta)``.
+        If there are too few samples (overall or in a group) for ``(epsilon, delta)``, or for
+        the domain test at ``domain_alpha``; every unmet requirement is named in one message.
     InvalidInputError
         If the model is already calibrated, the dimensions disagree, the data is the
-        training data, or the group column cannot be seen at predict time.
+        training data, is made mostly of repeated rows, or the group column cannot be seen at
+        predict time.
+
+    Warns
+    -----
+    DataWarning
+        If most calibration inputs lie outside the ranges of the training inputs, if rows repeat,
+        or if a column is constant.
+    Hint
+        If the data have a ``run``, ``flight``, ``sequence`` or ``group`` column and are
+        calibrated row by row (neither ``group_column`` nor ``domain_group_column`` given).
 
     Examples
     --------
@@ -134,48 +146,68 @@ def calibrate(
         )
     scores = model.raw_scores(calibration_data.x, calibration_data.y, calibration_data.yhat)
     ids = {"data_hash": calibration_data.content_hash(), "network_hash": network_fingerprint(model.network)}
-    cal: Calibration
-    if group_column is not None:
-        cal = GroupedCalibration.fit(
-            scores,
-            calibration_data.column(group_column),
-            epsilon,
-            delta,
-            mode,
-            guarantee=guarantee,
-            column=group_column,
-            seed=seed,
-            **ids,
-        )
-    elif mondrian_column is None:
-        cal = GlobalCalibration.fit(scores, epsilon, delta, mode, **ids)
-    else:
-        source, index = _locate_column(calibration_data, mondrian_column)
-        values = (calibration_data.x if source == "x" else calibration_data.yhat)[:, index]
-        cal = MondrianCalibration.fit(
-            scores,
-            np.asarray(values, dtype=np.float64),
-            column=mondrian_column,
-            source=source,
-            index=index,
-            bins=bins,
-            epsilon=epsilon,
-            delta=delta,
-            mode=mode,
-            edge_fraction=edge_fraction,
-            seed=seed,
-            **ids,
-        )
+    unmet: list[str] = []  # every sample-size requirement is reported at once
+    cal: Calibration | None = None
+    try:
+        if group_column is not None:
+            cal = GroupedCalibration.fit(
+                scores,
+                calibration_data.column(group_column),
+                epsilon,
+                delta,
+                mode,
+                guarantee=guarantee,
+                column=group_column,
+                seed=seed,
+                **ids,
+            )
+        elif mondrian_column is None:
+            cal = GlobalCalibration.fit(scores, epsilon, delta, mode, **ids)
+        else:
+            source, index = _locate_column(calibration_data, mondrian_column)
+            values = (calibration_data.x if source == "x" else calibration_data.yhat)[:, index]
+            cal = MondrianCalibration.fit(
+                scores,
+                np.asarray(values, dtype=np.float64),
+                column=mondrian_column,
+                source=source,
+                index=index,
+                bins=bins,
+                epsilon=epsilon,
+                delta=delta,
+                mode=mode,
+                edge_fraction=edge_fraction,
+                seed=seed,
+                **ids,
+            )
+    except SampleSizeError as exc:
+        unmet.append(str(exc))
     domain = None
     if domain_alpha is not None:
         domain_groups = group_column if domain_group_column is None else domain_group_column
-        domain = DomainModel.fit(
-            calibration_data.x,
-            calibration_data.yhat,
-            alpha=domain_alpha,
-            seed=seed,
-            groups=None if domain_groups is None else calibration_data.column(domain_groups),
+        try:
+            domain = DomainModel.fit(
+                calibration_data.x,
+                calibration_data.yhat,
+                alpha=domain_alpha,
+                seed=seed,
+                groups=None if domain_groups is None else calibration_data.column(domain_groups),
+            )
+        except SampleSizeError as exc:
+            unmet.append(str(exc))
+    if unmet:
+        raise SampleSizeError(
+            unmet[0]
+            if len(unmet) == 1
+            else f"{len(unmet)} requirements are not met: "
+            + " ".join(f"({i}) {m.rstrip('.')}." for i, m in enumerate(unmet, 1))
         )
+    if cal is None:  # unreachable: every branch above assigns or raises
+        raise SampleSizeError("no calibration was fitted")
+    if group_column is None and domain_group_column is None:
+        remedy = "to calibrate with whole groups as the exchangeable units"
+        warn_correlated_rows(calibration_data, "calibrating", remedy)
+    warn_outside_training(model.metadata, calibration_data)
     return model.with_calibration(cal, domain)
 
 
@@ -202,6 +234,7 @@ def _check_inputs(
             f"{calibration_data.source}: calibration data has x_dim={calibration_data.x_dim}, "
             f"y_dim={calibration_data.y_dim} but the model expects x_dim={cfg.x_dim}, y_dim={cfg.y_dim}"
         )
+    check_informative(calibration_data, "calibration")
     if calibration_data.content_hash() == model.metadata.get("train_data_hash"):
         raise InvalidInputError(
             f"{calibration_data.source}: this is the model's training data; calibration needs held-out "

@@ -439,7 +439,7 @@ def _tested(
     test, groups = test_results(model.calibration, test_data, scores.violated, delta)
     group_test = group_test_step(model.calibration, test_data, scores.violated, delta, group_column)
     column = bin_column or test_data.x_columns[0]
-    values = np.asarray(test_data.column(column), dtype=float)
+    values = test_data.column(column)  # numbers (quantile bins) or text (one bin per flight or run)
     return _Tested(
         scores=scores,
         test=test,

@@ -38,6 +38,9 @@ __all__ = [
 ]
 
 FloatArray = NDArray[np.float64]
+#: Largest magnitude accepted in x, y and yhat: the network trains in float32 (largest float ~3.4e38),
+#: and squared distances of such values must not overflow.
+MAX_ABS_VALUE = 1e30
 
 
 def _checked_blocks(
@@ -68,7 +71,15 @@ def _checked_blocks(
             r, c = np.argwhere(bad)[0]
             raise DataError(
                 f"{source}: row {int(r)}, column {cols[kind][int(c)]!r}: non-finite value "
-                f"{float(a[r, c])!r}; drop or repair that row"
+                f"{float(a[r, c])}; drop or repair that row"
+            )
+        big = np.abs(a) > MAX_ABS_VALUE
+        if big.any():
+            r, c = np.argwhere(big)[0]
+            raise DataError(
+                f"{source}: row {int(r)}, column {cols[kind][int(c)]!r}: value {float(a[r, c]):g} is too "
+                f"large (|value| > {MAX_ABS_VALUE:g}; the network computes in float32) -- express the "
+                "column in other units"
             )
         a.setflags(write=False)
     return arrays, cols
@@ -388,7 +399,7 @@ def group_codes(labels: ArrayLike, what: str = "group column") -> tuple[NDArray[
     missing = pd.isna(arr)
     if missing.any():
         r = int(np.flatnonzero(missing)[0])
-        raise DataError(f"{what}: row {r} has no group label ({arr[r]!r}); every sample needs its group")
+        raise DataError(f"{what}: row {r} has no group label (it is empty); every sample needs its group")
     try:
         distinct, codes = np.unique(arr, return_inverse=True)
     except TypeError:  # mixed types in an object array: compare as text

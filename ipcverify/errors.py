@@ -3,6 +3,10 @@
 Every error a user can cause by bad input subclasses :class:`InvalidInputError`
 (itself a :class:`ValueError`); the CLI turns those into a one-line message and
 exit status 2. Messages state the rule that was broken and what to do about it.
+
+Data that can be used but probably should not be as it is raises a :class:`DataWarning`
+(a Python warning); advice that may not apply is a :class:`Hint`. The CLI prints each as one
+``warning:`` or ``hint:`` line on stderr.
 """
 
 from __future__ import annotations
@@ -14,6 +18,9 @@ __all__ = [
     "ModelFileError",
     "SetError",
     "SampleSizeError",
+    "IPCVerifyWarning",
+    "DataWarning",
+    "Hint",
 ]
 
 
@@ -39,3 +46,15 @@ class SetError(InvalidInputError):
 
 class SampleSizeError(InvalidInputError):
     """Too few samples for the requested (epsilon, delta); the message gives the minimum."""
+
+
+class IPCVerifyWarning(UserWarning):
+    """Base class of the warnings ipcverify issues on purpose."""
+
+
+class DataWarning(IPCVerifyWarning):
+    """The data were accepted, but something about them weakens or voids what is certified."""
+
+
+class Hint(IPCVerifyWarning):
+    """Advice that may not apply (e.g. rows that may be correlated); the message says how to check."""

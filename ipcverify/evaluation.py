@@ -6,10 +6,12 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+import pandas as pd
 from numpy.typing import NDArray
 
 from ipcverify.data import PerceptionDataset
-from ipcverify.errors import InvalidInputError
+from ipcverify.domain import DomainReport
+from ipcverify.errors import DataError, InvalidInputError
 from ipcverify.model import IPCModel
 
 __all__ = ["Evaluation", "BinCoverage", "WorstBin", "evaluate", "coverage_by_bin", "worst_bin_coverage"]
@@ -19,23 +21,45 @@ FloatArray = NDArray[np.float64]
 
 @dataclass(frozen=True)
 class BinCoverage:
-    """Violation rate of an IPC per bin of one column (conditional coverage)."""
+    """Violation rate of an IPC per bin of one column (conditional coverage).
+
+    A numeric column is cut at ``edges`` (quantile bins, or one bin per value when it has few);
+    a text column (flight or run names) has one bin per value, named in ``labels``.
+    """
 
     column: str
     edges: tuple[float, ...]
     counts: tuple[int, ...]
     violations: tuple[int, ...]
+    labels: tuple[str, ...] = ()
 
     @property
     def rates(self) -> tuple[float, ...]:
         """Violation rate per bin (NaN for an empty bin)."""
         return tuple(v / c if c else float("nan") for v, c in zip(self.violations, self.counts, strict=True))
 
+    def bin_names(self) -> tuple[str, ...]:
+        """One display name per bin: its value (a text column) or ``lo..hi`` (a numeric one).
+
+        Examples
+        --------
+        >>> v = np.array([False, True, False])
+        >>> coverage_by_bin(np.array(["run_b", "run_a", "run_b"]), v, "flight").bin_names()
+        ('run_a', 'run_b')
+        >>> coverage_by_bin(np.array([0.5, 1.0, 2.0]), v, "x_0", bins=2).bin_names()
+        ('0.5..1', '1..2')
+        """
+        if self.labels:
+            return self.labels
+        e = self.edges
+        return tuple(f"{e[i]:.3g}..{e[min(i + 1, len(e) - 1)]:.3g}" for i in range(len(self.counts)))
+
     def to_dict(self) -> dict[str, Any]:
-        """Plain-data form."""
+        """Plain-data form (``labels`` is empty for a numeric column, ``edges`` for a text one)."""
         return {
             "column": self.column,
             "edges": list(self.edges),
+            "labels": list(self.labels),
             "counts": list(self.counts),
             "violations": list(self.violations),
             "rates": [None if np.isnan(r) else r for r in self.rates],
@@ -60,6 +84,9 @@ class Evaluation:
         Violation rate per bin of a chosen column.
     calibrated : bool
         Whether the model's calibration was applied.
+    domain : DomainReport or None
+        How many samples lie outside the model's domain of validity, and the violations inside
+        and outside it (None for a model without a domain test).
     """
 
     n: int
@@ -70,9 +97,11 @@ class Evaluation:
     mean_extent: tuple[float, ...]
     calibrated: bool
     by_bin: BinCoverage | None = field(default=None)
+    domain: DomainReport | None = field(default=None)
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready form with keys ``n``, ``violations``, ``violation_rate``, ``log_volume``..."""
+        """JSON-ready form with keys ``n``, ``violations``, ``violation_rate``, ``log_volume``, ...,
+        ``domain`` (:meth:`DomainReport.to_dict`, or None)."""
         return {
             "n": self.n,
             "violations": self.violations,
@@ -81,16 +110,43 @@ class Evaluation:
             "mean_extent": list(self.mean_extent),
             "calibrated": self.calibrated,
             "by_bin": None if self.by_bin is None else self.by_bin.to_dict(),
+            "domain": None if self.domain is None else self.domain.to_dict(),
         }
 
 
 def coverage_by_bin(
-    values: FloatArray, violated: NDArray[np.bool_], column: str, bins: int = 10
+    values: NDArray[Any], violated: NDArray[np.bool_], column: str, bins: int = 10
 ) -> BinCoverage:
-    """Violation counts per quantile bin of ``values`` (or per value if few distinct)."""
+    """Violation counts per quantile bin of ``values`` (per value if few distinct, or if text).
+
+    Raises
+    ------
+    InvalidInputError
+        If ``bins < 1``, or a value is missing (NaN, empty) or infinite.
+    """
     if bins < 1:
-        raise InvalidInputError(f"bins must be >= 1; got {bins}")
-    v = np.asarray(values, dtype=np.float64)
+        raise InvalidInputError(f"bins must be >= 1 (--bins); got {bins}")
+    raw = np.asarray(values)
+    if raw.shape != np.shape(violated) or raw.ndim != 1 or raw.size == 0:
+        raise InvalidInputError(f"bin column {column!r}: need one value per sample; got shape {raw.shape}")
+    missing = pd.isna(raw)
+    if missing.any():
+        r = int(np.flatnonzero(missing)[0])
+        raise DataError(f"bin column {column!r}: row {r} has no value; every sample needs one")
+    try:
+        v = raw.astype(np.float64)
+    except (TypeError, ValueError):  # text: flight or run names
+        v = None
+    if v is None:
+        labels, idx = np.unique(raw.astype(str), return_inverse=True)
+        nb = len(labels)
+        counts = np.bincount(idx, minlength=nb)
+        viol = np.bincount(idx, weights=violated.astype(float), minlength=nb).astype(int)
+        names = tuple(str(x) for x in labels)
+        return BinCoverage(column, (), tuple(int(c) for c in counts), tuple(int(c) for c in viol), names)
+    if not np.isfinite(v).all():
+        r = int(np.flatnonzero(~np.isfinite(v))[0])
+        raise DataError(f"bin column {column!r}: row {r} is {v[r]:g}; bin by a column of finite values")
     uniq = np.unique(v)
     if len(uniq) <= bins:
         edges = np.concatenate([uniq, [uniq[-1]]])
@@ -181,7 +237,8 @@ def evaluate(
 ) -> Evaluation:
     """Empirical violation rate, set volumes and extents of ``model`` on ``data``.
 
-    Uses the model's calibrated sets if it carries a calibration.
+    Uses the model's calibrated sets if it carries a calibration, and counts the samples outside
+    its domain of validity (with the violations inside and outside) if it carries a domain test.
 
     Examples
     --------
@@ -203,7 +260,7 @@ def evaluate(
     extent = 2.0 * sets.half_widths()
     by_bin = None
     if bin_column is not None:
-        by_bin = coverage_by_bin(np.asarray(data.column(bin_column), dtype=float), violated, bin_column, bins)
+        by_bin = coverage_by_bin(data.column(bin_column), violated, bin_column, bins)
     k = int(violated.sum())
     return Evaluation(
         n=len(data),
@@ -214,4 +271,5 @@ def evaluate(
         mean_extent=tuple(float(e) for e in extent.mean(axis=0)),
         calibrated=model.calibration is not None,
         by_bin=by_bin,
+        domain=None if model.domain is None else model.domain.report(data.x, data.yhat, violated),
     )

@@ -19,6 +19,16 @@ matching and a Cholesky factorisation written out entry by entry
 
 A model with a global calibration is exported with its scale; a Mondrian calibration
 needs a group lookup per query that the graph does not do, so its export is refused.
+
+**The domain of validity is not in the graph.** A calibrated model's guarantee covers only
+queries that pass its domain test (:mod:`ipcverify.domain`): the distance to the nearest of up
+to 10,000 calibration inputs, compared with a threshold in float64. An ONNX graph could compute
+that distance, but with its own summation order, so near the threshold it could answer the
+other way than the model -- it would not be the same test. The export therefore refuses a model
+with a domain test unless ``without_domain=True`` (CLI ``--no-domain``): the exported sets are
+then trustworthy only for queries the caller checks with the model itself
+(``ipcverify predict``'s ``in_domain``, :class:`~ipcverify.query.IPCQuery`). The graph's metadata
+says ``domain_test = "not included"``.
 The graph is built directly with :mod:`onnx.helper` (``pip install 'ipcverify[onnx]'``);
 :func:`check_onnx` runs it in ONNX Runtime and compares it with the torch network and
 the float64 engine.
@@ -53,7 +63,16 @@ from ipcverify.files import atomic_write
 from ipcverify.inference import InferenceEngine
 from ipcverify.model import IPCModel, network_fingerprint
 
-__all__ = ["OPSET", "ExportInfo", "OnnxCheck", "build_onnx", "export_onnx", "check_onnx", "onnx_session"]
+__all__ = [
+    "OPSET",
+    "ExportInfo",
+    "OnnxCheck",
+    "build_onnx",
+    "check_domain_export",
+    "export_onnx",
+    "check_onnx",
+    "onnx_session",
+]
 
 FloatArray = NDArray[np.float64]
 Dtype = Literal["float64", "float32"]
@@ -118,7 +137,7 @@ class ExportInfo:
             raise InvalidInputError("a calibrated export must record its scale (and only then)")
 
 
-def build_onnx(model: IPCModel, dtype: Dtype = "float64") -> Any:
+def build_onnx(model: IPCModel, dtype: Dtype = "float64", *, without_domain: bool = False) -> Any:
     """The ONNX ``ModelProto`` of ``model``'s (calibrated) sets.
 
     Parameters
@@ -127,12 +146,18 @@ def build_onnx(model: IPCModel, dtype: Dtype = "float64") -> Any:
         Uncalibrated, or with a calibration of one group (a single scale).
     dtype : {"float64", "float32"}
         Precision of inputs, weights and outputs.
+    without_domain : bool
+        Export a model that carries a domain-of-validity test without it (the graph cannot
+        reproduce it exactly; see the module docstring). Refused otherwise.
 
     Raises
     ------
     InvalidInputError
-        For a Mondrian calibration, an unknown ``dtype``, or when ``onnx`` is missing.
+        For a Mondrian calibration, a domain test without ``without_domain``, an unknown ``dtype``,
+        or when ``onnx`` is missing.
     """
+    _scale(model)  # a Mondrian calibration cannot be exported at all: say that first
+    check_domain_export(model, without_domain)
     if dtype not in ("float64", "float32"):
         raise InvalidInputError(f"dtype must be 'float64' or 'float32'; got {dtype!r} (use --dtype float64)")
     onnx = _require("onnx")
@@ -196,6 +221,7 @@ def build_onnx(model: IPCModel, dtype: Dtype = "float64") -> Any:
         "dtype": dtype,
         "network_hash": network_fingerprint(model.network),
         "calibrated": "true" if scale is not None else "false",
+        "domain_test": "not included" if model.domain is not None else "none in the model",
         "sets": "E(c, C) = {y : ||C (y - c)|| <= 1}; outputs center (B, n) and C = shape (B, n, n)",
     }
     if scale is not None and model.calibration is not None:
@@ -243,16 +269,40 @@ def _paper_head_nodes(eng: InferenceEngine, z: str, node: Any, const: Any, scale
         node("Div", [raw, const("scale", scale)], "shape")
 
 
-def export_onnx(model: IPCModel, path: str | os.PathLike[str], dtype: Dtype = "float64") -> ExportInfo:
+def check_domain_export(model: IPCModel, without_domain: bool) -> None:
+    """Refuse to export a model's sets without its domain test unless asked to (``--no-domain``).
+
+    Examples
+    --------
+    >>> from ipcverify.model import IPCModel, IPCNetwork
+    >>> from ipcverify.architecture import ModelConfig
+    >>> net = IPCNetwork(ModelConfig(x_dim=1, y_dim=1, hidden=(2,), param="cholesky"))
+    >>> check_domain_export(IPCModel(net), False)  # no domain test: nothing to leave out
+    """
+    dom = model.domain
+    if dom is not None and not without_domain:
+        raise InvalidInputError(
+            f"this model carries a domain-of-validity test (its guarantee covers only queries within "
+            f"distance {dom.threshold:.3g} of its {dom.n} calibration inputs), and an ONNX graph cannot "
+            "reproduce that test exactly; pass --no-domain (Python: without_domain=True) to export the "
+            "sets alone, and check each query with ipcverify predict (in_domain) or IPCQuery before "
+            "trusting its set"
+        )
+
+
+def export_onnx(
+    model: IPCModel, path: str | os.PathLike[str], dtype: Dtype = "float64", *, without_domain: bool = False
+) -> ExportInfo:
     """Write ``model`` as an ONNX file (atomically); see the module docstring.
 
     Raises
     ------
     InvalidInputError
-        For a Mondrian-calibrated model (refused: not exportable), an unknown
-        ``dtype``, or when the ``onnx`` package is missing.
+        For a Mondrian-calibrated model (refused: not exportable), a model with a domain test
+        unless ``without_domain`` (the graph cannot carry it exactly), an unknown ``dtype``, or
+        when the ``onnx`` package is missing.
     """
-    proto = build_onnx(model, dtype)
+    proto = build_onnx(model, dtype, without_domain=without_domain)
     data = proto.SerializeToString()
     p = Path(path)
     atomic_write(p, lambda f: f.write(data))

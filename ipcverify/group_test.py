@@ -19,6 +19,7 @@ from ipcverify.calibration.grouped import group_violation_counts
 from ipcverify.calibration.protocol import GROUP_UNITS, Calibration, GroupUnit
 from ipcverify.certificate import Consistency, GroupTest, TestResult
 from ipcverify.data import PerceptionDataset, group_codes
+from ipcverify.data_checks import warn_correlated_rows
 from ipcverify.errors import InvalidInputError
 
 __all__ = ["group_test_step"]
@@ -78,6 +79,9 @@ def group_test_step(
     claim = None if cal is None else cal.group_claim()
     if group_column is None:
         if claim is None or claim.column not in test_data.extra:
+            warn_correlated_rows(
+                test_data, "certifying", "to also count the test per group (valid for correlated rows)"
+            )
             return None
         group_column = claim.column
     codes = _group_labels(test_data, group_column)

@@ -16,7 +16,9 @@ box -- and answers only when the answer is certain; the error analysis is in
 * **Exact turn-off height (tier 2).** ``P_z`` is found in float when the enclosure of
   ``c_z + h_z`` rounds up to a single float; otherwise it, and the two ``z`` faces, are
   decided in exact integer arithmetic (the matrix scaled to integers by one power of two:
-  ``h_z^2 = ||cof col 2||^2 / det^2`` compared with squares of exact dyadic slacks).
+  ``h_z^2 = ||cof col 2||^2 / det^2`` compared with squares of exact dyadic slacks). When
+  ``c_z + h_z`` lies within ``2^-64 h_z`` of a float, ``P_z`` is the exact path's own
+  ``float_up(c_z + sqrt_upper(h_z^2, 64))`` on the same rational ``h_z^2``.
 * Anything else -- a face within its rounding band, a matrix out of the range the analysis
   covers, a nearly singular matrix -- returns None: the caller falls back to the exact
   rational :func:`~ipcverify.landing.landing_decision`.
@@ -37,9 +39,10 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from fractions import Fraction
 from typing import NamedTuple
 
-from ipcverify.exact import dyadic
+from ipcverify.exact import dyadic, float_up, sqrt_upper
 from ipcverify.sets import SINGULAR_RCOND
 
 __all__ = ["BoundDecision", "landing_by_bound", "RANGE", "bound_target"]
@@ -140,17 +143,22 @@ class _ExactZ:
         self.num, self.den2 = k0 * k0 + k1 * k1 + k2 * k2, det * det
 
     def turnoff(self, t_lo: float, t_hi: float) -> float | None:
-        """``P_z`` = the smallest float ``>= c_z + sqrt_upper(h_z^2)``, or None within ``2^-64`` of a float.
+        """``P_z`` = the smallest float ``>= c_z + sqrt_upper(h_z^2)``, as the exact path computes it.
 
         An integer square root gives ``h_z`` to 130 bits: ``h_z 2^s`` lies in ``[r, r + 1)``, so
         ``c_z + sqrt_upper`` lies in ``[c_z + r 2^-s, c_z + (r + 1)(1 + 2^-64) 2^-s]`` (``sqrt_upper``
         exceeds ``h_z`` by at most ``2^-64`` relative). If both ends round up to the same float,
         that float is ``P_z``. When ``P_z`` is known to be ``t_lo`` or the next float ``t_hi``,
-        one exact comparison of ``t_lo - c_z`` with ``h_z`` decides instead.
+        one exact comparison of ``t_lo - c_z`` with ``h_z`` decides instead. If neither settles it,
+        ``c_z + h_z`` lies within ``2^-64 h_z`` of a float and ``P_z`` depends on the rational that
+        ``sqrt_upper`` picks: it is computed by the exact path's own formula, on the same rational
+        ``h_z^2`` (None only if ``c_z + h_z`` overflows, where the exact path fails too).
         """
         if t_hi == _nextafter(t_lo, _INF):
             r = self.compare(t_lo, True, True)
-            return t_lo if r > 0 else (t_hi if r < 0 else None)
+            if r:
+                return t_lo if r > 0 else t_hi
+            return self.turnoff_exact()
         num, den2 = self.num, self.den2
         m = 130 - (num.bit_length() - den2.bit_length()) // 2
         r = math.isqrt((num << 2 * m) // den2 if m >= 0 else num // (den2 << -2 * m))
@@ -159,7 +167,19 @@ class _ExactZ:
         cz = self.cz << (self.exp - e)
         low = _float_up_dyadic(cz + (r << (-s - e)), e)
         high = _float_up_dyadic(cz + ((r + 1) * _BAND << (-s - 64 - e)), e)
-        return low if low is not None and low == high else None
+        return low if low is not None and low == high else self.turnoff_exact()
+
+    def turnoff_exact(self) -> float | None:
+        """``float_up(c_z + sqrt_upper(h_z^2, 64))`` with ``h_z^2 = num / den2 * 4^-exp`` (Fractions).
+
+        The exact path (``ipcverify.landing``) evaluates the same expression on the same rational
+        (``sqrt_upper`` depends only on its value), so the two ``P_z`` are the same float.
+        """
+        hz2 = Fraction(self.num, self.den2) * (Fraction(4) ** -self.exp)
+        try:
+            return float_up(Fraction(self.czf) + sqrt_upper(hz2, 64))
+        except OverflowError:
+            return None
 
     def compare(self, x: float, above: bool, band: bool = False) -> int:
         """The exact slack ``s = x - c_z`` (``above``) or ``c_z - x`` against ``h_z``.

@@ -64,8 +64,8 @@ def _splits(n: int, members: int, val_fraction: float, seed: int) -> tuple[np.nd
     n_val = int(round(val_fraction * n)) if val_fraction > 0 else 0
     if val_fraction > 0 and not 1 <= n_val < n:
         raise InvalidInputError(
-            f"too few samples ({n}) to hold out a validation split of {val_fraction:g}: set val_fraction=0 "
-            "(and patience=None) or give more data"
+            f"too few samples ({n}) to hold out a validation split of {val_fraction:g}: pass "
+            "--val-fraction 0 (Python: val_fraction=0, patience=None) or give more data"
         )
     rng = np.random.default_rng(seed)
     perms = np.stack([rng.permutation(n) for _ in range(members)])

@@ -70,7 +70,8 @@ _CHUNK = 1 << 15
 
 def _check_rate(name: str, value: float) -> float:
     if isinstance(value, bool) or not isinstance(value, numbers.Real) or not (0.0 < value < 1.0):
-        raise InvalidInputError(f"{name} must lie strictly between 0 and 1; got {value!r}")
+        shown = float(value) if isinstance(value, numbers.Real) else value
+        raise InvalidInputError(f"{name} must lie strictly between 0 and 1; got {shown!r}")
     return float(value)
 
 
@@ -355,8 +356,8 @@ def _observations(violated: ArrayLike, in_domain: ArrayLike | None) -> tuple[Flo
     if not (np.isfinite(x).all() and (x >= 0).all() and (x <= 1).all()):
         bad = int(np.flatnonzero(~(np.isfinite(x) & (x >= 0) & (x <= 1)))[0])
         raise InvalidInputError(
-            f"observation {bad}: violated={v[bad]!r} is not in [0, 1]; pass True/False (truth outside its "
-            "set) or, for one observation per group, the fraction of its samples outside"
+            f"observation {bad}: violated={v[bad].item()!r} is not in [0, 1]; pass True/False (truth "
+            "outside its set) or, for one observation per group, the fraction of its samples outside"
         )
     if in_domain is None:
         return x, np.ones(len(x), dtype=bool)

@@ -190,19 +190,23 @@ class TrainConfig:
                 f"center_warm_start must be True or False; got {self.center_warm_start!r}"
             )
         checks = [
-            (self.epochs >= 1, f"epochs must be >= 1; got {self.epochs}"),
-            (self.lr > 0 and math.isfinite(self.lr), f"lr must be > 0; got {self.lr}"),
-            (self.batch_size >= 1, f"batch size must be >= 1; got {self.batch_size}"),
-            (self.alpha > 0 and math.isfinite(self.alpha), f"alpha must be > 0; got {self.alpha}"),
-            (self.lam >= 0 and math.isfinite(self.lam), f"lam must be >= 0; got {self.lam}"),
-            (0 <= self.val_fraction < 1, f"val_fraction must be in [0, 1); got {self.val_fraction}"),
+            (self.epochs >= 1, f"epochs must be >= 1 (--epochs); got {self.epochs}"),
+            (self.lr > 0 and math.isfinite(self.lr), f"lr must be > 0 (--lr); got {self.lr}"),
+            (self.batch_size >= 1, f"batch size must be >= 1 (--batch-size); got {self.batch_size}"),
+            (self.alpha > 0 and math.isfinite(self.alpha), f"alpha must be > 0 (--alpha); got {self.alpha}"),
+            (self.lam >= 0 and math.isfinite(self.lam), f"lam must be >= 0 (--lam); got {self.lam}"),
+            (
+                0 <= self.val_fraction < 1,
+                f"val_fraction must be in [0, 1) (--val-fraction); got {self.val_fraction}",
+            ),
             (
                 self.patience is None or self.patience >= 1,
-                f"patience must be >= 1; got {self.patience}",
+                f"patience must be >= 1 (--patience); got {self.patience}",
             ),
             (
                 self.patience is None or self.val_fraction > 0,
-                "patience (early stopping) needs a validation split: set val_fraction > 0",
+                "patience (early stopping) needs a validation split: set --val-fraction above 0 "
+                "(Python: val_fraction > 0), or leave --patience out",
             ),
             (
                 0 <= self.warmup_epochs < self.epochs,

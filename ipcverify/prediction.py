@@ -12,7 +12,7 @@ Examples
 --------
 >>> import numpy as np
 >>> from ipcverify.architecture import ModelConfig
->>> from ipcverify.data import PerceptionDataset, PerceptionInputs
+>>> from ipcverify.data import PerceptionDataset, PerceptionInputs, group_codes
 >>> from ipcverify.model import IPCModel, IPCNetwork
 >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(8,), param="cholesky")))
 >>> p = predict_sets(m, PerceptionInputs(np.zeros((4, 2)), np.zeros((4, 3))))
@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ipcverify.data import PerceptionDataset, PerceptionInputs
+from ipcverify.data import PerceptionDataset, PerceptionInputs, group_codes
 from ipcverify.domain import DomainReport
 from ipcverify.errors import InvalidInputError
 from ipcverify.files import atomic_write
@@ -146,94 +146,171 @@ class LogMonitoring:
     ----------
     result : MonitorResult
         The monitor's trajectory (e-values, alarm, in-domain fraction).
-    violated, in_domain : bool ndarray (B,)
-        Per row: the truth fell outside its calibrated set; the query was in the domain.
+    violated : ndarray (B,)
+        Per observation: the truth fell outside its calibrated set (rows, bool); per group, the
+        group's statistic in ``[0, 1]`` (any violation, or the share of its rows outside).
+    in_domain : bool ndarray (B,)
+        Per observation: the query was in the domain (per group: most of its queries were).
     epsilon, delta : float
         The tested rate (the calibration's allowed rate) and the false-alarm bound.
     calibration_delta : float
         The calibration's own confidence parameter: given a calibration whose claim holds
         (probability at least ``1 - calibration_delta``), a false alarm has probability at
         most ``delta``.
+    unit : str
+        What one observation is: ``"rows"``, or the groups and their statistic.
+    labels : tuple of str
+        The group of each observation, in the order the groups ended (empty for rows).
+    n_rows : int
+        Rows of the log.
+    row_in_domain_fraction : float
+        Share of the log's rows inside the domain of validity.
     """
 
     result: MonitorResult
-    violated: NDArray[np.bool_]
+    violated: NDArray[Any]
     in_domain: NDArray[np.bool_]
     epsilon: float
     delta: float
     calibration_delta: float
+    unit: str = "rows"
+    labels: tuple[str, ...] = ()
+    n_rows: int = 0
+    row_in_domain_fraction: float = 1.0
 
     @property
     def alarm_index(self) -> int | None:
-        """Row of the log at which the certificate was refuted, or None."""
+        """Observation (row, or group in ``labels``) at which the certificate was refuted, or None."""
         return self.result.alarm_index
+
+    def _where(self, i: int) -> str:
+        return f"row {i}" if not self.labels else f"group {self.labels[i]!r} (observation {i} of {self.unit})"
 
     def sentence(self) -> str:
         """The outcome in words."""
-        n = len(self.violated)
-        share = f"{100 * self.in_domain.mean():.1f} % of the queries were inside the domain of validity"
+        share = f"{100 * self.row_in_domain_fraction:.1f} % of the queries were inside the domain of validity"
+        what = (
+            f"{self.n_rows} rows"
+            if not self.labels
+            else f"{len(self.labels)} {self.unit} ({self.n_rows} rows)"
+        )
         if self.alarm_index is None:
             return (
-                f"No alarm over {n} rows: the log is consistent with a violation rate of at most "
+                f"No alarm over {what}: the log is consistent with a violation rate of at most "
                 f"{self.epsilon:.4g} (anytime-valid test, false-alarm probability at most {self.delta:g}); "
                 f"{share}."
             )
         return (
-            f"ALARM at row {self.alarm_index}: the violations up to there refute a violation rate of at "
-            f"most {self.epsilon:.4g} (false-alarm probability at most {self.delta:g}, given a calibration "
-            f"whose claim holds, which it does with probability at least {1 - self.calibration_delta:g}); "
-            f"{share}."
+            f"ALARM at {self._where(self.alarm_index)}: the violations up to there refute a violation rate "
+            f"of at most {self.epsilon:.4g} (false-alarm probability at most {self.delta:g}, given a "
+            f"calibration whose claim holds, which it does with probability at least "
+            f"{1 - self.calibration_delta:g}); {share}."
         )
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain data for ``monitor.json``."""
+        """Plain data for ``monitor.json`` (``unit``, ``observations`` and ``groups`` added for groups)."""
+        total = float(np.sum(self.violated))
         return {
-            "rows": len(self.violated),
-            "violations": int(self.violated.sum()),
+            "rows": self.n_rows,
+            "unit": self.unit,
+            "observations": len(self.violated),
+            "groups": list(self.labels),
+            "violations": int(total) if total.is_integer() else total,
             "epsilon": self.epsilon,
             "delta": self.delta,
             "calibration_delta": self.calibration_delta,
             "alarm": self.alarm_index is not None,
             "alarm_index": self.alarm_index,
-            "in_domain_fraction": float(self.in_domain.mean()),
+            "in_domain_fraction": self.row_in_domain_fraction,
             "statement": self.sentence(),
             "monitor": self.result.to_dict(),
         }
 
 
-def monitor_log(model: IPCModel, data: PerceptionDataset, *, delta: float | None = None) -> LogMonitoring:
-    """Replay a labelled log, row by row in order, through :class:`~ipcverify.monitor.ViolationMonitor`.
+def _per_group(
+    data: PerceptionDataset,
+    column: str,
+    statistic: str,
+    violated: NDArray[np.bool_],
+    in_domain: NDArray[np.bool_],
+) -> tuple[FloatArray, NDArray[np.bool_], tuple[str, ...]]:
+    """One observation per group, in the order the groups end (an observation exists only then)."""
+    codes, distinct = group_codes(data.column(column), f"{data.source}: group column {column!r}")
+    G = len(distinct)
+    last = np.full(G, -1)
+    np.maximum.at(last, codes, np.arange(len(codes)))
+    order = np.argsort(last, kind="stable")
+    size = np.bincount(codes, minlength=G)
+    bad = np.bincount(codes, weights=violated.astype(np.float64), minlength=G)
+    inside = np.bincount(codes, weights=in_domain.astype(np.float64), minlength=G)
+    stat = (bad > 0).astype(np.float64) if statistic == "trajectory" else bad / size
+    return stat[order], (2 * inside > size)[order], tuple(str(v) for v in distinct[order])
+
+
+def monitor_log(
+    model: IPCModel, data: PerceptionDataset, *, delta: float | None = None, group_column: str | None = None
+) -> LogMonitoring:
+    """Replay a labelled log, in order, through :class:`~ipcverify.monitor.ViolationMonitor`.
 
     The tested rate is the calibration's allowed rate (:meth:`Calibration.allowed_violation_rate`,
-    or its epsilon when it makes no per-draw claim); every row is an observation, in the domain
-    or not, since the calibration's claim covers every exchangeable query.
+    or its epsilon when it makes no per-draw claim). A row-level calibration is monitored row by
+    row (every row an observation, in the domain or not, since the claim covers every
+    exchangeable query). A flight-level calibration (its claim is about groups) is monitored with
+    one observation per group of its column, taken when the group's last row arrives: whether the
+    group left its sets anywhere (``guarantee="trajectory"``), or the share of its rows outside
+    their sets (``"sample"``, whose expectation is what the claim bounds). ``group_column`` names
+    that column (it must be the calibration's), or, for a row-level calibration, monitors one
+    observation per group of it (the share of its rows outside), which stays valid when the rows
+    of a group are correlated but the groups are independent.
 
     Raises
     ------
     InvalidInputError
-        If the model is not calibrated or its claim is about groups (feed one observation per
-        group with :class:`~ipcverify.monitor.ViolationMonitor` instead).
+        If the model is not calibrated, the group column is not in the log, or differs from a
+        flight-level calibration's.
     """
     cal = model.require_calibration()
     allowed = cal.allowed_violation_rate()
     epsilon = allowed.rate if allowed.rate is not None else cal.epsilon
     delta = cal.delta if delta is None else float(delta)
+    claim = cal.group_claim()
+    if claim is not None and group_column not in (None, claim.column):
+        raise InvalidInputError(
+            f"this calibration's claim is about groups of {claim.column!r}: monitor with --group-column "
+            f"{claim.column} (or leave --group-column out), not {group_column!r}"
+        )
+    column = claim.column if claim is not None else group_column
+    statistic = claim.unit if claim is not None else "sample"
+    if column is not None:
+        data.column(column)  # a missing column is refused before any work, naming the available ones
     pred = predict_sets(model, PerceptionInputs(data.x, data.yhat, data.source))
     d = data.y - pred.centers
     g = np.linalg.norm(np.einsum("bij,bj->bi", pred.shapes, d), axis=1)
     violated = np.asarray(~(g <= 1.0), dtype=np.bool_)
-    if cal.test_counts(violated, data).unit != "samples":
-        raise InvalidInputError(
-            "this calibration's claim is about groups (flights, runs): monitor one observation per group "
-            "with ipcverify.monitor.ViolationMonitor, not one per row"
-        )
+    row_share = float(pred.in_domain.mean())
     monitor = ViolationMonitor(epsilon, delta, in_domain_only=False)
-    result = monitor.run(violated, pred.in_domain)
+    if column is None:
+        return LogMonitoring(
+            result=monitor.run(violated, pred.in_domain),
+            violated=violated,
+            in_domain=pred.in_domain,
+            epsilon=epsilon,
+            delta=delta,
+            calibration_delta=cal.delta,
+            n_rows=len(violated),
+            row_in_domain_fraction=row_share,
+        )
+    obs, inside, labels = _per_group(data, column, statistic, violated, pred.in_domain)
+    what = "any violation" if statistic == "trajectory" else "share of rows outside"
     return LogMonitoring(
-        result=result,
-        violated=violated,
-        in_domain=pred.in_domain,
+        result=monitor.run(obs, inside),
+        violated=obs,
+        in_domain=inside,
         epsilon=epsilon,
         delta=delta,
         calibration_delta=cal.delta,
+        unit=f"groups of {column} ({what})",
+        labels=labels,
+        n_rows=len(violated),
+        row_in_domain_fraction=row_share,
     )

@@ -114,9 +114,7 @@ def plot_coverage(coverage: BinCoverage, delta: float, epsilon: float | None) ->
     )
     if epsilon is not None:
         ax.axhline(epsilon, color="#b42318", ls="--", label=f"epsilon = {epsilon:g}")
-    edges = coverage.edges
-    labels = [f"{edges[i]:.3g}..{edges[i + 1]:.3g}" for i in range(len(counts))]
-    ax.set_xticks(pos, labels, rotation=35, ha="right", fontsize=7)
+    ax.set_xticks(pos, coverage.bin_names(), rotation=35, ha="right", fontsize=7)
     ax.set_xlabel(f"bin of {coverage.column}")
     ax.set_ylabel("violation rate")
     ax.set_ylim(bottom=0.0)

@@ -287,7 +287,8 @@ class Box:
         if not (lo <= up).all():
             i = int(np.flatnonzero(~(lo <= up))[0])
             raise SetError(
-                f"box coordinate {i}: lower {lo[i]!r} > upper {up[i]!r}; swap them or widen the box"
+                f"box coordinate {i}: lower {float(lo[i])!r} > upper {float(up[i])!r}; swap them or widen "
+                "the box"
             )
         object.__setattr__(self, "lower", lo)
         object.__setattr__(self, "upper", up)

@@ -51,7 +51,7 @@ def make_lagged_perception(
     ((100, 6), (100, 3))
     """
     if n < 1:
-        raise InvalidInputError(f"n must be >= 1; got {n}")
+        raise InvalidInputError(f"the number of samples (CLI: --n) must be >= 1; got {n}")
     if lag_frames < 0 or noise < 0:
         raise InvalidInputError("lag_frames and noise must be >= 0")
     rng = np.random.default_rng(seed)

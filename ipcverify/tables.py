@@ -9,8 +9,11 @@ column at fault.
 
 from __future__ import annotations
 
+import csv
 import os
 import re
+import warnings
+import zipfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -54,19 +57,35 @@ def numbered_columns(prefix: str, columns: Sequence[str]) -> list[str]:
     return names
 
 
+def _csv_header(path: Path) -> list[str]:
+    with open(path, newline="", encoding="utf-8", errors="replace") as f:
+        return next(csv.reader(f), [])
+
+
 def _read_table(path: Path) -> pd.DataFrame:
     suffix = path.suffix.lower()
     try:
-        if suffix == ".csv":
-            return pd.read_csv(path)
-        return pd.read_parquet(path)
+        with warnings.catch_warnings():  # a row longer than the header is an error, not a shifted index
+            warnings.simplefilter("error", pd.errors.ParserWarning)
+            df = pd.read_csv(path, index_col=False) if suffix == ".csv" else pd.read_parquet(path)
     except pd.errors.EmptyDataError:
         raise DataError(f"{path}: the file is empty; expected a header row and samples") from None
+    except pd.errors.ParserWarning:
+        raise DataError(
+            f"{path}: cannot read as CSV: a row has more fields than the header; every row needs one value "
+            "per column"
+        ) from None
     except (pd.errors.ParserError, UnicodeDecodeError, OSError, ValueError) as exc:
         if isinstance(exc, FileNotFoundError):
             raise
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise DataError(f"{path}: cannot read as {suffix[1:].upper()}: {msg}") from None
+    names = _csv_header(path) if suffix == ".csv" else [str(c) for c in df.columns]
+    repeated = {c: names.count(c) for c in names if names.count(c) > 1}
+    if repeated:
+        listed = ", ".join(f"{c} appears {k} times" for c, k in repeated.items())
+        raise DataError(f"{path}: {listed}; every column name must be unique (which one is meant?)")
+    return df
 
 
 def data_file(path: str | os.PathLike[str]) -> Path:
@@ -88,7 +107,7 @@ def _read_npz(p: Path, kinds: Sequence[str]) -> dict[str, NDArray[Any]]:
             arrs = {k: z[k] for k in kinds}
     except DataError:
         raise
-    except (ValueError, OSError) as exc:
+    except (ValueError, OSError, zipfile.BadZipFile, EOFError) as exc:
         raise DataError(f"{p}: cannot read as NPZ: {exc}") from None
     for k, a in arrs.items():
         if not np.issubdtype(a.dtype, np.number):

@@ -21,6 +21,7 @@ from rich.progress import Progress
 
 from ipcverify.architecture import DEFAULT_RECIPE, ModelConfig
 from ipcverify.data import PerceptionDataset
+from ipcverify.data_checks import check_informative, input_ranges
 from ipcverify.errors import InvalidInputError
 from ipcverify.lowrank_training import train_lowrank
 from ipcverify.model import IPCModel, IPCNetwork, Network
@@ -332,6 +333,7 @@ def train(
     >>> train(ds, recipe="paper").model.config.param
     'full'
     """
+    check_informative(train_data, "training")
     tc = train_config or TrainConfig.recipe(recipe)
     mc = model_config or ModelConfig.recipe(recipe, x_dim=train_data.x_dim, y_dim=train_data.y_dim)
     if (mc.x_dim, mc.y_dim) != (train_data.x_dim, train_data.y_dim):
@@ -359,6 +361,7 @@ def train(
         "x_columns": list(train_data.x_columns),
         "y_columns": list(train_data.y_columns),
         "yhat_columns": list(train_data.yhat_columns),
+        "training_inputs": input_ranges(train_data),  # calibration data far outside them: a warning
         "history": history,
     }
     if record is not None:

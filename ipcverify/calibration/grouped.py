@@ -159,12 +159,12 @@ def _too_few_groups(
         f"{G} groups of column {column!r} are too few for a {mode} {what} calibration at "
         f"epsilon={epsilon:g}, delta={delta:g}: at least {need} groups are needed. The groups (flights, "
         "runs), not the rows, are the exchangeable units, so more rows per group do not help; collect "
-        f"more independent groups, or raise epsilon (with {G} groups the smallest is "
+        f"more independent groups, or raise --epsilon (with {G} groups the smallest is "
         f"{smallest_epsilon(G, delta, mode):g}"
     )
     if mode == "pac":
         marginal = min_calibration_size(epsilon, delta, "marginal")
-        return text + f" at this delta) or delta, or use mode='marginal' (needs {marginal} groups)"
+        return text + f" at this delta) or --delta, or use --mode marginal (needs {marginal} groups)"
     return text + ")"
 
 

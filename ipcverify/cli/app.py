@@ -1,20 +1,42 @@
-"""The click group shared by every command module.
+"""The click group shared by every command module, and the exit-status contract.
 
 Command modules register thin wrappers over library functions with
 ``@app.command(...)``; they parse arguments, call one library function and
 print its result. No logic lives here.
+
+Exit status (every command, ``docs/cli.md``):
+
+* 0 -- success (``certify``: CERTIFIED, or any status but CONTRADICTED);
+* 1 -- a verdict against the model: ``certify`` CONTRADICTED, a ``monitor`` ALARM, a
+  ``check-certificate`` failure;
+* 2 -- a user error: bad option, missing or unreadable file, bad data; one ``error:`` line;
+* 3 -- an internal error (a bug): one ``error:`` line, and the traceback with ``--debug``;
+* 130 -- interrupted (Ctrl-C).
 """
 
 from __future__ import annotations
 
 import sys
+import traceback
+import warnings
+from typing import Any, NoReturn, TextIO
 
 import click
 from rich.console import Console
 
-from ipcverify.errors import InvalidInputError
+from ipcverify.errors import Hint, InvalidInputError
 
-__all__ = ["app", "console", "err_console", "run_group"]
+__all__ = ["app", "console", "err_console", "run_group", "EXIT_VERDICT", "EXIT_USER", "EXIT_INTERNAL"]
+
+#: A verdict against the model (CONTRADICTED, ALARM, a failed re-check).
+EXIT_VERDICT = 1
+#: A user error (the ``error:`` line says what to fix).
+EXIT_USER = 2
+#: An internal error (a bug in ipcverify or a library it calls).
+EXIT_INTERNAL = 3
+EXIT_INTERRUPTED = 130
+
+_DEBUG = [False]  # set by the global --debug option of the running command line
 
 
 @click.group(
@@ -23,37 +45,109 @@ __all__ = ["app", "console", "err_console", "run_group"]
 )
 @click.version_option(package_name="ipcverify")
 def app() -> None:
-    """Learn and certify inverse perception contracts (IPCs) for perception modules."""
+    """Learn and certify inverse perception contracts (IPCs) for perception modules.
+
+    Exit status: 0 success (certify: not CONTRADICTED), 1 CONTRADICTED or an alarm, 2 a user
+    error, 3 an internal error (rerun with --debug for its traceback).
+    """
 
 
 console = Console()
 err_console = Console(stderr=True)
 
 
-def run_group(group: click.Group, argv: list[str] | None, prog_name: str) -> None:
-    """Run a click group as a program and exit; user errors exit 2 with one ``error:`` line.
+def _set_debug(ctx: click.Context, param: click.Parameter, value: bool) -> None:
+    _DEBUG[0] = bool(value)
 
-    Shared by ``ipcverify`` and ``python -m case_studies.quad_landing``: an
-    :class:`~ipcverify.errors.InvalidInputError`, a usage error (bad option or value) or a
-    missing file prints a single line on stderr and exits with status 2; Ctrl-C exits 1.
+
+def _debug_option() -> click.Option:
+    return click.Option(
+        ["--debug"],
+        is_flag=True,
+        expose_value=False,
+        is_eager=True,
+        callback=_set_debug,
+        help="On an error, print the full traceback as well (for bug reports).",
+    )
+
+
+def _one_line(text: str) -> str:
+    return " ".join(str(text).split())
+
+
+def _show_warning(
+    message: Warning | str,
+    category: type[Warning],
+    filename: str,
+    lineno: int,
+    file: TextIO | None = None,
+    line: str | None = None,
+) -> None:
+    prefix = "hint" if issubclass(category, Hint) else "warning"
+    err_console.print(f"{prefix}: {_one_line(str(message))}", markup=False, highlight=False, soft_wrap=True)
+
+
+def run_group(group: click.Group, argv: list[str] | None, prog_name: str) -> NoReturn:
+    """Run a click group as a program and exit with the status contract of this module.
+
+    Shared by ``ipcverify`` and ``python -m case_studies.quad_landing``. A user error -- an
+    :class:`~ipcverify.errors.InvalidInputError`, a usage error (bad option or value), a file
+    that is missing, a directory, unreadable or unwritable -- prints one ``error:`` line on
+    stderr and exits with 2. Anything else is a bug: one ``error:`` line naming it, exit 3,
+    and the traceback only with the global ``--debug`` flag. Python warnings are printed as one
+    ``warning:`` line each. Ctrl-C exits 130.
     """
-    try:
-        rc = group.main(args=argv, prog_name=prog_name, standalone_mode=False)
-    except InvalidInputError as exc:
-        _fail(str(exc), 2)
-    except click.UsageError as exc:
-        _fail(exc.format_message(), 2)
-    except click.ClickException as exc:
-        exc.show()
-        sys.exit(exc.exit_code)
-    except click.exceptions.Abort:
-        err_console.print("aborted", markup=False)
-        sys.exit(1)
-    except FileNotFoundError as exc:
-        _fail(f"no such file: {exc.filename}", 2)
+    if not any(p.name == "debug" for p in group.params):
+        group.params.append(_debug_option())
+    _DEBUG[0] = False
+    with warnings.catch_warnings():  # the filters stay as they are; only the display changes
+        warnings.showwarning = _show_warning
+        try:
+            rc: Any = group.main(args=argv, prog_name=prog_name, standalone_mode=False)
+        except InvalidInputError as exc:
+            _fail(str(exc), EXIT_USER, exc)
+        except click.exceptions.NoArgsIsHelpError as exc:  # the bare program name: its help, as --help does
+            click.echo(exc.ctx.get_help() if exc.ctx is not None else exc.format_message())
+            sys.exit(0)
+        except click.UsageError as exc:
+            _fail(exc.format_message(), EXIT_USER, exc)
+        except click.ClickException as exc:  # FileError, BadParameter outside parsing, ...
+            _fail(exc.format_message(), EXIT_USER, exc)
+        except click.exceptions.Abort as exc:
+            _fail("interrupted", EXIT_INTERRUPTED, exc)
+        except OSError as exc:
+            if exc.filename is None:
+                _fail(_internal(exc), EXIT_INTERNAL, exc)
+            _fail(_os_message(exc), EXIT_USER, exc)
+        except Exception as exc:  # noqa: BLE001 -- the last resort of the exit-status contract
+            _fail(_internal(exc), EXIT_INTERNAL, exc)
     sys.exit(rc if isinstance(rc, int) else 0)
 
 
-def _fail(message: str, code: int) -> None:
-    err_console.print(f"error: {message}", markup=False, highlight=False, soft_wrap=True)
+def _os_message(exc: OSError) -> str:
+    name = exc.filename if exc.filename2 is None else f"{exc.filename} -> {exc.filename2}"
+    if isinstance(exc, FileNotFoundError):
+        return f"no such file: {name}"
+    if isinstance(exc, IsADirectoryError):
+        return f"{name} is a directory; give a file"
+    if isinstance(exc, NotADirectoryError):
+        return f"{name}: a part of this path is a file, not a directory"
+    if isinstance(exc, FileExistsError):
+        return f"{name} exists and is not a directory; choose another output path"
+    if isinstance(exc, PermissionError):
+        return f"permission denied: {name} (choose a path you can read and write)"
+    return f"{name}: {exc.strerror or exc}"
+
+
+def _internal(exc: BaseException) -> str:
+    return (
+        f"internal error ({type(exc).__name__}: {exc}); this is a bug in ipcverify -- please report it, "
+        "with the output of the same command run with --debug (e.g. ipcverify --debug COMMAND ...)"
+    )
+
+
+def _fail(message: str, code: int, exc: BaseException) -> NoReturn:
+    if _DEBUG[0]:
+        traceback.print_exception(exc, file=sys.stderr)
+    err_console.print(f"error: {_one_line(message)}", markup=False, highlight=False, soft_wrap=True)
     sys.exit(code)

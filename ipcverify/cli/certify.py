@@ -171,7 +171,7 @@ def calibrate_cmd(
     "--lipschitz-radius",
     default=DEFAULT_RADIUS,
     show_default=True,
-    type=float,
+    type=click.FloatRange(min=0.0, min_open=True),
     help="Parameter-ball radius of the sound Lipschitz bound (Theorem 1). Fix it before seeing data.",
 )
 def certify_cmd(

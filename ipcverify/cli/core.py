@@ -15,12 +15,14 @@ import numpy as np
 from rich.table import Table
 
 from ipcverify.architecture import DEFAULT_RECIPE, RECIPES, ModelConfig
-from ipcverify.cli.app import app, console, err_console
+from ipcverify.cli.app import EXIT_VERDICT, app, console, err_console
 from ipcverify.data import load_dataset
+from ipcverify.data_checks import warn_correlated_rows
 from ipcverify.demo import run_demo
+from ipcverify.domain import DomainReport
 from ipcverify.errors import InvalidInputError
 from ipcverify.evaluation import Evaluation, evaluate
-from ipcverify.files import atomic_write, write_json
+from ipcverify.files import atomic_write, json_data, write_json
 from ipcverify.modelio import load_data_for_model, load_inputs_for_model, load_model, save_model
 from ipcverify.monitor import plot_monitor
 from ipcverify.prediction import monitor_log, predict_sets, write_predictions
@@ -64,6 +66,16 @@ def _print_evaluation(ev: Evaluation, title: str) -> None:
     table.add_row("log-volume mean / median", f"{ev.log_volume_mean:.3f} / {ev.log_volume_median:.3f}")
     table.add_row("mean extent per dim", ", ".join(f"{e:.4g}" for e in ev.mean_extent))
     table.add_row("sets", "calibrated" if ev.calibrated else "raw network (uncalibrated)")
+    d = ev.domain
+    if d is None:
+        table.add_row("domain of validity", "none in this model (calibrate it to fit one)")
+    else:
+        inside = d.n - d.outside
+        table.add_row("outside the domain of validity", f"{d.outside} ({100 * d.outside_fraction:.2f} %)")
+        table.add_row(
+            "violations inside / outside",
+            f"{d.violations_inside} of {inside} / {d.violations_outside} of {d.outside}",
+        )
     console.print(table)
     if ev.by_bin is not None:
         bt = Table(title=f"violation rate by {ev.by_bin.column}")
@@ -71,10 +83,15 @@ def _print_evaluation(ev: Evaluation, title: str) -> None:
         bt.add_column("n", justify="right")
         bt.add_column("violations", justify="right")
         bt.add_column("rate", justify="right")
-        for i, (c, v) in enumerate(zip(ev.by_bin.counts, ev.by_bin.violations, strict=True)):
-            lo, hi = ev.by_bin.edges[i], ev.by_bin.edges[min(i + 1, len(ev.by_bin.edges) - 1)]
-            bt.add_row(f"[{lo:.4g}, {hi:.4g}]", str(c), str(v), f"{100 * v / c:.2f} %" if c else "-")
+        for name, c, v in zip(ev.by_bin.bin_names(), ev.by_bin.counts, ev.by_bin.violations, strict=True):
+            bt.add_row(name, str(c), str(v), f"{100 * v / c:.2f} %" if c else "-")
         console.print(bt)
+
+
+def _warn_domain(report: DomainReport | None) -> None:
+    """A shifted batch (far more queries outside the domain than false alarms explain) is a warning."""
+    if report is not None and report.well_above_alpha:
+        err_console.print(f"[bold yellow]warning:[/] {report.sentence()}", soft_wrap=True, highlight=False)
 
 
 def _given(**values: object) -> dict[str, object]:
@@ -219,9 +236,10 @@ def evaluate_cmd(model: Path, data: Path, as_json: bool, bin_column: str | None,
     ds = load_data_for_model(data, m)
     ev = evaluate(m, ds, bin_column=bin_column, bins=bins)
     if as_json:
-        click.echo(json.dumps(ev.to_dict()))
+        click.echo(json.dumps(json_data(ev.to_dict())))
     else:
         _print_evaluation(ev, f"{model.name} on {data.name}")
+    _warn_domain(ev.domain)
 
 
 @app.command("predict")
@@ -270,15 +288,25 @@ def predict_cmd(model: Path, data: Path, out: Path) -> None:
 @click.option(
     "--delta", type=float, default=None, help="False-alarm bound (default: the calibration's delta)."
 )
-def monitor_cmd(model: Path, log: Path, out: Path, delta: float | None) -> None:
+@click.option(
+    "--group-column",
+    default=None,
+    help="One observation per group of this column (flights, runs), taken at its last row. Default: "
+    "a flight-level calibration's column; otherwise one observation per row.",
+)
+def monitor_cmd(model: Path, log: Path, out: Path, delta: float | None, group_column: str | None) -> None:
     """Replay a labelled deployment LOG (rows in time order) through the online monitor.
 
     An anytime-valid test of "the violation rate is at most the calibrated rate": it raises an
-    alarm at the first row where the violations so far refute the certificate, with a false-alarm
-    probability of at most --delta. Exits with status 1 on an alarm.
+    alarm at the first observation where the violations so far refute the certificate, with a
+    false-alarm probability of at most --delta. A flight-level model is monitored one flight at a
+    time. Exits with status 1 on an alarm.
     """
     m = load_model(model)
-    res = monitor_log(m, load_data_for_model(log, m), delta=delta)
+    data = load_data_for_model(log, m)
+    res = monitor_log(m, data, delta=delta, group_column=group_column)
+    if not res.labels:
+        warn_correlated_rows(data, "monitoring", "to monitor one observation per group")
     write_json(out / "monitor.json", res)
     png = figure_to_png(plot_monitor(res.result, title=f"{log.name}: anytime-valid test of the certificate"))
     atomic_write(out / "monitor.png", lambda f: f.write(png))
@@ -288,7 +316,7 @@ def monitor_cmd(model: Path, log: Path, out: Path, delta: float | None) -> None:
     )
     console.print(f"wrote {out / 'monitor.json'} and {out / 'monitor.png'}", markup=False)
     if res.alarm_index is not None:
-        sys.exit(1)
+        sys.exit(EXIT_VERDICT)
 
 
 @app.command("demo")

@@ -11,7 +11,7 @@ from pathlib import Path
 import click
 import numpy as np
 
-from ipcverify.cli.app import app, console
+from ipcverify.cli.app import app, console, err_console
 from ipcverify.errors import InvalidInputError
 from ipcverify.export import check_onnx, export_onnx
 from ipcverify.modelio import load_model
@@ -34,21 +34,37 @@ TORCH_TOLERANCE = 1e-4
     help="Write the model's (calibrated) sets as an ONNX graph here.",
 )
 @click.option(
+    "--no-domain",
+    is_flag=True,
+    help="Export a model with a domain-of-validity test without it (ONNX cannot reproduce the test "
+    "exactly): check each query with `ipcverify predict` or IPCQuery before trusting its set.",
+)
+@click.option(
     "--dtype",
     type=click.Choice(["float64", "float32"]),
     default="float64",
     show_default=True,
     help="float64 reproduces the calibrated sets to ~1e-15; float32 is smaller and faster for big batches.",
 )
-def export_cmd(model: Path, onnx_path: Path, dtype: str) -> None:
+def export_cmd(model: Path, onnx_path: Path, dtype: str, no_domain: bool) -> None:
     """Export MODEL to ONNX: inputs x (B, d), yhat (B, n); outputs center (B, n), shape (B, n, n).
 
-    A global calibration is included (shape = C / scale); a Mondrian calibration is refused.
+    A global calibration is included (shape = C / scale); a Mondrian calibration is refused. The
+    domain-of-validity test is not in the graph: a model with one needs --no-domain.
     """
     m = load_model(model)
-    info = export_onnx(m, onnx_path, dtype=dtype)  # type: ignore[arg-type]
+    info = export_onnx(m, onnx_path, dtype=dtype, without_domain=no_domain)  # type: ignore[arg-type]
     what = f"calibrated (scale {info.scale:.6g})" if info.calibrated else "UNCALIBRATED raw network sets"
     console.print(f"wrote {info.path} ({info.nbytes:,} bytes, {dtype}, {what})", markup=False)
+    if m.domain is not None:
+        err_console.print(
+            "warning: the ONNX graph has no domain-of-validity test (--no-domain): its sets carry the "
+            "guarantee only for queries that pass the model's test; check them with `ipcverify predict` "
+            "(in_domain) or IPCQuery",
+            markup=False,
+            highlight=False,
+            soft_wrap=True,
+        )
     try:
         import onnxruntime  # noqa: F401
     except ImportError:

@@ -243,5 +243,11 @@ def test_group_split_refuses_missing_labels():
     runs = np.array(ds.column("run"), dtype=object)
     runs[7] = None
     bad = PerceptionDataset(ds.x, ds.y, ds.yhat, source="log", extra={"run": runs})
-    with pytest.raises(DataError, match=r"log: group column 'run': row 7 has no group label \(None\)"):
+    with pytest.raises(DataError, match=r"log: group column 'run': row 7 has no group label \(it is empty\)"):
         bad.split(group_column="run")
+    numeric = np.repeat(np.arange(4.0), len(ds) // 4 + 1)[: len(ds)]
+    numeric[3] = np.nan  # a numeric group column with a missing value: no np.float64(nan) in the message
+    bad = PerceptionDataset(ds.x, ds.y, ds.yhat, source="log", extra={"run": numeric})
+    with pytest.raises(DataError, match=r"row 3 has no group label \(it is empty\); every") as info:
+        bad.split(group_column="run")
+    assert "np." not in str(info.value) and "nan" not in str(info.value)

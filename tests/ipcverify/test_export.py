@@ -41,7 +41,7 @@ def _model(data, **kw):
 @pytest.mark.parametrize("dtype", ["float64", "float32"])
 def test_onnx_runtime_reproduces_the_calibrated_sets(data, tmp_path, kw, dtype):
     model = calibrate(_model(data, **kw), data[1], 0.05, 0.01)
-    info = export_onnx(model, tmp_path / "ipc.onnx", dtype=dtype)
+    info = export_onnx(model, tmp_path / "ipc.onnx", dtype=dtype, without_domain=True)
     assert info.calibrated and info.scale == model.calibration.threshold.scale
     test = make_lagged_perception(300, seed=2)
     chk = check_onnx(model, info.path, test.x, test.yhat)
@@ -56,13 +56,24 @@ def test_the_calibration_is_in_the_graph(data, tmp_path):
     test = make_lagged_perception(5, seed=3)
     outs = []
     for m, name in ((raw, "raw.onnx"), (cal, "cal.onnx")):
-        export_onnx(m, tmp_path / name)
+        export_onnx(m, tmp_path / name, without_domain=True)
         outs.append(onnx_session(tmp_path / name).run(["shape"], {"x": test.x, "yhat": test.yhat})[0])
     np.testing.assert_allclose(outs[1] * cal.calibration.threshold.scale, outs[0], rtol=1e-12, atol=0)
-    meta = build_onnx(cal).metadata_props
+    meta = build_onnx(cal, without_domain=True).metadata_props
     props = {p.key: p.value for p in meta}
     assert props["calibrated"] == "true" and float(props["scale"]) == cal.calibration.threshold.scale
-    assert props["mode"] == "pac"
+    assert props["mode"] == "pac" and props["domain_test"] == "not included"
+    assert {p.key: p.value for p in build_onnx(raw).metadata_props}["domain_test"] == "none in the model"
+
+
+def test_a_model_with_a_domain_test_is_exported_only_without_it_on_request(data, tmp_path):
+    cal = calibrate(_model(data), data[1], 0.05, 0.01)
+    assert cal.domain is not None
+    with pytest.raises(InvalidInputError, match=r"domain-of-validity test .* pass --no-domain"):
+        export_onnx(cal, tmp_path / "cal.onnx")
+    assert not (tmp_path / "cal.onnx").exists()
+    no_domain = calibrate(_model(data), data[1], 0.05, 0.01, domain_alpha=None)
+    assert export_onnx(no_domain, tmp_path / "plain.onnx").calibrated  # nothing left out: no flag needed
 
 
 def test_mondrian_models_are_refused(data, tmp_path):
@@ -91,9 +102,14 @@ def test_cli_export_writes_and_checks(run_cli, data, tmp_path):
     model = calibrate(_model(data), data[1], 0.05, 0.01)
     save_model(model, tmp_path / "model.pt")
     res = run_cli("export", tmp_path / "model.pt", "--onnx", tmp_path / "model.onnx")
+    assert res.code == 2 and not (tmp_path / "model.onnx").exists()
+    assert res.stderr.startswith("error: this model carries a domain-of-validity test")
+    assert "pass --no-domain" in res.stderr and len(res.stderr.strip().splitlines()) == 1
+    res = run_cli("export", tmp_path / "model.pt", "--onnx", tmp_path / "model.onnx", "--no-domain")
     assert res.code == 0, res.stderr
     assert (tmp_path / "model.onnx").is_file()
     assert "calibrated (scale" in res.stdout and "checked in ONNX Runtime" in res.stdout
+    assert res.stderr.startswith("warning: the ONNX graph has no domain-of-validity test")
 
 
 def test_cli_export_refuses_mondrian_with_exit_2(run_cli, data, tmp_path):

@@ -1,0 +1,353 @@
+"""Bad and odd inputs to every command: a user error exits 2 with one ``error:`` line, never a traceback.
+
+The table :data:`CASES` lists each input (files are built once by the ``files`` fixture; ``{name}``
+in an argument is replaced by the path of that file) with the exit status it must give and a
+fragment its ``error:`` line must contain. The exit-status contract is in docs/cli.md:
+0 success, 1 a verdict against the model (CONTRADICTED, ALARM, a forged certificate), 2 a user
+error, 3 an internal error.
+"""
+
+from __future__ import annotations
+
+import builtins
+import json
+import shlex
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from ipcverify.architecture import ModelConfig
+from ipcverify.calibrate import calibrate
+from ipcverify.data import PerceptionDataset, save_dataset
+from ipcverify.modelio import save_model
+from ipcverify.synthetic import make_lagged_perception
+from ipcverify.training import TrainConfig, train
+
+MARKER = "pickle_code_ran.txt"
+
+
+class _RunsCode:
+    """Unpickling this would create MARKER (a stand-in for arbitrary code)."""
+
+    def __init__(self, path: str) -> None:
+        self.path = path
+
+    def __reduce__(self):
+        return (builtins.open, (self.path, "w"))
+
+
+def _csv(path: Path, header: str, rows: list[str]) -> None:
+    path.write_text("\n".join([header, *rows]) + "\n", encoding="utf-8")
+
+
+def _with_flights(ds: PerceptionDataset, flights: int) -> PerceptionDataset:
+    names = np.array([f"vislam_rp_{i % flights}" for i in range(len(ds))])
+    return PerceptionDataset(ds.x, ds.y, ds.yhat, extra={"flight": names})
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory) -> dict[str, Path]:
+    d = tmp_path_factory.mktemp("fuzz")
+    f: dict[str, Path] = {"dir": d / "a_directory"}
+    f["dir"].mkdir()
+    train_ds, cal_ds = make_lagged_perception(400, seed=0), make_lagged_perception(1500, seed=1)
+    test_ds = make_lagged_perception(300, seed=2)
+    for name, ds in (("train", train_ds), ("cal", cal_ds), ("test", test_ds)):
+        f[name] = d / f"{name}.csv"
+        save_dataset(ds, f[name])
+    f["flights"] = d / "flights.csv"
+    save_dataset(_with_flights(test_ds, 6), f["flights"])
+    f["cal_flights"] = d / "cal_flights.csv"
+    save_dataset(_with_flights(cal_ds, 8), f["cal_flights"])
+    f["unicode"] = d / "données ü 測試.csv"
+    save_dataset(test_ds, f["unicode"])
+    f["parquet"] = d / "test.parquet"
+    save_dataset(test_ds, f["parquet"])
+    mc = ModelConfig.recipe("tight", x_dim=6, y_dim=3, hidden=(8,), members=2)
+    model = train(train_ds, mc, TrainConfig.recipe("tight", epochs=2, val_fraction=0.0, patience=None)).model
+    f["model"] = d / "model.pt"
+    save_model(model, f["model"])
+    f["calibrated"] = d / "calibrated.pt"
+    save_model(calibrate(model, cal_ds, 0.05, 0.01), f["calibrated"])
+    f["flight_model"] = d / "flight_model.pt"
+    flight_cal = calibrate(
+        model, _with_flights(cal_ds, 40), 0.3, 0.1, group_column="flight", domain_alpha=0.1, seed=1
+    )
+    save_model(flight_cal, f["flight_model"])
+
+    header = open(f["test"], encoding="utf-8").readline().strip()
+    good = open(f["test"], encoding="utf-8").read().splitlines()[1:]
+    ncol = len(header.split(","))
+    (d / "empty.csv").write_bytes(b"")
+    f["empty"] = d / "empty.csv"
+    f["header_only"] = d / "header_only.csv"
+    _csv(f["header_only"], header, [])
+    f["wrong_columns"] = d / "wrong_columns.csv"
+    _csv(f["wrong_columns"], "a,b,c", ["1,2,3", "4,5,6"])
+    for name, bad in (("nan", "nan"), ("inf", "inf"), ("text", "abc"), ("blank", "")):
+        f[name] = d / f"{name}.csv"
+        _csv(f[name], header, [f"{bad}," + good[0].split(",", 1)[1], *good[1:]])
+    f["huge"] = d / "huge.csv"
+    _csv(f["huge"], header, [",".join(["1e300"] * ncol)] + good[1:])
+    f["one_row"] = d / "one_row.csv"
+    _csv(f["one_row"], header, good[:1])
+    f["identical"] = d / "identical.csv"
+    _csv(f["identical"], header, [good[0]] * 2855)
+    f["constant"] = d / "constant.csv"
+    x0 = header.split(",").index("x_0")
+    _csv(
+        f["constant"],
+        header,
+        [",".join("0.5" if i == x0 else v for i, v in enumerate(r.split(","))) for r in good],
+    )
+    f["dup_columns"] = d / "dup_columns.csv"
+    _csv(f["dup_columns"], header + ",x_0", [r + ",9.0" for r in good])
+    f["ragged"] = d / "ragged.csv"
+    _csv(f["ragged"], header, [good[0] + ",1,2,3", *good[1:]])
+    f["wrong_dims"] = d / "wrong_dims.csv"
+    save_dataset(
+        PerceptionDataset(test_ds.x[:, :5], test_ds.y, test_ds.yhat), f["wrong_dims"]
+    )  # 5 state columns for a 6-column model
+    f["y2"] = d / "y2.csv"
+    save_dataset(PerceptionDataset(test_ds.x, test_ds.y[:, :2], test_ds.yhat[:, :2]), f["y2"])
+    f["inputs_only"] = d / "inputs_only.csv"
+    _csv(f["inputs_only"], "x_0,x_1,x_2,x_3,x_4,x_5", [",".join(r.split(",")[:6]) for r in good])
+    f["txt"] = d / "data.txt"
+    f["txt"].write_text("x_0\n1\n", encoding="utf-8")
+    f["bad_parquet"] = d / "bad.parquet"
+    f["bad_parquet"].write_text("not parquet at all", encoding="utf-8")
+    f["bad_npz"] = d / "bad.npz"
+    f["bad_npz"].write_bytes(b"PK\x03\x04 truncated zip")
+    f["object_npz"] = d / "object.npz"
+    np.savez(
+        f["object_npz"], x=np.array([{"a": 1}] * 3, dtype=object), y=np.zeros((3, 1)), yhat=np.zeros((3, 1))
+    )
+    f["binary"] = d / "binary.csv"
+    f["binary"].write_bytes(bytes(range(256)) * 8)
+
+    raw = f["model"].read_bytes()
+    f["truncated"] = d / "truncated.pt"
+    f["truncated"].write_bytes(raw[: len(raw) // 2])
+    f["garbage"] = d / "garbage.pt"
+    f["garbage"].write_bytes(np.random.default_rng(0).bytes(5000))
+    f["empty_model"] = d / "empty_model.pt"
+    f["empty_model"].write_bytes(b"")
+    f["pickle_code"] = d / "pickle_code.pt"
+    torch.save({"format": "ipcverify-model", "payload": _RunsCode(str(d / MARKER))}, f["pickle_code"])
+    f["not_a_model"] = d / "not_a_model.pt"
+    torch.save({"a": 1}, f["not_a_model"])
+    f["future_model"] = d / "future_model.pt"
+    payload = torch.load(f["model"], weights_only=True)
+    torch.save({**payload, "format_version": 99}, f["future_model"])
+
+    f["unwritable"] = d / "train.csv" / "model.pt"  # the parent is a file
+    f["problems"] = d / "problems.json"
+    ball = {"type": "ellipsoid", "center": [0.0, 0.0], "shape": [[1.0, 0.0], [0.0, 1.0]]}
+    box = {"type": "box", "lower": [-2.0, -2.0], "upper": [2.0, 2.0]}
+    f["problems"].write_text(json.dumps([{"inner": ball, "outer": box}]), encoding="utf-8")
+    json_files = {
+        "bad_json": "{not json",
+        "json_scalar": "42",
+        "json_schema": json.dumps({"inner": 1, "outer": box}),
+        "json_dims": json.dumps({"inner": ball, "outer": {"type": "box", "lower": [0.0], "upper": [1.0]}}),
+        "json_nan": json.dumps({"inner": {**ball, "shape": [[float("nan"), 0.0], [0.0, 1.0]]}, "outer": box}),
+        "json_singular": json.dumps({"inner": {**ball, "shape": [[1.0, 0.0], [0.0, 0.0]]}, "outer": box}),
+        "json_inverted_box": json.dumps({"inner": ball, "outer": {**box, "lower": [3.0, 3.0]}}),
+        "json_unknown_type": json.dumps({"inner": ball, "outer": {"type": "sphere"}}),
+        "json_empty_list": "[]",
+        "json_huge": json.dumps({"inner": {**ball, "shape": [[1e308, 0.0], [0.0, 1e308]]}, "outer": box}),
+    }
+    for name, text in json_files.items():
+        f[name] = d / f"{name}.json"
+        f[name].write_text(text, encoding="utf-8")
+    f["latin1"] = d / "latin1.json"
+    f["latin1"].write_bytes('{"inner": "é"}'.encode("latin-1"))
+    return f
+
+
+# id | exit status | a fragment of the one error line ("-": none expected) | the command line.
+# {name} is the path of a file built by the fixture, {tmp} a fresh directory; {cal_ok} stands for
+# "--epsilon 0.05 --delta 0.01 --out {tmp}/c.pt" (an option given again later overrides it).
+TABLE = """
+unknown-command              | 2 | No such command                  | nope
+unknown-option               | 2 | No such option                   | train {train} --out {tmp}/m.pt --bogus
+missing-argument             | 2 | Missing argument                 | train
+train-missing-file           | 2 | does not exist                   | train {tmp}/missing.csv --out {tmp}/m.pt
+train-directory-as-data      | 2 | is a directory                   | train {dir} --out {tmp}/m.pt
+train-empty-file             | 2 | the file is empty                | train {empty} --out {tmp}/m.pt
+train-header-only            | 2 | header but no samples            | train {header_only} --out {tmp}/m.pt
+train-wrong-columns          | 2 | no x columns                     | train {wrong_columns} --out {tmp}/m.pt
+train-nan                    | 2 | non-finite value nan             | train {nan} --out {tmp}/m.pt
+train-inf                    | 2 | non-finite value inf             | train {inf} --out {tmp}/m.pt
+train-text-in-numeric-column | 2 | x_0                              | train {text} --out {tmp}/m.pt
+train-blank-cell             | 2 | non-finite value nan             | train {blank} --out {tmp}/m.pt
+train-huge-values            | 2 | value 1e+300 is too large        | train {huge} --out {tmp}/m.pt
+train-one-row                | 2 | only 1 distinct row among 1      | train {one_row} --out {tmp}/m.pt
+train-identical-rows         | 2 | 1 distinct row among 2855        | train {identical} --out {tmp}/m.pt
+train-constant-column        | 2 | x_0 (every row is 0.5)           | train {constant} --out {tmp}/m.pt
+train-duplicate-columns      | 2 | x_0 appears 2 times              | train {dup_columns} --out {tmp}/m.pt
+train-ragged-rows            | 2 | cannot read as CSV               | train {ragged} --out {tmp}/m.pt
+train-binary-file            | 2 | cannot read as CSV               | train {binary} --out {tmp}/m.pt
+train-unknown-suffix         | 2 | unknown data format              | train {txt} --out {tmp}/m.pt
+train-corrupt-parquet        | 2 | cannot read as PARQUET           | train {bad_parquet} --out {tmp}/m.pt
+train-corrupt-npz            | 2 | cannot read as NPZ               | train {bad_npz} --out {tmp}/m.pt
+train-object-npz             | 2 | cannot read as NPZ               | train {object_npz} --out {tmp}/m.pt
+train-out-is-directory       | 2 | is a directory                   | train {train} --out {dir}
+train-out-parent-is-file     | 2 | exists and is not a directory    | train {train} --out {unwritable}
+train-epochs-0               | 2 | epochs must be >= 1              | train {train} --out {tmp}/m.pt --epochs 0
+train-hidden-text            | 2 | --hidden                         | train {train} --out {tmp}/m.pt --hidden a,b
+train-lr-nan                 | 2 | lr must be > 0                   | train {train} --out {tmp}/m.pt --lr nan
+train-lr-text                | 2 | 'fast' is not a valid float      | train {train} --out {tmp}/m.pt --lr fast
+train-val-fraction-1         | 2 | val_fraction                     | train {train} --out {tmp}/m.pt --val-fraction 1
+train-unknown-x-column       | 2 | speed                            | train {train} --out {tmp}/m.pt --x-columns speed
+train-unknown-recipe         | 2 | 'best' is not one of             | train {train} --out {tmp}/m.pt --recipe best
+evaluate-missing-model       | 2 | does not exist                   | evaluate {tmp}/none.pt {test}
+evaluate-truncated-model     | 2 | truncated.pt                     | evaluate {truncated} {test}
+evaluate-garbage-model       | 2 | garbage.pt                       | evaluate {garbage} {test}
+evaluate-empty-model         | 2 | empty_model.pt                   | evaluate {empty_model} {test}
+evaluate-pickle-with-code    | 2 | pickle_code.pt                   | evaluate {pickle_code} {test}
+evaluate-not-a-model         | 2 | not_a_model.pt                   | evaluate {not_a_model} {test}
+evaluate-future-format       | 2 | format version 99                | evaluate {future_model} {test}
+evaluate-csv-as-model        | 2 | test.csv                         | evaluate {test} {test}
+evaluate-model-as-data       | 2 | unknown data format              | evaluate {model} {model}
+evaluate-wrong-dimensions    | 2 | missing column(s) x_5            | evaluate {model} {wrong_dims}
+evaluate-wrong-y-dimension   | 2 | missing column(s) y_2            | evaluate {model} {y2}
+evaluate-no-truth            | 2 | missing column(s) y_0, y_1, y_2  | evaluate {model} {inputs_only}
+evaluate-unknown-bin-column  | 2 | no column 'nope'                 | evaluate {model} {test} --bin-column nope
+evaluate-bins-0              | 2 | bins must be >= 1                | evaluate {model} {test} --bin-column x_0 --bins 0
+evaluate-text-bin-column     | 0 | -                                | evaluate {calibrated} {flights} --bin-column flight
+evaluate-unicode-path        | 0 | -                                | evaluate {calibrated} {unicode} --json
+evaluate-parquet             | 0 | -                                | evaluate {calibrated} {parquet}
+evaluate-one-row             | 0 | -                                | evaluate {calibrated} {one_row} --json
+evaluate-huge-values         | 2 | is too large                     | evaluate {calibrated} {huge}
+predict-out-not-npz          | 2 | must end in .npz                 | predict {model} {test} --out {tmp}/sets.txt
+predict-out-is-directory     | 2 | is a directory                   | predict {model} {test} --out {dir}
+predict-out-parent-is-file   | 2 | exists and is not a directory    | predict {model} {test} --out {train}/s.npz
+predict-no-estimates         | 2 | missing column(s) x_0            | predict {model} {wrong_columns} --out {tmp}/s.npz
+predict-inputs-only          | 2 | missing column(s) yhat_0         | predict {calibrated} {inputs_only} --out {tmp}/s.npz
+predict-one-row              | 0 | -                                | predict {calibrated} {one_row} --out {tmp}/one.npz
+monitor-uncalibrated         | 2 | not calibrated                   | monitor {model} {test} --out {tmp}/mon
+monitor-delta-2              | 2 | delta                            | monitor {calibrated} {test} --out {tmp}/mon --delta 2
+monitor-unknown-group        | 2 | no column 'nope'                 | monitor {calibrated} {test} --group-column nope
+monitor-other-group          | 2 | --group-column flight            | monitor {flight_model} {flights} --group-column x_0
+monitor-flights-missing      | 2 | no column 'flight'               | monitor {flight_model} {test} --out {tmp}/m2
+monitor-out-is-file          | 2 | train.csv                        | monitor {calibrated} {test} --out {train}
+demo-n-0                     | 2 | --n                              | demo --n 0 --out {tmp}/demo
+demo-n-negative              | 2 | --n                              | demo --n -5 --out {tmp}/demo
+demo-out-is-file             | 2 | train.csv                        | demo --out {train}
+export-dtype-float16         | 2 | float16                          | export {model} --onnx {tmp}/m.onnx --dtype float16
+export-without-no-domain     | 2 | --no-domain                      | export {calibrated} --onnx {tmp}/m.onnx
+export-onnx-is-directory     | 2 | is a directory                   | export {model} --onnx {dir}
+export-corrupt-model         | 2 | garbage.pt                       | export {garbage} --onnx {tmp}/m.onnx
+calibrate-epsilon-0          | 2 | epsilon                          | calibrate {model} {cal} --epsilon 0 --delta 0.01 --out {tmp}/c.pt
+calibrate-epsilon-1.5        | 2 | epsilon                          | calibrate {model} {cal} --epsilon 1.5 --delta 0.01 --out {tmp}/c.pt
+calibrate-epsilon-nan        | 2 | epsilon                          | calibrate {model} {cal} --epsilon nan --delta 0.01 --out {tmp}/c.pt
+calibrate-delta-negative     | 2 | delta                            | calibrate {model} {cal} --epsilon 0.05 --delta -1 --out {tmp}/c.pt
+calibrate-bad-mode           | 2 | 'x' is not one of                | calibrate {model} {cal} {cal_ok} --mode x
+calibrate-twice              | 2 | --recalibrate                    | calibrate {calibrated} {cal} {cal_ok}
+calibrate-on-training-data   | 2 | training data                    | calibrate {model} {train} {cal_ok}
+calibrate-one-row            | 2 | distinct row                     | calibrate {model} {one_row} {cal_ok}
+calibrate-identical-rows     | 2 | 1 distinct row among 2855        | calibrate {model} {identical} {cal_ok}
+calibrate-too-few            | 2 | 2 requirements are not met       | calibrate {model} {test} {cal_ok} --epsilon 0.001 --domain-alpha 0.001
+calibrate-unknown-group      | 2 | no column 'nope'                 | calibrate {model} {cal} {cal_ok} --group-column nope
+calibrate-few-flights        | 2 | (2) the group-aware domain test  | calibrate {model} {cal_flights} {cal_ok} --group-column flight
+calibrate-mondrian-on-truth  | 2 | ground truth                     | calibrate {model} {cal} {cal_ok} --mondrian-column y_0
+calibrate-bins-alone         | 2 | --mondrian-column                | calibrate {model} {cal} {cal_ok} --bins 3
+calibrate-domain-alpha-0     | 2 | alpha                            | calibrate {model} {cal} {cal_ok} --domain-alpha 0
+calibrate-out-unwritable     | 2 | exists and is not a directory    | calibrate {model} {cal} {cal_ok} --out {unwritable}
+calibrate-wrong-dimensions   | 2 | missing column(s) x_5            | calibrate {model} {wrong_dims} {cal_ok}
+certify-missing-data         | 2 | does not exist                   | certify {calibrated} --data {tmp}/none.csv --out {tmp}/cert
+certify-group-without-data   | 2 | --data                           | certify {calibrated} --group-column flight --out {tmp}/cert
+certify-unknown-group        | 2 | run                              | certify {calibrated} --data {test} --group-column run
+certify-text-bin-column      | 0 | -                                | certify {calibrated} --data {flights} --bin-column flight --out {tmp}/c
+certify-delta-0              | 2 | delta                            | certify {calibrated} --data {test} --delta 0 --out {tmp}/cert
+certify-radius-negative      | 2 | --lipschitz-radius               | certify {calibrated} --lipschitz-radius -1 --out {tmp}/cert
+certify-calibration-as-test  | 2 | calibration data                 | certify {calibrated} --data {cal} --out {tmp}/cert
+certify-wrong-dimensions     | 2 | missing column(s) x_5            | certify {calibrated} --data {wrong_dims} --out {tmp}/cert
+certify-out-is-file          | 2 | train.csv                        | certify {calibrated} --out {train}
+certify-garbage-model        | 2 | garbage.pt                       | certify {garbage} --out {tmp}/cert
+prove-bad-json               | 2 | not valid JSON                   | prove-containment {bad_json} --out {tmp}/c.json
+prove-json-scalar            | 2 | expected one problem             | prove-containment {json_scalar} --out {tmp}/c.json
+prove-json-schema            | 2 | problem 0                        | prove-containment {json_schema} --out {tmp}/c.json
+prove-dimension-mismatch     | 2 | problem 0                        | prove-containment {json_dims} --out {tmp}/c.json
+prove-nan-shape              | 2 | problem 0                        | prove-containment {json_nan} --out {tmp}/c.json
+prove-singular-shape         | 2 | problem 0                        | prove-containment {json_singular} --out {tmp}/c.json
+prove-inverted-box           | 2 | problem 0                        | prove-containment {json_inverted_box} --out {tmp}/c.json
+prove-unknown-set-type       | 2 | problem 0                        | prove-containment {json_unknown_type} --out {tmp}/c.json
+prove-huge-entries           | 0 | -                                | prove-containment {json_huge} --out {tmp}/c.json
+prove-empty-list             | 0 | -                                | prove-containment {json_empty_list} --out {tmp}/c.json
+prove-latin1-file            | 2 | not UTF-8                        | prove-containment {latin1} --out {tmp}/c.json
+prove-out-is-directory       | 2 | is a directory                   | prove-containment {problems} --out {dir}
+check-bad-json               | 2 | not valid JSON                   | check-certificate {bad_json}
+check-problems-as-certs      | 2 | certificate 0                    | check-certificate {problems}
+check-csv-file               | 2 | not valid JSON                   | check-certificate {test}
+"""  # noqa: E501 (one case per line)
+
+
+def _cases() -> list[tuple[str, int, str | None, str]]:
+    rows = []
+    for line in TABLE.strip().splitlines():
+        case, code, fragment, command = (cell.strip() for cell in line.split("|"))
+        rows.append((case, int(code), None if fragment == "-" else fragment, command))
+    return rows
+
+
+CASES = _cases()
+
+
+def _argv(command: str, files: dict[str, Path], tmp: Path) -> list[str]:
+    paths = {k: shlex.quote(str(v)) for k, v in files.items()}
+    cal_ok = f"--epsilon 0.05 --delta 0.01 --out {shlex.quote(str(tmp / 'c.pt'))}"
+    return shlex.split(command.format(tmp=shlex.quote(str(tmp)), cal_ok=cal_ok, **paths))
+
+
+@pytest.mark.parametrize(("code", "fragment", "command"), [c[1:] for c in CASES], ids=[c[0] for c in CASES])
+def test_bad_and_odd_inputs_exit_with_one_error_line_and_no_traceback(
+    files, tmp_path, run_cli, code, fragment, command
+):
+    res = run_cli(*_argv(command, files, tmp_path))
+    errors = [line for line in res.stderr.splitlines() if line.startswith("error:")]
+    assert "Traceback" not in res.stderr + res.stdout
+    assert res.code == code, res.stderr
+    if fragment is None:
+        assert errors == [], res.stderr
+    else:
+        assert len(errors) == 1 and fragment in errors[0], res.stderr
+        assert not [
+            line for line in res.stderr.splitlines() if not line.startswith(("error:", "warning:", "hint:"))
+        ]
+    assert not (files["dir"].parent / MARKER).exists()  # the pickle's code never ran
+
+
+def test_the_table_covers_every_command_and_at_least_60_inputs():
+    from ipcverify.cli import app
+
+    covered = {shlex.split(c[3])[0] for c in CASES}
+    assert set(app.commands) <= covered, set(app.commands) - covered
+    assert len(CASES) >= 60
+
+
+def test_the_cases_have_unique_ids():
+    ids = [c[0] for c in CASES]
+    assert len(ids) == len(set(ids))
+
+
+def test_an_unwritable_output_directory_is_a_user_error(files, tmp_path, run_cli):
+    """A read-only directory (as a user without root rights meets it): exit 2 naming the path."""
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    locked.chmod(0o500)
+    try:
+        probe = locked / "probe"
+        try:  # root ignores permissions: then a path below a file is the unwritable output
+            probe.write_text("x")
+            probe.unlink()
+            target = files["unwritable"]
+        except PermissionError:
+            target = locked / "m.pt"
+        res = run_cli("predict", files["model"], files["test"], "--out", target.with_suffix(".npz"))
+        assert res.code == 2 and res.stderr.startswith("error: ") and "Traceback" not in res.stderr
+    finally:
+        locked.chmod(0o700)
