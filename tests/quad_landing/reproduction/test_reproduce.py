@@ -97,7 +97,7 @@ def test_the_three_contracts_side_by_side(quick_run):
     }
     # every output of a run that flew the uncalibrated contract says it has no guarantee
     page = (out / "report.html").read_text()
-    assert "no guarantee" in page and "Table 0. Which contract reproduces which claim." in page
+    assert "no guarantee" in page and "Table C1. Which contract reproduces which claim of the paper." in page
     assert "NO guarantee" in printed and "paper_raw" in printed
     assert (out / "certificates" / "paper_calibrated" / "certificate.json").exists()
     assert (out / "models" / "paper_raw.pt").exists() and (out / "models" / "paper_calibrated.pt").exists()
