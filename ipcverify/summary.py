@@ -228,7 +228,7 @@ class CertificateSummary:
 
     def verdict_text(self, symbol: str = "epsilon") -> str:
         """The one-line verdict: the status (``WEAK TARGET (...)`` for a certified weak one), its meaning."""
-        title = self.status.replace("_", " ")
+        title = self.status
         if self.certified and self.strength == "weak" and self.epsilon is not None:
             phrase = weak_target_phrase(self.epsilon, self.unit_statistic, symbol)
             title += f", WEAK TARGET ({phrase})"
