@@ -43,6 +43,7 @@ __all__ = [
     "plot_coverage",
     "plot_projections",
     "banner_colors",
+    "display_text",
     "render_report",
 ]
 
@@ -154,11 +155,27 @@ def _target_table(s: CertificateSummary) -> str:
     return "<table>" + "".join(f"<tr><th>{k}</th><td>{v}</td></tr>" for k, v in rows) + "</table>"
 
 
+_SYMBOLS = (("<=", "≤"), (">=", "≥"), ("epsilon =", "ε ="), ("delta =", "δ ="), ("alpha =", "α ="))
+
+
+def display_text(text: str) -> str:
+    """Plain-text numbers as the page shows them: ``<=`` as ≤, ``epsilon =`` as ε =, ...
+
+    Examples
+    --------
+    >>> display_text("lower bound 0.2 <= allowed 0.3 (target epsilon = 0.5)")
+    'lower bound 0.2 ≤ allowed 0.3 (target ε = 0.5)'
+    """
+    for plain, symbol in _SYMBOLS:
+        text = text.replace(f" {plain} ", f" {symbol} ").replace(f"({plain} ", f"({symbol} ")
+    return text
+
+
 def _checks_table(s: CertificateSummary) -> str:
     rows = "".join(
         f'<tr class="check-{c.level}"><td>{html.escape(capitalized(c.name))}</td>'
         f'<td class="verdict" style="color:{_LEVEL_COLORS[c.level]}">{html.escape(c.verdict)}</td>'
-        f"<td>{html.escape(c.detail)}</td></tr>"
+        f"<td>{html.escape(display_text(c.detail))}</td></tr>"
         for c in s.checks
     )
     return f'<table class="checks"><tr><th>check</th><th>verdict</th><th>the numbers</th></tr>{rows}</table>'

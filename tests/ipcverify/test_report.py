@@ -24,6 +24,7 @@ from ipcverify.architecture import ModelConfig
 from ipcverify.calibrate import calibrate
 from ipcverify.certify import certify, write_certificate
 from ipcverify.model import IPCModel, IPCNetwork
+from ipcverify.report import display_text
 from ipcverify.synthetic import make_lagged_perception
 from ipcverify.training import TrainConfig, train
 
@@ -153,7 +154,7 @@ def test_the_summary_as_chromium_renders_it(weak, tmp_path):
     assert f"unit of the claim {s.unit_text()}" in text
     assert "perceived quantity y forward, left, up, in m" in text
     for c in s.checks:
-        assert f"{c.name[:1].upper()}{c.name[1:]} {c.verdict} {c.detail}" in text
+        assert f"{c.name[:1].upper()}{c.name[1:]} {c.verdict} {display_text(c.detail)}" in text
     assert f"date (UTC, ISO 8601) {s.date_utc}" in text and re.fullmatch(
         r"\d{4}-\d\d-\d\dT\d\d:\d\d:\d\dZ", s.date_utc
     )
