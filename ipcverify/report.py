@@ -476,6 +476,9 @@ def _identity_section(cert: Certificate) -> list[str]:
 def render_report(result: CertifyResult) -> str:
     """The full HTML page for a certification result (a string; no external resources).
 
+    The summary at the top is the certificate's own (``certificate.summary``, made by
+    :func:`~ipcverify.certify.certify`); a certificate built without one gets one made now, dated now.
+
     Examples
     --------
     >>> from ipcverify.synthetic import make_lagged_perception
