@@ -9,7 +9,8 @@ layout of ``certificate.json`` (written with the one JSON encoder of
 * :class:`Consistency` -- does the test data contradict the calibration's claim?
 * :class:`GroupTest` -- the test counted per group (flight, run): valid for correlated rows;
 * :class:`ModelIdentity`, :class:`DataIdentity`, :class:`VolumeSummary` -- provenance and size;
-* :class:`Certificate` -- all of the above plus the calibration summary and Theorem 1;
+* :class:`Certificate` -- all of the above plus the calibration summary, Theorem 1, the unit of
+  the claim and the executive summary (:class:`~ipcverify.summary.CertificateSummary`);
 * :class:`CertifyEvidence`, :class:`CertifyResult` -- the per-sample arrays behind it.
 """
 
@@ -25,10 +26,11 @@ from numpy.typing import NDArray
 
 import ipcverify
 from ipcverify.bounds import clopper_pearson_interval, clopper_pearson_lower, clopper_pearson_upper
-from ipcverify.calibration.protocol import GROUP_UNITS, AllowedRate, CalibrationSummary, GroupUnit
+from ipcverify.calibration.protocol import GROUP_UNITS, AllowedRate, CalibrationSummary, GroupClaim, GroupUnit
 from ipcverify.domain import DomainReport
 from ipcverify.errors import InvalidInputError
 from ipcverify.evaluation import BinCoverage, WorstBin
+from ipcverify.summary import CertificateSummary
 from ipcverify.theorem1 import Theorem1Result
 
 __all__ = [
@@ -400,7 +402,11 @@ class VolumeSummary:
 
 @dataclass(frozen=True, kw_only=True)
 class Certificate:
-    """Everything :func:`~ipcverify.certify.certify` established; :meth:`to_dict` is ``certificate.json``."""
+    """Everything :func:`~ipcverify.certify.certify` established; :meth:`to_dict` is ``certificate.json``.
+
+    ``group_claim`` names the groups a claim about groups (flights, runs) counts (None: rows);
+    ``summary`` is the executive summary built from the rest (:func:`ipcverify.summarize.summarize`).
+    """
 
     status: CertificateStatus
     statement: str
@@ -419,6 +425,8 @@ class Certificate:
     theorem1_source: str = ""
     worst_bin: WorstBin | None = None
     group_test: GroupTest | None = None
+    group_claim: GroupClaim | None = None
+    summary: CertificateSummary | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """The content of ``certificate.json``."""
@@ -441,6 +449,7 @@ class Certificate:
             "format": "ipcverify-certificate",
             "format_version": 1,
             "ipcverify_version": ipcverify.__version__,
+            "summary": None if self.summary is None else self.summary.to_dict(),
             "status": self.status.name,
             "status_text": self.status.value,
             "statement": self.statement,
@@ -472,7 +481,7 @@ class Certificate:
             return ""
         return (
             f"The test upper bound ({test.upper_bound:.3g}) is above epsilon ({cal.epsilon:g}) only because "
-            f"{test.n} test samples cannot bound so small a rate more tightly; the guarantee comes from the "
+            f"{test.n:,} test {test.unit} cannot bound the rate more tightly; the guarantee comes from the "
             "calibration, and the test checks that the data do not contradict it (they do not)."
         )
 

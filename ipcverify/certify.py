@@ -27,7 +27,8 @@ live in :mod:`ipcverify.certificate`. :func:`write_certificate` writes ``certifi
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -58,6 +59,7 @@ from ipcverify.model import IPCModel, network_fingerprint
 from ipcverify.modelio import load_data_for_model, load_model
 from ipcverify.report import render_report
 from ipcverify.sets import Ellipsoid
+from ipcverify.summarize import output_labels, summarize
 from ipcverify.theorem1 import Theorem1Result, TrainingStatistics, theorem1
 
 __all__ = [
@@ -325,6 +327,8 @@ def certify(
     model_path: PathLike | None = None,
     test_path: PathLike | None = None,
     train_path: PathLike | None = None,
+    units: str | None = None,
+    labels: Sequence[str] | None = None,
 ) -> CertifyResult:
     """Certify a (preferably calibrated) IPC on fresh test data.
 
@@ -354,13 +358,20 @@ def certify(
         Parameter-ball radius of the sound Lipschitz bound (Theorem 1).
     model_path, test_path, train_path : path-like, optional
         Files to fingerprint (SHA-256) in the certificate.
+    units : str, optional
+        The units of ``y`` (e.g. ``"m"``), for the summary and every plot axis along ``y``;
+        default: none named (the page says "units of the data").
+    labels : sequence of str, optional
+        One label per coordinate of ``y`` (e.g. ``("forward", "left", "up")``); default: the
+        data's column names (:func:`output_labels`).
 
     Raises
     ------
     InvalidInputError
         If dimensions disagree, the test data is the calibration or training data,
-        the calibration belongs to a different network, or the group column is missing from
-        the test data, has one group only, or is given without test data.
+        the calibration belongs to a different network, the group column is missing from
+        the test data, has one group only, or is given without test data, or the labels do
+        not name every coordinate of ``y`` or the units are empty.
 
     Examples
     --------
@@ -375,6 +386,11 @@ def certify(
     ('CERTIFIED', 2000)
     """
     delta = check_inputs(model, test_data, train_data, delta)
+    y_labels = output_labels(model, test_data, labels)
+    if units is not None and not units.strip():
+        raise InvalidInputError(
+            "the units of y must not be empty; name them (e.g. --units m) or leave them out"
+        )
     if group_column is not None and test_data is None:
         raise InvalidInputError(f"group column {group_column!r} needs test data to count per group (--data)")
     cal = model.calibration
@@ -409,7 +425,15 @@ def certify(
         group_test=group_test,
         test_data=None if test_data is None else _identity(test_data, test_path),
         train_data=None if train_data is None else _identity(train_data, train_path, model),
+        group_claim=None if cal is None else cal.group_claim(),
     )
+    rows_outside = (
+        None if tested is None else (int(tested.scores.violated.sum()), len(tested.scores.violated))
+    )
+    summary = summarize(
+        cert, units=None if units is None else units.strip(), labels=y_labels, rows_outside=rows_outside
+    )
+    cert = replace(cert, summary=summary)
     return CertifyResult(
         cert, None if tested is None or test_data is None else _evidence(tested.scores, test_data)
     )
@@ -488,6 +512,8 @@ def certify_files(
     bins: int = 10,
     group_column: str | None = None,
     lipschitz_radius: float = DEFAULT_RADIUS,
+    units: str | None = None,
+    labels: Sequence[str] | None = None,
 ) -> CertifyResult:
     """Load a model file and data files, :func:`certify`, and :func:`write_certificate` (the CLI's call)."""
     model = load_model(model_path)
@@ -505,6 +531,8 @@ def certify_files(
         model_path=model_path,
         test_path=test_path,
         train_path=train_path,
+        units=units,
+        labels=labels,
     )
     write_certificate(result, out_dir)
     return result

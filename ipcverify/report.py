@@ -1,32 +1,40 @@
 """The certificate as one self-contained HTML page (plots embedded as base64 PNG).
 
 The page references no external resource (no scripts, styles, fonts or images
-from the network), so it can be archived and opened offline. Plots are drawn with
-matplotlib's Agg canvas on private :class:`~matplotlib.figure.Figure` objects
-(no global pyplot state):
+from the network), so it can be archived, printed and opened offline. From the top:
 
-* the distribution of the test scores ``g / s`` with the calibrated boundary at 1;
-* the violation rate per bin of a column (conditional coverage) with per-bin
-  Clopper--Pearson intervals;
-* 2-D projections of a few calibrated ellipsoids with their ground truths.
+* the verdict banner -- green for a certified strong target, **amber for a weak one**
+  (``epsilon >= 0.1``, :data:`ipcverify.summary.WEAK_EPSILON`), red when the test data
+  contradicts the calibration;
+* the executive summary (:class:`~ipcverify.summary.CertificateSummary`): the claim in one
+  sentence, epsilon, delta and the unit of the claim, the units and labels of ``y``, one row
+  per check with its verdict, the date (UTC), the ipcverify version and the SHA-256 of the
+  model and the data;
+* the calibration, the domain of validity, the test set (with the per-flight table and the
+  plots of :mod:`ipcverify.report_plots`), Theorem 1, and the identity of every file, with
+  lines for a reviewer's signature.
 """
 
 from __future__ import annotations
 
 import base64
 import html
-import io
 import math
 from typing import Any
 
-import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from ipcverify.bounds import clopper_pearson_interval
 from ipcverify.calibration.protocol import CalibrationSummary
 from ipcverify.certificate import Certificate, CertificateStatus, CertifyEvidence, CertifyResult, Consistency
-from ipcverify.evaluation import BinCoverage
+from ipcverify.report_plots import (
+    ellipse_outline,
+    figure_to_png,
+    plot_coverage,
+    plot_projections,
+    plot_scores,
+)
+from ipcverify.summarize import capitalized, summarize
+from ipcverify.summary import WEAK_EPSILON, CertificateSummary
 
 __all__ = [
     "figure_to_png",
@@ -34,145 +42,38 @@ __all__ = [
     "plot_scores",
     "plot_coverage",
     "plot_projections",
+    "banner_colors",
+    "display_text",
     "render_report",
 ]
 
+#: Banner background and text colour per status (a certified weak target: :data:`_WEAK`).
 _COLORS = {
-    CertificateStatus.CERTIFIED: "#1b7f3b",
-    CertificateStatus.UNTESTED: "#1b5e7f",
-    CertificateStatus.UNCHECKED: "#1b5e7f",
-    CertificateStatus.NOT_CALIBRATED: "#9a6700",
-    CertificateStatus.CONTRADICTED: "#b42318",
+    CertificateStatus.CERTIFIED: ("#1b7f3b", "#ffffff"),
+    CertificateStatus.UNTESTED: ("#1b5e7f", "#ffffff"),
+    CertificateStatus.UNCHECKED: ("#1b5e7f", "#ffffff"),
+    CertificateStatus.NOT_CALIBRATED: ("#9a6700", "#ffffff"),
+    CertificateStatus.CONTRADICTED: ("#b42318", "#ffffff"),
 }
+_WEAK = ("#f5b400", "#1f2328")
+_LEVEL_COLORS = {"pass": "#1b7f3b", "warn": "#9a6700", "fail": "#b42318", "info": "#57606a"}
 
 
-def figure_to_png(fig: Figure, dpi: int = 100) -> bytes:
-    """Render a figure with the Agg canvas to PNG bytes.
+def banner_colors(status: CertificateStatus, summary: CertificateSummary) -> tuple[str, str]:
+    """Background and text colour of the verdict banner: amber for a certified weak target.
 
     Examples
     --------
-    >>> fig = Figure(figsize=(2, 1)); _ = fig.add_subplot().plot([0, 1])
-    >>> figure_to_png(fig)[:8] == b"\\x89PNG\\r\\n\\x1a\\n"
-    True
+    >>> from ipcverify.summary import Check
+    >>> s = CertificateSummary(status="CERTIFIED", status_detail="", claim="", epsilon=0.5,
+    ...     certified_epsilon=0.45, delta=0.1, unit="row", checks=(), date_utc="2025-01-31T12:00:00Z",
+    ...     ipcverify_version="0", model_sha256="0" * 64, model_sha256_of="network", labels=("y_0",))
+    >>> banner_colors(CertificateStatus.CERTIFIED, s)
+    ('#f5b400', '#1f2328')
     """
-    FigureCanvasAgg(fig)
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi)
-    return buf.getvalue()
-
-
-def plot_scores(evidence: CertifyEvidence, calibrated: bool) -> Figure:
-    """Histogram of the test scores ``g / s`` with the set boundary (1) marked."""
-    s = evidence.normalized_scores
-    fig = Figure(figsize=(7.0, 3.2))
-    ax = fig.add_subplot()
-    hi = max(1.5, float(np.quantile(s, 0.995)) * 1.05)
-    over = int((s > hi).sum())
-    ax.hist(np.minimum(s, hi), bins=80, range=(0.0, hi), color="#4c72b0", alpha=0.85)
-    ax.axvline(1.0, color="#b42318", lw=2, label="set boundary (g / s = 1)" if calibrated else "g = 1")
-    ax.set_xlabel("normalised score g / s  (> 1: truth outside its set)" if calibrated else "raw score g")
-    ax.set_ylabel("test samples")
-    n_viol = int(evidence.violated.sum())
-    title = f"Test scores: {n_viol} of {len(s)} outside"
-    if over:
-        title += f" ({over} beyond {hi:.3g}, drawn in the last bin)"
-    ax.set_title(title, fontsize=10)
-    ax.legend(loc="upper right", fontsize=8)
-    fig.subplots_adjust(left=0.1, right=0.97, bottom=0.16, top=0.9)
-    return fig
-
-
-def plot_coverage(coverage: BinCoverage, delta: float, epsilon: float | None) -> Figure:
-    """Violation rate per bin of a column, with two-sided Clopper--Pearson intervals at ``delta`` per bin."""
-    fig = Figure(figsize=(7.0, 3.2))
-    ax = fig.add_subplot()
-    counts = np.asarray(coverage.counts)
-    viol = np.asarray(coverage.violations)
-    pos = np.arange(len(counts))
-    rates = np.array([v / c if c else np.nan for v, c in zip(viol, counts, strict=True)])
-    lo = np.array(
-        [
-            clopper_pearson_interval(int(v), int(c), delta)[0] if c else np.nan
-            for v, c in zip(viol, counts, strict=True)
-        ]
-    )
-    hi = np.array(
-        [
-            clopper_pearson_interval(int(v), int(c), delta)[1] if c else np.nan
-            for v, c in zip(viol, counts, strict=True)
-        ]
-    )
-    ok = counts > 0
-    ax.errorbar(
-        pos[ok],
-        rates[ok],
-        yerr=np.vstack([rates[ok] - lo[ok], hi[ok] - rates[ok]]),
-        fmt="o",
-        color="#4c72b0",
-        capsize=3,
-        label=f"violation rate, {1 - delta:.4g} interval per bin",
-    )
-    if epsilon is not None:
-        ax.axhline(epsilon, color="#b42318", ls="--", label=f"epsilon = {epsilon:g}")
-    ax.set_xticks(pos, coverage.bin_names(), rotation=35, ha="right", fontsize=7)
-    ax.set_xlabel(f"bin of {coverage.column}")
-    ax.set_ylabel("violation rate")
-    ax.set_ylim(bottom=0.0)
-    ax.set_title(f"Conditional coverage by {coverage.column}", fontsize=10)
-    ax.legend(fontsize=8, loc="upper right")
-    fig.subplots_adjust(left=0.1, right=0.97, bottom=0.3, top=0.9)
-    return fig
-
-
-def ellipse_outline(center: np.ndarray, shape: np.ndarray, i: int, j: int) -> np.ndarray:
-    """Boundary of the projection of E(c, C) on coordinates (i, j), as (2, 200) points."""
-    cinv = np.linalg.inv(shape)
-    P = cinv @ cinv.T
-    sub = P[np.ix_([i, j], [i, j])]
-    L = np.linalg.cholesky(sub + 1e-300 * np.eye(2))
-    t = np.linspace(0.0, 2.0 * np.pi, 200)
-    return center[[i, j], None] + L @ np.vstack([np.cos(t), np.sin(t)])
-
-
-def plot_projections(evidence: CertifyEvidence) -> Figure:
-    """2-D projections of the example ellipsoids with their truths (x) and estimates (+)."""
-    k = len(evidence.example_index)
-    n = evidence.example_centers.shape[1]
-    names = evidence.y_columns or tuple(f"y_{i}" for i in range(n))
-    pairs = [(0, 1), (0, 2), (1, 2)] if n >= 3 else ([(0, 1)] if n == 2 else [(0, 0)])
-    fig = Figure(figsize=(3.0 * len(pairs), 2.6 * k))
-    for r in range(k):
-        c, C = evidence.example_centers[r], evidence.example_shapes[r]
-        y, yh = evidence.example_truths[r], evidence.example_estimates[r]
-        inside = np.linalg.norm(C @ (y - c)) <= 1.0
-        for col, (i, j) in enumerate(pairs):
-            ax = fig.add_subplot(k, len(pairs), r * len(pairs) + col + 1)
-            if n == 1:
-                h = 1.0 / abs(C[0, 0])
-                ax.plot([c[0] - h, c[0] + h], [0, 0], color="#4c72b0", lw=3)
-                ax.plot([y[0]], [0], "x", color="#b42318" if not inside else "#1b7f3b", ms=9)
-                ax.plot([yh[0]], [0], "+", color="k", ms=9)
-                ax.set_yticks([])
-                ax.set_xlabel(names[0], fontsize=8)
-            else:
-                pts = ellipse_outline(c, C, i, j)
-                ax.fill(pts[0], pts[1], color="#4c72b0", alpha=0.25)
-                ax.plot(pts[0], pts[1], color="#4c72b0", lw=1)
-                ax.plot([y[i]], [y[j]], "x", color="#1b7f3b" if inside else "#b42318", ms=9, mew=2)
-                ax.plot([yh[i]], [yh[j]], "+", color="k", ms=9)
-                ax.set_xlabel(names[i], fontsize=8)
-                ax.set_ylabel(names[j], fontsize=8)
-                ax.set_aspect("equal", adjustable="datalim")
-            ax.tick_params(labelsize=7)
-            if col == 0:
-                ax.set_title(
-                    f"test sample {int(evidence.example_index[r])} ({'inside' if inside else 'OUTSIDE'})",
-                    fontsize=8,
-                    loc="left",
-                )
-    fig.suptitle("Calibrated sets (projections); x = ground truth, + = perceived value", fontsize=10)
-    fig.subplots_adjust(left=0.08, right=0.98, bottom=0.06, top=0.93, wspace=0.45, hspace=0.5)
-    return fig
+    if summary.certified and summary.strength == "weak":
+        return _WEAK
+    return _COLORS[status]
 
 
 def _img(fig: Figure, alt: str) -> str:
@@ -200,42 +101,140 @@ def _table(rows: list[tuple[str, Any]]) -> str:
 
 
 _CSS = """
-body{font-family:-apple-system,"Segoe UI",Helvetica,Arial,sans-serif;max-width:980px;margin:2em auto;
+body{font-family:-apple-system,"Segoe UI",Helvetica,Arial,sans-serif;max-width:980px;margin:1.2em auto;
 padding:0 1em;color:#1f2328;line-height:1.45}
-h1{font-size:1.6em;margin-bottom:.2em}h2{font-size:1.2em;border-bottom:1px solid #d0d7de;padding-bottom:.2em;
+h1{font-size:1.5em;margin:0 0 .3em}h2{font-size:1.2em;border-bottom:1px solid #d0d7de;padding-bottom:.2em;
 margin-top:1.6em}
-.status{color:#fff;padding:.5em .8em;border-radius:6px;font-weight:600}
-.statement{font-size:1.08em;background:#f6f8fa;border-left:4px solid #4c72b0;padding:.7em 1em;margin:1em 0}
+.status{padding:.55em .8em;border-radius:6px;font-weight:600;margin:.4em 0}
+.statement{font-size:1.04em;background:#f6f8fa;border-left:4px solid #4c72b0;padding:.6em 1em;margin:.8em 0}
 table{border-collapse:collapse;margin:.5em 0}
-th,td{border:1px solid #d0d7de;padding:.25em .6em;text-align:left;font-size:.92em}
+th,td{border:1px solid #d0d7de;padding:.25em .6em;text-align:left;font-size:.92em;vertical-align:top}
 th{background:#f6f8fa;font-weight:600}
 .vacuous{color:#b42318;font-weight:600}.ok{color:#1b7f3b;font-weight:600}
+.verdict{font-weight:600;white-space:nowrap}.hash{font-family:monospace;font-size:.85em;word-break:break-all}
 img{max-width:100%;display:block;margin:.6em 0}.small{font-size:.85em;color:#57606a}
 code{background:#f6f8fa;padding:0 .25em;border-radius:3px}
+.sign td{height:2.2em;min-width:14em}
 """
 
 
-def _header(cert: Certificate) -> list[str]:
-    color = _COLORS[cert.status]
+def _unit_words(unit: str) -> str:
+    """How the page names a counted unit: ``samples`` (rows of the data) are rows."""
+    return "rows" if unit == "samples" else unit
+
+
+def _target_table(s: CertificateSummary) -> str:
+    rows: list[tuple[str, str]] = []
+    if s.epsilon is None:
+        rows.append(("target violation rate &epsilon;", "none: the model is not calibrated"))
+    else:
+        strength = (
+            f"<b>weak target</b> (&epsilon; &ge; {WEAK_EPSILON:g})"
+            if s.strength == "weak"
+            else f"strong target (&epsilon; &lt; {WEAK_EPSILON:g})"
+        )
+        rows.append(
+            (
+                "target violation rate &epsilon;",
+                f"{s.epsilon:g}: {strength}; certified rate {_fmt(s.certified_epsilon)}",
+            )
+        )
+    delta = (
+        "&mdash;"
+        if s.delta is None
+        else f"{s.delta:g} (the claim holds with probability &ge; {1 - s.delta:.6g})"
+    )
+    rows += [
+        ("confidence parameter &delta;", delta),
+        ("unit of the claim", html.escape(s.unit_text())),
+        (
+            "perceived quantity y",
+            f"{html.escape(', '.join(s.labels))}, in {html.escape(s.units_text)}",
+        ),
+    ]
+    return "<table>" + "".join(f"<tr><th>{k}</th><td>{v}</td></tr>" for k, v in rows) + "</table>"
+
+
+_SYMBOLS = (("<=", "≤"), (">=", "≥"), ("epsilon =", "ε ="), ("delta =", "δ ="), ("alpha =", "α ="))
+
+
+def display_text(text: str) -> str:
+    """Plain-text numbers as the page shows them: ``<=`` as ≤, ``epsilon =`` as ε =, ...
+
+    Examples
+    --------
+    >>> display_text("lower bound 0.2 <= allowed 0.3 (target epsilon = 0.5)")
+    'lower bound 0.2 ≤ allowed 0.3 (target ε = 0.5)'
+    """
+    for plain, symbol in _SYMBOLS:
+        text = text.replace(f" {plain} ", f" {symbol} ").replace(f"({plain} ", f"({symbol} ")
+    return text
+
+
+def _checks_table(s: CertificateSummary) -> str:
+    rows = "".join(
+        f'<tr class="check-{c.level}"><td>{html.escape(capitalized(c.name))}</td>'
+        f'<td class="verdict" style="color:{_LEVEL_COLORS[c.level]}">{html.escape(c.verdict)}</td>'
+        f"<td>{html.escape(display_text(c.detail))}</td></tr>"
+        for c in s.checks
+    )
+    return f'<table class="checks"><tr><th>check</th><th>verdict</th><th>the numbers</th></tr>{rows}</table>'
+
+
+def _record_table(s: CertificateSummary) -> str:
+    rows = [
+        ("date (UTC, ISO 8601)", html.escape(s.date_utc)),
+        ("ipcverify version", html.escape(s.ipcverify_version)),
+        (f"{s.model_sha256_of} SHA-256", f'<span class="hash">{s.model_sha256}</span>'),
+    ]
+    rows += [
+        (f"{k} SHA-256", f'<span class="hash">{html.escape(v)}</span>') for k, v in s.data_sha256.items()
+    ]
+    if not s.data_sha256:
+        rows.append(("data SHA-256", "no data given"))
+    return (
+        '<table class="record">' + "".join(f"<tr><th>{k}</th><td>{v}</td></tr>" for k, v in rows) + "</table>"
+    )
+
+
+def _assumption(s: CertificateSummary) -> str:
+    if s.unit == "group":
+        units = (
+            f"the calibration groups of <code>{html.escape(str(s.unit_column))}</code> (flights, runs), the "
+            "test groups and the groups met in deployment are exchangeable (rows within a group may be "
+            "correlated)"
+        )
+    else:
+        units = (
+            "the calibration rows, the test rows and the rows met in deployment are exchangeable (for "
+            "example, drawn i.i.d. from the same distribution)"
+        )
+    return (
+        f'<p class="small">Assumption behind every statement on this page: {units}, and none of them was '
+        "used for training. Nothing here holds under distribution shift; the domain-of-validity test flags "
+        "queries unlike the calibration data.</p>"
+    )
+
+
+def _header(cert: Certificate, s: CertificateSummary) -> list[str]:
+    """The banner and the executive summary: what a reviewer reads (and signs) first."""
+    bg, fg = banner_colors(cert.status, s)
     parts = [
         "<!DOCTYPE html>",
         '<html lang="en"><head><meta charset="utf-8">',
         "<title>ipcverify certificate</title>",
         f"<style>{_CSS}</style></head><body>",
         "<h1>Inverse perception contract: certificate</h1>",
-        f'<p class="status" style="background:{color}">{html.escape(cert.status.value)}</p>',
-        "<h2>What is guaranteed</h2>",
-        f'<p class="statement">{html.escape(cert.statement)}</p>',
+        f'<p class="status" id="verdict" style="background:{bg};color:{fg}">'
+        f"{html.escape(s.verdict_text('ε'))}</p>",
+        '<section id="summary"><h2>Summary</h2>',
+        f'<p class="statement"><b>What is guaranteed.</b> {html.escape(s.claim)}</p>',
+        _target_table(s),
+        _checks_table(s),
     ]
     if cert.test_bound_note:
         parts.append(f"<p>{html.escape(cert.test_bound_note)}</p>")
-    parts.append(
-        '<p class="small">Assumption behind every statement on this page: the calibration samples, the '
-        "test samples and the samples met in deployment are exchangeable (for example, drawn i.i.d. from "
-        "the same distribution), and none of them was used for training. Nothing here holds under "
-        "distribution shift; the domain-of-validity test below flags queries unlike the calibration "
-        "data.</p>"
-    )
+    parts += [_assumption(s), _record_table(s), "</section>"]
     return parts
 
 
@@ -279,39 +278,43 @@ def _domain_section(cert: Certificate) -> list[str]:
         )
         return parts
     parts.append(f"<p>{html.escape(d.sentence())}</p>")
-    parts.append(
-        _table(
-            [
-                ("method", d.method),
-                ("false-alarm rate alpha", d.alpha),
-                ("threshold (whitened distance)", d.threshold),
-                ("calibration inputs (reference)", d.n_reference),
-                ("queries checked", d.n),
-                ("queries outside", d.outside),
-            ]
-        )
-    )
+    rows: list[tuple[str, Any]] = [
+        ("method", d.method),
+        ("false-alarm rate alpha", d.alpha),
+        ("threshold (whitened distance)", d.threshold),
+        ("calibration inputs (reference)", d.n_reference),
+    ]
+    if d.n == 0:
+        rows.append(("test queries", "none: no test data given, so the held-out test was not run"))
+    else:
+        rows += [("test queries checked", d.n), ("test queries outside", d.outside)]
+    parts.append(_table(rows))
     return parts
 
 
-def _test_section(cert: Certificate, ev: CertifyEvidence | None) -> list[str]:
+def _test_section(cert: Certificate, ev: CertifyEvidence | None, s: CertificateSummary) -> list[str]:
     t = cert.test
     parts = ["<h2>Test set</h2>"]
     if t is None or ev is None or cert.volume is None:
         parts.append(
-            "<p><b>No test data was given.</b> The calibration certificate above does not need one, but "
+            "<p><b>No test data was given: the held-out test was not run.</b> The calibration certificate "
+            "above does not need one, but "
             "nothing on this page checks it independently: run <code>ipcverify certify MODEL --data "
             "TEST</code> with fresh held-out samples.</p>"
         )
         return parts
+    n_y = len(s.labels)
+    volume = (
+        f"ln of volume in ({s.units})^{n_y}" if s.units is not None else f"ln of volume in {s.units_text}"
+    )
     rows: list[tuple[str, Any]] = [
-        ("test samples", t.n),
+        (f"test {_unit_words(t.unit)}", t.n),
         ("violations", t.violations),
         ("empirical violation rate", t.empirical_rate),
         (f"upper bound (Clopper-Pearson, confidence {1 - t.delta:.6g})", t.upper_bound),
         (f"two-sided interval ({1 - t.delta:.6g})", f"[{t.interval[0]:.4g}, {t.interval[1]:.4g}]"),
-        ("mean log-volume of the sets", cert.volume.mean_log),
-        ("median log-volume", cert.volume.median_log),
+        (f"mean log-volume of the sets ({volume})", cert.volume.mean_log),
+        (f"median log-volume ({volume})", cert.volume.median_log),
     ]
     parts.append(_table(rows))
     if cert.consistency.checked:
@@ -341,11 +344,12 @@ def _test_section(cert: Certificate, ev: CertifyEvidence | None) -> list[str]:
         )
     parts.append("<h2>Example sets</h2>")
     parts.append(
-        "<p class='small'>The smallest, median and largest set of the test data, and one violated sample "
+        "<p class='small'>The smallest, median and largest set of the test data, and one violated row "
         "(if any), projected on pairs of coordinates of y. A truth outside the n-dimensional set can "
         "still lie inside some, or even all, of its 2-D shadows.</p>"
     )
-    parts.append(_img(plot_projections(ev), "projections of example ellipsoids"))
+    axes = [s.axis_label(i) for i in range(n_y)]
+    parts.append(_img(plot_projections(ev, axes), "projections of example ellipsoids"))
     return parts
 
 
@@ -373,7 +377,7 @@ def _group_test_part(cert: Certificate) -> list[str]:
     rows = ""
     for unit, label, res in (
         ("trajectory", "any violation in the group", g.trajectory),
-        ("sample", "one random sample of the group (seeded)", g.sample),
+        ("sample", "one random row of the group (seeded)", g.sample),
     ):
         mark = "compared with the calibration" if g.compared_unit == unit else "reported"
         rows += (
@@ -392,7 +396,7 @@ def _group_test_part(cert: Certificate) -> list[str]:
     else:
         parts.append(f"<p class='small'>Not compared with the calibration: {html.escape(c.reason)}.</p>")
     parts.append(
-        f"<p class='small'>{g.n_groups:,} test groups, {g.n_rows:,} rows; the random sample of each group "
+        f"<p class='small'>{g.n_groups:,} test groups, {g.n_rows:,} rows; the random row of each group "
         f"is drawn with seed {g.seed}. Proof: proofs/group_calibration.md, section 6.</p>"
     )
     return parts
@@ -402,7 +406,7 @@ def _theorem1_section(cert: Certificate) -> list[str]:
     parts = ["<h2>Theorem 1 of the paper</h2>"]
     t1 = cert.theorem1
     if t1 is None:
-        parts.append(f"<p><b>{html.escape(cert.theorem1_reason.capitalize())}.</b> Nothing is claimed.</p>")
+        parts.append(f"<p><b>{html.escape(capitalized(cert.theorem1_reason))}.</b> Nothing is claimed.</p>")
         return parts
     cls = "ok" if t1.usable else "vacuous"
     parts.append(f'<p class="{cls}">{html.escape(t1.explanation())}</p>')
@@ -465,12 +469,18 @@ def _identity_section(cert: Certificate) -> list[str]:
         "<h2>Identity</h2>",
         _table(rows),
         "<p class='small'>Generated by ipcverify. The machine-readable record is "
-        "<code>certificate.json</code> beside this file.</p></body></html>",
+        "<code>certificate.json</code> beside this file.</p>",
+        "<h2>Review</h2>",
+        '<table class="sign"><tr><th>reviewed by</th><td></td></tr><tr><th>signature</th><td></td></tr>'
+        "<tr><th>date</th><td></td></tr></table></body></html>",
     ]
 
 
 def render_report(result: CertifyResult) -> str:
     """The full HTML page for a certification result (a string; no external resources).
+
+    The summary at the top is the certificate's own (``certificate.summary``, made by
+    :func:`~ipcverify.certify.certify`); a certificate built without one gets one made now, dated now.
 
     Examples
     --------
@@ -484,10 +494,11 @@ def render_report(result: CertifyResult) -> str:
     True
     """
     cert = result.certificate
-    parts = _header(cert)
+    summary = cert.summary if cert.summary is not None else summarize(cert)
+    parts = _header(cert, summary)
     parts += _calibration_section(cert.calibration)
     parts += _domain_section(cert)
-    parts += _test_section(cert, result.evidence)
+    parts += _test_section(cert, result.evidence, summary)
     parts += _theorem1_section(cert)
     parts += _identity_section(cert)
     return "\n".join(parts)

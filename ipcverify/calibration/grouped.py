@@ -378,7 +378,7 @@ class GroupedCalibration:
             if self.guarantee_kind == "trajectory"
             else "check it with one random sample per test group"
         )
-        unit += " (group_violation_counts), not with correlated rows"
+        unit += ", not with correlated rows"
         t = self.group_threshold
         if t is None:
             return AllowedRate(

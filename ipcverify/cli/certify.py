@@ -174,6 +174,18 @@ def calibrate_cmd(
     type=click.FloatRange(min=0.0, min_open=True),
     help="Parameter-ball radius of the sound Lipschitz bound (Theorem 1). Fix it before seeing data.",
 )
+@click.option(
+    "--units",
+    default=None,
+    help="Units of the perceived quantity y (e.g. m), shown on every plot axis along y. "
+    "Default: 'units of the data'.",
+)
+@click.option(
+    "--labels",
+    default=None,
+    help="Comma-separated labels of the coordinates of y, e.g. 'forward,left,up'. "
+    "Default: the data's y column names.",
+)
 def certify_cmd(
     model: Path,
     test: Path | None,
@@ -184,6 +196,8 @@ def certify_cmd(
     bins: int,
     group_column: str | None,
     lipschitz_radius: float,
+    units: str | None,
+    labels: str | None,
 ) -> None:
     """Certify MODEL on fresh test data: write DIR/certificate.json and DIR/report.html.
 
@@ -201,9 +215,17 @@ def certify_cmd(
         bins=bins,
         group_column=group_column,
         lipschitz_radius=lipschitz_radius,
+        units=units,
+        labels=None if labels is None else labels.split(","),
     )
     cert = res.certificate
-    console.print(f"[{_STYLE[cert.status]}]{cert.status.name}[/]: {cert.status.value}", soft_wrap=True)
+    summary = cert.summary
+    if summary is None:  # certify() always attaches one; guard the contract anyway
+        raise InvalidInputError("the certificate has no summary; please report this")
+    title, detail = summary.verdict_text().split(": ", 1)
+    style = "bold yellow" if summary.certified and summary.strength == "weak" else _STYLE[cert.status]
+    console.print(f"{title}:", style=style, markup=False, highlight=False, end=" ", soft_wrap=True)
+    console.print(detail, markup=False, highlight=False, soft_wrap=True)
     console.print(cert.statement, soft_wrap=True, markup=False)
     table = Table(show_header=False)
     table.add_row("parameters p", f"{cert.model.n_parameters:,}")
@@ -220,12 +242,12 @@ def certify_cmd(
     else:
         table.add_row(
             "test violations",
-            f"{t.violations}/{t.n} = {t.empirical_rate:.4%}; "
+            f"{t.violations}/{t.n} {t.unit} = {t.empirical_rate:.4%}; "
             f"upper bound {t.upper_bound:.4%} (confidence {1 - t.delta:g})",
         )
     g = cert.group_test
     if g is not None:
-        for label, r in (("per group: one sample", g.sample), ("per group: any violation", g.trajectory)):
+        for label, r in (("per group: one random row", g.sample), ("per group: any violation", g.trajectory)):
             table.add_row(
                 f"{label} ({g.column})",
                 f"{r.violations}/{r.n} groups = {r.empirical_rate:.4%}; upper bound {r.upper_bound:.4%}",
@@ -234,7 +256,12 @@ def certify_cmd(
         table.add_row("mean log-volume", f"{cert.volume.mean_log:.4g}")
     if cert.domain is not None:
         d = cert.domain
-        table.add_row("domain of validity", f"{d.outside}/{d.n} test queries outside (alpha = {d.alpha:g})")
+        table.add_row(
+            "domain of validity",
+            f"{d.outside}/{d.n} test queries outside (alpha = {d.alpha:g})"
+            if d.n
+            else f"fitted (alpha = {d.alpha:g}); no test data given: the held-out test was not run",
+        )
     if cert.theorem1 is None:
         table.add_row("Theorem 1", cert.theorem1_reason)
     else:
