@@ -175,8 +175,8 @@ def contracts_section(summary: Mapping[str, Any], figs: Mapping[str, bytes]) -> 
         "<h2>The paper's claims, contract by contract</h2>"
         "<p>Three contracts are measured and flown side by side: the paper's IPC as trained, without a "
         "calibration and so with <b>no guarantee</b> (the paper's protocol); the same network "
-        "PAC-calibrated; and ipcverify's default recipe, PAC-calibrated. A claim <i>holds</i> on the observed counts; "
-        "Table I's intervals and the certificates are in the sections below.</p>"
+        "PAC-calibrated; and ipcverify's default recipe, PAC-calibrated. A claim <i>holds</i> on the "
+        "observed counts; Table I's intervals and the certificates are in the sections below.</p>"
         + table(
             ["claim of the paper", *names],
             rows,
