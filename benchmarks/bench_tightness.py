@@ -58,7 +58,7 @@ from ipcverify.data import PerceptionDataset
 from ipcverify.evaluation import worst_bin_coverage
 from ipcverify.model import IPCModel
 from ipcverify.sets import Ellipsoid
-from ipcverify.training import TrainConfig, train
+from ipcverify.training import HingeSelection, TrainConfig, train
 
 __all__ = ["METHODS", "ORACLE_METHODS", "RECIPE_METHODS", "measure", "bench_tightness", "worst_bin_allowance"]
 
@@ -145,8 +145,12 @@ def _recipe_runs(
     for seed in range(seeds):
         for method, recipe in RECIPE_METHODS.items():
             tc = TrainConfig.recipe(recipe, seed=seed)
+            # the paper's recipe chooses its unstated alpha, lambda and batch size on training rows
+            rule = HingeSelection() if recipe == "paper" else None
             model, t_train = _timed(
-                lambda tc=tc, recipe=recipe: train(tr, train_config=tc, recipe=recipe).model
+                lambda tc=tc, recipe=recipe, rule=rule: (
+                    train(tr, train_config=tc, recipe=recipe, select=rule).model
+                )
             )
             calibrated, t_cal = _timed(
                 lambda model=model: calibrate(model, cal, epsilon, delta, mode, domain_alpha=None)
@@ -161,7 +165,8 @@ def _recipe_runs(
             if method == "ipc_paper":
                 runs["raw_ipc_paper_head"].append(measure(model.predict_raw(te.x, te.yhat), te))
         head = ModelConfig.recipe("v1", x_dim=tr.x_dim, y_dim=tr.y_dim)
-        paper = train(tr, head, TrainConfig.recipe("paper", seed=seed)).model
+        # the paper's hinge training (alpha = 0.1, lambda = 0.01) on the v1 head, as before the selection rule
+        paper = train(tr, head, TrainConfig.recipe("paper", seed=seed, start_at_estimate=False)).model
         runs["raw_ipc"].append(measure(paper.predict_raw(te.x, te.yhat), te))
     if first is None:
         raise ValueError("seeds must be >= 1")

@@ -331,13 +331,20 @@ class GroupTest:
 
 @dataclass(frozen=True, kw_only=True)
 class ModelIdentity:
-    """Which model was certified: file, fingerprints, architecture, parameter count."""
+    """Which model was certified: file, fingerprints, architecture, parameter count, training.
+
+    ``training`` is how the network was trained (the model file's ``train_config``), and
+    ``selection`` how the settings the recipe leaves open were chosen, if a rule chose them
+    (:mod:`ipcverify.selection`: the paper's recipe's ``alpha``, ``lambda`` and batch size).
+    """
 
     path: str | None
     file_sha256: str | None
     network_sha256: str
     architecture: Mapping[str, Any]
     n_parameters: int
+    training: Mapping[str, Any] | None = None
+    selection: Mapping[str, Any] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """Plain-data form."""
@@ -347,6 +354,8 @@ class ModelIdentity:
             "network_sha256": self.network_sha256,
             "architecture": dict(self.architecture),
             "n_parameters": self.n_parameters,
+            "training": None if self.training is None else dict(self.training),
+            "selection": None if self.selection is None else dict(self.selection),
         }
 
 

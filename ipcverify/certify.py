@@ -279,6 +279,8 @@ def _model_identity(model: IPCModel, path: PathLike | None) -> ModelIdentity:
         network_sha256=network_fingerprint(model.network),
         architecture=model.config.to_dict(),
         n_parameters=model.n_parameters,
+        training=model.metadata.get("train_config"),
+        selection=model.metadata.get("selection"),
     )
 
 

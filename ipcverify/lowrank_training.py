@@ -89,10 +89,10 @@ def train_lowrank(
     >>> net.members, len(hist)
     (5, 2)
     """
-    if tc.center_warm_start:
+    if tc.center_warm_start or tc.start_at_estimate:
         raise InvalidInputError(
-            "center_warm_start is for the paper's heads; the low-rank head has the closed-form linear "
-            "centre stage (ModelConfig.linear_center) instead"
+            "center_warm_start and start_at_estimate are for the paper's heads; the low-rank head has the "
+            "closed-form linear centre stage (ModelConfig.linear_center) instead"
         )
     net = LowRankEnsemble(mc)
     z64, t64 = net.fit_normalisation(train_data.x, train_data.y, train_data.yhat, tc.linear_ridge)

@@ -127,6 +127,60 @@ class IPCNetwork(ScoredNetwork):
             self.y_mean.copy_(torch.as_tensor(y.mean(axis=0), dtype=torch.float32))
             self.sigma.copy_(torch.as_tensor(sigma, dtype=torch.float32))
 
+    def start_at_estimate(self) -> None:
+        """Set the weights so that the centre output is exactly ``yhat`` (in place).
+
+        An initialisation, for the paper's network, whose centre is predicted outright: its
+        ReLU layers pass each standardised ``yhat_i`` through as the pair
+        ``relu(z_i), relu(-z_i)`` (units ``2i, 2i + 1`` of every hidden layer, which then
+        read nothing else), and the centre rows of the output layer undo the
+        standardisation, so ``c = yhat`` before the first step. The other units keep their
+        random initialisation and the shape rows are untouched; training then moves every
+        weight. The normalisation must already be set (:meth:`set_normalisation`).
+
+        Raises
+        ------
+        InvalidInputError
+            Unless the activation is ReLU and every hidden layer has at least ``2 n`` units.
+
+        Examples
+        --------
+        >>> net = IPCNetwork(ModelConfig(x_dim=1, y_dim=2, hidden=(4, 6), param="full", center="raw"))
+        >>> rng = np.random.default_rng(0)
+        >>> x, y = rng.normal(size=(50, 1)), rng.normal(size=(50, 2))
+        >>> net.set_normalisation(x, y, y + 0.1)
+        >>> net.start_at_estimate()
+        >>> xt, yt = torch.tensor(x[:3], dtype=torch.float32), torch.tensor(y[:3] + 0.1, dtype=torch.float32)
+        >>> bool(torch.allclose(net(xt, yt)[0], yt, atol=1e-5))
+        True
+        """
+        cfg = self.config
+        n, d = cfg.y_dim, cfg.x_dim
+        if cfg.activation != "relu" or min(cfg.hidden) < 2 * n:
+            raise InvalidInputError(
+                "starting the centre at yhat needs ReLU hidden layers of at least 2 * y_dim units each; "
+                f"this network has activation={cfg.activation!r}, hidden={cfg.hidden}"
+            )
+        linear = [m for m in self.body if isinstance(m, nn.Linear)]
+        pair = torch.arange(2 * n)
+        sign = torch.tensor([1.0, -1.0]).repeat(n)
+        with torch.no_grad():
+            first = linear[0]
+            first.weight[: 2 * n] = 0.0
+            first.bias[: 2 * n] = 0.0
+            first.weight[pair, d + pair // 2] = sign
+            for layer in linear[1:-1]:
+                layer.weight[: 2 * n] = 0.0
+                layer.bias[: 2 * n] = 0.0
+                layer.weight[pair, pair] = 1.0
+            last = linear[-1]
+            last.weight[:n] = 0.0
+            last.bias[:n] = 0.0
+            if cfg.center == "raw":  # c = y_mean + sigma o: o = (mean + std z - y_mean) / sigma
+                s, mu = self.in_std[d:], self.in_mean[d:]
+                last.weight[pair // 2, pair] = sign * (s / self.sigma)[pair // 2]
+                last.bias[:n] = (mu - self.y_mean) / self.sigma
+
     def forward(self, x: torch.Tensor, yhat: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """Centres (B, n), shape matrices C (B, n, n) and ``log det(C^T C)`` (B,)."""
         n = self.config.y_dim

@@ -453,6 +453,9 @@ def _identity_section(cert: Certificate) -> list[str]:
         ("architecture", ", ".join(f"{k}={v}" for k, v in m.architecture.items())),
         ("parameters p", m.n_parameters),
     ]
+    if m.selection is not None:
+        rows.append(("settings the recipe leaves open, chosen by rule", m.selection.get("summary", "")))
+        rows.append(("the rule", (m.selection.get("rule") or {}).get("rule", "")))
     if cert.test_data is not None:
         rows += [
             ("test data", cert.test_data.source),

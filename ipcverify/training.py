@@ -9,11 +9,15 @@ below, one network.
 from __future__ import annotations
 
 import copy
+import dataclasses
 import math
+import time
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
 import torch
+from rich.progress import Progress
 
 from ipcverify.architecture import DEFAULT_RECIPE, ModelConfig
 from ipcverify.data import PerceptionDataset
@@ -32,6 +36,7 @@ from ipcverify.objectives import (
     objective,
     step_factor,
 )
+from ipcverify.selection import Candidate, HingeSelection, SelectionRecord
 from ipcverify.theorem1 import TrainingStatistics
 
 __all__ = [
@@ -44,7 +49,13 @@ __all__ = [
     "warm_start_center",
     "train",
     "NonFiniteLossError",
+    "HingeSelection",
+    "select_hinge",
 ]
+
+#: Recipes whose unstated hinge settings are chosen by :class:`HingeSelection` when no
+#: training configuration is given.
+_SELECTED_RECIPES = ("paper",)
 
 
 @dataclass(frozen=True)
@@ -121,8 +132,8 @@ def _train_network(
     train_data: PerceptionDataset, mc: ModelConfig, tc: TrainConfig, progress: bool
 ) -> tuple[IPCNetwork, list[dict[str, float]]]:
     """The training loop of one network with the paper's heads (recipes ``"v1"``, ``"paper"``)."""
-    if tc.center_warm_start and mc.lowrank:
-        raise InvalidInputError("center_warm_start is for the paper's heads")
+    if (tc.center_warm_start or tc.start_at_estimate) and mc.lowrank:
+        raise InvalidInputError("center_warm_start and start_at_estimate are for the paper's heads")
     torch.manual_seed(tc.seed)
     gen = torch.Generator().manual_seed(tc.seed)
 
@@ -136,6 +147,8 @@ def _train_network(
     net = IPCNetwork(mc)
     net.set_normalisation(fit.x, fit.y, fit.yhat)
     x, y, yhat = _tensors(fit)
+    if tc.start_at_estimate:
+        net.start_at_estimate()
     if tc.center_warm_start:
         warm_start_center(net, x, y, yhat)
     opt = torch.optim.Adam(net.parameters(), lr=tc.lr)
@@ -192,6 +205,76 @@ def _train_network(
     return net, history
 
 
+def _candidate(fit: PerceptionDataset, val: PerceptionDataset, mc: ModelConfig, tc: TrainConfig) -> Candidate:
+    """Train one candidate on ``fit`` and measure it on ``val`` (raw miss rate, mean log-volume)."""
+    try:
+        model = IPCModel(_train_network(fit, mc, tc, False)[0])
+        centers, shapes = model.raw_arrays(val.x, val.yhat)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            logdet = np.linalg.slogdet(shapes)[1]
+            g = np.linalg.norm(np.einsum("bij,bj->bi", shapes, val.y - centers), axis=1)
+        misses = int(np.sum(~(g <= 1.0)))  # a non-finite score is a miss
+        volume = float(np.mean(-logdet)) if np.isfinite(logdet).all() else math.inf
+    except NonFiniteLossError:
+        misses, volume = len(val), math.inf
+    return Candidate(alpha=tc.alpha, lam=tc.lam, batch_size=tc.batch_size, val_n=len(val),
+                     val_misses=misses, val_log_volume=volume)  # fmt: skip
+
+
+def select_hinge(
+    train_data: PerceptionDataset,
+    model_config: ModelConfig,
+    train_config: TrainConfig,
+    rule: HingeSelection,
+    progress: bool = False,
+) -> tuple[TrainConfig, SelectionRecord]:
+    """Choose ``alpha``, ``lam`` and the batch size by ``rule`` on held-out training rows.
+
+    See :mod:`ipcverify.selection`. Only ``train_data`` is used: a share of it is held out
+    (seeded by ``train_config.seed``), each candidate of the grid is trained on the rest
+    with ``train_config``'s other settings, and the rule picks one.
+
+    Returns
+    -------
+    TrainConfig
+        ``train_config`` with the chosen ``alpha``, ``lam`` and ``batch_size``.
+    SelectionRecord
+        Every candidate's held-out miss rate and log-volume, and the choice.
+
+    Examples
+    --------
+    >>> from ipcverify.synthetic import make_lagged_perception
+    >>> ds = make_lagged_perception(300, seed=0)
+    >>> mc = ModelConfig.recipe("paper", x_dim=6, y_dim=3, hidden=(8, 8))
+    >>> tc, rec = select_hinge(ds, mc, TrainConfig.recipe("paper", epochs=1),
+    ...                        HingeSelection(alphas=(0.1, 1.0), lams=(0.01,)))
+    >>> len(rec.candidates), tc.alpha == rec.chosen.alpha
+    (2, True)
+    """
+    if model_config.lowrank:
+        raise InvalidInputError("the hinge selection is for the paper's heads (recipes 'paper', 'v1')")
+    parts = train_data.split((1 - rule.val_fraction, 0.0, rule.val_fraction), seed=train_config.seed)
+    if parts.train is None or parts.test is None:
+        raise InvalidInputError(
+            f"too few training rows ({len(train_data)}) to hold out {rule.val_fraction:g} of them for the "
+            "hinge selection; give more data, or set --alpha, --lam and --batch-size yourself"
+        )
+    started = time.perf_counter()
+    candidates = []
+    grid = rule.grid()
+    with Progress(disable=not progress, transient=True) as bar:
+        task = bar.add_task("choosing alpha, lambda, batch size", total=len(grid))
+        for alpha, lam, batch in grid:
+            cfg = dataclasses.replace(train_config, alpha=alpha, lam=lam, batch_size=batch)
+            candidates.append(_candidate(parts.train, parts.test, model_config, cfg))
+            bar.advance(task)
+    record = dataclasses.replace(rule.choose(candidates), seconds=time.perf_counter() - started)
+    best = record.chosen
+    return dataclasses.replace(
+        train_config, alpha=best.alpha, lam=best.lam, batch_size=best.batch_size
+    ), record
+
+
 def train(
     train_data: PerceptionDataset,
     model_config: ModelConfig | None = None,
@@ -199,6 +282,7 @@ def train(
     progress: bool = False,
     *,
     recipe: str = DEFAULT_RECIPE,
+    select: HingeSelection | None = None,
 ) -> TrainResult:
     """Learn an IPC from a perception log.
 
@@ -217,6 +301,12 @@ def train(
     recipe : {"tight", "v1", "paper"}
         Where the configurations not given come from (``ipcverify.architecture.RECIPES``).
         A configuration that is given is used as it is.
+    select : HingeSelection, optional
+        Choose ``alpha``, ``lam`` and the batch size by this rule on held-out training rows
+        (:func:`select_hinge`), then train on all of ``train_data`` with them; the record is
+        stored as ``metadata["selection"]``. Default: :class:`HingeSelection()` for the recipe
+        ``"paper"`` when no ``train_config`` is given (the paper states none of the three),
+        none otherwise.
 
     Returns
     -------
@@ -251,6 +341,11 @@ def train(
             f"model expects x_dim={mc.x_dim}, y_dim={mc.y_dim} but the data has "
             f"x_dim={train_data.x_dim}, y_dim={train_data.y_dim}"
         )
+    if select is None and train_config is None and recipe in _SELECTED_RECIPES:
+        select = HingeSelection()
+    record = None
+    if select is not None:
+        tc, record = select_hinge(train_data, mc, tc, select, progress)
     net: Network
     if mc.lowrank:
         net, history = train_lowrank(train_data, mc, tc, progress)
@@ -269,4 +364,6 @@ def train(
         "training_inputs": input_ranges(train_data),  # calibration data far outside them: a warning
         "history": history,
     }
+    if record is not None:
+        metadata["selection"] = record.to_dict()
     return TrainResult(IPCModel(net, None, metadata), history)

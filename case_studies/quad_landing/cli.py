@@ -11,6 +11,7 @@ value, a bad config file, an output path that cannot be written) prints one
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import click
 from rich.console import Console
@@ -21,6 +22,7 @@ from case_studies.quad_landing.sim.config import SimConfig, load_config
 from case_studies.quad_landing.sim.framebuffer import MAX_BUFFER_SIZE
 from ipcverify.cli.app import run_group
 from ipcverify.errors import InvalidInputError
+from ipcverify.files import json_data
 
 __all__ = ["quad", "main"]
 
@@ -212,6 +214,29 @@ def summarize_command(out: str) -> None:
     click.echo(results_markdown(json.loads(path.read_text())))
 
 
+@quad.command("paper-ablation")
+@click.argument("out", type=click.Path(file_okay=False, exists=True))
+@click.option("--runs", type=click.IntRange(min=1), default=30, show_default=True,
+              help="Monte Carlo landings per flown variant.")  # fmt: skip
+@click.option(
+    "--jobs", "-j", type=click.IntRange(1, 1024), default=2, show_default=True, help="Worker processes."
+)
+@_config_option
+@click.option("--settings", "settings_path", type=click.Path(dir_okay=False), default=None,
+              help="The TOML file the reproduction in OUT ran with, if any.")  # fmt: skip
+def paper_ablation_command(
+    out: str, runs: int, jobs: int, config_path: str | None, settings_path: str | None
+) -> None:
+    """Why the paper's IPC does not land: its method changed one part at a time, on OUT's data."""
+    from case_studies.quad_landing.reproduction.config import load_reproduce_config
+    from case_studies.quad_landing.reproduction.paper_ablation import ablation_markdown, run_paper_ablation
+
+    result = run_paper_ablation(out, runs=runs, config=load_reproduce_config(settings_path),
+                                sim_config=_config(config_path), jobs=jobs)  # fmt: skip
+    done = f"{result['seconds']} s; wrote {out}/paper_ablation.json, .md and .png"
+    console.print(ablation_markdown(result) + "\n" + done, markup=False, highlight=False, soft_wrap=True)
+
+
 @quad.command("reproduce")
 @click.option(
     "--out",
@@ -249,16 +274,27 @@ def summarize_command(out: str) -> None:
     default=None,
     help="TOML file overriding reproduce.toml (sizes, landing, IPC recipe).",
 )
+@click.option(
+    "--fly-uncalibrated",
+    is_flag=True,
+    help="Also fly paper_raw, the paper's IPC as trained: NO guarantee (the paper's own protocol).",
+)
 @click.option("--quiet", is_flag=True, help="No progress bars.")
 def reproduce_command(out: str, quick: bool, jobs: int | None, backend: str, mc_runs: int | None,
-                      config_path: str | None, settings_path: str | None, quiet: bool) -> None:  # fmt: skip
+                      config_path: str | None, settings_path: str | None, fly_uncalibrated: bool,
+                      quiet: bool) -> None:  # fmt: skip
     """Reproduce the paper's application study: Table I, safe landing, certified vs empirical."""
     from case_studies.quad_landing.reproduction.config import load_reproduce_config
+    from case_studies.quad_landing.reproduction.markdown import contracts_markdown
     from case_studies.quad_landing.reproduction.pipeline import reproduce
     from case_studies.quad_landing.reproduction.table1 import table1_text
 
-    overrides = {"sizes": {"mc_runs": mc_runs}} if mc_runs is not None else None
-    settings = load_reproduce_config(settings_path, overrides, quick=quick)
+    overrides: dict[str, dict[str, Any]] = {}
+    if mc_runs is not None:
+        overrides["sizes"] = {"mc_runs": mc_runs}
+    if fly_uncalibrated:
+        overrides["paper"] = {"fly_uncalibrated": True}
+    settings = load_reproduce_config(settings_path, overrides or None, quick=quick)
     result = reproduce(out, config=settings, sim_config=_config(config_path), n_jobs=jobs, backend=backend,
                        progress=not quiet, console=err_console)  # fmt: skip
     s = result.summary
@@ -268,12 +304,17 @@ def reproduce_command(out: str, quick: bool, jobs: int | None, backend: str, mc_
     bound = land.ipc.certified
     if bound is None:  # pragma: no cover - LandingExperiment requires it
         raise InvalidInputError("the landing results carry no certified bound")
+    raw = s.contracts["paper_raw"]
     lines = [
+        "the three contracts (paper_raw: the paper's IPC as trained, uncalibrated -- NO guarantee):",
+        contracts_markdown(json_data(s)),
+        "" if raw.monte_carlo is not None else "paper_raw was not flown: pass --fly-uncalibrated to fly it",
+        "default_calibrated, Table I:",
         table1_text(s.table1),
         f"landing at buffer size {land.buffer_size} ({ipc.runs} Monte Carlo runs each): "
-        f"IPC {ipc.safe} safe / {ipc.unsafe} unsafe / {ipc.aborted} aborted; "
+        f"default_calibrated {ipc.safe} safe / {ipc.unsafe} unsafe / {ipc.aborted} aborted; "
         f"baseline {base.safe} safe / {base.unsafe} unsafe / {base.aborted} aborted",
-        f"paper-style runs: IPC {paper_ipc.safe}/{paper_ipc.runs} safe, baseline "
+        f"paper-style runs: default_calibrated {paper_ipc.safe}/{paper_ipc.runs} safe, baseline "
         f"{paper_base.unsafe}/{paper_base.runs} unsafe",
         f"certified P(unsafe) <= {bound.union_bound:.4g} "
         f"(refined {bound.refined_bound:.4g}) vs empirical {ipc.unsafe}/{ipc.runs}; "

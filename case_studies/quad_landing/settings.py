@@ -32,6 +32,7 @@ __all__ = [
     "DEFAULTS_PATH",
     "REPRODUCE_PATH",
     "PAPER_HEAD_PATH",
+    "V1_HEAD_PATH",
     "ConfigError",
     "TomlSection",
     "Range",
@@ -47,8 +48,10 @@ __all__ = [
 DEFAULTS_PATH = Path(__file__).with_name("defaults.toml")
 #: The reproduction's settings, shipped beside the code.
 REPRODUCE_PATH = Path(__file__).with_name("reproduce.toml")
-#: The paper's IPC for the reproduction: ``reproduce --settings`` this file (``docs/reproduce.md``).
+#: The paper's IPC (``[paper]``), stated in full: ``reproduce --settings`` this file (``docs/reproduce.md``).
 PAPER_HEAD_PATH = Path(__file__).with_name("paper_head.toml")
+#: ipcverify's earlier ``v1`` head in the default contract's place (``docs/reproduce.md``).
+V1_HEAD_PATH = Path(__file__).with_name("v1_head.toml")
 
 #: A ``[low, high]`` pair of a settings file.
 Range = tuple[float, float]

@@ -229,6 +229,8 @@ def certify_cmd(
     console.print(cert.statement, soft_wrap=True, markup=False)
     table = Table(show_header=False)
     table.add_row("parameters p", f"{cert.model.n_parameters:,}")
+    if cert.model.selection is not None:
+        table.add_row("unstated settings chosen", str(cert.model.selection.get("summary", "")))
     if cert.calibration is not None:
         c = cert.calibration
         table.add_row("calibration", f"{c.mode}, epsilon={c.epsilon:g}, delta={c.delta:g}, n={c.n}")

@@ -111,6 +111,11 @@ def _open(path: str | os.PathLike[str], typestore: str | None) -> Iterator[Any]:
         raise DataError(
             f"{p}: not a bag: use a ROS 1 .bag file, a ROS 2 bag directory, or a .mcap / .db3 file"
         )
+    if p.is_dir() and not (p / "metadata.yaml").is_file():
+        raise DataError(
+            f"{p}: a directory without metadata.yaml is not a ROS 2 bag; give the bag directory (the one "
+            "holding metadata.yaml), or a .bag / .mcap / .db3 file"
+        )
     store = None
     if typestore is not None:
         if typestore not in typestore_names():

@@ -279,7 +279,9 @@ def test_bad_model_config_and_inputs():
         ModelConfig(x_dim=1, y_dim=1, linear_center="yes")  # type: ignore[arg-type]
     with pytest.raises(InvalidInputError, match="build it with ipcverify.model.build_network"):
         IPCNetwork(ModelConfig(x_dim=1, y_dim=1))
-    with pytest.raises(InvalidInputError, match="center_warm_start is for the paper's heads"):
+    with pytest.raises(
+        InvalidInputError, match="center_warm_start and start_at_estimate are for the paper's heads"
+    ):
         train(_heteroscedastic(50, 0)[0], train_config=TrainConfig(epochs=1, center_warm_start=True))
     m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(4,), param="cholesky")))
     with pytest.raises(InvalidInputError, match=r"expects x of shape \(B, 2\)"):

@@ -45,7 +45,7 @@ class Contract(Protocol):
 
     @property
     def name(self) -> str:
-        """Short label (``"ipc"``, ``"baseline"``)."""
+        """Short label (``"ipc"``, ``"baseline"``, ``"paper_raw"``, ...)."""
         ...
 
     def decide(self, measurement: Measurement, target: Box) -> QueryDecision:
@@ -69,19 +69,32 @@ class LearnedContract:
         Trained on ``x_C`` (12) and ``yhat_C`` (3), with a calibration attached.
     name : str
         Label in results.
+    uncalibrated : bool
+        Fly the network's own, uncalibrated sets (the paper's protocol: its IPC flew as
+        trained). They carry **no guarantee**; this must be asked for explicitly, and a
+        calibrated model is refused with it (its calibration would be ignored).
 
     Raises
     ------
     InvalidInputError
-        If the model has no calibration (its sets carry no guarantee) or the wrong dimensions.
+        If the model has no calibration (its sets carry no guarantee) and ``uncalibrated``
+        is not set, or the wrong dimensions.
     """
 
     model: IPCModel
     name: str = "ipc"
+    uncalibrated: bool = False
     _queries: dict[tuple[float, ...], IPCQuery] = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
-        self.model.require_calibration()
+        if self.uncalibrated:
+            if self.model.calibration is not None:
+                raise InvalidInputError(
+                    "uncalibrated=True flies the raw network, but this model carries a calibration; "
+                    "pass the model without it (model.with_calibration(None)) or drop uncalibrated"
+                )
+        else:
+            self.model.require_calibration()
         if (self.model.config.x_dim, self.model.config.y_dim) != (12, 3):
             raise InvalidInputError(
                 f"the IPC must map x_C (12) and yhat_C (3); the model has x_dim={self.model.config.x_dim}, "

@@ -17,7 +17,7 @@ from case_studies.quad_landing.reproduction.table1 import Table1
 if TYPE_CHECKING:
     from case_studies.quad_landing.reproduction.results import LandingExperiment
 
-__all__ = ["Claim", "evaluate_claims"]
+__all__ = ["Claim", "evaluate_claims", "table1_claims"]
 
 
 @dataclass(frozen=True)
@@ -59,7 +59,8 @@ def _rate_claim(table: Table1, b: int, low: float, high: float, statement: str) 
     )
 
 
-def _table1_claims(table: Table1) -> dict[str, Claim]:
+def table1_claims(table: Table1) -> dict[str, Claim]:
+    """Table I's claims: buffer 1 at most 1 %, rising, buffer 2 at most 10 %, buffer 5 in [2, 30] %."""
     b1 = table.row(1)
     rising = table.rising()
     return {
@@ -168,7 +169,7 @@ def evaluate_claims(table: Table1, landing: LandingExperiment) -> dict[str, Clai
         ``baseline_unsafe_in_most_runs``, ``certified_bound_at_least_empirical``.
     """
     return {
-        **_table1_claims(table),
+        **table1_claims(table),
         **_ipc_claims(landing),
         "baseline_unsafe_in_most_runs": _baseline_claim(landing),
         "certified_bound_at_least_empirical": _certified_claim(landing),

@@ -46,10 +46,12 @@ from case_studies.quad_landing.settings import (
 from case_studies.quad_landing.sim.framebuffer import MAX_BUFFER_SIZE
 from ipcverify.architecture import RECIPES
 from ipcverify.errors import InvalidInputError
+from ipcverify.selection import HingeSelection
 from ipcverify.training import TrainConfig
 
 __all__ = [
     "IpcParams",
+    "PaperParams",
     "Sizes",
     "AblationSizes",
     "ReproduceConfig",
@@ -82,9 +84,10 @@ class IpcParams(TomlSection):
     Parameters
     ----------
     recipe : str
-        The library's recipe (:data:`ipcverify.architecture.RECIPES`): ``"tight"``, ipcverify's
-        default (the reproduction's), or ``"v1"`` / ``"paper"``, the paper's heads and hinge
-        loss (``case_studies/quad_landing/paper_head.toml``).
+        The library's recipe (:data:`ipcverify.architecture.RECIPES`) of the contract
+        ``default_calibrated``: ``"tight"``, ipcverify's default, or ``"v1"``, its earlier
+        Cholesky head with the hinge loss (``case_studies/quad_landing/v1_head.toml``). The
+        paper's own network is :class:`PaperParams` (``[paper]``), always run beside it.
     hidden : tuple of int
         Hidden layer sizes of the network (:class:`ipcverify.model.ModelConfig`).
     train : TrainConfig
@@ -168,6 +171,90 @@ class IpcParams(TomlSection):
             "delta": self.delta,
             "coverage_quantile": self.coverage_quantile,
         }
+
+
+@dataclass(frozen=True, kw_only=True)
+class PaperParams(TomlSection):
+    """The paper's IPC in the reproduction (``[paper]`` of ``reproduce.toml``; :mod:`.paper_ipc`).
+
+    Parameters
+    ----------
+    hidden : tuple of int
+        The paper's hidden layers (64, 128).
+    epochs, lr : int, float
+        The paper's 20 epochs of Adam at 1e-3.
+    seed : int
+        Seeds the initialisation, the shuffling and the held-out share of the selection.
+    alphas, lams, batch_sizes : tuple
+        The candidates of the selection rule (the paper states none of the three).
+    target_miss, val_fraction : float
+        The selection rule: the smallest held-out log-volume with a raw held-out miss rate at
+        most ``target_miss``, on ``val_fraction`` of the training rows
+        (:class:`ipcverify.selection.HingeSelection`).
+    epsilon, delta : float
+        The PAC calibration of ``paper_calibrated``.
+    coverage_quantile : float
+        Its domain of validity (as ``[ipc] coverage_quantile``).
+    fly_uncalibrated : bool
+        Fly ``paper_raw``, the uncalibrated network, in the landing runs (``reproduce
+        --fly-uncalibrated``; off by default). Its sets carry no guarantee, so this is an
+        explicit choice; Table I is measured either way.
+
+    Examples
+    --------
+    >>> PaperParams.defaults().hidden, PaperParams.defaults().fly_uncalibrated
+    ((64, 128), False)
+    >>> PaperParams.defaults().selection().target_miss
+    0.002
+    """
+
+    toml_file = REPRODUCE_PATH
+    toml_section = "paper"
+
+    hidden: tuple[int, ...]
+    epochs: int
+    lr: float
+    seed: int
+    alphas: tuple[float, ...]
+    lams: tuple[float, ...]
+    batch_sizes: tuple[int, ...]
+    target_miss: float
+    val_fraction: float
+    epsilon: float
+    delta: float
+    coverage_quantile: float
+    fly_uncalibrated: bool
+
+    def __post_init__(self) -> None:
+        h = tuple(self.hidden)
+        if not h or any(isinstance(v, bool) or not isinstance(v, int) or v < 1 for v in h):
+            raise ConfigError(f"paper.hidden must be a list of positive integers, got {self.hidden!r}")
+        object.__setattr__(self, "hidden", h)
+        if not isinstance(self.fly_uncalibrated, bool):
+            raise ConfigError(f"paper.fly_uncalibrated must be true or false, got {self.fly_uncalibrated!r}")
+        for name in ("epsilon", "delta", "coverage_quantile"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0.0 < v < 1.0:
+                raise ConfigError(f"paper.{name} must lie strictly between 0 and 1, got {v!r}")
+        try:
+            self.selection()
+            self.train_config()
+        except InvalidInputError as exc:
+            raise ConfigError(f"[paper]: {exc}") from None
+
+    def selection(self) -> HingeSelection:
+        """The rule that chooses ``alpha``, ``lambda`` and the batch size."""
+        return HingeSelection(
+            alphas=tuple(float(a) for a in self.alphas),
+            lams=tuple(float(v) for v in self.lams),
+            batch_sizes=tuple(self.batch_sizes),
+            target_miss=float(self.target_miss),
+            val_fraction=float(self.val_fraction),
+        )
+
+    def train_config(self) -> TrainConfig:
+        """The recipe ``"paper"``'s training with this section's epochs, step size and seed."""
+        return TrainConfig.recipe("paper", epochs=self.epochs, lr=float(self.lr), seed=self.seed)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -283,6 +370,7 @@ class ReproduceConfig:
     pilot: PilotParams
     landing: LandingParams
     ipc: IpcParams
+    paper: PaperParams
     sizes: Sizes
     ablation: AblationSizes
     quick: bool = False
@@ -296,7 +384,16 @@ class ReproduceConfig:
 #: The sections of ``reproduce.toml`` and their dataclasses.
 REPRODUCE_SECTIONS: dict[str, type[TomlSection]] = {
     cls.toml_section: cls
-    for cls in (ScenarioParams, ApproachParams, PilotParams, LandingParams, IpcParams, Sizes, AblationSizes)
+    for cls in (
+        ScenarioParams,
+        ApproachParams,
+        PilotParams,
+        LandingParams,
+        IpcParams,
+        PaperParams,
+        Sizes,
+        AblationSizes,
+    )
 }
 
 

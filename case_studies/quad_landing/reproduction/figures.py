@@ -315,7 +315,13 @@ def plot_coverage(coverage: Mapping[str, Any]) -> Figure:
         test, q = np.asarray(dist["test"]), np.asarray(dist["queries"])
         top = float(max(test.max(initial=0), q.max(initial=0)))
         bins = np.linspace(0, top * 1.01 + 1e-9, 40).tolist()
-        ax.hist(test, bins=bins, density=True, alpha=0.5, label="held-out test samples (null)")
+        ax.hist(
+            test,
+            bins=bins,
+            density=True,
+            alpha=0.5,
+            label="held-out test samples (drawn like the calibration data)",
+        )
         ax.hist(q, bins=bins, density=True, alpha=0.5, label="closed-loop IPC queries")
         ax.axvline(
             coverage["threshold"],

@@ -3,7 +3,8 @@
 The recipe (:class:`.reproduction.config.IpcParams`, ``[ipc]`` of ``reproduce.toml``) is a
 library recipe on ``(x_C, yhat_C)`` with the paper's hidden layers (64, 128): ipcverify's
 default ``tight`` (an ensemble with a low-rank covariance head, trained by likelihood), or the
-paper's network and hinge loss with ``paper_head.toml`` (``docs/reproduce.md``). It is trained
+earlier ``v1`` head with ``v1_head.toml`` (``docs/reproduce.md``; the paper's own network is
+:mod:`.paper_ipc`). It is trained
 (:func:`ipcverify.training.train`), then calibrated in PAC
 mode on a separate calibration set (:func:`ipcverify.calibrate.calibrate`): with probability at least
 ``1 - delta`` over the calibration draw, a fresh sample from the calibration

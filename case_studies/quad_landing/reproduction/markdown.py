@@ -24,6 +24,7 @@ __all__ = [
     "claim_markdown",
     "unsafe_cell",
     "bound_words",
+    "contracts_markdown",
     "results_markdown",
 ]
 
@@ -35,15 +36,17 @@ def _pct(v: float) -> str:
     return f"{100 * v:.2f} %"
 
 
+def _cell(row: Mapping[str, Any]) -> str:
+    """``rate (k/n; [lo, hi] %)`` of one Table I row."""
+    lo, hi = row["interval"]
+    return f"{_pct(row['rate'])} ({row['violations']}/{row['n']}; [{100 * lo:.2f}, {100 * hi:.2f}] %)"
+
+
 def table1_markdown(summary: Mapping[str, Any]) -> str:
     """Table I with exact intervals, and the paper's row."""
     rows = summary["table1"]
     keys = sorted(rows, key=int)
-    cells = [
-        f"{_pct(rows[k]['rate'])} ({rows[k]['violations']}/{rows[k]['n']}; "
-        f"[{100 * rows[k]['interval'][0]:.2f}, {100 * rows[k]['interval'][1]:.2f}] %)"
-        for k in keys
-    ]
+    cells = [_cell(rows[k]) for k in keys]
     lines = ["| buffer size | " + " | ".join(keys) + " |", "|---|" + "---|" * len(keys)]
     lines.append("| this reproduction | " + " | ".join(cells) + " |")
     lines.append("| paper | " + " | ".join(f"{_PAPER[k]:.2f} %" if k in _PAPER else "—" for k in keys) + " |")
@@ -131,9 +134,70 @@ def bound_words(bound: Mapping[str, Any]) -> str:
     )
 
 
+def contracts_markdown(summary: Mapping[str, Any]) -> str:
+    """The three contracts side by side: Table I, landings, hover half-widths, and the paper's claims.
+
+    Examples
+    --------
+    >>> c = {"table1": {"1": 0.0}, "landing": {"runs": 30, "safe": 30, "unsafe": 0, "aborted": 0},
+    ...      "landing_paper_runs": {"runs": 10, "safe": 10, "unsafe": 0, "aborted": 0},
+    ...      "hover_half_widths": None, "claims": {}}
+    >>> contracts_markdown({"contracts": {"paper_raw": c}}).splitlines()[2]
+    '| paper_raw | 0.00 % | 10 / 0 / 0 | 30 / 0 / 0 of 30 | — |'
+    """
+    contracts = summary.get("contracts") or {}
+    if not contracts:
+        return ""
+    buffers = sorted(next(iter(contracts.values()))["table1"], key=int)
+    head = (
+        "| contract | " + " | ".join(f"Table I, b = {b}" for b in buffers)
+        + " | paper-style safe / unsafe / aborted | Monte Carlo safe / unsafe / aborted "
+        + "| hover half-widths x / y / z, median (cm) |"
+    )  # fmt: skip
+    lines = [head, "|---|" + "---|" * (len(buffers) + 3)]
+    for name, c in contracts.items():
+        t1 = " | ".join(_pct(c["table1"][b]) for b in buffers)
+        pr, mc = c.get("landing_paper_runs"), c.get("landing")
+        paper = "not flown" if pr is None else f"{pr['safe']} / {pr['unsafe']} / {pr['aborted']}"
+        monte = (
+            "not flown" if mc is None else f"{mc['safe']} / {mc['unsafe']} / {mc['aborted']} of {mc['runs']}"
+        )
+        hover = c.get("hover_half_widths") or {}
+        med = hover.get("median")
+        widths = "—" if med is None else " / ".join(f"{100 * v:.1f}" for v in med)
+        lines.append(f"| {name} | {t1} | {paper} | {monte} | {widths} |")
+    detail = [
+        "",
+        "| Table I with exact intervals | " + " | ".join(f"b = {b}" for b in buffers) + " |",
+        "|---|" + "---|" * len(buffers),
+    ]
+    for name, c in contracts.items():
+        rows = c.get("table1_detail") or {}
+        if rows:
+            detail.append(f"| {name} | " + " | ".join(_cell(rows[b]) for b in buffers) + " |")
+    if len(detail) > 3:
+        detail.append(
+            "| paper | " + " | ".join(f"{_PAPER[b]:.2f} %" if b in _PAPER else "—" for b in buffers) + " |"
+        )
+        lines += detail
+    claims = [
+        f"- {name}: " + "; ".join(
+            f"{cl['statement']}: {'holds' if cl['holds'] else 'does not hold'} ({cl['detail']})"
+            for cl in c["claims"].values()
+        )
+        for name, c in contracts.items()
+    ]  # fmt: skip
+    return "\n".join(lines) + (
+        "\n\n" + "\n".join(claims) if any(c["claims"] for c in contracts.values()) else ""
+    )
+
+
 def results_markdown(summary: Mapping[str, Any]) -> str:
-    """Everything the docs quote from a run: Table I, ages, ablation, landings, bound, timings."""
-    parts = ["### Table I", table1_markdown(summary)]
+    """Everything the docs quote: the contracts, Table I, ages, ablation, landings, bound, timings."""
+    parts = []
+    if summary.get("contracts"):
+        parts += ["### The three contracts", contracts_markdown(summary)]
+    parts += ["### Table I (default_calibrated)", table1_markdown(summary)]
     per = summary["camera_timing"]["per_buffer"]
     ages = " | ".join(
         f"{v['age_ms']['median']:.1f} ({v['age_ms']['p05']:.0f}–{v['age_ms']['p95']:.0f})"

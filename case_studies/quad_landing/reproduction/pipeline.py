@@ -47,6 +47,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from case_studies.quad_landing.data.datasets import DatasetSpec
 from case_studies.quad_landing.landing.contracts import Contract, LearnedContract, TrivialContract
 from case_studies.quad_landing.landing.runs import LandingRun
+from case_studies.quad_landing.landing.state_machine import decision_target
 from case_studies.quad_landing.reproduction.campaign import default_jobs, run_campaign, summarize
 from case_studies.quad_landing.reproduction.certified import (
     certified_bound,
@@ -57,13 +58,21 @@ from case_studies.quad_landing.reproduction.certified import (
 from case_studies.quad_landing.reproduction.claims import evaluate_claims
 from case_studies.quad_landing.reproduction.collection import DatasetPlan, collect_plan, spec_path
 from case_studies.quad_landing.reproduction.config import ReproduceConfig, load_reproduce_config
-from case_studies.quad_landing.reproduction.figures import draw_figures
+from case_studies.quad_landing.reproduction.contract_figures import plot_contracts
+from case_studies.quad_landing.reproduction.contracts import (
+    CONTRACTS,
+    ContractSummary,
+    contract_claims,
+    hover_half_widths,
+)
+from case_studies.quad_landing.reproduction.figures import draw_figures, figure_png
 from case_studies.quad_landing.reproduction.learn import (
     cached_ipc,
     calibration_summary,
     certified_epsilon,
     flight_level_check,
 )
+from case_studies.quad_landing.reproduction.paper_ipc import cached_paper_ipc
 from case_studies.quad_landing.reproduction.report_page import render_report
 from case_studies.quad_landing.reproduction.results import (
     PAPER_LANDING,
@@ -73,7 +82,7 @@ from case_studies.quad_landing.reproduction.results import (
     LandingExperiment,
     ReproductionSummary,
 )
-from case_studies.quad_landing.reproduction.table1 import table1
+from case_studies.quad_landing.reproduction.table1 import Table1, table1
 from case_studies.quad_landing.reproduction.timing_stats import camera_timing_summary, table1_protocol
 from case_studies.quad_landing.reproduction.variants import (
     VariantStudy,
@@ -371,6 +380,85 @@ def _judge_landing(
     return landing, coverage
 
 
+def _flown(run: _Run, contract: Contract, k: int) -> tuple[tuple[LandingRun, ...], tuple[LandingRun, ...]]:
+    """The paper-style and Monte Carlo runs of one contract at buffer size ``k``."""
+    sizes, at = run.cfg.sizes, f" (buffer {k})"
+    paper = _campaign(run, f"paper runs: {contract.name}" + at, contract, sizes.paper_runs, SEEDS["paper"], k)
+    mc = _campaign(
+        run, f"Monte Carlo: {contract.name}" + at, contract, sizes.mc_runs, SEEDS["monte_carlo"], k
+    )
+    return paper, mc
+
+
+def _contract(
+    run: _Run,
+    name: str,
+    model: IPCModel,
+    table: Table1,
+    flown: tuple[tuple[LandingRun, ...], tuple[LandingRun, ...]] | None,
+    **extra: Any,
+) -> ContractSummary:
+    """One contract's summary: Table I, its landings, its hover sets, its certified bound and claims."""
+    info, delta = CONTRACTS[name], REPORT_DELTA
+    target = decision_target(run.cfg.landing.tracking_tolerance, run.cfg.landing.target)
+    paper = mc = hover = bound = versus = None
+    if flown is not None:
+        paper_runs, mc_runs = flown
+        paper, mc = summarize(paper_runs, delta), summarize(mc_runs, delta)
+        hover = hover_half_widths([*paper_runs, *mc_runs], target)
+        if info.calibrated:
+            queries = [sum(q.detected for q in r.queries) for r in mc_runs]
+            eps, cal_delta = certified_epsilon(model), model.require_calibration().summary().delta
+            bound = certified_bound(eps, cal_delta, max_queries=run.cfg.landing.max_measurements,
+                                    queries_per_run=queries)  # fmt: skip
+            versus = unsafe_vs_certified(mc_runs, bound, delta)
+    return ContractSummary(
+        info=info, n_parameters=model.n_parameters, table1=table, monte_carlo=mc, paper=paper, hover=hover,
+        certified=bound, empirical_vs_certified=versus, claims=contract_claims(table, mc, paper, versus),
+        calibration=calibration_summary(model) if info.calibrated else None, **extra,
+    )  # fmt: skip
+
+
+def _paper_contracts(run: _Run, data: dict[str, PerceptionDataset]) -> dict[str, ContractSummary]:
+    """The paper's IPC trained the paper's way at buffer size 1, raw and calibrated (:mod:`.paper_ipc`)."""
+    params, sizes, k = run.cfg.paper, run.cfg.sizes, run.landing_buffer
+    with run.stages.stage("train + calibrate the paper's IPC", 1):
+        models, _ = cached_paper_ipc(run.out_dir / "models", data["train_k1"], data["calibration_k1"], params)
+    with run.stages.stage("certify the paper's IPC", 1):
+        certificate = _certify(
+            models.calibrated, data["test_k1"], run.out_dir / "certificates" / "paper_calibrated"
+        )
+    pilots = {b: data[f"pilot_k{b}"] for b in sizes.buffers}
+    selection = models.raw.metadata.get("selection")
+    raw_flown = None
+    if params.fly_uncalibrated:
+        raw_flown = _flown(run, LearnedContract(models.raw, "paper_raw", uncalibrated=True), k)
+    why = (
+        None if params.fly_uncalibrated else "not flown: no guarantee (reproduce --fly-uncalibrated flies it)"
+    )
+    cal_flown = _flown(run, LearnedContract(models.calibrated, "paper_calibrated"), k)
+    return {
+        "paper_raw": _contract(
+            run,
+            "paper_raw",
+            models.raw,
+            table1(models.raw, pilots, REPORT_DELTA),
+            raw_flown,
+            selection=selection,
+            not_flown=why,
+        ),  # fmt: skip
+        "paper_calibrated": _contract(
+            run,
+            "paper_calibrated",
+            models.calibrated,
+            table1(models.calibrated, pilots, REPORT_DELTA),
+            cal_flown,
+            selection=selection,
+            certificate=certificate,
+        ),  # fmt: skip
+    }
+
+
 def _write_bytes(path: Path, data: bytes) -> None:
     atomic_write(path, lambda fh: fh.write(data))
 
@@ -443,9 +531,19 @@ def reproduce(
             e = run.extra_buffer
             extra_flights = _fly_campaigns(run, models[e], e, sizes.extra_landing_runs)
             extra, _ = _judge_landing(run, models[e], data, extra_flights)
+        contracts = _paper_contracts(run, data)
+        contracts["default_calibrated"] = _contract(
+            run,
+            "default_calibrated",
+            models[k],
+            table,
+            (flights.paper_ipc, flights.mc_ipc),
+            certificate=ipcs[1].certificate,
+        )
         with run.stages.stage("figures and report", 1):
             figures = draw_figures(table, ablation, flights.paper_ipc, flights.paper_baseline, flights.mc_ipc,
                                    flights.mc_baseline, coverage, frames, sizes.buffers)  # fmt: skip
+            figures["contracts"] = figure_png(plot_contracts(contracts, landing.baseline.monte_carlo))
     summary = ReproductionSummary(
         quick=cfg.quick,
         settings=cfg,
@@ -463,6 +561,7 @@ def reproduce(
         camera_timing=camera_timing_summary(run.sim, frames, sizes.buffers),
         table1_protocol=table1_protocol(cfg, frames),
         claims=evaluate_claims(table, landing),
+        contracts=contracts,
         machine=_machine(load_start),
         jobs=run.jobs,
         backend=run.backend,

@@ -16,98 +16,41 @@ True
 
 from __future__ import annotations
 
-import base64
-import html
-from collections.abc import Mapping, Sequence
+import math
+from collections.abc import Mapping
 from typing import Any
 
+from case_studies.quad_landing.reproduction.html_parts import CSS, esc, figure, interval, num, pct, table, yes
 from case_studies.quad_landing.reproduction.markdown import unsafe_cell
+from case_studies.quad_landing.reproduction.report_contracts import contracts_section, why_not_held
 
 __all__ = ["render_report"]
-
-_CSS = """
-body{font-family:Georgia,'Times New Roman',serif;max-width:1000px;margin:2em auto;padding:0 1.2em;
-color:#1d1d1f;line-height:1.5;font-size:16px}
-h1{font-size:1.7em;margin-bottom:.2em} h2{font-size:1.3em;margin-top:2em;border-bottom:1px solid #ccc}
-h3{font-size:1.08em;margin-top:1.4em} p.lead{font-size:1.05em}
-table{border-collapse:collapse;margin:.6em 0 1.2em;font-family:system-ui,sans-serif;font-size:.88em}
-td,th{border:1px solid #bbb;padding:.28em .6em;text-align:right;font-variant-numeric:tabular-nums;
-white-space:nowrap} th{background:#eef1f5} td.l,th.l{text-align:left;white-space:normal}
-caption{caption-side:top;text-align:left;font-style:italic;padding-bottom:.3em}
-.ok{color:#1b7f3b;font-weight:600} .no{color:#b42318;font-weight:600} .muted{color:#555;font-size:.92em}
-figure{margin:1em 0} figure img{max-width:100%} figcaption{font-size:.9em;color:#333}
-.box{background:#f5f7fa;border-left:4px solid #1b5e7f;padding:.5em 1em;margin:.9em 0}
-"""
-
-
-def _e(v: Any) -> str:
-    return html.escape(str(v))
-
-
-def _pct(v: Any, digits: int = 2) -> str:
-    return "—" if v is None else f"{100 * float(v):.{digits}f} %"
-
-
-def _num(v: Any, digits: int = 4) -> str:
-    if v is None:
-        return "—"
-    if isinstance(v, bool):
-        return "yes" if v else "no"
-    if isinstance(v, int):
-        return str(v)
-    return f"{float(v):.{digits}g}"
-
-
-def _interval(iv: Sequence[float] | None) -> str:
-    return "—" if not iv else f"[{100 * iv[0]:.2f}, {100 * iv[1]:.2f}] %"
-
-
-def _table(
-    header: Sequence[str], rows: Sequence[Sequence[Any]], caption: str = "", text: Sequence[int] = (0,)
-) -> str:
-    """A table with a header row; the columns in ``text`` are left-aligned and wrap, the rest are numbers."""
-
-    def cls(i: int) -> str:
-        return ' class="l"' if i in text else ""
-
-    th = "".join(f"<th{cls(i)}>{_e(h)}</th>" for i, h in enumerate(header))
-    body = "".join("<tr>" + "".join(f"<td{cls(i)}>{c}</td>" for i, c in enumerate(r)) + "</tr>" for r in rows)
-    cap = f"<caption>{_e(caption)}</caption>" if caption else ""
-    return f"<table>{cap}<thead><tr>{th}</tr></thead><tbody>{body}</tbody></table>"
-
-
-def _figure(figs: Mapping[str, bytes], name: str, caption: str) -> str:
-    if name not in figs:
-        return ""
-    data = base64.b64encode(figs[name]).decode("ascii")
-    return (
-        f'<figure><img alt="{_e(caption)}" src="data:image/png;base64,{data}">'
-        f"<figcaption>{_e(caption)}</figcaption></figure>"
-    )
-
-
-def _yes(v: Any) -> str:
-    return '<span class="ok">yes</span>' if v else '<span class="no">no</span>'
 
 
 def _claims(summary: Mapping[str, Any]) -> str:
     claims = summary.get("claims") or {}
-    rows = [
-        (
-            _e(c.get("statement") or k.replace("_", " ")),
-            _yes(c["holds"]),
-            _yes(c["supported"]),
-            _e(c["detail"]),
+    default = (summary.get("contracts") or {}).get("default_calibrated") or {}
+    quick = bool(summary.get("quick"))
+
+    def numbers(k: str, c: Mapping[str, Any]) -> str:
+        if c["holds"] or not default:
+            return esc(c["detail"])
+        return (
+            esc(c["detail"]) + f"<br><span class='muted'>why: {esc(why_not_held(k, default, quick))}</span>"
         )
+
+    rows = [
+        (esc(c.get("statement") or k.replace("_", " ")), yes(c["holds"]), yes(c["supported"]), numbers(k, c))
         for k, c in claims.items()
     ]
     if not rows:
         return ""
     return (
-        "<h2>Claims</h2><p>Each claim is checked twice: <i>holds</i> reads it off the observed counts; "
+        "<h2>Claims of ipcverify's default contract (default_calibrated)</h2>"
+        "<p>Each claim is checked twice: <i>holds</i> reads it off the observed counts; "
         "<i>supported</i> asks whether the sample sizes establish it at 95 % confidence (exact "
         "Clopper–Pearson bounds).</p>"
-        + _table(["claim", "holds", "supported by the statistics", "numbers"], rows, text=(0, 3))
+        + table(["claim", "holds", "supported by the statistics", "numbers"], rows, text=(0, 3))
     )
 
 
@@ -121,19 +64,19 @@ def _table1(summary: Mapping[str, Any], figs: Mapping[str, bytes]) -> str:
     conf = rows[keys[0]]["confidence"]
     body = [
         (
-            _e(k),
-            _e(rows[k]["n"]),
-            _e(rows[k]["violations"]),
-            _pct(rows[k]["rate"]),
-            _interval(rows[k]["interval"]),
-            _pct(rows[k].get("paper_rate")),
+            esc(k),
+            esc(rows[k]["n"]),
+            esc(rows[k]["violations"]),
+            pct(rows[k]["rate"]),
+            interval(rows[k]["interval"]),
+            pct(rows[k].get("paper_rate")),
         )
         for k in keys
     ]
     text = (
         "<h2>1. Table I: the contract holds where it was learned</h2>"
-        f"<p>{_e(proto.get('training', 'The IPC was learned at buffer size 1.'))}. "
-        f"{_e(proto.get('test', ''))}"
+        f"<p>{esc(proto.get('training', 'The IPC was learned at buffer size 1.'))}. "
+        f"{esc(proto.get('test', ''))}"
         + (
             f" (median speed {speed['median']:.2f} m/s, 90th percentile {speed['p90']:.2f} m/s)."
             if speed
@@ -145,12 +88,12 @@ def _table1(summary: Mapping[str, Any], figs: Mapping[str, bytes]) -> str:
     )
     return (
         text
-        + _table(
+        + table(
             ["buffer size", "n", "violations", "rate", "95 % CP interval", "paper"],
             body,
             "Table I. Violation rate of the IPC learned at buffer size 1.",
         )  # fmt: skip
-        + _figure(
+        + figure(
             figs,
             "table1",
             "Figure 1. Table I with Clopper–Pearson intervals (circles) and the paper's "
@@ -167,11 +110,11 @@ def _timing(summary: Mapping[str, Any], figs: Mapping[str, bytes]) -> str:
     per = t["per_buffer"]
     rows = [
         (
-            _e(b),
-            _e(f"{v['age_ms']['median']:.1f}"),
-            _e(f"{v['age_ms']['p05']:.1f} – {v['age_ms']['p95']:.1f}"),
-            _e(f"{v['error_mm']['median']:.1f}"),
-            _e(f"{v['error_mm']['p95']:.1f}"),
+            esc(b),
+            esc(f"{v['age_ms']['median']:.1f}"),
+            esc(f"{v['age_ms']['p05']:.1f} – {v['age_ms']['p95']:.1f}"),
+            esc(f"{v['error_mm']['median']:.1f}"),
+            esc(f"{v['error_mm']['p95']:.1f}"),
         )
         for b, v in sorted(per.items(), key=lambda kv: int(kv[0]))
     ]
@@ -181,19 +124,19 @@ def _timing(summary: Mapping[str, Any], figs: Mapping[str, bytes]) -> str:
         f"clock (random phase, rate offset), {1e3 * p['exposure']:.1f} ms exposure and "
         f"{1e3 * p['readout']:.1f} ms rolling-shutter readout rendered into the image, "
         f"{1e3 * p['isp_latency']:.1f} ms ISP latency with jitter, a V4L2 queue of <i>b</i> buffers "
-        f"(policy “{_e(p['policy'])}”) drained by a reader loop that needs {t['reader_mean_ms']:.1f} ms per "
+        f"(policy “{esc(p['policy'])}”) drained by a reader loop that needs {t['reader_mean_ms']:.1f} ms per "
         f"frame on average on the Raspberry Pi 3 (the camera delivers one every "
         f"{t['camera_period_ms']:.1f} ms), "
         f"with stalls ({p['stall_rate']:g} per second), and a {p['mocap_rate']:g} Hz motion capture whose "
         "sample is paired with the image when the reader finishes. No parameter was fitted to Table I "
         "(sources in docs/case_study.md).</p>"
-        + _table(
+        + table(
             ["buffer size", "median age (ms)", "5–95 % age (ms)", "median error (mm)", "95 % error (mm)"],
             rows,
             "Table 2. Image age (image older than the paired state) and perception error on the "
             "Table I test flights.",
         )  # fmt: skip
-        + _figure(figs, "ages", "Figure 2. Image age per buffer size on the test flights.")
+        + figure(figs, "ages", "Figure 2. Image age per buffer size on the test flights.")
     )
 
 
@@ -206,24 +149,27 @@ def _ablation(summary: Mapping[str, Any], figs: Mapping[str, bytes]) -> str:
     order = {"reference": 0, "alone": 1, "removed": 2}
     rows = []
     for _, r in sorted(rows_in.items(), key=lambda kv: order.get(kv[1]["group"], 3)):
-        rates = [_pct(r["table1"][b]["rate"], 1) for b in buffers]
-        rows.append([_e(r["label"]), _e(r["group"]), *rates, _e(f"{r['median_age_ms'][buffers[0]]:.0f}")])
+        rates = [pct(r["table1"][b]["rate"], 1) for b in buffers]
+        rows.append([esc(r["label"]), esc(r["group"]), *rates, esc(f"{r['median_age_ms'][buffers[0]]:.0f}")])
     paper = summary.get("paper", {}).get("table1", {})
-    rows.append(["paper", "—", *[_pct(paper.get(b, paper.get(int(b))), 1) for b in buffers], "—"])
+    rows.append(["paper", "—", *[pct(paper.get(b, paper.get(int(b))), 1) for b in buffers], "—"])
     s = ab["sizes"]
     return (
         "<h3>2.1 Which error source makes which part of Table I</h3>"
         f"<p>Each configuration learns its own IPC at buffer size 1 ({s['n_train']} training and "
         f"{s['n_calibration']} calibration samples, PAC ε = {s['epsilon']:g}) and is tested on "
         f"{s['n_pilot']} pilot measurements per buffer size, the same flights for all. “Alone” keeps the "
-        "driver queue, without which the buffer size changes nothing.</p>"
-        + _table(
+        "driver queue, without which the buffer size changes nothing. An image age is how much older "
+        "the image is than the motion-capture state paired with it; it is negative when the state is "
+        "the older one, as where the motion capture's own latency (10 ms) outlasts what is left of the "
+        "camera's delay (rows without the driver queue or the camera's base latency).</p>"
+        + table(
             ["configuration", "group", *[f"b = {b}" for b in buffers], "median age at b = 1 (ms)"],
             rows,
             "Table 3. Ablation: Table I per configuration.",
             text=(0, 1),
         )  # fmt: skip
-        + _figure(
+        + figure(
             figs,
             "ablation",
             "Figure 3. Table I with each error source alone (left) and removed "
@@ -234,13 +180,13 @@ def _ablation(summary: Mapping[str, Any], figs: Mapping[str, bytes]) -> str:
 
 def _landing_row(side: Mapping[str, Any]) -> list[str]:
     return [
-        _e(side["runs"]),
-        _e(side["safe"]),
-        _e(unsafe_cell(side)),
-        _e(side["aborted"]),
-        _pct(side.get("unsafe_rate")),
-        _interval(side.get("unsafe_interval")),
-        _num(side.get("mean_queries"), 3),
+        esc(side["runs"]),
+        esc(side["safe"]),
+        esc(unsafe_cell(side)),
+        esc(side["aborted"]),
+        pct(side.get("unsafe_rate")),
+        interval(side.get("unsafe_interval")),
+        num(side.get("mean_queries"), 3),
     ]
 
 
@@ -257,10 +203,10 @@ def _landing_table(land: Mapping[str, Any], paper: Mapping[str, Any], caption: s
         ["baseline, Monte Carlo", *_landing_row(base)],
     ]
     if paper:
-        rows.append(["paper: IPC / baseline", _e(paper["runs"]),
-                     _e(f"{paper['ipc_safe']} / {paper['runs'] - paper['baseline_unsafe']}"),
-                     _e(f"0 / {paper['baseline_unsafe']}"), "—", "—", "—", "—"])  # fmt: skip
-    return _table(_LANDING_HEAD, rows, caption)
+        rows.append(["paper: IPC / baseline", esc(paper["runs"]),
+                     esc(f"{paper['ipc_safe']} / {paper['runs'] - paper['baseline_unsafe']}"),
+                     esc(f"0 / {paper['baseline_unsafe']}"), "—", "—", "—", "—"])  # fmt: skip
+    return table(_LANDING_HEAD, rows, caption)
 
 
 def _landing(summary: Mapping[str, Any], figs: Mapping[str, bytes]) -> str:
@@ -270,7 +216,7 @@ def _landing(summary: Mapping[str, Any], figs: Mapping[str, bytes]) -> str:
     paper = (summary.get("paper") or {}).get("landing", {})
     k = land["buffer_size"]
     return (
-        f"<h2>3. Safe landing at buffer size {_e(k)}</h2>"
+        f"<h2>3. Safe landing at buffer size {esc(k)}</h2>"
         "<p>The paper's state machine with the learned IPC and with the trivial baseline E(ŷ, 10⁴ I), "
         "on the same "
         "scenarios: the vehicle arrives in transit, measures at the first detection, and lands only when the "
@@ -280,19 +226,19 @@ def _landing(summary: Mapping[str, Any], figs: Mapping[str, bytes]) -> str:
         "{y} ⊕ G; a run that flies into the pad (a pad perceived below its surface) is unsafe; "
         "aborted runs never count as safe.</p>"
         + _landing_table(land, paper, f"Table 4. Landing at buffer size {k}.")
-        + _figure(
+        + figure(
             figs,
             "topview",
             "Figure 4. The paper-style runs with the pad at the origin: IPC paths and "
             "measurements (circles, size ~ ellipsoid), motor cuts of the IPC (stars) and of the baseline "
             "(crosses; triangles where it flew into the pad); G dashed around the pad.",
         )  # fmt: skip
-        + _figure(
+        + figure(
             figs,
             "campaign",
             "Figure 5. Where the motors were cut in the Monte Carlo runs, top and side views, with G.",
         )  # fmt: skip
-        + _figure(figs, "trajectories", "Figure 6. Three paired runs in 3-D, G dashed at the pad.")
+        + figure(figs, "trajectories", "Figure 6. Three paired runs in 3-D, G dashed at the pad.")
     )
 
 
@@ -303,16 +249,16 @@ def _certified(summary: Mapping[str, Any], figs: Mapping[str, bytes]) -> str:
     ipc = land["ipc"]
     b, ev, loop, cov = ipc["certified"], ipc["empirical_vs_certified"], land["closed_loop"], land["coverage"]
     rows = [
-        ("certified bound M·ε (union over the queries of a run)", _num(b["union_bound"]),
-         _e(f"{b['union_confidence']:.6g}")),
-        ("refined bound ε·UCB(E[N])", _num(b["refined_bound"]), _e(f"{b['refined_confidence']:.6g}")),
+        ("certified bound M·ε (union over the queries of a run)", num(b["union_bound"]),
+         esc(f"{b['union_confidence']:.6g}")),
+        ("refined bound ε·UCB(E[N])", num(b["refined_bound"]), esc(f"{b['refined_confidence']:.6g}")),
         ("empirical unsafe rate (Monte Carlo)",
-         _e(f"{ev['unsafe']}/{ev['runs']} = {_pct(ev.get('unsafe_rate'))}"),
-         _e(_interval(ev.get("unsafe_interval")))),
+         esc(f"{ev['unsafe']}/{ev['runs']} = {pct(ev.get('unsafe_rate'))}"),
+         esc(interval(ev.get("unsafe_interval")))),
     ]  # fmt: skip
     loop_rows = [
-        (_e(name), _e(loop[name]["n"]), _e(loop[name]["violations"]), _pct(loop[name].get("rate")),
-         _interval(loop[name].get("interval")), _e(_num(loop[name].get("contradicts_epsilon"))))
+        (esc(name), esc(loop[name]["n"]), esc(loop[name]["violations"]), pct(loop[name].get("rate")),
+         interval(loop[name].get("interval")), esc(num(loop[name].get("contradicts_epsilon"))))
         for name in ("first", "accepted", "all")
     ]  # fmt: skip
     flag = cov.get("shift_detected")
@@ -325,18 +271,18 @@ def _certified(summary: Mapping[str, Any], figs: Mapping[str, bytes]) -> str:
     }.get(flag, "")
     return (
         "<h2>4. Certified versus empirical unsafe landings</h2>"
-        f"<div class='box'><b>Assumption A.</b> {_e(b['assumption'])} Under it an unsafe landing needs a "
+        f"<div class='box'><b>Assumption A.</b> {esc(b['assumption'])} Under it an unsafe landing needs a "
         "violated accepted query, so P(unsafe) ≤ ε·E[N] ≤ ε·M.</div>"
-        + _table(["quantity", "value", "confidence"], rows, "Table 5. The bound beside the observed rate.")
-        + f"<p>ε = {_num(b['epsilon'])} (certified by the PAC calibration), M = {b['max_queries']} queries, "
-        f"mean {_num(b['mean_queries'], 3)} queries per run.</p>"
-        + _table(
+        + table(["quantity", "value", "confidence"], rows, "Table 5. The bound beside the observed rate.")
+        + f"<p>ε = {num(b['epsilon'])} (certified by the PAC calibration), M = {b['max_queries']} queries, "
+        f"mean {num(b['mean_queries'], 3)} queries per run.</p>"
+        + table(
             ["queries", "n", "truth outside the set", "rate", "95 % interval", "contradicts ε"],
             loop_rows,
             "Table 6. The closed loop's own queries.",
         )  # fmt: skip
-        + f"<p>{_e(verdict)}</p>"
-        + _figure(
+        + f"<p>{esc(verdict)}</p>"
+        + figure(
             figs,
             "coverage",
             "Figure 7. Distance of the closed-loop queries to the calibration inputs "
@@ -351,9 +297,10 @@ def _extra_landing(summary: Mapping[str, Any]) -> str:
         return ""
     k = land["buffer_size"]
     return (
-        f"<h3>4.1 The same landing at buffer size {_e(k)}</h3><p>With an IPC learned at buffer size {_e(k)} "
+        f"<h3>3.1 The same landing at buffer size {esc(k)}</h3>"
+        f"<p>With an IPC learned at buffer size {esc(k)} "
         "(“the contract holds for the conditions it was learned under”), on the same scenarios.</p>"
-        + _landing_table(land, {}, f"Table 7. Landing at buffer size {k}.")
+        + _landing_table(land, {}, f"Table 4b. Landing at buffer size {k}.")
     )
 
 
@@ -365,20 +312,28 @@ def _flights_out(group_test: Mapping[str, Any] | None) -> str:
     return f"{t['violations']}/{t['n']}"
 
 
+def _flight_scale(fl: Mapping[str, Any]) -> str:
+    """The flight-level scale, or why there is none (too few flights for epsilon)."""
+    if not fl:
+        return "—"
+    if fl.get("flight_scale") is not None:
+        return f"{fl['flight_scale']:.3g} ({fl['n_flights']} flights)"
+    need = math.ceil(1.0 / fl["epsilon"] - 1.0)
+    return f"not attainable: ε = {fl['epsilon']:g} needs at least {need} flights, {fl['n_flights']} given"
+
+
 def _ipcs(summary: Mapping[str, Any]) -> str:
     rows = []
     for info in (summary.get("ipc") or {}).values():
         c, cert, fl = info["calibration"], info["certificate"], info.get("flight_level") or {}
-        by_flight = (
-            "—" if fl.get("flight_scale") is None else f"{fl['flight_scale']:.3g} ({fl['n_flights']} flights)"
-        )
+        by_flight = _flight_scale(fl)
         rows.append([
-            _e(f"buffer {info['buffer_size']}"), _e(info["n_parameters"]),
-            _e(f"{c['mode']}, ε {c['epsilon']:g}, δ {c['delta']:g}, n {c['n']}"),
-            _num(c["certified_epsilon"]),
-            _e(cert["status"]), _e(f"{cert['test']['violations']}/{cert['test']['n']}"),
-            _e(_flights_out(cert.get("group_test"))),
-            _e(f"{fl['row_scale']:.3g}" if fl else "—"), _e(by_flight),
+            esc(f"buffer {info['buffer_size']}"), esc(info["n_parameters"]),
+            esc(f"{c['mode']}, ε {c['epsilon']:g}, δ {c['delta']:g}, n {c['n']}"),
+            num(c["certified_epsilon"]),
+            esc(cert["status"]), esc(f"{cert['test']['violations']}/{cert['test']['n']}"),
+            esc(_flights_out(cert.get("group_test"))),
+            esc(f"{fl['row_scale']:.3g}" if fl else "—"), esc(by_flight),
         ])  # fmt: skip
     if not rows:
         return ""
@@ -390,16 +345,16 @@ def _ipcs(summary: Mapping[str, Any]) -> str:
         "room for a whole new flight outside its sets, so its scale is larger; the landing keeps "
         "the row-level PAC calibration its certified bound is derived for.</p>"
     )
-    return "<h2>5. The learned IPCs</h2>" + _table(
+    return "<h2>5. The learned IPCs</h2>" + table(
         ["IPC", "parameters", "calibration", "certified ε", "certificate", "held-out violations",
          "held-out flights with a violation", "scale (rows)", "scale (flights)"], rows,
-        "Table 8. The IPCs and their certificates (ipcverify certify on held-out data).", text=(0, 2, 4, 8),
+        "Table 7. The IPCs and their certificates (ipcverify certify on held-out data).", text=(0, 2, 4, 8),
     ) + note  # fmt: skip
 
 
 def _timings(summary: Mapping[str, Any]) -> str:
     stages = summary.get("stage_seconds") or {}
-    rows = [(_e(k), _e(f"{v:.1f}")) for k, v in stages.items()]
+    rows = [(esc(k), esc(f"{v:.1f}")) for k, v in stages.items()]
     total, cpu = summary.get("runtime_seconds"), summary.get("cpu_seconds")
     machine = summary.get("machine") or {}
     load = machine.get("load_average_start"), machine.get("load_average_end")
@@ -411,10 +366,10 @@ def _timings(summary: Mapping[str, Any]) -> str:
     )
     return (
         "<h2>6. How long it took</h2>"
-        f"<p>{_e(total)} s in total on {_e(machine.get('cores_available', '?'))} cores "
-        f"({_e(machine.get('platform', ''))}), {_e(cpu)} CPU-seconds in this process and its "
+        f"<p>{esc(total)} s in total on {esc(machine.get('cores_available', '?'))} cores "
+        f"({esc(machine.get('platform', ''))}), {esc(cpu)} CPU-seconds in this process and its "
         f"workers.{busy}</p>"
-        + (_table(["stage", "seconds"], rows, "Table 9. Stage timings.") if rows else "")
+        + (table(["stage", "seconds"], rows, "Table 8. Stage timings.") if rows else "")
         + "<p>Every number of this page, the settings and the seeds are in "
         '<a href="summary.json">summary.json</a> beside it.</p>'
     )
@@ -428,8 +383,8 @@ def render_report(summary: Mapping[str, Any], figures: Mapping[str, bytes]) -> s
     summary : mapping
         As written by :func:`.pipeline.reproduce`; missing sections are left out.
     figures : mapping of str to bytes
-        PNGs named ``table1``, ``ages``, ``ablation``, ``topview``, ``campaign``, ``trajectories``,
-        ``coverage``.
+        PNGs named ``contracts``, ``table1``, ``ages``, ``ablation``, ``topview``, ``campaign``,
+        ``trajectories``, ``coverage``.
     """
     quick = " with the reduced sizes of <code>--quick</code>" if summary.get("quick") else ""
     intro = (
@@ -443,15 +398,16 @@ def render_report(summary: Mapping[str, Any], figures: Mapping[str, bytes]) -> s
     )
     return (
         "<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>IPC reproduction: results</title>"
-        f"<style>{_CSS}</style></head><body>"
+        f"<style>{CSS}</style></head><body>"
         + intro
+        + contracts_section(summary, figures)
         + _claims(summary)
         + _table1(summary, figures)
         + _timing(summary, figures)
         + _ablation(summary, figures)
         + _landing(summary, figures)
-        + _certified(summary, figures)
         + _extra_landing(summary)
+        + _certified(summary, figures)
         + _ipcs(summary)
         + _timings(summary)
         + "</body></html>"

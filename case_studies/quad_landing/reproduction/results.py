@@ -32,6 +32,7 @@ from case_studies.quad_landing.reproduction.campaign import CampaignSummary
 from case_studies.quad_landing.reproduction.certified import CertifiedBound, EmpiricalVsCertified
 from case_studies.quad_landing.reproduction.claims import Claim
 from case_studies.quad_landing.reproduction.config import ReproduceConfig
+from case_studies.quad_landing.reproduction.contracts import ContractSummary
 from case_studies.quad_landing.reproduction.table1 import PAPER_TABLE1, Table1
 from case_studies.quad_landing.reproduction.variants import VariantStudy
 from ipcverify.errors import InvalidInputError
@@ -218,7 +219,11 @@ class ReproductionSummary:
     camera_timing, table1_protocol : mapping
         The timing parameters, image ages and errors per buffer size; how Table I was tested.
     claims : mapping of str to Claim
-        The acceptance claims (:func:`~.claims.evaluate_claims`).
+        The acceptance claims of ``default_calibrated`` (:func:`~.claims.evaluate_claims`).
+    contracts : mapping of str to ContractSummary
+        The three contracts side by side, ``paper_raw``, ``paper_calibrated`` and
+        ``default_calibrated`` (:mod:`.contracts`): each with Table I, its landings and the
+        paper's claims.
     machine, jobs, backend
         Where and how it ran.
     stage_seconds, runtime_seconds, cpu_seconds
@@ -244,6 +249,7 @@ class ReproductionSummary:
     stage_seconds: Mapping[str, float]
     runtime_seconds: float
     cpu_seconds: float
+    contracts: Mapping[str, ContractSummary]
 
     def to_dict(self) -> dict[str, Any]:
         """The content of ``summary.json`` (every key it has always had)."""
@@ -267,6 +273,7 @@ class ReproductionSummary:
             "jobs": self.jobs,
             "backend": self.backend,
             "claims": {name: claim.to_dict() for name, claim in self.claims.items()},
+            "contracts": {name: c.to_dict() for name, c in self.contracts.items()},
             "stage_seconds": dict(self.stage_seconds),
             "runtime_seconds": self.runtime_seconds,
             "cpu_seconds": self.cpu_seconds,

@@ -74,8 +74,13 @@ def test_train_recipes_by_name_and_explicit_options_override_them(files, tmp_pat
         tc = m.metadata["train_config"]
         assert (m.config.param, m.config.center, m.config.members) == (param, center, members)
         assert (tc["loss"], tc["val_fraction"], tc["epochs"], m.config.hidden) == (loss, val, 1, (8,))
-        # everything not given on the command line is the recipe's
-        want = TrainConfig.recipe(recipe, epochs=1).to_dict()
+        # everything not given on the command line is the recipe's; for "paper", alpha, lambda and
+        # the batch size are the ones its selection rule chose (recorded beside them)
+        chosen = {}
+        if recipe == "paper":
+            pick = m.metadata["selection"]["chosen"]
+            chosen = {"alpha": pick["alpha"], "lam": pick["lam"], "batch_size": pick["batch_size"]}
+        want = TrainConfig.recipe(recipe, epochs=1, **chosen).to_dict()
         assert tc == want
         assert m.config == ModelConfig.recipe(recipe, x_dim=6, y_dim=3, hidden=(8,))
     # the default recipe is "tight"; --members and --no-linear-center override it
@@ -257,3 +262,20 @@ def test_user_errors_exit_2_with_one_line(run_cli, files, model_path, tmp_path, 
     assert "Traceback" not in res.stderr
     assert len(res.stderr.strip().splitlines()) == 1 and res.stderr.startswith("error: ")
     assert not (tmp_path / "m.pt").exists()
+
+
+def test_train_paper_recipe_reports_p_and_how_its_unstated_settings_were_chosen(files, tmp_path, run_cli):
+    """The paper's network on 6 + 3 inputs: p = 9*64 + 64 + 64*128 + 128 + 128*12 + 12 = 10,508;
+    alpha, lambda and the batch size are chosen on held-out training rows unless given."""
+    p = tmp_path / "paper.pt"
+    r = run_cli("train", files / "train.parquet", "--out", p, "--recipe", "paper", "--epochs", "1")
+    assert r.code == 0, r.stderr
+    assert "p = 10,508 parameters" in r.stdout and "chosen on held-out training rows: alpha = " in r.stdout
+    m = load_model(p)
+    assert m.n_parameters == 9 * 64 + 64 + 64 * 128 + 128 + 128 * 12 + 12 and m.config.n_outputs == 12
+    assert len(m.metadata["selection"]["candidates"]) == 9
+    r = run_cli("train", files / "train.parquet", "--out", p, "--recipe", "paper", "--epochs", "1",
+                "--alpha", "0.5")  # fmt: skip
+    assert r.code == 0 and "chosen on held-out" not in r.stdout
+    m = load_model(p)
+    assert "selection" not in m.metadata and m.metadata["train_config"]["alpha"] == 0.5

@@ -171,6 +171,13 @@ def files(tmp_path_factory) -> dict[str, Path]:
 # {name} is the path of a file built by the fixture, {tmp} a fresh directory; {cal_ok} stands for
 # "--epsilon 0.05 --delta 0.01 --out {tmp}/c.pt" (an option given again later overrides it).
 TABLE = """
+ingest-topics-not-a-bag       | 2 | not a bag                        | ingest topics {train}
+ingest-topics-missing-path    | 2 | does not exist                   | ingest topics {tmp}/missing.bag
+ingest-bag-plain-directory    | 2 | without metadata.yaml            | ingest bag {dir} --truth /gt --estimate /est --out {tmp}/o.csv
+ingest-traj-empty-truth       | 2 | no poses                         | ingest trajectories --truth {empty} --estimate {train} --format tum --out {tmp}/o.csv
+ingest-traj-kitti-no-times    | 2 | KITTI poses carry no stamps      | ingest trajectories --truth {train} --estimate {train} --format kitti --out {tmp}/o.csv
+ingest-traj-wrong-format      | 2 | pick the right --format          | ingest trajectories --truth {wrong_columns} --estimate {train} --format euroc --out {tmp}/o.csv
+ingest-traj-negative-horizon  | 2 | --horizon must be a positive     | ingest trajectories --truth {train} --estimate {train} --format tum --horizon -1 --out {tmp}/o.csv
 unknown-command              | 2 | No such command                  | nope
 unknown-option               | 2 | No such option                   | train {train} --out {tmp}/m.pt --bogus
 missing-argument             | 2 | Missing argument                 | train

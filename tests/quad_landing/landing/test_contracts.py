@@ -1,4 +1,4 @@
-"""The perception contracts: calibrated IPCs only, moved to the world frame; the baseline."""
+"""The perception contracts: calibrated IPCs (raw only when asked), moved to the world frame; the baseline."""
 
 from __future__ import annotations
 
@@ -18,6 +18,21 @@ G = Box([-0.05, -0.05, 0.0], [0.05, 0.05, 0.05])
 def test_learned_contract_refuses_an_uncalibrated_model(make_ipc):
     with pytest.raises(InvalidInputError, match="the model is not calibrated"):
         LearnedContract(make_ipc(False))
+
+
+def test_an_uncalibrated_contract_is_flown_only_when_asked_and_only_raw(make_ipc):
+    """The paper's protocol flies the network as trained: that needs ``uncalibrated=True`` (no
+    guarantee), and a calibrated model is refused with it (its calibration would be ignored)."""
+    raw = make_ipc(False)
+    contract = LearnedContract(raw, "paper_raw", uncalibrated=True)
+    flight = Flight(buffer_size=1, seed=0)
+    flight.reset(hover_state((0.2, -0.1, 1.2), yaw=0.4), Pad((0.0, 0.0, 0.0), yaw=0.9))
+    m = flight.measure()
+    d = contract.decide(m, G)
+    ref = raw.predict_raw(m.x_c, m.yhat_c)
+    np.testing.assert_allclose(d.center, m.world_from_camera.apply(ref.centers[0]), atol=1e-12)
+    with pytest.raises(InvalidInputError, match="carries a calibration"):
+        LearnedContract(make_ipc(True), uncalibrated=True)
 
 
 def test_learned_contract_refuses_the_wrong_dimensions():

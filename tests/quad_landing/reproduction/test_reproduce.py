@@ -48,11 +48,59 @@ def _run(argv: list[str]) -> int:
 
 
 @pytest.fixture(scope="module")
-def quick(tmp_path_factory):
+def quick_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("reproduce")
-    code = _run(["reproduce", "--out", str(out), "--quick", "--quiet"])
+    capture = pytest.MonkeyPatch()
+    printed: list[str] = []
+    from case_studies.quad_landing import cli
+
+    capture.setattr(cli.console, "print", lambda *a, **k: printed.append(" ".join(map(str, a))))
+    try:
+        code = _run(["reproduce", "--out", str(out), "--quick", "--quiet", "--fly-uncalibrated"])
+    finally:
+        capture.undo()
     assert code == 0
-    return out, json.loads((out / "summary.json").read_text())
+    return out, json.loads((out / "summary.json").read_text()), "\n".join(printed)
+
+
+@pytest.fixture(scope="module")
+def quick(quick_run):
+    out, s, _ = quick_run
+    return out, s
+
+
+def test_the_three_contracts_side_by_side(quick_run):
+    """paper_raw (no guarantee), paper_calibrated and default_calibrated: Table I at every buffer size,
+    the landings, the paper's claims; flying the uncalibrated one was asked for and says so."""
+    out, s, printed = quick_run
+    contracts = s["contracts"]
+    assert list(contracts) == ["paper_raw", "paper_calibrated", "default_calibrated"]
+    sizes = s["settings"]["sizes"]
+    for c in contracts.values():
+        assert set(c["table1"]) == {"1", "2", "3", "4", "5"} and all(
+            0 <= v <= 1 for v in c["table1"].values()
+        )
+        land = c["landing"]
+        assert land["safe"] + land["unsafe"] + land["aborted"] == land["runs"] == sizes["mc_runs"]
+        assert c["landing_paper_runs"]["runs"] == sizes["paper_runs"]
+        assert {"table1_buffer1_at_most_1pct", "table1_rates_rising", "paper_runs_safe", "monte_carlo_safe",
+                "monte_carlo_aborted"} <= set(c["claims"])  # fmt: skip
+        assert c["hover_half_widths"]["limit"] == pytest.approx([0.045, 0.045, 0.02])
+    raw, cal, default = contracts["paper_raw"], contracts["paper_calibrated"], contracts["default_calibrated"]
+    assert raw["guarantee"].startswith("none") and raw["calibrated"] is False and raw["certified"] is None
+    assert raw["n_parameters"] == 15 * 64 + 64 + 64 * 128 + 128 + 128 * 12 + 12 == 10_892
+    assert raw["selection"]["chosen"] == cal["selection"]["chosen"]  # one network, two contracts
+    assert cal["certified"] is not None and "certified_bound_at_least_empirical" in cal["claims"]
+    assert default["table1"] == {b: r["rate"] for b, r in s["table1"].items()}
+    assert {k: default["landing"][k] for k in ("safe", "unsafe", "aborted")} == {
+        k: s["landing"]["ipc"][k] for k in ("safe", "unsafe", "aborted")
+    }
+    # every output of a run that flew the uncalibrated contract says it has no guarantee
+    page = (out / "report.html").read_text()
+    assert "no guarantee" in page and "Table C1. Which contract reproduces which claim of the paper." in page
+    assert "NO guarantee" in printed and "paper_raw" in printed
+    assert (out / "certificates" / "paper_calibrated" / "certificate.json").exists()
+    assert (out / "models" / "paper_raw.pt").exists() and (out / "models" / "paper_calibrated.pt").exists()
 
 
 def test_summary_has_the_documented_structure(quick):
@@ -75,7 +123,7 @@ def test_summary_has_the_documented_structure(quick):
     assert set(s) >= {
         "format", "version", "quick", "settings", "seeds", "paper", "ipc", "table1", "table1_rising",
         "landing", "landing_buffer1", "machine", "jobs", "backend", "claims", "stage_seconds",
-        "runtime_seconds", "landing_buffer3", "ablation", "camera_timing", "table1_protocol",
+        "runtime_seconds", "landing_buffer3", "ablation", "camera_timing", "table1_protocol", "contracts",
     }  # fmt: skip
     assert set(s["landing"]) >= {
         "buffer_size", "tracking_tolerance", "max_measurements", "ipc", "baseline", "closed_loop", "coverage",
@@ -129,7 +177,7 @@ def test_report_is_one_self_contained_file(quick):
     assert page.startswith("<!DOCTYPE html>")
     # nothing fetched from elsewhere; the one link is to summary.json beside the page
     assert re.findall(r"""(?:src|href)=["'](?!data:)([^"']*)""", page) == ["summary.json"]
-    names = ("table1", "ablation", "ages", "topview", "campaign", "trajectories", "coverage")
+    names = ("contracts", "table1", "ablation", "ages", "topview", "campaign", "trajectories", "coverage")
     assert page.count("data:image/png;base64,") == len(names)
     for name in names:
         assert (out / "figures" / f"{name}.png").stat().st_size > 1000
