@@ -23,7 +23,9 @@ Examples
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -54,8 +56,6 @@ class Predictions:
     in_domain : bool ndarray (B,)
         The query is inside the domain of validity and its set is non-degenerate; the
         calibration certificate covers only these queries.
-    distance : ndarray (B,)
-        Distance to the calibration inputs (NaN without a domain model).
     singular : bool ndarray (B,)
         The set is degenerate (singular or non-finite shape matrix).
     calibrated : bool
@@ -67,10 +67,23 @@ class Predictions:
     centers: FloatArray
     shapes: FloatArray
     in_domain: NDArray[np.bool_]
-    distance: FloatArray
     singular: NDArray[np.bool_]
     calibrated: bool
     domain: DomainReport | None = None
+    distances: Callable[[], FloatArray] | None = field(default=None, repr=False)
+
+    @cached_property
+    def distance(self) -> FloatArray:
+        """Each query's distance to the calibration inputs (B,), computed on first access.
+
+        :meth:`ipcverify.domain.DomainModel.distance` (the ``k``-th neighbour distance; at most the
+        threshold exactly where the domain test says inside). ``in_domain`` does not need it:
+        the distance costs a search over every reference per query (a float32 BLAS product),
+        the domain test alone about one leaf of a k-d tree. NaN without a domain model.
+        """
+        if self.distances is None:
+            return np.full(len(self.centers), np.nan)
+        return self.distances()
 
     @property
     def outside(self) -> int:
@@ -83,7 +96,10 @@ def predict_sets(model: IPCModel, inputs: PerceptionInputs, chunk: int | None = 
 
     The sets come from :meth:`IPCModel.raw_arrays` (``chunk`` rows at a time; default: the engine's
     cache-sized chunk), scaled by the calibration in place; the singular test is
-    :func:`ipcverify.nonsingular.nonsingular` (the SVD test, settled cheaply where it can be).
+    :func:`ipcverify.nonsingular.nonsingular` (the SVD test, settled cheaply where it can be);
+    ``in_domain`` comes from :meth:`DomainModel.contains <ipcverify.domain.DomainModel.contains>`
+    (the exact test's answer, about one k-d tree leaf per in-distribution query). The distances
+    themselves are computed only when ``Predictions.distance`` is read.
 
     Raises
     ------
@@ -104,21 +120,21 @@ def predict_sets(model: IPCModel, inputs: PerceptionInputs, chunk: int | None = 
     if finite.any():  # the SVD test of Ellipsoid, with an SVD only where a cheap bound does not settle it
         singular[np.flatnonzero(finite)] = ~nonsingular(shapes[finite])[0]
     report = None
-    if model.domain is None:
-        distance = np.full(len(centers), np.nan)
+    domain = model.domain
+    if domain is None:
         in_domain = np.asarray(~singular, dtype=np.bool_)
     else:
-        distance = model.domain.distance(inputs.x, inputs.yhat)
-        in_domain = np.asarray((distance <= model.domain.threshold) & ~singular, dtype=np.bool_)
-        report = model.domain.summarize(distance)
+        inside = domain.contains(inputs.x, inputs.yhat)
+        in_domain = np.asarray(inside & ~singular, dtype=np.bool_)
+        report = domain.summarize_outside(~inside)
     return Predictions(
         centers=centers,
         shapes=shapes,
         in_domain=in_domain,
-        distance=distance,
         singular=singular,
         calibrated=model.calibration is not None,
         domain=report,
+        distances=None if domain is None else (lambda: domain.distance(inputs.x, inputs.yhat)),
     )
 
 
