@@ -15,6 +15,11 @@ except for a share ``alpha``.
 * **Guarantee.** If a query is exchangeable with the ``n`` calibration inputs, it is
   flagged with probability at most ``alpha`` (proof: ``proofs/domain.md``). A range check
   alone cannot do this: a query can lie inside every column's range and far from all data.
+* **Evaluation.** :meth:`DomainModel.contains` answers "score <= threshold" without computing
+  the score: a k-d tree search that stops at the ``k``-th reference within the threshold, a
+  float32 BLAS product with a rigorous rounding bound, the exact test only within a relative
+  ``1e-9`` of the threshold (:mod:`ipcverify.domain_index`) -- the exact test's answer for
+  every query, at about a leaf of the tree per in-distribution query.
 
 A flagged query is *outside the domain of validity*: the calibration certificate promises
 nothing for it. The test says nothing, either way, about queries it does not flag -- no
@@ -48,7 +53,7 @@ from scipy.spatial import cKDTree
 from ipcverify.bounds import marginal_conformal_index
 from ipcverify.calibration.grouped import risk_control_threshold
 from ipcverify.data import group_codes
-from ipcverify.domain_index import BAND, DomainIndex, levels
+from ipcverify.domain_index import BAND, MAX_INPUTS, DomainIndex, levels
 from ipcverify.domain_kernels import domain_one, whiten_one, whiten_rows
 from ipcverify.errors import InvalidInputError, SampleSizeError
 
@@ -327,9 +332,12 @@ class DomainModel:
         return np.asarray(whiten_rows(xa, ya, self.mean, self._wt))
 
     def _exact(self, w: FloatArray) -> FloatArray:
-        """SciPy's k-d tree on whitened rows: the exact test's ``k``-th neighbour distance."""
-        d, _ = self._tree.query(w, k=[self.k])
-        return np.asarray(d, dtype=np.float64)[:, 0]
+        """SciPy's k-d tree on whitened rows: the exact test's k-th neighbour distance (inf if not finite)."""
+        out = np.full(len(w), np.inf)
+        ok = np.isfinite(w).all(axis=1)
+        if ok.any():
+            out[ok] = np.asarray(self._tree.query(w[ok], k=[self.k])[0], dtype=np.float64)[:, 0]
+        return out
 
     def distance(self, x: ArrayLike, yhat: ArrayLike) -> FloatArray:
         """Each query's score: whitened distance to its ``k``-th nearest calibration input (B,).
@@ -393,7 +401,7 @@ class DomainModel:
         search = self._search
         if search[0] is None:
             self.index()
-        code = domain_one(z, *search[2])
+        code = domain_one(z, *search[2]) if len(z) <= MAX_INPUTS else -2
         if code >= 0:
             return bool(code == 1)
         index = search[0]

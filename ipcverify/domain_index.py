@@ -50,7 +50,7 @@ from numpy.typing import NDArray
 from ipcverify.domain_kernels import domain_rows, kth_rows, scan_rows
 from ipcverify.errors import InvalidInputError
 
-__all__ = ["BAND", "LEAF_SIZE", "DomainIndex", "levels"]
+__all__ = ["BAND", "LEAF_SIZE", "MAX_INPUTS", "DomainIndex", "levels"]
 
 FloatArray = NDArray[np.float64]
 
@@ -58,6 +58,9 @@ FloatArray = NDArray[np.float64]
 LEAF_SIZE = 16
 #: The fast tiers answer only when the distance is at least this far (relative) from the threshold.
 BAND = 1e-9
+#: Tier 1 answers only up to this many inputs: its float64 rounding, ``(D + 2) u``, stays far inside
+#: the band (``proofs/domain.md``); with more, every query goes to tiers 2 and 3.
+MAX_INPUTS = 1000
 #: Rounding bound of the float32 product, per unit of ``(max ||r_j|| + ||w||)^2``: ``(D + 6) u32``
 #: suffices (``proofs/domain.md``), so up to ``D = 161`` inputs; beyond, tier 2 is skipped.
 SCAN_BOUND = 1e-5
@@ -184,11 +187,14 @@ class DomainIndex:
         k: int,
     ) -> NDArray[np.int8]:
         """Tier 1 for raw rows ``(x, yhat)`` (float64, C-contiguous): codes 1 (inside), 0 (outside),
-        -1 (a reference inside the margin band) or -2 (over budget); non-finite rows are outside.
+        -1 (a reference inside the margin band) or -2 (over budget, or more than
+        :data:`MAX_INPUTS` inputs); non-finite rows are outside.
 
         The rows are whitened in the compiled call, with the arithmetic of
         :func:`ipcverify.kernels.whiten_rows`.
         """
+        if whitening_t.shape[1] > MAX_INPUTS:
+            return np.full(len(x), -2, dtype=np.int8)
         t2_in, t2_out = levels(threshold)
         return np.asarray(
             domain_rows(
