@@ -41,6 +41,7 @@ False
 from __future__ import annotations
 
 import math
+import threading
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -194,8 +195,9 @@ class DomainModel:
             object.__setattr__(self, name, value)
         object.__setattr__(self, "_tree", cKDTree(ref))
         object.__setattr__(self, "_wt", np.ascontiguousarray(w.T))
-        # built on first use: the index, the single-query state and domain_one's other arguments
-        object.__setattr__(self, "_search", [None, np.zeros(3 + 2 * D), None])
+        # built on first use: the index; per thread, domain_one's arguments after the query (its
+        # state and search stack are the thread's own: the kernel runs without the GIL)
+        object.__setattr__(self, "_search", [None, threading.local()])
 
     # ------------------------------------------------------------------- fitting
     @classmethod
@@ -297,13 +299,21 @@ class DomainModel:
         """The search structure of the fast test (:mod:`ipcverify.domain_index`), built on first use."""
         search = self._search
         if search[0] is None:
-            index = DomainIndex.build(self.reference)
-            stack = np.zeros(index.depth + 2, dtype=np.int64)
-            # domain_one's arguments after the query, in one tuple (the single-query hot path)
-            search[2] = (self.mean, self._wt, index.refs, index.nodes, index.boxes, *levels(self.threshold),
-                         self.k, index.budget, search[1], stack)  # fmt: skip
-            search[0] = index
+            search[0] = DomainIndex.build(self.reference)
         return search[0]  # type: ignore[no-any-return]
+
+    def _one_args(self) -> tuple[Any, ...]:
+        """This thread's arguments of :func:`~ipcverify.domain_kernels.domain_one` after the query."""
+        local = self._search[1]
+        args = getattr(local, "args", None)
+        if args is None:
+            index = self.index()
+            state = np.zeros(3 + 2 * len(self.mean))
+            stack = np.zeros(index.depth + 2, dtype=np.int64)
+            args = (self.mean, self._wt, index.refs, index.nodes, index.boxes, *levels(self.threshold),
+                    self.k, index.budget, state, stack)  # fmt: skip
+            local.args = args
+        return args  # type: ignore[no-any-return]
 
     def _rows(self, x: ArrayLike, yhat: ArrayLike) -> tuple[FloatArray, FloatArray]:
         """``x`` and ``yhat`` as C-contiguous float64 (B, d) and (B, n), checked against the model."""
@@ -389,7 +399,7 @@ class DomainModel:
         """One query given as the concatenated 1-D ``(x, yhat)`` (the single-query path).
 
         The answer of :meth:`contains` for this query (the same whitened bits, the same tiers),
-        in one compiled call (:func:`ipcverify.kernels.domain_one`) unless the query needs tier 2
+        in one compiled call (:func:`ipcverify.domain_kernels.domain_one`) unless the query needs tier 2
         or the exact test. The call first asks the previous query: the reference that proved it
         inside (``k = 1``), or, after an outside answer, the 1-Lipschitz bound of the distance
         (a control loop's queries move little between frames).
@@ -398,21 +408,18 @@ class DomainModel:
             raise InvalidInputError(
                 f"domain test: one query is a 1-D (x, yhat) of length {len(self.mean)}; got shape {z.shape}"
             )
-        search = self._search
-        if search[0] is None:
-            self.index()
-        code = domain_one(z, *search[2]) if len(z) <= MAX_INPUTS else -2
+        code = domain_one(z, *self._one_args()) if len(z) <= MAX_INPUTS else -2
         if code >= 0:
             return bool(code == 1)
-        index = search[0]
+        index = self.index()
         w = whiten_one(np.asarray(z, dtype=np.float64), self.mean, self._wt)[None]
         if code == -2:
             code = int(index.scan(w, self.threshold, self.k)[0])
         return bool(code == 1 or (code == -1 and self._exact(w)[0] <= self.threshold))
 
     def forget(self) -> None:
-        """Drop what :meth:`contains_one` kept of the previous query (its answers do not change)."""
-        self._search[1][0] = 0.0
+        """Drop what :meth:`contains_one` kept of this thread's previous query (answers do not change)."""
+        self._one_args()[-2][0] = 0.0
 
     def prepare(self) -> None:
         """Build the index and compile (or load from Numba's on-disk cache) the kernels of

@@ -123,9 +123,12 @@ class DomainIndex:
     ) -> DomainIndex:
         """The k-d tree and the float32 columns of ``reference`` (finite, shape (m, D)).
 
-        ``budget`` defaults to the leaves that hold about 3 % of the references (at least 4): a
-        search that needs more is usually a query outside the domain, and one float32 product over
-        every reference settles it in about the time of scanning that many leaves.
+        ``budget`` defaults to the leaves that hold a quarter of the references (at least 8): a
+        search that needs more has lost the tree's advantage (a query far in a sparse direction, or
+        more inputs than a k-d tree can split usefully), and one float32 product over every
+        reference costs about as much as scanning that many leaves. A smaller budget sends more
+        queries near the boundary to the product, whose fixed cost per call then dominates
+        (measured on the benchmark's workloads: ``benchmarks/bench_latency.py``).
         """
         ref = np.ascontiguousarray(reference, dtype=np.float64)
         if ref.ndim != 2 or len(ref) == 0 or not np.isfinite(ref).all() or leaf_size < 1:
@@ -173,7 +176,7 @@ class DomainIndex:
             depth=max(level),
             columns=np.ascontiguousarray(columns),
             max_norm=float(np.sqrt(sq.max())) * (1.0 + 1e-12),
-            budget=max(4, leaves // 32) if budget is None else int(budget),
+            budget=max(8, leaves // 4) if budget is None else int(budget),
         )
 
     # ------------------------------------------------------------------ tier 1

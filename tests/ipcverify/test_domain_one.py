@@ -89,7 +89,7 @@ def test_contains_one_answers_as_contains_along_a_stream(seed, k, step, near):
 def test_each_step_of_contains_one_is_used():
     """A walk inside keeps its witness, a walk outside its bound; far points may need tier 2."""
     dom, x, yhat = DOMAINS[1]
-    state = dom._search[1]
+    state = dom._one_args()[-2]  # this thread's state of the single-query kernel
     dom.forget()
     z = np.concatenate([x[0], yhat[0]])
     assert dom.contains_one(z) and state[0] == 1.0  # the tree found a witness ...
@@ -142,3 +142,20 @@ def test_contains_one_refuses_a_query_of_the_wrong_length():
     dom, _, _ = DOMAINS[1]
     with pytest.raises(InvalidInputError, match="1-D \\(x, yhat\\) of length 5; got shape \\(4,\\)"):
         dom.contains_one(np.zeros(4))
+
+
+def test_threads_keep_their_own_single_query_state():
+    """domain_one runs without the GIL: each thread has its own state and search stack."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    dom, _, _ = DOMAINS[1]
+    streams = [_walk(dom, np.random.default_rng(s), 80, 0.05, 1e-12) for s in range(4)]
+    want = [[bool(dom.contains(z[None, :3], z[None, 3:])[0]) for z in s] for s in streams]
+
+    def run(stream: list[np.ndarray]) -> list[bool]:
+        dom.forget()
+        return [dom.contains_one(z) for z in stream]
+
+    with ThreadPoolExecutor(4) as pool:
+        got = list(pool.map(run, streams * 2))
+    assert got == want * 2
