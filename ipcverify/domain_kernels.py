@@ -196,14 +196,25 @@ def domain_rows(
     nodes: NDArray[np.int64], boxes: FloatArray, t2_in: float, t2_out: float, k: int, budget: int,
     depth: int,
 ) -> NDArray[np.int8]:  # fmt: skip  # pragma: no cover - compiled
-    """Per row: whiten as :func:`whiten_rows`, then :func:`_decide`'s code (1, 0, -1 or -2)."""
+    """Per row: whiten as :func:`whiten_rows`, then :func:`_decide`'s code (1, 0, -1 or -2).
+
+    With ``k = 1`` a row first tries the reference that proved the previous row inside (as
+    :func:`domain_one` does for one query): rows of a log in time order move little, and a
+    reference within ``t2_in`` proves "inside" whichever it is.
+    """
     codes = np.empty(x.shape[0], np.int8)
     w = np.empty((_BLOCK, whitening_t.shape[1]))
     stack = np.empty(depth + 2, np.int64)
+    witness = -1  # the reference that proved the previous row inside (k = 1): rows of a log move little
     for start in range(0, x.shape[0], _BLOCK):
         rows = _whiten_block(x, yhat, start, mean, whitening_t, w)
         for r in range(rows):
-            codes[start + r] = _decide(w[r], refs, nodes, boxes, t2_in, t2_out, k, budget, stack)[0]
+            if witness >= 0 and _dist2(w[r], refs, witness) <= t2_in:
+                codes[start + r] = 1
+                continue
+            code, value = _decide(w[r], refs, nodes, boxes, t2_in, t2_out, k, budget, stack)
+            codes[start + r] = code
+            witness = int(value) if code == 1 and k == 1 else witness
     return codes
 
 
