@@ -41,8 +41,11 @@ True
 
 from __future__ import annotations
 
+import contextlib
+import functools
 from collections.abc import Iterator
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -50,7 +53,7 @@ from numpy.typing import NDArray
 from ipcverify.domain_kernels import domain_rows, kth_rows, scan_rows
 from ipcverify.errors import InvalidInputError
 
-__all__ = ["BAND", "LEAF_SIZE", "MAX_INPUTS", "DomainIndex", "levels"]
+__all__ = ["BAND", "LEAF_SIZE", "MAX_INPUTS", "DomainIndex", "levels", "one_blas_thread"]
 
 FloatArray = NDArray[np.float64]
 
@@ -69,6 +72,35 @@ _U32 = 2.0**-24
 MAX_NORM = 1e15
 #: Rows per float32 product are chosen so that the block of products is about this many bytes.
 BLOCK_BYTES = 1 << 20
+
+
+@functools.cache
+def _controller() -> Any:
+    try:
+        from threadpoolctl import ThreadpoolController
+    except ImportError:  # pragma: no cover - a dependency; kept optional for minimal installs
+        return None
+    return ThreadpoolController()
+
+
+def one_blas_thread() -> contextlib.AbstractContextManager[Any]:
+    """A context in which NumPy's BLAS runs on one thread (threadpoolctl; about 10 µs to enter).
+
+    The domain test's products, and the batch engine's, are many small products of blocks sized
+    to the cache: a second BLAS thread only adds its wake-up to each (NumPy's default is one
+    thread per core; on 2 shared cores a 10^6-row ``ipcverify predict`` took minutes instead of
+    seconds: ``benchmarks/guard_results.json``).
+
+    Examples
+    --------
+    >>> with one_blas_thread():
+    ...     float((np.ones((4, 4)) @ np.ones(4))[0])
+    4.0
+    """
+    controller = _controller()
+    if controller is None:  # pragma: no cover
+        return contextlib.nullcontext()
+    return controller.limit(limits=1, user_api="blas")  # type: ignore[no-any-return]
 
 
 def levels(threshold: float) -> tuple[float, float]:
@@ -217,8 +249,11 @@ class DomainIndex:
         )
 
     # ------------------------------------------------------------------ tier 2
-    def _blocks(self, w: FloatArray) -> Iterator[tuple[int, int, NDArray[np.float32], FloatArray]]:
-        """Per block of rows: its bounds, the float32 products ``[w, 1] @ columns`` and their slack.
+    def _blocks(
+        self, w: FloatArray
+    ) -> Iterator[tuple[int, int, NDArray[np.float32], NDArray[np.float32], FloatArray]]:
+        """Per block of rows: its bounds, the float32 products ``[w, 1] @ columns``, their rows'
+        minima (NaN if any product is) and the rows' slack.
 
         One block at a time, so that its products are still in the cache when they are read.
         """
@@ -235,27 +270,33 @@ class DomainIndex:
             stop = min(len(w), start + rows)
             w1 = np.ones((stop - start, dim + 1), dtype=np.float32)
             w1[:, :dim] = np.where(np.isnan(slack[start:stop, None]), 0.0, w[start:stop])
-            yield start, stop, w1 @ self.columns, slack[start:stop]
+            g = w1 @ self.columns
+            yield start, stop, g, g.min(axis=1), slack[start:stop]
 
     def scan(self, w: FloatArray, threshold: float, k: int) -> NDArray[np.int8]:
         """Tier 2 for whitened rows ``w`` (B, D): codes 1, 0 or -1 (undecided: the exact test decides).
 
-        One float32 product per block of rows (about :data:`BLOCK_BYTES` of products), with the
+        One float32 product per block of rows (about :data:`BLOCK_BYTES` of products, on one BLAS
+        thread: :func:`one_blas_thread`), with the
         rounding bound :data:`SCAN_BOUND` ``(max ||r_j|| + ||w||)^2`` for any summation order; the
         pairs it does not settle are recomputed in float64 by :func:`ipcverify.kernels.scan_rows`.
         """
         w = np.ascontiguousarray(w, dtype=np.float64)
         codes = np.full(len(w), -1, dtype=np.int8)
         t2_in, t2_out = levels(threshold)
-        for start, stop, g, slack in self._blocks(w):
+        with one_blas_thread():
+            self._scan(w, t2_in, t2_out, k, codes)
+        return codes
+
+    def _scan(self, w: FloatArray, t2_in: float, t2_out: float, k: int, codes: NDArray[np.int8]) -> None:
+        for start, stop, g, least, slack in self._blocks(w):
             ok = ~np.isnan(slack)
             if ok.all():
-                codes[start:stop] = scan_rows(g, w[start:stop], self.refs, t2_in, t2_out, k, slack)
+                codes[start:stop] = scan_rows(g, least, w[start:stop], self.refs, t2_in, t2_out, k, slack)
             elif ok.any():
                 sub = np.flatnonzero(ok)
-                rows = np.ascontiguousarray(g[sub])
-                codes[start + sub] = scan_rows(rows, w[start + sub], self.refs, t2_in, t2_out, k, slack[sub])
-        return codes
+                codes[start + sub] = scan_rows(np.ascontiguousarray(g[sub]), least[sub], w[start + sub],
+                                               self.refs, t2_in, t2_out, k, slack[sub])  # fmt: skip
 
     def kth(self, w: FloatArray, k: int) -> FloatArray:
         """The ``k``-th nearest reference's distance for whitened rows ``w`` (B, D), NaN where not computed.
@@ -268,11 +309,14 @@ class DomainIndex:
         out = np.full(len(w), np.nan)
         if k > self.refs.shape[0]:
             raise InvalidInputError(f"domain index: k = {k} exceeds the {self.refs.shape[0]} references")
-        for start, _, g, slack in self._blocks(w):
-            ok = np.flatnonzero(~np.isnan(slack))
-            if len(ok):
-                rows = g if len(ok) == len(g) else np.ascontiguousarray(g[ok])
-                out[start + ok] = np.sqrt(kth_rows(rows, w[start + ok], self.refs, k, slack[ok]))
+        with one_blas_thread():
+            for start, _, g, least, slack in self._blocks(w):
+                ok = np.flatnonzero(~np.isnan(slack))
+                if len(ok):
+                    rows = g if len(ok) == len(g) else np.ascontiguousarray(g[ok])
+                    out[start + ok] = np.sqrt(
+                        kth_rows(rows, least[ok], w[start + ok], self.refs, k, slack[ok])
+                    )
         return out
 
     def prune_stats(self) -> dict[str, int]:

@@ -22,7 +22,7 @@ Examples
 >>> bool((w == [whiten_one(np.array([1.0, 0.0]), np.zeros(2), np.eye(2)), [3.0, 0.0]]).all())
 True
 >>> g = (np.hstack([w, np.ones((2, 1))]) @ np.vstack([-2.0 * refs.T, [[1.0, 1.0]]])).astype(np.float32)
->>> kth_rows(g, w, refs, 2, np.full(2, 1e-5)).tolist()  # squared distance to the 2nd nearest
+>>> kth_rows(g, g.min(axis=1), w, refs, 2, np.full(2, 1e-5)).tolist()  # squared distance, 2nd nearest
 [2.0, 10.0]
 """
 
@@ -257,35 +257,17 @@ def domain_one(
 
 
 @compiled
-def _least(row: NDArray[np.float32]) -> tuple[float, bool]:  # pragma: no cover - compiled
-    """The smallest entry of ``row`` and whether any entry is NaN (a running minimum per lane, vectorised)."""
-    lanes = 16
-    best = np.full(lanes, np.float32(np.inf))
-    nan = False
-    m = row.shape[0]
-    for s in range(0, m - lanes + 1, lanes):
-        for j in range(lanes):
-            v = row[s + j]
-            nan |= v != v
-            best[j] = v if v < best[j] else best[j]
-    r = best.min()
-    for j in range(m - m % lanes, m):
-        v = row[j]
-        nan |= v != v
-        r = v if v < r else r
-    return float(r), nan
-
-
-@compiled
 def scan_rows(
-    g: NDArray[np.float32], w: FloatArray, refs: FloatArray, t2_in: float, t2_out: float, k: int,
-    slack: FloatArray,
+    g: NDArray[np.float32], least: NDArray[np.float32], w: FloatArray, refs: FloatArray, t2_in: float,
+    t2_out: float, k: int, slack: FloatArray,
 ) -> NDArray[np.int8]:  # fmt: skip  # pragma: no cover - compiled
     """:func:`_decide`'s codes (1, 0 or -1) from a float32 product ``g = [w, 1] @ columns``.
 
     ``g[i, j] + ||w_i||^2`` is the squared distance from ``w_i`` to ``refs[j]`` up to
     ``slack[i]`` (the caller's rounding bound); a pair the bound does not settle, or whose value
-    is NaN, is recomputed in float64 as :func:`_decide` computes it.
+    is NaN, is recomputed in float64 as :func:`_decide` computes it. ``least[i]`` is the smallest
+    ``g[i, j]`` (NaN if any is NaN: NumPy's ``min``): a row whose smallest value is surely beyond
+    the threshold is outside at once.
     """
     rows, m = g.shape
     codes = np.empty(rows, np.int8)
@@ -294,8 +276,7 @@ def scan_rows(
         for d in range(w.shape[1]):
             ww += w[i, d] * w[i, d]
         out_cut, in_cut = t2_out + slack[i], t2_in - slack[i]
-        least, nan = _least(g[i])
-        if not nan and least + ww > out_cut:  # every reference surely beyond the threshold
+        if least[i] + ww > out_cut:  # every reference surely beyond the threshold (False if NaN)
             codes[i] = 0
             continue
         inside = 0
@@ -332,13 +313,19 @@ def _insert(best: FloatArray, v: float) -> None:  # pragma: no cover - compiled
 
 @compiled
 def kth_rows(
-    g: NDArray[np.float32], w: FloatArray, refs: FloatArray, k: int, slack: FloatArray
+    g: NDArray[np.float32],
+    least: NDArray[np.float32],
+    w: FloatArray,
+    refs: FloatArray,
+    k: int,
+    slack: FloatArray,
 ) -> FloatArray:  # pragma: no cover - compiled
     """Each row's ``k``-th smallest of ``sum_d (w_id - r_jd)^2`` (float64, index order) over all ``j``.
 
-    The float32 product ``g`` (as in :func:`scan_rows`) picks the candidates: every ``j`` whose
-    value is within ``2 slack[i]`` of the ``k``-th smallest value; only those are computed in
-    float64. NaN for a row with a NaN value (the caller decides it otherwise).
+    The float32 product ``g`` (as in :func:`scan_rows`, with ``least`` its rows' minima) picks
+    the candidates: every ``j`` whose value is within ``2 slack[i]`` of the ``k``-th smallest
+    value; only those are computed in float64. NaN for a row with a NaN value (the caller decides
+    it otherwise).
     """
     rows, m = g.shape
     out = np.empty(rows)
@@ -348,8 +335,8 @@ def kth_rows(
         for d in range(w.shape[1]):
             ww += w[i, d] * w[i, d]
         if k == 1:
-            least, nan = _least(g[i])
-            best[0] = least + ww
+            nan = least[i] != least[i]
+            best[0] = least[i] + ww
         else:
             best[:] = math.inf
             nan = False
@@ -365,14 +352,17 @@ def kth_rows(
         level = np.float32(cut + 1e-6 * (abs(cut) + ww) + 1e-300)
         best[:] = math.inf
         row = g[i]
-        for s in range(0, m, 16):  # a vectorised test per block of 16, then the block's candidates
-            e = min(m, s + 16)
-            hit = False
-            for j in range(s, e):
-                hit |= row[j] <= level
-            if hit:
-                for j in range(s, e):
+        full = m - m % 64
+        for s in range(0, full, 64):  # a vectorised count per block of 64, then the block's candidates
+            hits = np.int32(0)
+            for j in range(64):
+                hits += np.int32(row[s + j] <= level)
+            if hits:
+                for j in range(s, s + 64):
                     if row[j] <= level:
                         _insert(best, _dist2(w[i], refs, j))
+        for j in range(full, m):
+            if row[j] <= level:
+                _insert(best, _dist2(w[i], refs, j))
         out[i] = best[k - 1]
     return out

@@ -32,7 +32,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ipcverify.data import PerceptionDataset, PerceptionInputs
-from ipcverify.domain import DomainReport
+from ipcverify.domain import DomainModel, DomainReport
+from ipcverify.domain_index import one_blas_thread
 from ipcverify.errors import InvalidInputError
 from ipcverify.files import atomic_write
 from ipcverify.model import IPCModel
@@ -99,7 +100,9 @@ def predict_sets(model: IPCModel, inputs: PerceptionInputs, chunk: int | None = 
     :func:`ipcverify.nonsingular.nonsingular` (the SVD test, settled cheaply where it can be);
     ``in_domain`` comes from :meth:`DomainModel.contains <ipcverify.domain.DomainModel.contains>`
     (the exact test's answer, about one k-d tree leaf per in-distribution query). The distances
-    themselves are computed only when ``Predictions.distance`` is read.
+    themselves are computed only when ``Predictions.distance`` is read. NumPy's BLAS runs on one
+    thread meanwhile (:func:`ipcverify.domain_index.one_blas_thread`): every product here is a
+    block sized to the cache, which a second thread only slows down.
 
     Raises
     ------
@@ -112,6 +115,11 @@ def predict_sets(model: IPCModel, inputs: PerceptionInputs, chunk: int | None = 
             f"{inputs.source}: the queries have x_dim={inputs.x.shape[1]}, yhat_dim={inputs.yhat.shape[1]} "
             f"but the model expects x_dim={cfg.x_dim}, y_dim={cfg.y_dim}"
         )
+    with one_blas_thread():
+        return _predict_sets(model, inputs, chunk)
+
+
+def _predict_sets(model: IPCModel, inputs: PerceptionInputs, chunk: int | None) -> Predictions:
     centers, shapes = model.raw_arrays(inputs.x, inputs.yhat, batch_size=chunk)
     if model.calibration is not None:
         shapes /= model.calibration.scale_for(inputs.x, inputs.yhat)[:, None, None]
@@ -134,8 +142,13 @@ def predict_sets(model: IPCModel, inputs: PerceptionInputs, chunk: int | None = 
         singular=singular,
         calibrated=model.calibration is not None,
         domain=report,
-        distances=None if domain is None else (lambda: domain.distance(inputs.x, inputs.yhat)),
+        distances=None if domain is None else (lambda: _distances(domain, inputs)),
     )
+
+
+def _distances(domain: DomainModel, inputs: PerceptionInputs) -> FloatArray:
+    with one_blas_thread():
+        return domain.distance(inputs.x, inputs.yhat)
 
 
 def write_predictions(predictions: Predictions, path: str | os.PathLike[str]) -> None:

@@ -164,3 +164,24 @@ def test_the_documents_numbers_are_the_committed_results():
         text = doc.read_text(encoding="utf-8")
         assert replace_blocks(text, blocks)[1] == [], f"{doc.name}: run python -m benchmarks.readme"
         assert "READING_" not in text
+
+
+@pytest.mark.slow
+def test_the_guard_scale_benchmark_runs_quickly_and_writes_its_numbers(tmp_path):
+    from benchmarks.bench_guard import main as guard_main
+
+    res = guard_main(["--quick", "--out", str(tmp_path)])
+    saved = json.loads((tmp_path / "guard_results.json").read_text())
+    assert [r["calibration_rows"] for r in saved["calibration"]] == [300, 1000]
+    assert all(r["references"] <= r["calibration_rows"] for r in saved["calibration"])
+    assert [r["references"] for r in saved["reference_cap"]] == [300, 1000, 3000]
+    assert all(0.0 <= r["flagged_in_distribution"] <= 1.0 for r in saved["reference_cap"])
+    assert [r["queries"] for r in saved["batches"]] == [100, 1000]
+    cli = saved["cli_predict"]
+    assert (
+        cli["rows"] == 2000
+        and cli["distances_finite"]
+        and set(cli["runs"]) == {"one_blas_thread", "default_threads"}
+    )
+    assert cli["cpu_seconds"] > 0 and res["cli_predict"]["wall_seconds"] == cli["wall_seconds"]
+    assert (tmp_path / "guard_scale.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
