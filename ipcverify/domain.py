@@ -199,6 +199,16 @@ class DomainModel:
         # state and search stack are the thread's own: the kernel runs without the GIL)
         object.__setattr__(self, "_search", [None, threading.local()])
 
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickled without the search structures (rebuilt on first use; thread-local state cannot be)."""
+        state = dict(self.__dict__)
+        state["_search"] = None
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        object.__setattr__(self, "_search", [None, threading.local()])
+
     # ------------------------------------------------------------------- fitting
     @classmethod
     def fit(
@@ -308,10 +318,12 @@ class DomainModel:
         args = getattr(local, "args", None)
         if args is None:
             index = self.index()
-            state = np.zeros(3 + 2 * len(self.mean))
-            stack = np.zeros(index.depth + 2, dtype=np.int64)
-            args = (self.mean, self._wt, index.refs, index.nodes, index.boxes, *levels(self.threshold),
-                    self.k, index.budget, state, stack)  # fmt: skip
+            # the layout of domain_kernels.domain_one's state: kind, value, t2_in, t2_out, k, budget,
+            # then the previous and the current whitened point
+            state = np.zeros(6 + 2 * len(self.mean))
+            state[2:6] = (*levels(self.threshold), self.k, index.budget)
+            affine = np.vstack([self.mean, self._wt])
+            args = (affine, index.refs, index.nodes, index.boxes, state, np.zeros(index.depth + 2, np.int64))
             local.args = args
         return args  # type: ignore[no-any-return]
 
@@ -419,7 +431,7 @@ class DomainModel:
 
     def forget(self) -> None:
         """Drop what :meth:`contains_one` kept of this thread's previous query (answers do not change)."""
-        self._one_args()[-2][0] = 0.0
+        self._one_args()[-2][0] = 0.0  # state[0]: nothing kept
 
     def prepare(self) -> None:
         """Build the index and compile (or load from Numba's on-disk cache) the kernels of

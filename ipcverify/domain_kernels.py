@@ -218,41 +218,50 @@ def domain_rows(
     return codes
 
 
+#: Slots of :func:`domain_one`'s ``state``: what the previous query left, the levels and settings,
+#: then the previous and the current whitened point (D floats each).
+_KIND, _VALUE, _T2_IN, _T2_OUT, _K, _BUDGET, _POINTS = 0, 1, 2, 3, 4, 5, 6
+
+
 @compiled
 def domain_one(
-    z: FloatArray, mean: FloatArray, whitening_t: FloatArray, refs: FloatArray, nodes: NDArray[np.int64],
-    boxes: FloatArray, t2_in: float, t2_out: float, k: int, budget: int, state: FloatArray,
-    stack: NDArray[np.int64],
+    z: FloatArray, affine: FloatArray, refs: FloatArray, nodes: NDArray[np.int64], boxes: FloatArray,
+    state: FloatArray, stack: NDArray[np.int64],
 ) -> int:  # fmt: skip  # pragma: no cover - compiled
     """One query ``z``: :func:`domain_rows`'s code, answered from the previous query where that is sound.
 
-    ``state`` (``3 + 2 D`` floats) keeps what the previous decided query left: ``state[0] = 1``
-    and its witness ``refs[state[1]]`` (``k = 1``), checked first; or ``state[0] = 2``, a lower
-    bound ``state[1]`` of its ``k``-th neighbour distance and its whitened point ``state[3:3 +
-    D]``: the distance is 1-Lipschitz, so a query within ``state[1] - sqrt(t2_out)`` of that
-    point is outside too. ``state[0] = 0``: nothing kept.
+    ``affine`` stacks the mean over the transposed whitening (``(D + 1, D)``; the whitening of
+    :func:`whiten_one`); ``state`` (``6 + 2 D`` floats, one call's arguments kept few: each costs
+    the caller time) holds ``t2_in``, ``t2_out``, ``k`` and the search budget, and what the
+    previous decided query left: ``state[0] = 1`` and its witness ``refs[state[1]]`` (``k = 1``),
+    checked first; or ``state[0] = 2``, a lower bound ``state[1]`` of its ``k``-th neighbour
+    distance and its whitened point: the distance is 1-Lipschitz, so a query within
+    ``state[1] - sqrt(t2_out)`` of that point is outside too. ``state[0] = 0``: nothing kept.
     """
-    dim = whitening_t.shape[1]
-    w = state[3 + dim : 3 + 2 * dim]
-    _whiten_into(z, z[:0], mean, whitening_t, w)
-    kind = state[0]
+    dim = affine.shape[1]
+    t2_in, t2_out = state[_T2_IN], state[_T2_OUT]
+    k, budget = int(state[_K]), int(state[_BUDGET])
+    prev = state[_POINTS : _POINTS + dim]
+    w = state[_POINTS + dim : _POINTS + 2 * dim]
+    _whiten_into(z, z[:0], affine[0], affine[1:], w)
+    kind = state[_KIND]
     if kind == 1.0:
-        if _dist2(w, refs, int(state[1])) <= t2_in:
+        if _dist2(w, refs, int(state[_VALUE])) <= t2_in:
             return 1
     elif kind == 2.0:
         step = 0.0
         for d in range(dim):
-            v = w[d] - state[3 + d]
+            v = w[d] - prev[d]
             step += v * v
-        if state[1] - math.sqrt(step) * (1.0 + 1e-12) > math.sqrt(t2_out):
+        if state[_VALUE] - math.sqrt(step) * (1.0 + 1e-12) > math.sqrt(t2_out):
             return 0
     code, value = _decide(w, refs, nodes, boxes, t2_in, t2_out, k, budget, stack)
-    state[0] = 0.0
+    state[_KIND] = 0.0
     if code == 1 and k == 1:
-        state[0], state[1] = 1.0, value
+        state[_KIND], state[_VALUE] = 1.0, value
     elif code == 0 and value < math.inf:
-        state[0], state[1] = 2.0, math.sqrt(value) * (1.0 - 1e-12)
-        state[3 : 3 + dim] = w
+        state[_KIND], state[_VALUE] = 2.0, math.sqrt(value) * (1.0 - 1e-12)
+        prev[:] = w
     return code
 
 

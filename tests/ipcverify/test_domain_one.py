@@ -159,3 +159,16 @@ def test_threads_keep_their_own_single_query_state():
     with ThreadPoolExecutor(4) as pool:
         got = list(pool.map(run, streams * 2))
     assert got == want * 2
+
+
+def test_a_domain_model_pickles_and_answers_the_same_after():
+    import copy
+    import pickle
+
+    dom, x, yhat = DOMAINS[3]
+    dom.prepare()
+    again = pickle.loads(pickle.dumps(dom))
+    assert again.threshold == dom.threshold and np.array_equal(again.reference, dom.reference)
+    assert np.array_equal(again.contains(x, yhat), dom.contains(x, yhat))
+    z = np.concatenate([x[0], yhat[0]])
+    assert copy.deepcopy(dom).contains_one(z) == dom.contains_one(z)
