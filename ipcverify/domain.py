@@ -321,7 +321,9 @@ class DomainModel:
             # the layout of domain_kernels.domain_one's state: kind, value, t2_in, t2_out, k, budget,
             # then the previous and the current whitened point
             state = np.zeros(6 + 2 * len(self.mean))
-            state[2:6] = (*levels(self.threshold), self.k, index.budget)
+            # no search budget for one query: scanning every leaf in the compiled call (tens of µs at
+            # worst) costs less than the float32 product's Python path for one row
+            state[2:6] = (*levels(self.threshold), self.k, len(index.nodes))
             affine = np.vstack([self.mean, self._wt])
             args = (affine, index.refs, index.nodes, index.boxes, state, np.zeros(index.depth + 2, np.int64))
             local.args = args
@@ -410,11 +412,13 @@ class DomainModel:
     def contains_one(self, z: FloatArray) -> bool:
         """One query given as the concatenated 1-D ``(x, yhat)`` (the single-query path).
 
-        The answer of :meth:`contains` for this query (the same whitened bits, the same tiers),
-        in one compiled call (:func:`ipcverify.domain_kernels.domain_one`) unless the query needs tier 2
-        or the exact test. The call first asks the previous query: the reference that proved it
-        inside (``k = 1``), or, after an outside answer, the 1-Lipschitz bound of the distance
-        (a control loop's queries move little between frames).
+        The answer of :meth:`contains` for this query (the same whitened bits, the same test), in
+        one compiled call (:func:`ipcverify.domain_kernels.domain_one`: the search without a
+        budget, since one query's float32 product would cost more in Python than the scan of
+        every leaf) unless the query is within the 1e-9 band and needs the exact test. The call
+        first asks the previous query: the reference that proved it inside (``k = 1``), or, after
+        an outside answer, the 1-Lipschitz bound of the distance (a control loop's queries move
+        little between frames).
         """
         if z.shape != self.mean.shape:
             raise InvalidInputError(
