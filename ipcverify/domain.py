@@ -427,10 +427,8 @@ class DomainModel:
         code = domain_one(z, *self._one_args()) if len(z) <= MAX_INPUTS else -2
         if code >= 0:
             return bool(code == 1)
-        index = self.index()
         w = whiten_one(np.asarray(z, dtype=np.float64), self.mean, self._wt)[None]
-        if code == -2:
-            code = int(index.scan(w, self.threshold, self.k)[0])
+        code = int(self.index().scan(w, self.threshold, self.k)[0]) if code == -2 else code
         return bool(code == 1 or (code == -1 and self._exact(w)[0] <= self.threshold))
 
     def forget(self) -> None:
@@ -438,9 +436,7 @@ class DomainModel:
         self._one_args()[-2][0] = 0.0  # state[0]: nothing kept
 
     def prepare(self) -> None:
-        """Build the index and compile (or load from Numba's on-disk cache) the kernels of
-        :meth:`contains_one` now; the first query otherwise pays it (seconds on a fresh install).
-        """
+        """Build the index and compile (or load from Numba's cache) :meth:`contains_one`'s kernels now."""
         # a fresh writable array, as contains_one receives (the kernel is compiled per layout)
         self.contains_one(np.array(self.mean, dtype=np.float64))
         self.forget()
