@@ -30,6 +30,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from benchmarks.oracle_data import Oracle, make_fresh_lagged, make_hetlag
 from ipcverify.data import PerceptionDataset, load_dataset
 from ipcverify.errors import InvalidInputError
@@ -42,6 +44,7 @@ __all__ = [
     "SPLIT_SEEDS",
     "Splits",
     "load_splits",
+    "quad_flights",
     "quad_split",
     "simulator_fingerprint",
 ]
@@ -114,6 +117,46 @@ def quad_split(n: int, seed: int, cache: Path = CACHE) -> PerceptionDataset:
     if len(cols) != 12:
         raise InvalidInputError(f"{path}: expected 12 x_* columns, found {len(cols)}; delete the cache file")
     return ds
+
+
+#: Flights of the in-distribution quad workload (``quad_flights``): calibration, then held out.
+FLIGHTS = (120, 80)
+#: Camera frames between two measurements of that workload (the splits above take every 2nd frame).
+SPARSE_EVERY = 20
+
+
+def quad_flights(
+    calibration: int = FLIGHTS[0], held_out: int = FLIGHTS[1], seed: int = 1003, cache: Path = CACHE
+) -> tuple[PerceptionDataset, PerceptionDataset]:
+    """Many short records of exploration flights: ``calibration`` flights, then ``held_out`` more.
+
+    The quad splits above are 12 flights each, sampled every 2nd frame, so a row-level domain
+    test fitted on one split flags most rows of another split's flights (their rows lie close to
+    each other and far from other flights). Here every flight is sampled every
+    :data:`SPARSE_EVERY` frames (about 43 rows per 15 s flight), so ``calibration`` flights make
+    about 5,000 rows and enough flights (``>= 1/alpha - 1``) to fit the domain test by flight;
+    the held-out flights are new flights drawn exactly like them (same generator and seed,
+    the next path indices). Both keep the flight index as the column ``path``. Flown once
+    (about a minute), then read from the cache.
+    """
+    from case_studies.quad_landing import load_config
+
+    rows = 46 * (calibration + held_out)  # a flight records at most 45 rows at this spacing
+    path = cache / f"quad_k1_every{SPARSE_EVERY}_n{rows}_seed{seed}_{simulator_fingerprint()}.parquet"
+    if not path.is_file():
+        from case_studies.quad_landing import collect
+
+        config = load_config().replace(collect={"sample_every": SPARSE_EVERY})
+        frame, _ = collect(rows, buffer_size=1, seed=seed, config=config)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        atomic_write(path, lambda f: frame.to_parquet(f, index=False))
+    ds = load_dataset(path)
+    flight = ds.column("path")
+    if flight.max() + 1 < calibration + held_out:
+        raise InvalidInputError(f"{path}: fewer than {calibration + held_out} flights; delete the cache file")
+    cal = ds.subset(np.flatnonzero(flight < calibration))
+    test = ds.subset(np.flatnonzero((flight >= calibration) & (flight < calibration + held_out)))
+    return cal, test
 
 
 def load_splits(name: str, n_train: int, n_calibration: int, n_test: int, cache: Path = CACHE) -> Splits:

@@ -19,6 +19,8 @@ __all__ = [
     "diagnosis_runs_table",
     "shift_table",
     "targets_table",
+    "guard_latency_tables",
+    "guard_methods_table",
 ]
 
 #: Display names of the methods.
@@ -199,4 +201,88 @@ def targets_table(targets: dict[str, Any]) -> list[str]:
         met = "n/a" if t["met"] is None else ("yes" if t["met"] else f"**no** ({t['by']:.3g}× the limit)")
         rel = "≥" if t.get("at_least") else "≤"
         lines.append(f"| {t['what']} | {val} | {rel} {t['limit']:.3g} | {met} |")
+    return lines
+
+
+#: Single-query paths of the per-workload table, in order, with their labels.
+_ONE_QUERY = {
+    "bare_forward": "bare torch forward of the network, all members (reference)",
+    "decide": "→ ellipsoid → domain test → landing decision of record (exact proof on accepts)",
+    "decide_without_domain_test": "  … the same model with its domain dropped (no domain test)",
+    "decide_float": "→ ellipsoid → domain test → float landing decision (not a proof)",
+    "onnx_float32": "ONNX Runtime float32, (1, d) input",
+}
+
+
+def _share(w: dict[str, Any]) -> str:
+    share = w.get("outside_fraction")
+    return "no domain" if share is None else f"{100 * share:.1f} % outside the domain"
+
+
+def guard_latency_tables(lat: dict[str, Any]) -> list[str]:
+    """Per workload (in-distribution first): single-query latency and guarded batch throughput.
+
+    Each workload's header gives the share of its queries outside the domain of validity.
+    """
+    lines = [
+        "| one query (x, ŷ), 1 thread | p50 µs | p99 µs | p50 / bare forward | p99 / bare forward |",
+        "|---|---|---|---|---|",
+    ]
+    for name, w in lat["workloads"].items():
+        lines.append(f"| **{name}** ({_share(w)}) | | | | |")
+        paths = w["single_query"]["paths"]
+        for key, label in _ONE_QUERY.items():
+            if key in paths:
+                r = paths[key]
+                lines.append(
+                    f"| {label} | {r['p50']['median']:.0f} | {r['p99']['median']:.0f} | "
+                    f"{r['p50_ratio_to_bare_forward']:.2f} | {r['p99_ratio_to_bare_forward']:.2f} |"
+                )
+    lines += [
+        "",
+        "| batch, 1 thread | queries | bare torch forward (q/s) | guarded `predict_sets` (q/s) | "
+        "× bare forward | without the domain test, × bare forward | domain test alone (µs / query) |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for name, w in lat["workloads"].items():
+        paths = w["batch_throughput"]["paths"]
+        for b in w["batch_throughput"]["sizes"]:
+            if b < 10_000 and len(w["batch_throughput"]["sizes"]) > 2:
+                continue
+            bare = paths["bare_torch_forward"][str(b)]["median"]
+            guarded = paths["predict_sets"][str(b)]["median"]
+            alone = paths["predict_sets_without_domain"][str(b)]["median"]
+            dom = paths["domain_contains"][str(b)]["median"]
+            lines.append(
+                f"| {name} ({_share(w)}) | {b:,} | {bare:,.0f} | {guarded:,.0f} | {guarded / bare:.2f} | "
+                f"{alone / bare:.2f} | {1e6 / dom:.2f} |"
+            )
+    return lines
+
+
+def guard_methods_table(lat: dict[str, Any]) -> list[str]:
+    """The exact threshold test three ways, and the exact distances, per workload (µs per query)."""
+    lines = [
+        "| workload | queries / references / inputs | SciPy k-d tree (exact) | float32 BLAS product | "
+        "compiled tree search (ships) | exact distances | same answers | decided by the search / "
+        "product / exact test |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for name, w in lat["workloads"].items():
+        m = w.get("domain_methods")
+        if not m:
+            continue
+        us = {k: f"{v['us_per_query_wall']['median']:.2f}" for k, v in m["methods"].items()}
+        t = m["tree_tiers"]
+        size = f"{m['queries']:,} / {m['references']:,} / {m['inputs']}"
+        tiers = (
+            f"{100 * t['decided_by_the_search']:.1f} % / {100 * t['over_budget_to_the_product']:.1f} % / "
+            f"{100 * t['in_the_band_to_the_exact_test']:.2f} %"
+        )
+        cells = [us["exact_ckdtree"], us["blas_product"], us["tree_search"], us["distance"]]
+        lines.append(
+            f"| {name} ({100 * m['outside_fraction']:.1f} % outside) | {size} | "
+            + " | ".join(cells)
+            + f" | {'yes' if m['agree'] else '**no**'} | {tiers} |"
+        )
     return lines

@@ -15,6 +15,11 @@ except for a share ``alpha``.
 * **Guarantee.** If a query is exchangeable with the ``n`` calibration inputs, it is
   flagged with probability at most ``alpha`` (proof: ``proofs/domain.md``). A range check
   alone cannot do this: a query can lie inside every column's range and far from all data.
+* **Evaluation.** :meth:`DomainModel.contains` answers "score <= threshold" without computing
+  the score: a k-d tree search that stops at the ``k``-th reference within the threshold, a
+  float32 BLAS product with a rigorous rounding bound, the exact test only within a relative
+  ``1e-9`` of the threshold (:mod:`ipcverify.domain_index`) -- the exact test's answer for
+  every query, at about a leaf of the tree per in-distribution query.
 
 A flagged query is *outside the domain of validity*: the calibration certificate promises
 nothing for it. The test says nothing, either way, about queries it does not flag -- no
@@ -36,6 +41,7 @@ False
 from __future__ import annotations
 
 import math
+import threading
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -48,8 +54,9 @@ from scipy.spatial import cKDTree
 from ipcverify.bounds import marginal_conformal_index
 from ipcverify.calibration.grouped import risk_control_threshold
 from ipcverify.data import group_codes
+from ipcverify.domain_index import BAND, MAX_INPUTS, DomainIndex, levels
+from ipcverify.domain_kernels import domain_one, whiten_one, whiten_rows
 from ipcverify.errors import InvalidInputError, SampleSizeError
-from ipcverify.kernels import scan_kth, whiten_one
 
 __all__ = [
     "DEFAULT_ALPHA",
@@ -78,54 +85,6 @@ GROUP_METHOD = (
     "conformal k-nearest-neighbour distance on whitened (x, yhat), leave-one-group-out threshold "
     "(conformal risk control over the calibration groups)"
 )
-#: contains_one answers from a cached or float32 distance only this far (relative) from the threshold.
-_ABOVE, _BELOW = 1.0 + 1e-9, 1.0 - 1e-9
-_STEP_SLACK = 1.0 + 1e-12  # covers the rounding of a 15-ish-term float64 distance
-#: Rounding bound of the float32 scan, per unit of (max ||r|| + ||w||)^2: (D + 6) u32 suffices (_Scan).
-_SCAN_BOUND = 1e-5
-_U32 = 2.0**-24
-_SCAN_MAX_NORM = 1e15  # whitened queries farther out than this go to the tree
-
-
-@dataclass(frozen=True, eq=False)
-class _Scan:
-    """All reference points in float32, to bound every squared distance at once.
-
-    ``d_j^2 = ||r_j||^2 - 2 r_j.w + ||w||^2``: the first two terms are one float32 product of
-    ``(w, 1)`` with the columns ``(-2 r_j, ||r_j||^2)``. Rounding ``r``, ``||r||^2`` and ``w`` to
-    float32 and every operation of the product (``D + 1`` terms, each rounding ``<= u32 = 2^-24``
-    relative, ``|r.w| <= ||r|| ||w||``) changes the result by at most ``(D + 5) u32 (R + ||w||)^2``
-    with ``R = max ||r_j||``, and the ``k``-th smallest of the values by no more.
-    ``_SCAN_BOUND = 1e-5`` covers ``(D + 6) u32`` up to ``D = 161`` inputs (beyond, the scan is
-    skipped); the float64 ``R`` is rounded up by a relative ``1e-12``.
-    """
-
-    columns: NDArray[np.float32]  # (D + 1, m): -2 r_j stacked over ||r_j||^2
-    max_norm: float
-
-    @classmethod
-    def of(cls, ref: FloatArray) -> _Scan:
-        sq = np.einsum("ij,ij->i", ref, ref)
-        cols = np.concatenate([-2.0 * ref.T, sq[None, :]], axis=0)
-        return cls(
-            np.ascontiguousarray(cols, dtype=np.float32),
-            float(np.sqrt(sq.max())) * (1.0 + 1e-12) if len(sq) else 0.0,
-        )
-
-    def kth(self, w: FloatArray, k: int) -> tuple[float, float] | None:
-        """Lower and upper bounds of the ``k``-th smallest distance ``||r_j - w||`` (None: too far out).
-
-        The products are one call of :func:`ipcverify.kernels.scan_kth`.
-        """
-        norm = math.hypot(*w.tolist())  # scaled internally: a far-out query cannot overflow here
-        if not norm < _SCAN_MAX_NORM or (len(w) + 6) * _U32 > _SCAN_BOUND:
-            return None
-        ww = norm * norm
-        kth = float(scan_kth(w, self.columns, k)) + ww
-        if kth != kth:
-            return None
-        slack = _SCAN_BOUND * (self.max_norm + math.sqrt(ww)) ** 2
-        return math.sqrt(max(kth - slack, 0.0)), math.sqrt(kth + slack)
 
 
 def _stack(x: ArrayLike, yhat: ArrayLike) -> FloatArray:
@@ -211,8 +170,7 @@ class DomainModel:
     n_groups: int | None = None
     _tree: Any = field(default=None, init=False, repr=False)
     _wt: Any = field(default=None, init=False, repr=False)
-    _scan: Any = field(default=None, init=False, repr=False)
-    _last: Any = field(default=None, init=False, repr=False, compare=False)
+    _search: Any = field(default=None, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         mean = np.array(self.mean, dtype=np.float64)
@@ -237,8 +195,19 @@ class DomainModel:
             object.__setattr__(self, name, value)
         object.__setattr__(self, "_tree", cKDTree(ref))
         object.__setattr__(self, "_wt", np.ascontiguousarray(w.T))
-        object.__setattr__(self, "_scan", _Scan.of(ref))
-        object.__setattr__(self, "_last", [None])
+        # built on first use: the index; per thread, domain_one's arguments after the query (its
+        # state and search stack are the thread's own: the kernel runs without the GIL)
+        object.__setattr__(self, "_search", [None, threading.local()])
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickled without the search structures (rebuilt on first use; thread-local state cannot be)."""
+        state = dict(self.__dict__)
+        state["_search"] = None
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        object.__setattr__(self, "_search", [None, threading.local()])
 
     # ------------------------------------------------------------------- fitting
     @classmethod
@@ -336,88 +305,141 @@ class DomainModel:
                    threshold=threshold, n=n)  # fmt: skip
 
     # ------------------------------------------------------------------- queries
-    def _whiten(self, z: FloatArray) -> FloatArray:
-        if z.shape[1] != len(self.mean):
+    def index(self) -> DomainIndex:
+        """The search structure of the fast test (:mod:`ipcverify.domain_index`), built on first use."""
+        search = self._search
+        if search[0] is None:
+            search[0] = DomainIndex.build(self.reference)
+        return search[0]  # type: ignore[no-any-return]
+
+    def _one_args(self) -> tuple[Any, ...]:
+        """This thread's arguments of :func:`~ipcverify.domain_kernels.domain_one` after the query."""
+        local = self._search[1]
+        args = getattr(local, "args", None)
+        if args is None:
+            index = self.index()
+            # the layout of domain_kernels.domain_one's state: kind, value, t2_in, t2_out, k, budget,
+            # then the previous and the current whitened point
+            state = np.zeros(6 + 2 * len(self.mean))
+            # no search budget for one query: scanning every leaf in the compiled call (tens of µs at
+            # worst) costs less than the float32 product's Python path for one row
+            state[2:6] = (*levels(self.threshold), self.k, len(index.nodes))
+            affine = np.vstack([self.mean, self._wt])
+            args = (affine, index.refs, index.nodes, index.boxes, state, np.zeros(index.depth + 2, np.int64))
+            local.args = args
+        return args  # type: ignore[no-any-return]
+
+    def _rows(self, x: ArrayLike, yhat: ArrayLike) -> tuple[FloatArray, FloatArray]:
+        """``x`` and ``yhat`` as C-contiguous float64 (B, d) and (B, n), checked against the model."""
+        xa = np.ascontiguousarray(x, dtype=np.float64)
+        ya = np.ascontiguousarray(yhat, dtype=np.float64)
+        xa, ya = (xa[None] if xa.ndim == 1 else xa), (ya[None] if ya.ndim == 1 else ya)
+        if xa.ndim != 2 or ya.ndim != 2 or len(xa) != len(ya):
             raise InvalidInputError(
-                f"domain test: queries have {z.shape[1]} columns of (x, yhat) but the domain model was "
-                f"fitted on {len(self.mean)}"
+                f"domain test: x and yhat must be (B, d) and (B, n) with the same B; got {xa.shape}, "
+                f"{ya.shape}"
             )
-        return np.asarray((z - self.mean) @ self.whitening.T)
+        if xa.shape[1] + ya.shape[1] != len(self.mean):
+            raise InvalidInputError(
+                f"domain test: queries have {xa.shape[1] + ya.shape[1]} columns of (x, yhat) but the domain "
+                f"model was fitted on {len(self.mean)}"
+            )
+        return xa, ya
+
+    def whiten(self, x: ArrayLike, yhat: ArrayLike) -> FloatArray:
+        """The whitened queries ``W (z - mean)`` (B, D), as every test of this model computes them.
+
+        Each entry is summed in index order (:func:`ipcverify.kernels.whiten_rows`), so a query gets
+        the same bits alone or in any batch, and in :meth:`contains_one`.
+        """
+        xa, ya = self._rows(x, yhat)
+        return np.asarray(whiten_rows(xa, ya, self.mean, self._wt))
+
+    def _exact(self, w: FloatArray) -> FloatArray:
+        """SciPy's k-d tree on whitened rows: the exact test's k-th neighbour distance (inf if not finite)."""
+        out = np.full(len(w), np.inf)
+        ok = np.isfinite(w).all(axis=1)
+        if ok.any():
+            out[ok] = np.asarray(self._tree.query(w[ok], k=[self.k])[0], dtype=np.float64)[:, 0]
+        return out
 
     def distance(self, x: ArrayLike, yhat: ArrayLike) -> FloatArray:
         """Each query's score: whitened distance to its ``k``-th nearest calibration input (B,).
 
-        Non-finite queries get ``inf``.
+        Computed in float64 from the candidates a float32 product picks
+        (:meth:`DomainIndex.kth <ipcverify.domain_index.DomainIndex.kth>`; the exact test's value to
+        the last bits), and by the exact test itself (SciPy's k-d tree) for a query the product
+        cannot bound or whose distance lies within a relative ``1e-9`` of the threshold, so that
+        ``distance <= threshold`` is exactly :meth:`contains`. Non-finite queries get ``inf``.
         """
-        z = _stack(x, yhat)
-        ok = np.isfinite(z).all(axis=1)
-        out = np.full(len(z), np.inf)
-        if ok.any():
-            d, _ = self._tree.query(self._whiten(z[ok]), k=[self.k])
-            out[ok] = np.asarray(d, dtype=np.float64)[:, 0]
+        w = self.whiten(x, yhat)
+        out = np.full(len(w), np.inf)
+        ok = np.flatnonzero(np.isfinite(w).all(axis=1))
+        if len(ok):
+            d = self.index().kth(w[ok], self.k)
+            t = self.threshold
+            unsure = np.isnan(d)
+            unsure[~unsure] = np.abs(d[~unsure] - t) <= BAND * t
+            redo = np.flatnonzero(unsure)
+            if len(redo):
+                d[redo] = self._exact(w[ok[redo]])
+            out[ok] = d
         return out
 
     def contains(self, x: ArrayLike, yhat: ArrayLike) -> NDArray[np.bool_]:
-        """Boolean mask (B,): the query is inside the domain of validity (score <= threshold)."""
-        return np.asarray(self.distance(x, yhat) <= self.threshold, dtype=np.bool_)
+        """Boolean mask (B,): the query is inside the domain of validity (score <= threshold).
+
+        Exactly the exact test's answer (SciPy's k-d tree on the whitened query), reached in
+        three tiers (:mod:`ipcverify.domain_index`): a compiled k-d tree search that stops at the
+        ``k``-th reference within the threshold, a float32 BLAS product with a rigorous rounding
+        bound for queries the search would take long over, and the exact test for a query with a
+        reference within a relative ``1e-9`` of the threshold (``proofs/domain.md``). Non-finite
+        queries are outside.
+        """
+        xa, ya = self._rows(x, yhat)
+        index = self.index()
+        codes = index.decide(xa, ya, self.mean, self._wt, self.threshold, self.k)
+        over = np.flatnonzero(codes == -2)
+        if len(over):
+            w = whiten_rows(xa[over], ya[over], self.mean, self._wt)
+            codes[over] = index.scan(w, self.threshold, self.k)
+        band = np.flatnonzero(codes == -1)
+        if len(band):
+            w = whiten_rows(xa[band], ya[band], self.mean, self._wt)
+            codes[band] = self._exact(w) <= self.threshold
+        return np.asarray(codes == 1, dtype=np.bool_)
 
     def contains_one(self, z: FloatArray) -> bool:
         """One query given as the concatenated 1-D ``(x, yhat)`` (the single-query path).
 
-        The answer of :meth:`contains` for this query alone (the ``k``-th neighbour distance, as
-        the tree computes it, is at most the threshold; a larger batch's matrix product may whiten
-        a query an ulp differently), reached cheaply in three steps:
-
-        1. the ``k``-th neighbour distance is 1-Lipschitz in the query, so the previous query's
-           distance ``d'`` decides when ``|d' - threshold|`` exceeds the step ``||w - w'||`` (a
-           control loop's queries move little between frames);
-        2. otherwise a float32 scan of all references, ``||r||^2 - 2 r.w + ||w||^2``, decides when
-           its rigorous rounding bound (``_Scan``) clears the threshold;
-        3. otherwise the tree decides, by the very computation of :meth:`contains`.
-
-        Steps 1 and 2 answer only with a relative margin of ``1e-9`` to the threshold, a million
-        times the rounding of the tree's own distance, so the answer is always :meth:`contains`'s.
+        The answer of :meth:`contains` for this query (the same whitened bits, the same test), in
+        one compiled call (:func:`ipcverify.domain_kernels.domain_one`: the search without a
+        budget, since one query's float32 product would cost more in Python than the scan of
+        every leaf) unless the query is within the 1e-9 band and needs the exact test. The call
+        first asks the previous query: the reference that proved it inside (``k = 1``), or, after
+        an outside answer, the 1-Lipschitz bound of the distance (a control loop's queries move
+        little between frames).
         """
         if z.shape != self.mean.shape:
             raise InvalidInputError(
                 f"domain test: one query is a 1-D (x, yhat) of length {len(self.mean)}; got shape {z.shape}"
             )
-        # one cheap sum in Python floats when finite (it cannot raise: a huge finite row sums to
-        # inf, and then the exact test decides)
-        if not math.isfinite(sum(z.tolist())) and not np.isfinite(z).all():
-            return False
-        w = whiten_one(z, self.mean, self._wt)
-        t = self.threshold
-        last = self._last[0]
-        if last is not None:  # step 1
-            w_prev, d_lo, d_hi = last
-            step = math.dist(w.tolist(), w_prev) * _STEP_SLACK
-            if d_lo - step > t * _ABOVE:
-                return False
-            if d_hi + step < t * _BELOW:
-                return True
-        scan = self._scan.kth(w, self.k)  # step 2: (lower, upper) bounds of the k-th distance, or None
-        if scan is not None:
-            d_lo, d_hi = scan
-            inside = d_hi < t * _BELOW
-            if inside or d_lo > t * _ABOVE:
-                self._last[0] = (w.tolist(), d_lo, d_hi)
-                return inside
-        # step 3: exactly the computation of distance() (a bounded tree query can differ by an ulp)
-        d, _ = self._tree.query(self._whiten(z[None]), k=[self.k])
-        self._last[0] = None
-        return bool(float(d[0, 0]) <= t)
+        code = domain_one(z, *self._one_args()) if len(z) <= MAX_INPUTS else -2
+        if code >= 0:
+            return bool(code == 1)
+        w = whiten_one(np.asarray(z, dtype=np.float64), self.mean, self._wt)[None]
+        code = int(self.index().scan(w, self.threshold, self.k)[0]) if code == -2 else code
+        return bool(code == 1 or (code == -1 and self._exact(w)[0] <= self.threshold))
+
+    def forget(self) -> None:
+        """Drop what :meth:`contains_one` kept of this thread's previous query (answers do not change)."""
+        self._one_args()[-2][0] = 0.0  # state[0]: nothing kept
 
     def prepare(self) -> None:
-        """Compile (or load from Numba's on-disk cache) the kernels of :meth:`contains_one` now.
-
-        The first :meth:`contains_one` otherwise pays it (seconds on a fresh install). Runs the
-        whitening and the scan once at the reference mean; the answer cache of step 1 is left
-        untouched.
-        """
+        """Build the index and compile (or load from Numba's cache) :meth:`contains_one`'s kernels now."""
         # a fresh writable array, as contains_one receives (the kernel is compiled per layout)
-        w = whiten_one(np.array(self.mean, dtype=np.float64), self.mean, self._wt)
-        self._scan.kth(w, self.k)
+        self.contains_one(np.array(self.mean, dtype=np.float64))
+        self.forget()
 
     # ------------------------------------------------------------- reporting
     def report(
@@ -433,19 +455,24 @@ class DomainModel:
             Whether each query's truth fell outside its set; counts the violations inside and
             outside the domain.
         """
-        return self.summarize(self.distance(x, yhat), violated)
+        return self.summarize_outside(~self.contains(x, yhat), violated)
 
     def summarize(self, distance: FloatArray, violated: NDArray[np.bool_] | None = None) -> DomainReport:
         """:meth:`report` from distances already computed by :meth:`distance`."""
-        dist = np.asarray(distance, dtype=np.float64)
-        out = ~(dist <= self.threshold)
+        return self.summarize_outside(~(np.asarray(distance, dtype=np.float64) <= self.threshold), violated)
+
+    def summarize_outside(
+        self, outside: NDArray[np.bool_], violated: NDArray[np.bool_] | None = None
+    ) -> DomainReport:
+        """:meth:`report` from the flags already computed (``outside = ~contains``)."""
+        out = np.asarray(outside, dtype=bool)
         v = None if violated is None else np.asarray(violated, dtype=bool)
         return DomainReport(
             method=self.method,
             alpha=self.alpha,
             threshold=self.threshold,
             n_reference=self.n,
-            n=len(dist),
+            n=len(out),
             outside=int(out.sum()),
             violations_inside=None if v is None else int((v & ~out).sum()),
             violations_outside=None if v is None else int((v & out).sum()),

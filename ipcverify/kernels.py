@@ -20,9 +20,8 @@ query path's ahead of time: :meth:`ipcverify.lowrank_engine.LowRankEngine.prepar
   the BLAS product, the same numbers as NumPy's separate passes;
 * :func:`rcond_lower_3` -- the cheap lower bound of the reciprocal condition number with which
   :mod:`ipcverify.nonsingular` validates a batch's shape matrices;
-* :func:`whiten_one` and :func:`scan_kth` -- the whitening of a query and the float32 scan of
-  all reference points of :class:`ipcverify.domain.DomainModel`, whose rounding bound
-  (``proofs/domain.md``) holds for any summation order.
+* :func:`compiled` -- the decorator of every kernel here and in :mod:`ipcverify.domain_kernels`
+  (the domain test's compiled code).
 
 The kernels are compiled without ``fastmath`` (IEEE semantics: no reassociation, NaN kept) and
 with NumPy's error model (a division by zero gives inf or NaN, never an exception), so a
@@ -31,10 +30,8 @@ degenerate set comes out as NaN entries just as from the batch path.
 Examples
 --------
 >>> import numpy as np
->>> cols = np.array([[-2.0, 0.0], [0.0, -2.0], [1.0, 1.0]], dtype=np.float32)  # refs (1,0), (0,1)
->>> w = whiten_one(np.array([1.0, 0.0]), np.zeros(2), np.eye(2))
->>> float(scan_kth(w, cols, 1) + w @ w), float(scan_kth(w, cols, 2) + w @ w)  # squared distances
-(0.0, 2.0)
+>>> clamped_exp2(np.array([0.0, 0.5]), 1.0).tolist() == [1.0, float(np.exp(1.0))]
+True
 """
 
 from __future__ import annotations
@@ -54,10 +51,9 @@ __all__ = [
     "clamped_exp2",
     "lowrank_one",
     "lowrank_sets",
+    "compiled",
     "rcond_lower_3",
-    "scan_kth",
     "standardise",
-    "whiten_one",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -66,7 +62,7 @@ FloatArray = NDArray[np.float64]
 ACTIVATION_CODES = {"relu": 0, "tanh": 1, "elu": 2}
 
 
-def _compiled(function: Callable[..., Any]) -> Any:
+def compiled(function: Callable[..., Any]) -> Any:
     """``numba.njit`` (NumPy's error model, GIL released), cached on disk where a cache directory is writable.
 
     Numba refuses ``cache=True`` when neither the package's ``__pycache__`` nor a user cache
@@ -76,6 +72,9 @@ def _compiled(function: Callable[..., Any]) -> Any:
         return njit(function, cache=True, error_model="numpy", nogil=True)
     except RuntimeError:
         return njit(function, cache=False, error_model="numpy", nogil=True)
+
+
+_compiled = compiled
 
 
 @_compiled
@@ -394,51 +393,3 @@ def rcond_lower_3(
         shown = det >= normal and c2 >= normal and adj2 >= normal and c2 < math.inf and adj2 < math.inf
         res[r] = det / (math.sqrt(c2) * math.sqrt(adj2)) * (1.0 - 1e-12) if shown else 0.0
     return res
-
-
-@_compiled
-def whiten_one(z: FloatArray, mean: FloatArray, whitening_t: FloatArray) -> FloatArray:  # pragma: no cover
-    """``(z - mean) @ whitening_t`` for one query, each product summed in index order."""
-    d = z.shape[0]
-    dw = whitening_t.shape[1]
-    w = np.zeros(dw)
-    for i in range(d):
-        a = z[i] - mean[i]
-        for j in range(dw):
-            w[j] += a * whitening_t[i, j]
-    return w
-
-
-@_compiled
-def scan_kth(w: FloatArray, columns: NDArray[np.float32], k: int) -> np.float32:  # pragma: no cover
-    """The ``k``-th smallest of the float32 products ``(w, 1) . column_j`` (NaN if any is NaN).
-
-    ``columns`` (float32, ``(D + 1, m)``) stacks ``-2 r_j`` over ``||r_j||^2``, so adding
-    ``||w||^2`` gives the squared distance to the ``k``-th nearest reference, up to the rounding
-    that ``ipcverify.domain`` bounds (for any summation order of the product).
-    """
-    dw = w.shape[0]
-    w1 = np.empty(dw + 1, np.float32)
-    for j in range(dw):
-        w1[j] = w[j]
-    w1[dw] = 1.0
-    d2 = np.dot(w1, columns)
-    m = d2.shape[0]
-    if k > 1:
-        if np.isnan(d2).any():
-            return np.float32(np.nan)
-        return np.partition(d2, k - 1)[k - 1]
-    lanes = 16  # a running minimum per lane, so that the loop vectorises
-    best = np.full(lanes, np.float32(np.inf))
-    nan = False
-    for s in range(0, m - lanes + 1, lanes):
-        for j in range(lanes):
-            v = d2[s + j]
-            nan |= v != v
-            best[j] = v if v < best[j] else best[j]
-    r = best.min()
-    for j in range(m - m % lanes, m):
-        v = d2[j]
-        nan |= v != v
-        r = v if v < r else r
-    return np.float32(np.nan) if nan else r

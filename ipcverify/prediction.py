@@ -23,14 +23,17 @@ Examples
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ipcverify.data import PerceptionDataset, PerceptionInputs, group_codes
-from ipcverify.domain import DomainReport
+from ipcverify.domain import DomainModel, DomainReport
+from ipcverify.domain_index import one_blas_thread
 from ipcverify.errors import InvalidInputError
 from ipcverify.files import atomic_write
 from ipcverify.model import IPCModel
@@ -54,8 +57,6 @@ class Predictions:
     in_domain : bool ndarray (B,)
         The query is inside the domain of validity and its set is non-degenerate; the
         calibration certificate covers only these queries.
-    distance : ndarray (B,)
-        Distance to the calibration inputs (NaN without a domain model).
     singular : bool ndarray (B,)
         The set is degenerate (singular or non-finite shape matrix).
     calibrated : bool
@@ -67,10 +68,23 @@ class Predictions:
     centers: FloatArray
     shapes: FloatArray
     in_domain: NDArray[np.bool_]
-    distance: FloatArray
     singular: NDArray[np.bool_]
     calibrated: bool
     domain: DomainReport | None = None
+    distances: Callable[[], FloatArray] | None = field(default=None, repr=False)
+
+    @cached_property
+    def distance(self) -> FloatArray:
+        """Each query's distance to the calibration inputs (B,), computed on first access.
+
+        :meth:`ipcverify.domain.DomainModel.distance` (the ``k``-th neighbour distance; at most the
+        threshold exactly where the domain test says inside). ``in_domain`` does not need it:
+        the distance costs a search over every reference per query (a float32 BLAS product),
+        the domain test alone about one leaf of a k-d tree. NaN without a domain model.
+        """
+        if self.distances is None:
+            return np.full(len(self.centers), np.nan)
+        return self.distances()
 
     @property
     def outside(self) -> int:
@@ -83,7 +97,12 @@ def predict_sets(model: IPCModel, inputs: PerceptionInputs, chunk: int | None = 
 
     The sets come from :meth:`IPCModel.raw_arrays` (``chunk`` rows at a time; default: the engine's
     cache-sized chunk), scaled by the calibration in place; the singular test is
-    :func:`ipcverify.nonsingular.nonsingular` (the SVD test, settled cheaply where it can be).
+    :func:`ipcverify.nonsingular.nonsingular` (the SVD test, settled cheaply where it can be);
+    ``in_domain`` comes from :meth:`DomainModel.contains <ipcverify.domain.DomainModel.contains>`
+    (the exact test's answer, about one k-d tree leaf per in-distribution query). The distances
+    themselves are computed only when ``Predictions.distance`` is read. NumPy's BLAS runs on one
+    thread meanwhile (:func:`ipcverify.domain_index.one_blas_thread`): every product here is a
+    block sized to the cache, which a second thread only slows down.
 
     Raises
     ------
@@ -96,6 +115,11 @@ def predict_sets(model: IPCModel, inputs: PerceptionInputs, chunk: int | None = 
             f"{inputs.source}: the queries have x_dim={inputs.x.shape[1]}, yhat_dim={inputs.yhat.shape[1]} "
             f"but the model expects x_dim={cfg.x_dim}, y_dim={cfg.y_dim}"
         )
+    with one_blas_thread():
+        return _predict_sets(model, inputs, chunk)
+
+
+def _predict_sets(model: IPCModel, inputs: PerceptionInputs, chunk: int | None) -> Predictions:
     centers, shapes = model.raw_arrays(inputs.x, inputs.yhat, batch_size=chunk)
     if model.calibration is not None:
         shapes /= model.calibration.scale_for(inputs.x, inputs.yhat)[:, None, None]
@@ -104,22 +128,27 @@ def predict_sets(model: IPCModel, inputs: PerceptionInputs, chunk: int | None = 
     if finite.any():  # the SVD test of Ellipsoid, with an SVD only where a cheap bound does not settle it
         singular[np.flatnonzero(finite)] = ~nonsingular(shapes[finite])[0]
     report = None
-    if model.domain is None:
-        distance = np.full(len(centers), np.nan)
+    domain = model.domain
+    if domain is None:
         in_domain = np.asarray(~singular, dtype=np.bool_)
     else:
-        distance = model.domain.distance(inputs.x, inputs.yhat)
-        in_domain = np.asarray((distance <= model.domain.threshold) & ~singular, dtype=np.bool_)
-        report = model.domain.summarize(distance)
+        inside = domain.contains(inputs.x, inputs.yhat)
+        in_domain = np.asarray(inside & ~singular, dtype=np.bool_)
+        report = domain.summarize_outside(~inside)
     return Predictions(
         centers=centers,
         shapes=shapes,
         in_domain=in_domain,
-        distance=distance,
         singular=singular,
         calibrated=model.calibration is not None,
         domain=report,
+        distances=None if domain is None else (lambda: _distances(domain, inputs)),
     )
+
+
+def _distances(domain: DomainModel, inputs: PerceptionInputs) -> FloatArray:
+    with one_blas_thread():
+        return domain.distance(inputs.x, inputs.yhat)
 
 
 def write_predictions(predictions: Predictions, path: str | os.PathLike[str]) -> None:

@@ -32,6 +32,20 @@ def test_quick_run_writes_every_required_key(tmp_path):
         lat["batch_predict_ratio_to_bare_forward"]
     )
     assert all(r > 0 for r in lat["batch_float64_layers_ratio_to_bare_forward"].values())
+    # the guarded batch path and the domain test's methods, per workload with its share outside
+    assert set(lat["batch_guarded_ratio_to_bare_forward"]) == set(lat["batch_predict_ratio_to_bare_forward"])
+    assert lat["workload"] == "synthetic" and list(lat["workloads"]) == ["synthetic"]
+    work = lat["workloads"]["synthetic"]
+    assert 0.0 <= work["outside_fraction"] < 0.2 and work["batch_throughput"]["outside_fraction"] is not None
+    methods = work["domain_methods"]
+    assert methods["agree"] and set(methods["methods"]) == {
+        "exact_ckdtree",
+        "blas_product",
+        "tree_search",
+        "distance",
+    }
+    assert sum(v for k, v in methods["tree_tiers"].items() if k != "index") == pytest.approx(1.0)
+    assert "predict_sets" in work["batch_throughput"]["paths"]
     tight = res["tightness"]["synthetic"]
     assert set(tight) == set(METHODS)
     for method in ("ipc", "ipc_v1", "ipc_paper", "global_mahalanobis", "bonferroni_box", "oracle", "raw_ipc"):
@@ -58,12 +72,14 @@ def test_quick_run_writes_every_required_key(tmp_path):
     md = (tmp_path / "results.md").read_text()
     assert "| method | calibrated | mean volume |" in md and "UNCALIBRATED" in md
     assert "Before and after" in md and "diagnosis against the oracle" in md and "Under shift" in md
+    assert "every workload, in-distribution first" in md and "% outside the domain" in md
     for png in ("plot.png", "bench_throughput.png"):  # the tightness and throughput figures
         assert (tmp_path / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert (tmp_path / "plot.png").stat().st_size > 1000
     # the documents' generated blocks render from any run's results, and only their bodies change
     blocks = render_blocks(res, None)
     assert {"bench-summary", "bench-table", "before-after", "diagnosis", "shift", "targets"} <= set(blocks)
+    assert "guarded `predict_sets`" in blocks["latency-table"] and "SciPy k-d tree" in blocks["guard-latency"]
     doc = (
         "a\n<!-- BEGIN generated:targets (python -m benchmarks.readme) -->\nold\n"
         "<!-- END generated:targets -->\nb"
@@ -124,10 +140,18 @@ def test_tightness_targets_are_computed_from_the_numbers():
 
 
 def test_targets_are_computed_from_the_numbers():
-    t = targets(_fake(ipc=1.0, gm=4.0, mapie=0.8, ratio=1.1, float_ratio=1.3))
+    t = targets(_fake(ipc=1.0, gm=4.0, mapie=0.8, ratio=0.95, float_ratio=1.3))
     assert t["quad_ipc_vs_global_mahalanobis"]["met"] and t["quad_ipc_vs_global_mahalanobis"]["value"] == 0.25
     assert not t["quad_ipc_vs_mapie"]["met"] and t["quad_ipc_vs_mapie"]["by"] == pytest.approx(1.25)
     assert t["single_query_latency"]["met"] and not t["single_query_latency_float_decision"]["met"]
+    assert t["single_query_latency"]["limit"] == 1.0  # issue 30: the decision of record <= 1.0x at p50
+    slow = targets(_fake(ipc=1.0, gm=4.0, mapie=0.8, ratio=1.1, float_ratio=1.0))
+    assert not slow["single_query_latency"]["met"]
+    guarded = _fake(ipc=1.0, gm=4.0, mapie=0.8, ratio=0.9, float_ratio=1.0)
+    guarded["latency"]["batch_guarded_ratio_to_bare_forward"] = {"1000": 0.1, "10000": 0.85, "100000": 0.7}
+    g = targets(guarded)
+    assert g["batch_guarded_10000"]["met"] and not g["batch_guarded_100000"]["met"]
+    assert "batch_guarded_1000" not in g and g["batch_guarded_10000"]["at_least"]
     missing = targets(_fake(ipc=1.0, gm=1.5, mapie=None, ratio=2.0, float_ratio=1.0))
     assert missing["quad_ipc_vs_mapie"]["met"] is None
     assert not missing["quad_ipc_vs_global_mahalanobis"]["met"]
@@ -140,3 +164,24 @@ def test_the_documents_numbers_are_the_committed_results():
         text = doc.read_text(encoding="utf-8")
         assert replace_blocks(text, blocks)[1] == [], f"{doc.name}: run python -m benchmarks.readme"
         assert "READING_" not in text
+
+
+@pytest.mark.slow
+def test_the_guard_scale_benchmark_runs_quickly_and_writes_its_numbers(tmp_path):
+    from benchmarks.bench_guard import main as guard_main
+
+    res = guard_main(["--quick", "--out", str(tmp_path)])
+    saved = json.loads((tmp_path / "guard_results.json").read_text())
+    assert [r["calibration_rows"] for r in saved["calibration"]] == [300, 1000]
+    assert all(r["references"] <= r["calibration_rows"] for r in saved["calibration"])
+    assert [r["references"] for r in saved["reference_cap"]] == [300, 1000, 3000]
+    assert all(0.0 <= r["flagged_in_distribution"] <= 1.0 for r in saved["reference_cap"])
+    assert [r["queries"] for r in saved["batches"]] == [100, 1000]
+    cli = saved["cli_predict"]
+    assert (
+        cli["rows"] == 2000
+        and cli["distances_finite"]
+        and set(cli["runs"]) == {"one_blas_thread", "default_threads"}
+    )
+    assert cli["cpu_seconds"] > 0 and res["cli_predict"]["wall_seconds"] == cli["wall_seconds"]
+    assert (tmp_path / "guard_scale.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

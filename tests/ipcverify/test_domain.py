@@ -159,3 +159,19 @@ def test_a_singular_set_on_a_far_input_blames_the_input(recipe, far):
         cal.predict(np.full((1, 6), far), np.zeros((1, 3)))
     q = IPCQuery(cal, Box([-10.0, -10.0, -10.0], [10.0, 10.0, 10.0]))
     assert q.decide(np.full(6, far), np.zeros(3)).verdict is Verdict.OUTSIDE_DOMAIN
+
+
+def test_predict_sets_decides_in_domain_without_the_distances_and_computes_them_when_read(calibrated):
+    from ipcverify.data import PerceptionInputs
+    from ipcverify.prediction import predict_sets
+
+    test = make_lagged_perception(300, seed=9)
+    x = test.x.copy()
+    x[:40] += 50.0  # states never seen
+    pred = predict_sets(calibrated, PerceptionInputs(x, test.yhat))
+    assert "distance" not in vars(pred)  # not computed by predict_sets itself
+    d = pred.distance
+    dom = calibrated.domain
+    assert np.array_equal(pred.in_domain, (d <= dom.threshold) & ~pred.singular)
+    assert not pred.in_domain[:40].any() and pred.in_domain[40:].mean() > 0.9
+    assert pred.domain is not None and pred.domain.outside == int((d > dom.threshold).sum())

@@ -1,4 +1,4 @@
-"""DomainModel.contains_one (cached distance, float32 scan, tree) answers exactly as contains does."""
+"""DomainModel.contains_one (previous query, tree, float32 product, exact test) answers as contains does."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ipcverify.domain import DomainModel
+from ipcverify.domain_index import DomainIndex
 from ipcverify.errors import InvalidInputError
-from ipcverify.kernels import scan_kth
 
 
 def _fit(k: int, seed: int = 0) -> tuple[DomainModel, np.ndarray, np.ndarray]:
@@ -79,7 +79,7 @@ def test_contains_one_answers_as_contains_along_a_stream(seed, k, step, near):
     dom, _, _ = DOMAINS[k]
     rng = np.random.default_rng(seed)
     stream = _walk(dom, rng, 60, step, near)
-    dom._last[0] = None  # the cache is per model: start from a fresh one
+    dom.forget()  # what the previous query left is per model: start afresh
     got = [dom.contains_one(z) for z in stream]
     # contains on the query alone: a batch's matrix product may whiten it an ulp differently
     want = [bool(dom.contains(z[None, :3], z[None, 3:])[0]) for z in stream]
@@ -87,20 +87,40 @@ def test_contains_one_answers_as_contains_along_a_stream(seed, k, step, near):
 
 
 def test_each_step_of_contains_one_is_used():
-    """A slow walk inside is answered from the cache; a far point by the scan; the boundary by the tree."""
+    """A walk inside keeps its witness, a walk outside its bound; far points may need tier 2."""
     dom, x, yhat = DOMAINS[1]
-    dom._last[0] = None
+    state = dom._one_args()[-2]  # this thread's state of the single-query kernel
+    dom.forget()
     z = np.concatenate([x[0], yhat[0]])
-    assert dom.contains_one(z)  # scan (fresh cache)
-    cached = dom._last[0]
-    assert cached is not None
-    assert dom.contains_one(z + 1e-6)  # the cache decides ...
-    assert dom._last[0] is cached  # ... and keeps its anchor
+    assert dom.contains_one(z) and state[0] == 1.0  # the tree found a witness ...
+    witness = state[1]
+    assert dom.contains_one(z + 1e-6) and state[1] == witness  # ... that answers the next query
     far = dom.mean + 100.0
-    assert not dom.contains_one(far)
+    assert not dom.contains_one(far) and state[0] == 2.0  # outside, with a lower bound of the distance
+    bound = state[1]
+    assert not dom.contains_one(far + 1e-3) and state[1] == bound  # the bound answers, the anchor stays
+    assert bound > dom.threshold
+    # a query whose search would scan more leaves than the budget goes to the float32 product
+    index = dom.index()
+    ring = _at_distance(dom, dom.mean, 1.5 * float(np.linalg.norm(dom.reference, axis=1).max()),
+                        np.random.default_rng(0))  # fmt: skip
+    codes = index.decide(ring[None, :3].copy(), ring[None, 3:].copy(), dom.mean, dom._wt, dom.threshold, 1)
+    assert codes.tolist() in ([-2], [0])
+    assert dom.contains_one(ring) == bool(dom.contains(ring[None, :3], ring[None, 3:])[0])
     boundary = _at_distance(dom, dom.reference[0], dom.threshold * (1 + 1e-13), np.random.default_rng(1))
     assert dom.contains_one(boundary) == bool(dom.contains(boundary[None, :3], boundary[None, 3:])[0])
-    assert dom._last[0] is None or abs(dom._last[0][1] / dom.threshold - 1) > 1e-9
+
+
+def test_a_small_budget_sends_queries_to_the_float32_product_with_the_same_answers():
+    dom, x, yhat = DOMAINS[1]
+    index = DomainIndex.build(dom.reference, budget=1)
+    rng = np.random.default_rng(5)
+    z = np.hstack([x, yhat])[rng.integers(0, len(x), 400)] * rng.uniform(0.5, 2.5, (400, 1))
+    codes = index.decide(z[:, :3].copy(), z[:, 3:].copy(), dom.mean, dom._wt, dom.threshold, 1)
+    over = np.flatnonzero(codes == -2)
+    assert len(over) > 50
+    scanned = index.scan(dom.whiten(z[over, :3], z[over, 3:]), dom.threshold, 1)
+    assert np.array_equal(scanned == 1, dom.contains(z[over, :3], z[over, 3:]))
 
 
 def test_contains_one_refuses_non_finite_queries():
@@ -111,7 +131,7 @@ def test_contains_one_refuses_non_finite_queries():
 @pytest.mark.parametrize("k", [1, 3])
 def test_contains_one_on_the_calibration_inputs_matches_contains(k):
     dom, x, yhat = DOMAINS[k]
-    dom._last[0] = None
+    dom.forget()
     z = np.hstack([x, yhat])
     assert [dom.contains_one(v) for v in z] == [
         bool(dom.contains(a[None], b[None])[0]) for a, b in zip(x, yhat, strict=True)
@@ -124,13 +144,31 @@ def test_contains_one_refuses_a_query_of_the_wrong_length():
         dom.contains_one(np.zeros(4))
 
 
-@pytest.mark.parametrize("k", [1, 2, 5])
-def test_the_compiled_scan_is_the_kth_smallest_product(k):
-    # the kernel's k-th smallest of (w, 1) . column_j, against NumPy's float32 product and sort
-    rng = np.random.default_rng(k)
-    cols = rng.normal(size=(4, 37)).astype(np.float32)
-    w = rng.normal(size=3)
-    want = np.sort(np.append(w, 1.0).astype(np.float32) @ cols)[k - 1]
-    np.testing.assert_allclose(scan_kth(w, cols, k), want, rtol=1e-5, atol=1e-5)
-    cols[2, 11] = np.nan  # a NaN product anywhere: NaN, never a finite answer
-    assert np.isnan(scan_kth(w, cols, k))
+def test_threads_keep_their_own_single_query_state():
+    """domain_one runs without the GIL: each thread has its own state and search stack."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    dom, _, _ = DOMAINS[1]
+    streams = [_walk(dom, np.random.default_rng(s), 80, 0.05, 1e-12) for s in range(4)]
+    want = [[bool(dom.contains(z[None, :3], z[None, 3:])[0]) for z in s] for s in streams]
+
+    def run(stream: list[np.ndarray]) -> list[bool]:
+        dom.forget()
+        return [dom.contains_one(z) for z in stream]
+
+    with ThreadPoolExecutor(4) as pool:
+        got = list(pool.map(run, streams * 2))
+    assert got == want * 2
+
+
+def test_a_domain_model_pickles_and_answers_the_same_after():
+    import copy
+    import pickle
+
+    dom, x, yhat = DOMAINS[3]
+    dom.prepare()
+    again = pickle.loads(pickle.dumps(dom))
+    assert again.threshold == dom.threshold and np.array_equal(again.reference, dom.reference)
+    assert np.array_equal(again.contains(x, yhat), dom.contains(x, yhat))
+    z = np.concatenate([x[0], yhat[0]])
+    assert copy.deepcopy(dom).contains_one(z) == dom.contains_one(z)

@@ -192,13 +192,13 @@ def test_the_constructor_compiles_the_kernels_the_first_query_runs(data):
     # a control loop's first frame must not pay a compilation: IPCQuery compiles the one-query
     # kernels when it is built, with the argument layouts decide() passes them, even when the
     # caller's rows are strided views
-    from ipcverify import kernels
+    from ipcverify import domain_kernels, kernels
 
     mc = ModelConfig(x_dim=6, y_dim=3, hidden=(16, 16), param="lowrank", center="offset")
     model = calibrate(train(data[0], mc, TrainConfig(epochs=1, seed=3)).model, data[1], 0.05, 0.01)
     assert model.domain is not None
     q = IPCQuery(model, G)
-    kernel_list = (kernels.lowrank_one, kernels.whiten_one, kernels.scan_kth)
+    kernel_list = (kernels.lowrank_one, domain_kernels.domain_one)
     compiled = [len(k.signatures) for k in kernel_list]
     assert all(c >= 1 for c in compiled)
     x, yhat = np.asfortranarray(data[1].x), np.asfortranarray(data[1].yhat)  # rows are strided
