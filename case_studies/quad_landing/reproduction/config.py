@@ -329,6 +329,8 @@ class AblationSizes(TomlSection):
         Training and calibration samples, and pilot test measurements per buffer size.
     epsilon, delta : float
         PAC calibration target and confidence parameter of these IPCs.
+    variants : tuple of str
+        The configurations to run (names of :func:`.variants.ablation_variants`); empty: all.
 
     Examples
     --------
@@ -344,8 +346,13 @@ class AblationSizes(TomlSection):
     n_pilot: int
     epsilon: float
     delta: float
+    variants: tuple[str, ...]
 
     def __post_init__(self) -> None:
+        v = tuple(self.variants)
+        if any(not isinstance(name, str) or not name for name in v) or len(set(v)) != len(v):
+            raise ConfigError(f"ablation.variants must be distinct variant names, got {self.variants!r}")
+        object.__setattr__(self, "variants", v)
         for name in ("n_train", "n_calibration", "n_pilot"):
             check_positive(f"ablation.{name}", getattr(self, name), integer=True)
         for name in ("epsilon", "delta"):

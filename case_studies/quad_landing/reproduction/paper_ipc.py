@@ -28,9 +28,8 @@ from typing import Any
 import torch
 
 from case_studies.quad_landing.reproduction.config import PaperParams
-from case_studies.quad_landing.reproduction.learn import domain_groups
+from case_studies.quad_landing.reproduction.learn import row_level_calibration
 from ipcverify.architecture import ModelConfig
-from ipcverify.calibrate import calibrate
 from ipcverify.data import PerceptionDataset
 from ipcverify.errors import ModelFileError
 from ipcverify.files import atomic_write
@@ -73,10 +72,8 @@ def learn_paper_ipc(
         raw = train(train_data, mc, params.train_config(), select=params.selection()).model
     finally:
         torch.set_num_threads(threads)
-    alpha = 1.0 - params.coverage_quantile
-    by = domain_groups(calibration_data, alpha)
-    calibrated = calibrate(raw, calibration_data, params.epsilon, params.delta, mode="pac",
-                           domain_alpha=alpha, domain_group_column=by)  # fmt: skip
+    calibrated = row_level_calibration(raw, calibration_data, params.epsilon, params.delta,
+                                       params.coverage_quantile)  # fmt: skip
     return PaperModels(raw=raw, calibrated=calibrated)
 
 

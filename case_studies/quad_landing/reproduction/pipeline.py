@@ -85,6 +85,7 @@ from case_studies.quad_landing.reproduction.results import (
 from case_studies.quad_landing.reproduction.table1 import Table1, table1
 from case_studies.quad_landing.reproduction.timing_stats import camera_timing_summary, table1_protocol
 from case_studies.quad_landing.reproduction.variants import (
+    Variant,
     VariantStudy,
     ablation_variants,
     plan_variants,
@@ -240,7 +241,7 @@ def _plan(run: _Run) -> DatasetPlan:
         add("mixed", "test", sizes.n_test, k)
     for b in sizes.buffers:
         add("pilot", "pilot", sizes.n_pilot, b)
-    plan_variants(plan, ablation_variants(run.sim), prefix=ABLATION_PREFIX, sizes=run.cfg.ablation,
+    plan_variants(plan, _ablation_variants(run), prefix=ABLATION_PREFIX, sizes=run.cfg.ablation,
                   buffers=sizes.buffers, seeds=SEEDS, out_dir=out)  # fmt: skip
     return plan
 
@@ -293,9 +294,20 @@ def _learn_ipcs(
     return models, summaries
 
 
+def _ablation_variants(run: _Run) -> list[Variant]:
+    """The ablation's configurations: ``[ablation] variants`` of them, or all if it is empty."""
+    every = ablation_variants(run.sim)
+    wanted = run.cfg.ablation.variants
+    unknown = sorted(set(wanted) - {v.name for v in every})
+    if unknown:
+        known = ", ".join(v.name for v in every)
+        raise InvalidInputError(f"ablation.variants names unknown configurations {unknown}; known: {known}")
+    return [v for v in every if not wanted or v.name in wanted]
+
+
 def _ablation(run: _Run, data: dict[str, PerceptionDataset], frames: dict[str, pd.DataFrame]) -> VariantStudy:
     """Step 3b: Table I of every camera variant, each with its own buffer-1 IPC."""
-    variants = ablation_variants(run.sim)
+    variants = _ablation_variants(run)
     with run.stages.stage(f"ablation: {len(variants)} IPCs + Table I", len(variants)):
         return variant_tables(
             variants, prefix=ABLATION_PREFIX, datasets=data, frames=frames, ipc=run.cfg.ipc,

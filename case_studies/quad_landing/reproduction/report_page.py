@@ -154,6 +154,12 @@ def _ablation(summary: Mapping[str, Any], figs: Mapping[str, bytes]) -> str:
     paper = summary.get("paper", {}).get("table1", {})
     rows.append(["paper", "—", *[pct(paper.get(b, paper.get(int(b))), 1) for b in buffers], "—"])
     s = ab["sizes"]
+    only = (
+        f" <i>This run measured {len(rows_in)} of the 18 configurations (<code>[ablation] variants</code>; "
+        "<code>--quick</code> runs three): the full run has them all.</i>"
+        if len(rows_in) < 18
+        else ""
+    )
     return (
         "<h3>2.1 Which error source makes which part of Table I</h3>"
         f"<p>Each configuration learns its own IPC at buffer size 1 ({s['n_train']} training and "
@@ -162,7 +168,9 @@ def _ablation(summary: Mapping[str, Any], figs: Mapping[str, bytes]) -> str:
         "driver queue, without which the buffer size changes nothing. An image age is how much older "
         "the image is than the motion-capture state paired with it; it is negative when the state is "
         "the older one, as where the motion capture's own latency (10 ms) outlasts what is left of the "
-        "camera's delay (rows without the driver queue or the camera's base latency).</p>"
+        "camera's delay (rows without the driver queue or the camera's base latency)."
+        + only
+        + "</p>"
         + table(
             ["configuration", "group", *[f"b = {b}" for b in buffers], "median age at b = 1 (ms)"],
             rows,

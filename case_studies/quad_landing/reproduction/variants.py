@@ -24,6 +24,7 @@ Examples
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -228,12 +229,16 @@ def _learn_and_test(
     params: IpcParams,
     model_path: Path,
     delta: float,
-) -> tuple[Table1, float]:
+) -> tuple[Table1, float, list[tuple[type[Warning], str]]]:
+    """One variant's IPC and Table I, in a worker process; its warnings are returned, not printed."""
     import torch
 
     torch.set_num_threads(1)
-    model, _ = cached_ipc(model_path, train, cal, params)
-    return table1(model, tests, delta), certified_epsilon(model)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("default")
+        model, _ = cached_ipc(model_path, train, cal, params)
+        table = table1(model, tests, delta)
+    return table, certified_epsilon(model), [(w.category, f"ablation {v.name}: {w.message}") for w in caught]
 
 
 def variant_tables(
@@ -261,7 +266,9 @@ def variant_tables(
         ))  # fmt: skip
     results = joblib.Parallel(n_jobs=max(1, min(jobs, len(calls))))(calls)
     rows = []
-    for v, (table, eps) in zip(variants, results, strict=True):
+    for v, (table, eps, caught) in zip(variants, results, strict=True):
+        for category, message in caught:  # shown here, where the CLI prints each on one line
+            warnings.warn(message, category, stacklevel=2)
         base = f"{prefix}{v.name}"
         stats = {b: _median_age_error(frames[f"{base}_pilot_k{b}"]) for b in buffers}
         rows.append(VariantTable(

@@ -144,7 +144,8 @@ def test_summary_has_the_documented_structure(quick):
     assert s["landing"]["coverage"]["shift_detected"] in (True, False)
     assert s["quick"] is True and s["runtime_seconds"] > 0
     rows = s["ablation"]["rows"]
-    assert {"all", "queue", "frames", "no-queue", "no-stalls", "queue+blur"} <= set(rows)
+    # --quick runs the configurations [quick.ablation] variants names (the full run all 18)
+    assert set(rows) == set(s["settings"]["ablation"]["variants"]) >= {"all", "frames", "no-queue"}
     assert all(set(r["table1"]) == {"1", "2", "3", "4", "5"} for r in rows.values())
     ages = s["camera_timing"]["per_buffer"]
     assert ages["5"]["age_ms"]["median"] > ages["1"]["age_ms"]["median"] > 0
