@@ -449,25 +449,18 @@ def _paper_contracts(run: _Run, data: dict[str, PerceptionDataset]) -> dict[str,
         None if params.fly_uncalibrated else "not flown: no guarantee (reproduce --fly-uncalibrated flies it)"
     )
     cal_flown = _flown(run, LearnedContract(models.calibrated, "paper_calibrated"), k)
+    extras: dict[str, dict[str, Any]] = {
+        "paper_raw": {"not_flown": why},
+        "paper_calibrated": {"certificate": certificate},
+    }
     return {
-        "paper_raw": _contract(
-            run,
-            "paper_raw",
-            models.raw,
-            table1(models.raw, pilots, REPORT_DELTA),
-            raw_flown,
-            selection=selection,
-            not_flown=why,
-        ),  # fmt: skip
-        "paper_calibrated": _contract(
-            run,
-            "paper_calibrated",
-            models.calibrated,
-            table1(models.calibrated, pilots, REPORT_DELTA),
-            cal_flown,
-            selection=selection,
-            certificate=certificate,
-        ),  # fmt: skip
+        name: _contract(
+            run, name, model, table1(model, pilots, REPORT_DELTA), flown, selection=selection, **extras[name]
+        )  # fmt: skip
+        for name, model, flown in (
+            ("paper_raw", models.raw, raw_flown),
+            ("paper_calibrated", models.calibrated, cal_flown),
+        )
     }
 
 
