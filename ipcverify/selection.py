@@ -6,7 +6,9 @@ volume proxy, with Adam at 1e-3 for 20 epochs on 5,000 samples, but states neith
 fixed in advance that sees **training data only** (never calibration, test or deployment
 data, never the case study's Table I or landings):
 
-1. hold out ``val_fraction`` of the training rows (seeded);
+1. hold out ``val_fraction`` of the training rows (seeded), or of its groups -- whole flights or
+   runs -- when ``group_column`` names them: rows of one flight are correlated, and held-out rows
+   of a flight the candidates were fitted on would make every miss rate look better than it is;
 2. train the paper's network on the rest once per candidate of the grid
    ``alphas x lams x batch_sizes``;
 3. on the held-out rows, measure each candidate's raw miss rate (share of truths outside the
@@ -58,7 +60,11 @@ class HingeSelection:
     target_miss : float
         Largest acceptable raw miss rate on the held-out training rows (default 0.002).
     val_fraction : float
-        Share of the training rows held out to compare the candidates (default 0.2).
+        Share of the training rows held out to compare the candidates (default 0.2); of the
+        groups, with ``group_column``.
+    group_column : str, optional
+        A column of the training data naming its exchangeable units (flights, runs): whole
+        groups are held out (:meth:`ipcverify.data.PerceptionDataset.split`).
 
     Examples
     --------
@@ -71,6 +77,7 @@ class HingeSelection:
     batch_sizes: tuple[int, ...] = (64,)
     target_miss: float = 0.002
     val_fraction: float = 0.2
+    group_column: str | None = None
 
     def __post_init__(self) -> None:
         for name in ("alphas", "lams", "batch_sizes"):
@@ -88,6 +95,10 @@ class HingeSelection:
             raise InvalidInputError(f"target_miss must be in [0, 1); got {self.target_miss}")
         if not 0 < self.val_fraction < 1:
             raise InvalidInputError(f"val_fraction must be in (0, 1); got {self.val_fraction}")
+        if self.group_column is not None and (
+            not isinstance(self.group_column, str) or not self.group_column
+        ):
+            raise InvalidInputError(f"group_column must be a column name; got {self.group_column!r}")
 
     def grid(self) -> list[tuple[float, float, int]]:
         """The candidates ``(alpha, lam, batch_size)`` in the order they are trained."""
@@ -95,10 +106,11 @@ class HingeSelection:
 
     def describe(self) -> str:
         """The rule in one sentence."""
+        held = "rows" if self.group_column is None else f"groups ({self.group_column})"
         return (
             "smallest held-out mean log-volume among the candidates whose raw held-out miss rate is at "
             f"most {self.target_miss:g} (else the smallest miss rate), on {self.val_fraction:g} of the "
-            "training rows held out; then retrained on all the training rows"
+            f"training {held} held out; then retrained on all the training rows"
         )
 
     def choose(self, candidates: Sequence[Candidate]) -> SelectionRecord:
@@ -120,6 +132,7 @@ class HingeSelection:
             "batch_sizes": list(self.batch_sizes),
             "target_miss": self.target_miss,
             "val_fraction": self.val_fraction,
+            "group_column": self.group_column,
             "rule": self.describe(),
         }
 

@@ -231,7 +231,8 @@ def select_hinge(
     """Choose ``alpha``, ``lam`` and the batch size by ``rule`` on held-out training rows.
 
     See :mod:`ipcverify.selection`. Only ``train_data`` is used: a share of it is held out
-    (seeded by ``train_config.seed``), each candidate of the grid is trained on the rest
+    (seeded by ``train_config.seed``; whole groups with ``rule.group_column``), each candidate
+    of the grid is trained on the rest
     with ``train_config``'s other settings, and the rule picks one.
 
     Returns
@@ -253,7 +254,11 @@ def select_hinge(
     """
     if model_config.lowrank:
         raise InvalidInputError("the hinge selection is for the paper's heads (recipes 'paper', 'v1')")
-    parts = train_data.split((1 - rule.val_fraction, 0.0, rule.val_fraction), seed=train_config.seed)
+    parts = train_data.split(
+        (1 - rule.val_fraction, 0.0, rule.val_fraction),
+        seed=train_config.seed,
+        group_column=rule.group_column,
+    )
     if parts.train is None or parts.test is None:
         raise InvalidInputError(
             f"too few training rows ({len(train_data)}) to hold out {rule.val_fraction:g} of them for the "

@@ -141,6 +141,12 @@ def _given(**values: object) -> dict[str, object]:
 @click.option("--seed", default=0, show_default=True, type=int)
 @click.option("--val-fraction", default=None, type=float, help="Hold out for validation [recipe's].")
 @click.option(
+    "--group-column",
+    default=None,
+    help="With --recipe paper: hold out whole groups of this column (flights, runs) when choosing "
+    "alpha, lambda and the batch size.",
+)
+@click.option(
     "--patience", default=None, type=int, help="Early stopping patience (needs --val-fraction) [recipe's]."
 )
 @click.option("--x-columns", default=None, help="Comma-separated state columns (default x_0, x_1, ...).")
@@ -165,6 +171,7 @@ def train_cmd(
     schedule: str | None,
     seed: int,
     val_fraction: float | None,
+    group_column: str | None,
     patience: int | None,
     x_columns: str | None,
     y_columns: str | None,
@@ -208,7 +215,12 @@ def train_cmd(
         ),
     )
     chosen_by_hand = alpha is not None or lam is not None or batch_size is not None
-    select = HingeSelection() if recipe == "paper" and not chosen_by_hand else None
+    if group_column is not None and (recipe != "paper" or chosen_by_hand):
+        raise InvalidInputError(
+            "--group-column only chooses the paper recipe's alpha, lambda and batch size: use it with "
+            "--recipe paper and without --alpha, --lam and --batch-size"
+        )
+    select = HingeSelection(group_column=group_column) if recipe == "paper" and not chosen_by_hand else None
     result = train(ds, mc, tc, progress=True, select=select)
     save_model(result.model, out)
     last = result.history[-1]

@@ -169,3 +169,29 @@ def test_the_certificate_records_the_rule_and_the_chosen_values(tmp_path, run_cl
     )
     assert "smallest held-out mean log-volume" in cert["model"]["selection"]["rule"]["rule"]
     assert "the rule" in (tmp_path / "cert" / "report.html").read_text()
+
+
+def test_the_rule_can_hold_out_whole_groups(run_cli, tmp_path):
+    """With group_column, whole flights are held out (rows of one flight are correlated)."""
+    import itertools
+
+    from ipcverify.data import save_dataset
+
+    base = make_lagged_perception(550, seed=4)
+    sizes = [10 * (i + 1) for i in range(10)]  # ten flights of 10, 20, ..., 100 rows
+    flights = np.repeat(np.arange(10), sizes)
+    ds = PerceptionDataset(base.x, base.y, base.yhat, extra={"flight": flights})
+    mc = ModelConfig.recipe("paper", x_dim=6, y_dim=3, hidden=(8, 8))
+    rule = HingeSelection(alphas=(1.0,), lams=(0.01,), group_column="flight")
+    record = select_hinge(ds, mc, TrainConfig.recipe("paper", epochs=1), rule)[1]
+    held = record.chosen.val_n
+    assert held in {sum(c) for c in itertools.combinations(sizes, 2)}  # two whole flights of ten
+    assert record.to_dict()["rule"]["group_column"] == "flight" and "groups (flight)" in rule.describe()
+    save_dataset(ds, tmp_path / "flights.csv")
+    r = run_cli("train", tmp_path / "flights.csv", "--out", tmp_path / "m.pt", "--recipe", "paper",
+                "--epochs", "1", "--group-column", "flight")  # fmt: skip
+    assert r.code == 0, r.stderr
+    r = run_cli("train", tmp_path / "flights.csv", "--out", tmp_path / "m.pt", "--group-column", "flight")
+    assert r.code == 2 and "--group-column only chooses the paper recipe's" in r.stderr
+    with pytest.raises(InvalidInputError, match="group_column must be a column name"):
+        HingeSelection(group_column="")

@@ -191,6 +191,9 @@ class PaperParams(TomlSection):
         The selection rule: the smallest held-out log-volume with a raw held-out miss rate at
         most ``target_miss``, on ``val_fraction`` of the training rows
         (:class:`ipcverify.selection.HingeSelection`).
+    selection_groups : str
+        Hold out whole groups of this column (``"flight"``: rows of one flight are correlated);
+        ``""`` holds out rows.
     epsilon, delta : float
         The PAC calibration of ``paper_calibrated``.
     coverage_quantile : float
@@ -220,6 +223,7 @@ class PaperParams(TomlSection):
     batch_sizes: tuple[int, ...]
     target_miss: float
     val_fraction: float
+    selection_groups: str
     epsilon: float
     delta: float
     coverage_quantile: float
@@ -250,6 +254,7 @@ class PaperParams(TomlSection):
             batch_sizes=tuple(self.batch_sizes),
             target_miss=float(self.target_miss),
             val_fraction=float(self.val_fraction),
+            group_column=self.selection_groups or None,
         )
 
     def train_config(self) -> TrainConfig:
