@@ -314,7 +314,7 @@ def monitor_cmd(model: Path, log: Path, out: Path, delta: float | None, group_co
     from ipcverify.modelio import load_data_for_model, load_model
     from ipcverify.monitor import plot_monitor
     from ipcverify.prediction import monitor_log
-    from ipcverify.report import figure_to_png
+    from ipcverify.report_plots import figure_to_png
 
     m = load_model(model)
     data = load_data_for_model(log, m)
