@@ -122,9 +122,11 @@ class IPCModel:
 
         Built from the weights, and torch imported, on first use if the model was read from a file.
         """
-        if self._network is None:
-            object.__setattr__(self, "_network", self._weights.to_network())
-        return self._network  # type: ignore[return-value]
+        net = self._network
+        if net is None:
+            net = self._weights.to_network()
+            object.__setattr__(self, "_network", net)
+        return net
 
     @property
     def weights(self) -> NetworkWeights:

@@ -169,7 +169,7 @@ def load_model(path: str | os.PathLike[str]) -> IPCModel:
         config = ModelConfig.from_dict(payload["config"])
         if config.lowrank and version < 2:
             raise InvalidInputError("a low-rank network in a version-1 file")
-        weights = NetworkWeights(config, payload["state_dict"])
+        weights = NetworkWeights.from_state_dict(config, payload["state_dict"])
     except (KeyError, TypeError, AttributeError, ValueError) as exc:  # InvalidInputError is a ValueError
         first = str(exc).strip().splitlines()[0]
         raise ModelFileError(f"{p}: damaged model file ({first[:200]})") from None

@@ -87,14 +87,16 @@ class NetworkWeights:
     config : ModelConfig
         The architecture.
     state : mapping of str to array
-        Every entry of :func:`state_layout` with its shape and dtype, nothing else. Stored as
-        read-only copies, in the layout's order (a model file's values are also checked finite,
-        by :func:`ipcverify.modelio.load_model`).
+        Every entry of :func:`state_layout` with its shape, in a floating dtype (the layout's,
+        unless the network was converted, e.g. with ``.double()``), nothing else. Stored as
+        read-only copies, in the layout's order. :meth:`from_state_dict` casts to the layout's
+        dtypes, as ``load_state_dict`` does (a model file is read so, and its values checked
+        finite, by :func:`ipcverify.modelio.load_model`).
 
     Raises
     ------
     InvalidInputError
-        If an entry is missing, unknown, or of the wrong shape or dtype (the message names it).
+        If an entry is missing, unknown, of the wrong shape or not floating (the message names it).
 
     Examples
     --------
@@ -125,7 +127,7 @@ the network's is (2,), float32
         state: dict[str, NDArray[Any]] = {}
         for name, (shape, dtype, _) in layout.items():
             value = given[name]
-            if not isinstance(value, np.ndarray) or value.shape != shape or value.dtype != np.dtype(dtype):
+            if not isinstance(value, np.ndarray) or value.shape != shape or value.dtype.kind != "f":
                 got = (
                     f"shape {value.shape} and dtype {value.dtype}"
                     if isinstance(value, np.ndarray)
@@ -136,6 +138,26 @@ the network's is (2,), float32
             arr.setflags(write=False)
             state[name] = arr
         object.__setattr__(self, "state", state)
+
+    @classmethod
+    def from_state_dict(cls, config: ModelConfig, state: Mapping[str, Any]) -> NetworkWeights:
+        """The weights ``load_state_dict(strict=True)`` gives a new network of ``config``: entries
+        checked by name and shape, floating values cast to the network's dtypes.
+
+        Examples
+        --------
+        >>> cfg = ModelConfig.recipe("v1", x_dim=1, y_dim=1, hidden=(2,))
+        >>> state = {k: np.ones(shape) for k, (shape, _, _) in state_layout(cfg).items()}  # float64
+        >>> NetworkWeights.from_state_dict(cfg, state).state["body.0.weight"].dtype
+        dtype('float32')
+        """
+        layout = state_layout(config)
+        cast = dict(state)
+        with np.errstate(over="ignore", invalid="ignore"):  # too large for float32: inf, refused later
+            for name, value in cast.items():
+                if name in layout and isinstance(value, np.ndarray) and value.dtype.kind == "f":
+                    cast[name] = value.astype(layout[name][1])
+        return cls(config, cast)
 
     @classmethod
     def from_network(cls, network: Network) -> NetworkWeights:

@@ -97,9 +97,23 @@ def test_wrong_weights_are_refused_by_name():
             **good,
             "body.0.weight": np.ones((4, 3), "float32"),
         },
-        r"'sigma' has shape \(2,\) and dtype float64": {**good, "sigma": np.ones(2)},
+        r"'sigma' has shape \(2,\) and dtype int64": {**good, "sigma": np.ones(2, dtype=np.int64)},
         r"'in_mean' has type list": {**good, "in_mean": [0.0, 0.0, 0.0, 0.0]},
     }
     for message, state in cases.items():
         with pytest.raises(InvalidInputError, match=message):
             NetworkWeights(cfg, state)
+
+
+def test_a_state_dict_is_cast_to_the_networks_dtypes_as_load_state_dict_does():
+    cfg = ModelConfig(x_dim=2, y_dim=2, hidden=(3,), members=2)
+    net = _random(cfg, seed=4)
+    as_double = {k: v.double().numpy() for k, v in net.state_dict().items()}
+    w = NetworkWeights.from_state_dict(cfg, as_double)
+    assert w.fingerprint() == network_fingerprint(net)  # float32 entries back to float32, exactly
+    ref = build_network(cfg)
+    ref.load_state_dict({k: torch.from_numpy(v) for k, v in as_double.items()}, strict=True)
+    assert network_fingerprint(ref) == w.fingerprint()
+    # a network converted to float64 keeps its dtype (the engine evaluates it as given)
+    doubled = NetworkWeights.from_network(net.double())
+    assert all(a.dtype == np.float64 for a in doubled.state.values())
