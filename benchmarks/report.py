@@ -118,6 +118,11 @@ def targets(results: dict[str, Any]) -> dict[str, Any]:
             "calibrated IPC mean volume / MAPIE multivariate mean volume (quad landing)",
         )
     out.update({k: v for k, v in _tightness_targets(tight).items() if k != "quad_landing_ipc_vs_mapie"})
+    start = results.get("startup")
+    if start is not None:  # computed by bench_startup from its medians; restated here with the others
+        out["cli_startup"] = _target(
+            start["target"]["value"], start["target"]["limit"], start["target"]["what"]
+        )
     lat = results.get("latency")
     if lat is not None:
         out.update(_latency_targets(lat))

@@ -14,7 +14,8 @@ Sections: ``tightness`` (:mod:`benchmarks.bench_tightness`: every method against
 on the known-oracle data, the oracle; with the volume diagnosis), ``shift``
 (:mod:`benchmarks.bench_shift`: violation rates of the old and new default under covariate
 shift and on held-out runs / time segments of the real log), ``latency``
-(:mod:`benchmarks.bench_latency`), ``cost`` (:mod:`benchmarks.bench_cost`) and ``targets``
+(:mod:`benchmarks.bench_latency`), ``cost`` (:mod:`benchmarks.bench_cost`), ``startup``
+(:mod:`benchmarks.bench_startup`: the command line's start-up against a bare Python) and ``targets``
 (the issues' targets, computed from the numbers above, never typed in). About 9 minutes
 on 2 shared cores.
 """
@@ -33,6 +34,7 @@ import torch
 from benchmarks.bench_cost import bench_cost
 from benchmarks.bench_latency import BATCH_SIZES, Workload, bench_latency
 from benchmarks.bench_shift import bench_shift
+from benchmarks.bench_startup import bench_startup
 from benchmarks.bench_tightness import bench_tightness
 from benchmarks.common import blas_single_thread, machine_info, write_json
 from benchmarks.datasets import CACHE, DATASETS, Splits, load_splits, quad_flights
@@ -65,6 +67,8 @@ class RunConfig:
     shift_n: int = 5000
     shift_seeds: int = 2
     shift_real_log: bool = True
+    startup_repeats: int = 9
+    startup_epochs: int = 5
 
     def __post_init__(self) -> None:
         if min(self.n_train, self.n_calibration, self.n_test, self.seeds, self.mapie_seeds) < 1:
@@ -90,6 +94,8 @@ class RunConfig:
             shift_n=300,
             shift_seeds=1,
             shift_real_log=False,
+            startup_repeats=1,
+            startup_epochs=1,
         )
 
 
@@ -212,6 +218,10 @@ def run(
             **bench_cost(ipc, splits, results["tightness"][name]["ipc"], cfg.cost_repeats, cfg.sdp_count),
         }
     print(f"[{time.perf_counter() - t_start:6.1f} s] cost done", flush=True)
+    results["startup"] = bench_startup(
+        cfg.startup_repeats, n_train=min(cfg.n_train, 2000), epochs=cfg.startup_epochs
+    )
+    print(f"[{time.perf_counter() - t_start:6.1f} s] start-up done", flush=True)
     results["targets"] = targets(results)
     results["runtime_seconds"] = time.perf_counter() - t_start
     out_dir.mkdir(parents=True, exist_ok=True)

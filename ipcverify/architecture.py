@@ -1,6 +1,6 @@
 """The architecture of an IPC network: :class:`ModelConfig` (plain data, no torch).
 
-Shared by the torch network (:mod:`ipcverify.model`), its float64 evaluation
+Shared by the torch network (:mod:`ipcverify.network`), its float64 evaluation
 (:mod:`ipcverify.inference`) and the ONNX export, so that none of them imports another
 for its description.
 """

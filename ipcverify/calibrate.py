@@ -22,7 +22,7 @@ from ipcverify.data import PerceptionDataset
 from ipcverify.data_checks import check_informative, warn_correlated_rows, warn_outside_training
 from ipcverify.domain import DEFAULT_ALPHA, DomainModel
 from ipcverify.errors import InvalidInputError, SampleSizeError
-from ipcverify.model import IPCModel, network_fingerprint
+from ipcverify.model import IPCModel
 
 __all__ = ["calibrate"]
 
@@ -129,7 +129,7 @@ def calibrate(
     Examples
     --------
     >>> from ipcverify.synthetic import make_lagged_perception
-    >>> from ipcverify.model import IPCNetwork
+    >>> from ipcverify.network import IPCNetwork
     >>> from ipcverify.architecture import ModelConfig
     >>> net = IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(8,), param="cholesky"))
     >>> cal = calibrate(IPCModel(net), make_lagged_perception(1000, seed=1), 0.05, 0.01)
@@ -145,7 +145,7 @@ def calibrate(
             "(flights or runs as the exchangeable units); they cannot be combined"
         )
     scores = model.raw_scores(calibration_data.x, calibration_data.y, calibration_data.yhat)
-    ids = {"data_hash": calibration_data.content_hash(), "network_hash": network_fingerprint(model.network)}
+    ids = {"data_hash": calibration_data.content_hash(), "network_hash": model.weights.fingerprint()}
     unmet: list[str] = []  # every sample-size requirement is reported at once
     cal: Calibration | None = None
     try:

@@ -55,7 +55,7 @@ from ipcverify.evaluation import BinCoverage, WorstBin, coverage_by_bin, worst_b
 from ipcverify.files import atomic_write, file_sha256, write_json
 from ipcverify.group_test import group_test_step
 from ipcverify.lipschitz import DEFAULT_RADIUS
-from ipcverify.model import IPCModel, network_fingerprint
+from ipcverify.model import IPCModel
 from ipcverify.modelio import load_data_for_model, load_model
 from ipcverify.report import render_report
 from ipcverify.sets import Ellipsoid
@@ -117,7 +117,7 @@ def check_inputs(
     if train_data is not None:
         _check_dims(model, train_data, "training")
     cal = model.calibration
-    if cal is not None and cal.network_hash != network_fingerprint(model.network):
+    if cal is not None and cal.network_hash != model.weights.fingerprint():
         raise InvalidInputError(
             "the model's calibration was computed for a different network (fingerprint mismatch); "
             "recalibrate this network"
@@ -276,7 +276,7 @@ def _model_identity(model: IPCModel, path: PathLike | None) -> ModelIdentity:
     return ModelIdentity(
         path=None if path is None else str(path),
         file_sha256=None if path is None else file_sha256(path),
-        network_sha256=network_fingerprint(model.network),
+        network_sha256=model.weights.fingerprint(),
         architecture=model.config.to_dict(),
         n_parameters=model.n_parameters,
         training=model.metadata.get("train_config"),
@@ -376,7 +376,7 @@ def certify(
     Examples
     --------
     >>> from ipcverify.synthetic import make_lagged_perception
-    >>> from ipcverify.model import IPCNetwork
+    >>> from ipcverify.network import IPCNetwork
     >>> from ipcverify.architecture import ModelConfig
     >>> from ipcverify.calibrate import calibrate
     >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(8,), param="cholesky")))

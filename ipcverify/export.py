@@ -36,7 +36,8 @@ the float64 engine.
 Examples
 --------
 >>> import os, tempfile
->>> from ipcverify.model import IPCModel, IPCNetwork
+>>> from ipcverify.model import IPCModel
+>>> from ipcverify.network import IPCNetwork
 >>> from ipcverify.architecture import ModelConfig
 >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(8,), param="cholesky")))
 >>> info = export_onnx(m, os.path.join(tempfile.mkdtemp(), "ipc.onnx"))  # doctest: +SKIP
@@ -61,7 +62,7 @@ from ipcverify.errors import InvalidInputError
 from ipcverify.export_lowrank import lowrank_nodes
 from ipcverify.files import atomic_write
 from ipcverify.inference import InferenceEngine
-from ipcverify.model import IPCModel, network_fingerprint
+from ipcverify.model import IPCModel
 
 __all__ = [
     "OPSET",
@@ -219,7 +220,7 @@ def build_onnx(model: IPCModel, dtype: Dtype = "float64", *, without_domain: boo
         "center": cfg.center,
         "members": str(cfg.members),
         "dtype": dtype,
-        "network_hash": network_fingerprint(model.network),
+        "network_hash": model.weights.fingerprint(),
         "calibrated": "true" if scale is not None else "false",
         "domain_test": "not included" if model.domain is not None else "none in the model",
         "sets": "E(c, C) = {y : ||C (y - c)|| <= 1}; outputs center (B, n) and C = shape (B, n, n)",
@@ -274,7 +275,8 @@ def check_domain_export(model: IPCModel, without_domain: bool) -> None:
 
     Examples
     --------
-    >>> from ipcverify.model import IPCModel, IPCNetwork
+    >>> from ipcverify.model import IPCModel
+    >>> from ipcverify.network import IPCNetwork
     >>> from ipcverify.architecture import ModelConfig
     >>> net = IPCNetwork(ModelConfig(x_dim=1, y_dim=1, hidden=(2,), param="cholesky"))
     >>> check_domain_export(IPCModel(net), False)  # no domain test: nothing to leave out
@@ -312,7 +314,7 @@ def export_onnx(
         dtype=dtype,
         calibrated=scale is not None,
         scale=scale,
-        network_hash=network_fingerprint(model.network),
+        network_hash=model.weights.fingerprint(),
         nbytes=len(data),
     )
 

@@ -11,13 +11,17 @@ single queries of a control loop.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import torch
 from numpy.typing import NDArray
 
 from ipcverify.architecture import LOGDIAG_CLAMP, ModelConfig
 from ipcverify.errors import InvalidInputError
+from ipcverify.weights import NetworkWeights
+
+if TYPE_CHECKING:
+    from ipcverify.network import IPCNetwork
 
 __all__ = ["CACHE_BYTES", "CHUNK", "InferenceEngine", "activate", "chunk_rows", "float64_array"]
 
@@ -50,15 +54,20 @@ CHUNK = chunk_rows(128)
 FloatArray = NDArray[np.float64]
 
 
-def float64_array(t: torch.Tensor) -> FloatArray:
-    """A tensor's values as a contiguous float64 array (float32 weights are exact in float64).
+def float64_array(t: Any) -> FloatArray:
+    """A tensor's or an array's values as a contiguous float64 array (float32 is exact in float64).
 
     Examples
     --------
+    >>> import torch
     >>> float64_array(torch.tensor([0.1], dtype=torch.float32)).dtype
     dtype('float64')
+    >>> float64_array(np.float32([0.1]))[0] == float(np.float32(0.1))
+    np.True_
     """
-    return np.ascontiguousarray(t.detach().cpu().double().numpy())
+    if hasattr(t, "detach"):  # a torch tensor (torch itself is not imported here)
+        t = t.detach().cpu().numpy()
+    return np.ascontiguousarray(t, dtype=np.float64)
 
 
 def activate(h: FloatArray, activation: str) -> FloatArray:
@@ -78,15 +87,15 @@ def activate(h: FloatArray, activation: str) -> FloatArray:
 
 @dataclass(frozen=True, eq=False)
 class InferenceEngine:
-    """Float64 forward pass of an :class:`~ipcverify.model.IPCNetwork`.
+    """Float64 forward pass of an :class:`~ipcverify.network.IPCNetwork`.
 
-    Build it with :meth:`from_network`; call :meth:`batch` for (B, ·) arrays or
+    Build it with :meth:`from_weights` (or :meth:`from_network`); call :meth:`batch` for (B, ·) arrays or
     :meth:`single` for one query (1-D arrays, lowest latency).
 
     Examples
     --------
     >>> import numpy as np
-    >>> from ipcverify.model import IPCNetwork
+    >>> from ipcverify.network import IPCNetwork
     >>> from ipcverify.architecture import ModelConfig
     >>> net = IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(8,), param="cholesky"))
     >>> eng = InferenceEngine.from_network(net)
@@ -108,26 +117,31 @@ class InferenceEngine:
     diag_pos: NDArray[np.intp]
 
     @classmethod
-    def from_network(cls, network: torch.nn.Module) -> InferenceEngine:
-        """Extract the weights and normalisation of a trained network."""
-        cfg: ModelConfig = network.config  # type: ignore[assignment]
-        linears = [m for m in network.body if isinstance(m, torch.nn.Linear)]  # type: ignore[union-attr]
+    def from_weights(cls, weights: NetworkWeights) -> InferenceEngine:
+        """The engine of a network's weights (:class:`~ipcverify.weights.NetworkWeights`)."""
+        cfg, state = weights.config, weights.state
+        linear = [f"body.{2 * i}" for i in range(len(cfg.hidden) + 1)]  # nn.Sequential: Linear, act, ...
         n = cfg.y_dim
         rows, cols = np.tril_indices(n)
-        sigma = float64_array(network.sigma)  # type: ignore[arg-type]
+        sigma = float64_array(state["sigma"])
         return cls(
             config=cfg,
-            weights=tuple(np.ascontiguousarray(float64_array(m.weight).T) for m in linears),
-            biases=tuple(float64_array(m.bias) for m in linears),
-            in_mean=float64_array(network.in_mean),  # type: ignore[arg-type]
-            in_scale=1.0 / float64_array(network.in_std),  # type: ignore[arg-type]
-            y_mean=float64_array(network.y_mean),  # type: ignore[arg-type]
+            weights=tuple(np.ascontiguousarray(float64_array(state[f"{m}.weight"]).T) for m in linear),
+            biases=tuple(float64_array(state[f"{m}.bias"]) for m in linear),
+            in_mean=float64_array(state["in_mean"]),
+            in_scale=1.0 / float64_array(state["in_std"]),
+            y_mean=float64_array(state["y_mean"]),
             sigma=sigma,
             inv_sigma=1.0 / sigma,
             tril_rows=rows,
             tril_cols=cols,
             diag_pos=np.flatnonzero(rows == cols),
         )
+
+    @classmethod
+    def from_network(cls, network: IPCNetwork) -> InferenceEngine:
+        """Extract the weights and normalisation of a trained network."""
+        return cls.from_weights(NetworkWeights.from_network(network))
 
     def mlp(self, z: FloatArray) -> FloatArray:
         """The network's raw outputs for standardised inputs ``z`` ((B, d + n) or one (d + n,) row)."""

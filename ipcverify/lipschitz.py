@@ -52,7 +52,8 @@ from ipcverify.lipschitz_ball import (
 )
 from ipcverify.lipschitz_lowrank import ensemble_gradient_norms, sound_lipschitz_lowrank
 from ipcverify.lowrank import LowRankEnsemble
-from ipcverify.model import IPCModel, IPCNetwork, Network
+from ipcverify.model import IPCModel
+from ipcverify.network import IPCNetwork, Network
 
 __all__ = [
     "DEFAULT_RADIUS",
@@ -83,7 +84,7 @@ def theorem1_unavailable(model: IPCModel) -> str | None:
 
     Examples
     --------
-    >>> from ipcverify.model import build_network
+    >>> from ipcverify.network import build_network
     >>> from ipcverify.architecture import ModelConfig
     >>> theorem1_unavailable(IPCModel(build_network(ModelConfig.recipe("v1", x_dim=2, y_dim=3)))) is None
     True
@@ -99,7 +100,7 @@ def _unsupported(network: Any) -> str | None:
     return (
         f"no Lipschitz bound is derived for a network of class {type(network).__name__}: Theorem 1 covers "
         "IPCNetwork (the paper's heads) and LowRankEnsemble (the default); build the network with "
-        "ipcverify.model.build_network"
+        "ipcverify.network.build_network"
     )
 
 
@@ -204,7 +205,7 @@ def empirical_lipschitz(
     Examples
     --------
     >>> from ipcverify.synthetic import make_lagged_perception
-    >>> from ipcverify.model import IPCNetwork
+    >>> from ipcverify.network import IPCNetwork
     >>> from ipcverify.architecture import ModelConfig
     >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(8,), param="cholesky")))
     >>> est = empirical_lipschitz(m, make_lagged_perception(100, seed=0))
@@ -255,7 +256,7 @@ def sound_lipschitz(
     Examples
     --------
     >>> from ipcverify.synthetic import make_lagged_perception
-    >>> from ipcverify.model import IPCNetwork
+    >>> from ipcverify.network import IPCNetwork
     >>> from ipcverify.architecture import ModelConfig
     >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(8,), param="cholesky")))
     >>> ds = make_lagged_perception(100, seed=0)

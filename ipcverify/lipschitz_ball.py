@@ -15,13 +15,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ipcverify.data import PerceptionDataset
 from ipcverify.errors import InvalidInputError
+
+if TYPE_CHECKING:  # for annotations only: the CLI reads DEFAULT_RADIUS without loading pandas
+    from ipcverify.data import PerceptionDataset
 
 __all__ = [
     "DEFAULT_RADIUS",

@@ -188,7 +188,7 @@ class LowRankEnsemble(ScoredNetwork):
         if not config.lowrank:
             raise InvalidInputError(
                 f"LowRankEnsemble builds the low-rank head; this config has param={config.param!r}: "
-                "use ipcverify.model.build_network(config)"
+                "use ipcverify.network.build_network(config)"
             )
         self.config = config
         k, n = config.members, config.y_dim

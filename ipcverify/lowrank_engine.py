@@ -18,7 +18,7 @@ export's graph follows them, so all agree to rounding.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -35,7 +35,10 @@ from ipcverify.kernels import (
     lowrank_sets,
     standardise,
 )
-from ipcverify.lowrank import LowRankEnsemble
+from ipcverify.weights import NetworkWeights
+
+if TYPE_CHECKING:
+    from ipcverify.lowrank import LowRankEnsemble
 
 __all__ = ["LowRankEngine", "cholesky_lower", "lower_inverse"]
 
@@ -100,8 +103,8 @@ def _u_layout(n: int) -> NDArray[np.intp]:
 class LowRankEngine:
     """Float64 forward pass of a :class:`~ipcverify.lowrank.LowRankEnsemble` (all members at once).
 
-    Build it with :meth:`from_network`; :meth:`batch` for (B, ·) arrays, :meth:`single`
-    for one query. The weights are stored so that every member's outputs come out as
+    Build it with :meth:`from_weights` (or :meth:`from_network`); :meth:`batch` for (B, ·)
+    arrays, :meth:`single` for one query. The weights are stored so that every member's outputs come out as
     ``[U | h]``: ``U = [V | o]`` (n x (n + 1), row-major) and the log-diagonal ``h``; the
     moment-matched covariance is then ``mean_k U_k' U_k'^T + diag(mean_k exp(2 h_k))`` with
     ``U_k'`` the member's ``U`` with its centre offset replaced by the deviation from the
@@ -109,6 +112,7 @@ class LowRankEngine:
 
     Examples
     --------
+    >>> from ipcverify.lowrank import LowRankEnsemble
     >>> net = LowRankEnsemble(ModelConfig(x_dim=2, y_dim=3, hidden=(8,)))
     >>> c, C = LowRankEngine.from_network(net).batch(np.zeros((4, 2)), np.zeros((4, 3)))
     >>> c.shape, C.shape
@@ -189,43 +193,52 @@ class LowRankEngine:
         )
 
     @classmethod
-    def from_network(cls, network: LowRankEnsemble) -> LowRankEngine:
-        """Extract the stacked weights (in the ``[U | h]`` layout) and the normalisation of an ensemble."""
-        cfg = network.config
+    def from_weights(cls, weights: NetworkWeights) -> LowRankEngine:
+        """The stacked weights (in the ``[U | h]`` layout) and the normalisation of an ensemble's weights."""
+        cfg, state = weights.config, weights.state
         k, n = cfg.members, cfg.y_dim
-        layers = list(network.body.layers)
         d_in = cfg.x_dim + n
         skip_w, skip_b = np.zeros((k, d_in, n)), np.zeros((k, 1, n))
-        if network.center_skip is not None:
+        if cfg.linear_center:
             skip_w, skip_b = (
-                float64_array(network.center_skip.weight),
-                float64_array(network.center_skip.bias),
+                float64_array(state["center_skip.weight"]),
+                float64_array(state["center_skip.bias"]),
             )
         u = _u_layout(n)
         # skip paths [centre (n) | factor (n^2)] -> U layout
-        sw = np.concatenate([skip_w, float64_array(network.factor_skip.weight)], axis=2)[..., u]
-        sb = np.concatenate([skip_b, float64_array(network.factor_skip.bias)], axis=2)[..., u]
+        sw = np.concatenate([skip_w, float64_array(state["factor_skip.weight"])], axis=2)[..., u]
+        sb = np.concatenate([skip_b, float64_array(state["factor_skip.bias"])], axis=2)[..., u]
         # last layer [o (n) | h (n) | V (n^2)] -> [U | h]
         order = np.concatenate(
             [np.concatenate([np.arange(n), np.arange(2 * n, 2 * n + n * n)])[u], n + np.arange(n)]
         )
-        weights = [float64_array(m.weight) for m in layers[1:]]  # type: ignore[arg-type]
-        biases = [float64_array(m.bias) for m in layers[1:]]  # type: ignore[arg-type]
-        weights[-1], biases[-1] = weights[-1][..., order], biases[-1][..., order]
-        sigma = float64_array(network.sigma)
+        layers = range(1, len(cfg.hidden) + 1)
+        weights_ = [float64_array(state[f"body.layers.{i}.weight"]) for i in layers]
+        biases = [float64_array(state[f"body.layers.{i}.bias"]) for i in layers]
+        weights_[-1], biases[-1] = weights_[-1][..., order], biases[-1][..., order]
+        sigma = float64_array(state["sigma"])
+        first_w, first_b = (
+            float64_array(state["body.layers.0.weight"]),
+            float64_array(state["body.layers.0.bias"]),
+        )
         return cls(
             config=cfg,
-            first_weight=np.ascontiguousarray(np.concatenate([float64_array(layers[0].weight), sw], axis=2)),  # type: ignore[arg-type]
-            first_bias=np.ascontiguousarray(np.concatenate([float64_array(layers[0].bias), sb], axis=2)),  # type: ignore[arg-type]
-            weights=tuple(np.ascontiguousarray(w) for w in weights),
+            first_weight=np.ascontiguousarray(np.concatenate([first_w, sw], axis=2)),
+            first_bias=np.ascontiguousarray(np.concatenate([first_b, sb], axis=2)),
+            weights=tuple(np.ascontiguousarray(w) for w in weights_),
             biases=tuple(np.ascontiguousarray(b) for b in biases),
-            in_mean=float64_array(network.in_mean),
-            in_scale=1.0 / float64_array(network.in_std),
+            in_mean=float64_array(state["in_mean"]),
+            in_scale=1.0 / float64_array(state["in_std"]),
             sigma=sigma,
             inv_sigma=1.0 / sigma,
-            lin_weight=float64_array(network.lin_weight),
-            lin_bias=float64_array(network.lin_bias),
+            lin_weight=float64_array(state["lin_weight"]),
+            lin_bias=float64_array(state["lin_bias"]),
         )
+
+    @classmethod
+    def from_network(cls, network: LowRankEnsemble) -> LowRankEngine:
+        """The engine of a torch ensemble (:meth:`from_weights` of its weights)."""
+        return cls.from_weights(NetworkWeights.from_network(network))
 
     def _moments(self, out: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Moment-matched offset (B, n) and covariance (B, n, n) from every member's ``[U | h]`` (K, ·, B)."""

@@ -1,230 +1,70 @@
-"""The IPC network: (x, yhat) -> ellipsoid E(c, C) that should contain y.
+"""The inverse perception contract: :class:`IPCModel`, a trained network with its calibration.
 
-Architecture (paper, "Machine learning setup"): an MLP on ``concat(x, yhat)`` with
-hidden sizes (64, 128). Inputs are standardised with statistics stored in the
-model. The raw output is split into a centre head and a shape head:
+An :class:`IPCModel` holds the network's weights (:class:`~ipcverify.weights.NetworkWeights`,
+NumPy), its calibration and its domain of validity, and evaluates its sets with the float64
+engine of record (:mod:`ipcverify.inference` for the paper's heads,
+:mod:`ipcverify.lowrank_engine` for the default ensemble). It is built from a torch network
+(:mod:`ipcverify.network`, after training) or from weights read from a file
+(:func:`ipcverify.modelio.load_model`); in the second case torch is imported only if
+:attr:`IPCModel.network` is asked for (training, the sound Lipschitz bound, the ONNX export),
+so that predicting, calibrating and monitoring run without it.
 
-* centre ``offset`` (default): ``c = yhat + sigma * o``; centre ``raw``:
-  ``c = mu_y + sigma * o`` where ``o`` is the network's centre output and
-  ``sigma`` the per-dimension scale of the residual ``y - yhat`` (stored).
-* shape ``cholesky``: ``L`` lower-triangular with diagonal
-  ``exp(clamp(l_ii, -12, 12))``, so ``log det(C^T C)`` is finite and cheap;
-  shape ``full``: the paper's ``n^2`` raw entries. Either way
-  ``C = L diag(1 / sigma)``, i.e. ``||C (y - c)|| = ||L ((y - c) / sigma)||``.
-
-That is :class:`IPCNetwork`, the network of the recipes ``"v1"`` and ``"paper"``. The
-default recipe's network, the low-rank head and its ensemble, is
-:class:`~ipcverify.lowrank.LowRankEnsemble`; :func:`build_network` builds either from a
-:class:`~ipcverify.architecture.ModelConfig`, and :class:`IPCModel` holds either.
+``IPCNetwork``, ``Network`` and ``build_network`` live in :mod:`ipcverify.network`; importing
+them from here still works (and imports torch).
 """
 
 from __future__ import annotations
 
-import hashlib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import torch
 from numpy.typing import NDArray
-from torch import nn
 
-from ipcverify.architecture import LOGDIAG_CLAMP, ModelConfig
+from ipcverify.architecture import ModelConfig
 from ipcverify.calibration.protocol import Calibration
 from ipcverify.domain import DomainModel
 from ipcverify.errors import InvalidInputError, SetError
 from ipcverify.inference import InferenceEngine
-from ipcverify.lowrank import LowRankEnsemble
 from ipcverify.lowrank_engine import LowRankEngine
 from ipcverify.nonsingular import checked_ellipsoid
-from ipcverify.scoring import ScoredNetwork
 from ipcverify.sets import Ellipsoid
+from ipcverify.weights import NetworkWeights
 
-__all__ = ["IPCNetwork", "IPCModel", "Network", "build_network", "engine_for", "network_fingerprint"]
+if TYPE_CHECKING:
+    from ipcverify.network import Network
+
+__all__ = ["IPCModel", "engine_for", "network_fingerprint"]
 
 FloatArray = NDArray[np.float64]
-_ACTIVATIONS: dict[str, type[nn.Module]] = {"relu": nn.ReLU, "tanh": nn.Tanh, "elu": nn.ELU}
+#: Names that moved to :mod:`ipcverify.network`, still importable from here (they import torch).
+_MOVED = ("IPCNetwork", "Network", "build_network")
 
 
-class IPCNetwork(ScoredNetwork):
-    """The neural network behind an IPC (float32, CPU).
+def __getattr__(name: str) -> Any:
+    if name in _MOVED:
+        from ipcverify import network
 
-    ``body`` is a plain :class:`torch.nn.Sequential` MLP; normalisation buffers
-    ``in_mean``, ``in_std``, ``y_mean`` and ``sigma`` are stored in the state dict.
-
-    Examples
-    --------
-    >>> net = IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(8,), param="cholesky"))
-    >>> c, C, logdet = net(torch.zeros(5, 2), torch.zeros(5, 3))
-    >>> tuple(C.shape), tuple(logdet.shape)
-    ((5, 3, 3), (5,))
-    """
-
-    # buffers registered in __init__ (declared so type checkers see Tensors, not Tensor | Module)
-    in_mean: torch.Tensor
-    in_std: torch.Tensor
-    y_mean: torch.Tensor
-    sigma: torch.Tensor
-    _tril_rows: torch.Tensor
-    _tril_cols: torch.Tensor
-    _diag_mask: torch.Tensor
-    _tril_embed: torch.Tensor
-
-    def __init__(self, config: ModelConfig) -> None:
-        super().__init__()
-        if config.lowrank:
-            raise InvalidInputError(
-                "IPCNetwork builds the paper's heads ('cholesky', 'full'); this config has the low-rank head "
-                f"with {config.members} member(s): build it with ipcverify.model.build_network(config)"
-            )
-        self.config = config
-        d, n = config.x_dim, config.y_dim
-        act = _ACTIVATIONS[config.activation]
-        layers: list[nn.Module] = []
-        width = d + n
-        for h in config.hidden:
-            layers += [nn.Linear(width, h), act()]
-            width = h
-        layers.append(nn.Linear(width, config.n_outputs))
-        self.body = nn.Sequential(*layers)
-        self.register_buffer("in_mean", torch.zeros(d + n))
-        self.register_buffer("in_std", torch.ones(d + n))
-        self.register_buffer("y_mean", torch.zeros(n))
-        self.register_buffer("sigma", torch.ones(n))
-        rows, cols = torch.tril_indices(n, n)
-        self.register_buffer("_tril_rows", rows, persistent=False)
-        self.register_buffer("_tril_cols", cols, persistent=False)
-        self.register_buffer("_diag_mask", rows == cols, persistent=False)
-        embed = torch.zeros(len(rows), n * n)
-        embed[torch.arange(len(rows)), rows * n + cols] = 1.0
-        # maps the packed lower triangle to a flat n*n matrix without in-place ops
-        self.register_buffer("_tril_embed", embed, persistent=False)
-
-    @property
-    def output_layer(self) -> nn.Linear:
-        """The last linear layer (centre rows first, then the shape rows)."""
-        last = self.body[-1]
-        if not isinstance(last, nn.Linear):
-            raise InvalidInputError(
-                f"the network's last layer is a {type(last).__name__}, not a Linear layer"
-            )
-        return last
-
-    def set_normalisation(self, x: FloatArray, y: FloatArray, yhat: FloatArray) -> None:
-        """Set input standardisation and output scale from training data."""
-        inp = np.concatenate([x, yhat], axis=1)
-        mean = inp.mean(axis=0)
-        std = inp.std(axis=0)
-        std = np.where(std > 1e-12 * np.maximum(1.0, np.abs(mean)), std, 1.0)
-        resid = y - yhat if self.config.center == "offset" else y - y.mean(axis=0)
-        sigma = resid.std(axis=0)
-        scale = np.maximum(np.abs(y).max(axis=0), 1.0)
-        sigma = np.where(sigma > 1e-9 * scale, sigma, 1e-3 * scale)
-        with torch.no_grad():
-            self.in_mean.copy_(torch.as_tensor(mean, dtype=torch.float32))
-            self.in_std.copy_(torch.as_tensor(std, dtype=torch.float32))
-            self.y_mean.copy_(torch.as_tensor(y.mean(axis=0), dtype=torch.float32))
-            self.sigma.copy_(torch.as_tensor(sigma, dtype=torch.float32))
-
-    def start_at_estimate(self) -> None:
-        """Set the weights so that the centre output is exactly ``yhat`` (in place).
-
-        An initialisation, for the paper's network, whose centre is predicted outright: its
-        ReLU layers pass each standardised ``yhat_i`` through as the pair
-        ``relu(z_i), relu(-z_i)`` (units ``2i, 2i + 1`` of every hidden layer, which then
-        read nothing else), and the centre rows of the output layer undo the
-        standardisation, so ``c = yhat`` before the first step. The other units keep their
-        random initialisation and the shape rows are untouched; training then moves every
-        weight. The normalisation must already be set (:meth:`set_normalisation`).
-
-        Raises
-        ------
-        InvalidInputError
-            Unless the activation is ReLU and every hidden layer has at least ``2 n`` units.
-
-        Examples
-        --------
-        >>> net = IPCNetwork(ModelConfig(x_dim=1, y_dim=2, hidden=(4, 6), param="full", center="raw"))
-        >>> rng = np.random.default_rng(0)
-        >>> x, y = rng.normal(size=(50, 1)), rng.normal(size=(50, 2))
-        >>> net.set_normalisation(x, y, y + 0.1)
-        >>> net.start_at_estimate()
-        >>> xt, yt = torch.tensor(x[:3], dtype=torch.float32), torch.tensor(y[:3] + 0.1, dtype=torch.float32)
-        >>> bool(torch.allclose(net(xt, yt)[0], yt, atol=1e-5))
-        True
-        """
-        cfg = self.config
-        n, d = cfg.y_dim, cfg.x_dim
-        if cfg.activation != "relu" or min(cfg.hidden) < 2 * n:
-            raise InvalidInputError(
-                "starting the centre at yhat needs ReLU hidden layers of at least 2 * y_dim units each; "
-                f"this network has activation={cfg.activation!r}, hidden={cfg.hidden}"
-            )
-        linear = [m for m in self.body if isinstance(m, nn.Linear)]
-        pair = torch.arange(2 * n)
-        sign = torch.tensor([1.0, -1.0]).repeat(n)
-        with torch.no_grad():
-            first = linear[0]
-            first.weight[: 2 * n] = 0.0
-            first.bias[: 2 * n] = 0.0
-            first.weight[pair, d + pair // 2] = sign
-            for layer in linear[1:-1]:
-                layer.weight[: 2 * n] = 0.0
-                layer.bias[: 2 * n] = 0.0
-                layer.weight[pair, pair] = 1.0
-            last = linear[-1]
-            last.weight[:n] = 0.0
-            last.bias[:n] = 0.0
-            if cfg.center == "raw":  # c = y_mean + sigma o: o = (mean + std z - y_mean) / sigma
-                s, mu = self.in_std[d:], self.in_mean[d:]
-                last.weight[pair // 2, pair] = sign * (s / self.sigma)[pair // 2]
-                last.bias[:n] = (mu - self.y_mean) / self.sigma
-
-    def forward(self, x: torch.Tensor, yhat: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """Centres (B, n), shape matrices C (B, n, n) and ``log det(C^T C)`` (B,)."""
-        n = self.config.y_dim
-        z = (torch.cat([x, yhat], dim=1) - self.in_mean) / self.in_std
-        out = self.body(z)
-        o, s = out[:, :n], out[:, n:]
-        base = yhat if self.config.center == "offset" else self.y_mean.expand_as(yhat)
-        center = base + self.sigma * o
-        inv_sigma = 1.0 / self.sigma
-        if self.config.param == "full":
-            L = s.reshape(-1, n, n)
-            logdet_L2 = 2.0 * torch.linalg.slogdet(L)[1]
-        else:
-            vals = torch.where(self._diag_mask, torch.exp(torch.clamp(s, -LOGDIAG_CLAMP, LOGDIAG_CLAMP)), s)
-            L = (vals @ self._tril_embed).reshape(-1, n, n)
-            logdet_L2 = 2.0 * torch.clamp(s[:, self._diag_mask], -LOGDIAG_CLAMP, LOGDIAG_CLAMP).sum(1)
-        C = L * inv_sigma
-        logdet = logdet_L2 + 2.0 * torch.log(inv_sigma).sum()
-        return center, C, logdet
+        return getattr(network, name)
+    raise AttributeError(f"module 'ipcverify.model' has no attribute {name!r}")
 
 
-#: The networks an :class:`IPCModel` can hold.
-Network = IPCNetwork | LowRankEnsemble
-
-
-def build_network(config: ModelConfig) -> Network:
-    """The untrained network of ``config``: a :class:`~ipcverify.lowrank.LowRankEnsemble` for the
-    low-rank head, an :class:`IPCNetwork` for the paper's heads.
+def engine_for(network: Network | NetworkWeights) -> InferenceEngine | LowRankEngine:
+    """The float64 engine of record for a network or its weights.
 
     Examples
     --------
-    >>> type(build_network(ModelConfig(x_dim=2, y_dim=3))).__name__
-    'LowRankEnsemble'
-    >>> type(build_network(ModelConfig.recipe("v1", x_dim=2, y_dim=3))).__name__
-    'IPCNetwork'
+    >>> from ipcverify.weights import state_layout
+    >>> cfg = ModelConfig(x_dim=1, y_dim=2, hidden=(4,), members=2)
+    >>> w = NetworkWeights(cfg, {k: np.ones(s, t) for k, (s, t, _) in state_layout(cfg).items()})
+    >>> type(engine_for(w)).__name__
+    'LowRankEngine'
     """
-    return LowRankEnsemble(config) if config.lowrank else IPCNetwork(config)
-
-
-def engine_for(network: Network) -> InferenceEngine | LowRankEngine:
-    """The float64 engine of record for ``network``."""
-    if isinstance(network, LowRankEnsemble):
-        return LowRankEngine.from_network(network)
-    return InferenceEngine.from_network(network)
+    weights = network if isinstance(network, NetworkWeights) else NetworkWeights.from_network(network)
+    if weights.config.lowrank:
+        return LowRankEngine.from_weights(weights)
+    return InferenceEngine.from_weights(weights)
 
 
 @dataclass(frozen=True, eq=False)
@@ -233,8 +73,9 @@ class IPCModel:
 
     Parameters
     ----------
-    network : IPCNetwork or LowRankEnsemble
-        The trained network (put in eval mode).
+    source : IPCNetwork, LowRankEnsemble or NetworkWeights
+        The trained network (put in eval mode), or its weights (as a model file holds them;
+        the torch network is then built on first use of :attr:`network`).
     calibration : Calibration, optional
         Scale factors applied to the raw sets; see :mod:`ipcverify.calibration`.
     metadata : mapping
@@ -246,40 +87,67 @@ class IPCModel:
     Examples
     --------
     >>> import numpy as np
+    >>> from ipcverify.network import build_network
     >>> m = IPCModel(build_network(ModelConfig(x_dim=2, y_dim=3, hidden=(8,))))
     >>> m.predict(np.zeros((4, 2)), np.zeros((4, 3))).batch_size
     4
     """
 
-    network: Network
+    source: Network | NetworkWeights
     calibration: Calibration | None = None
     metadata: Mapping[str, Any] = field(default_factory=dict)
     domain: DomainModel | None = None
+    _weights: NetworkWeights = field(init=False, repr=False)
+    _network: Network | None = field(init=False, repr=False)
+    _engine: InferenceEngine | LowRankEngine = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
+        if isinstance(self.source, NetworkWeights):
+            weights, network = self.source, None
+        else:
+            self.source.eval()
+            weights, network = NetworkWeights.from_network(self.source), self.source
+        object.__setattr__(self, "_weights", weights)
+        object.__setattr__(self, "_network", network)
         if self.domain is not None and len(self.domain.mean) != self.config.x_dim + self.config.y_dim:
             raise InvalidInputError(
                 f"the domain model covers {len(self.domain.mean)} input columns but the network takes "
                 f"{self.config.x_dim + self.config.y_dim} (x and yhat); refit it with calibrate"
             )
-        self.network.eval()
-        object.__setattr__(self, "_engine", engine_for(self.network))
+        object.__setattr__(self, "_engine", engine_for(weights))
+
+    @property
+    def network(self) -> Network:
+        """The torch network (float32; for training, the Lipschitz bound and the export).
+
+        Built from the weights, and torch imported, on first use if the model was read from a file.
+        """
+        net = self._network
+        if net is None:
+            net = self._weights.to_network()
+            object.__setattr__(self, "_network", net)
+        return net
+
+    @property
+    def weights(self) -> NetworkWeights:
+        """The network's weights in NumPy (what the engine evaluates and the model file holds)."""
+        return self._weights
 
     @property
     def engine(self) -> InferenceEngine | LowRankEngine:
         """The float64 NumPy evaluation of the network (:mod:`ipcverify.inference` or
         :mod:`ipcverify.lowrank_engine`)."""
-        return self._engine  # type: ignore[attr-defined,no-any-return]
+        return self._engine
 
     @property
     def config(self) -> ModelConfig:
         """The network architecture."""
-        return self.network.config
+        return self._weights.config
 
     @property
     def n_parameters(self) -> int:
         """Number of trainable scalar parameters ``p``."""
-        return sum(p.numel() for p in self.network.parameters())
+        return self._weights.n_parameters
 
     def _check(self, x: Any, yhat: Any) -> tuple[FloatArray, FloatArray]:
         xa = np.asarray(x, dtype=np.float64)
@@ -307,7 +175,7 @@ class IPCModel:
         together (default: the engine's, :func:`ipcverify.inference.chunk_rows`, which keeps them in cache).
         """
         xa, ya = self._check(x, yhat)
-        return self._engine.batch(xa, ya, batch_size)  # type: ignore[attr-defined,no-any-return]
+        return self._engine.batch(xa, ya, batch_size)
 
     def predict_raw(self, x: Any, yhat: Any) -> Ellipsoid:
         """The network's own sets, ignoring any calibration."""
@@ -326,7 +194,7 @@ class IPCModel:
         yhat : array_like, shape (B, n) or (n,)
         """
         xa, ya = self._check(x, yhat)
-        centers, shapes = self._engine.batch(xa, ya)  # type: ignore[attr-defined]
+        centers, shapes = self._engine.batch(xa, ya)
         if self.calibration is not None:
             f = np.asarray(self.calibration.scale_for(xa, ya), dtype=np.float64)
             if f.shape != (len(xa),) or not (np.isfinite(f).all() and (f > 0).all()):
@@ -348,6 +216,7 @@ class IPCModel:
 
         Examples
         --------
+        >>> from ipcverify.network import build_network
         >>> m = IPCModel(build_network(ModelConfig(x_dim=1, y_dim=1, hidden=(2,))))
         >>> m.require_calibration()  # doctest: +ELLIPSIS
         Traceback (most recent call last):
@@ -365,7 +234,7 @@ class IPCModel:
         self, calibration: Calibration | None, domain: DomainModel | None = None
     ) -> IPCModel:
         """A copy of this model carrying ``calibration`` and ``domain`` (the network is shared)."""
-        return IPCModel(self.network, calibration, self.metadata, domain)
+        return IPCModel(self.source, calibration, self.metadata, domain)
 
 
 def _out_of_domain_message(error: str, domain: DomainModel | None, x: FloatArray, yhat: FloatArray) -> str:
@@ -387,21 +256,17 @@ def _out_of_domain_message(error: str, domain: DomainModel | None, x: FloatArray
     )
 
 
-def network_fingerprint(network: Network) -> str:
+def network_fingerprint(network: Network | NetworkWeights) -> str:
     """SHA-256 of a network's configuration and state dict (ties a calibration to its network).
 
-    Every member of an ensemble is in the state dict, so every member is hashed.
+    Every member of an ensemble is in the state dict, so every member is hashed. A network and
+    its :class:`~ipcverify.weights.NetworkWeights` have the same fingerprint.
 
     Examples
     --------
-    >>> from ipcverify.architecture import ModelConfig
+    >>> from ipcverify.network import build_network
     >>> len(network_fingerprint(build_network(ModelConfig(x_dim=1, y_dim=1, hidden=(2,)))))
     64
     """
-    h = hashlib.sha256(repr(sorted(network.config.to_dict().items())).encode())
-    for name, t in sorted(network.state_dict().items()):
-        h.update(name.encode())
-        arr = t.detach().cpu().contiguous().numpy()
-        h.update(str(arr.dtype).encode() + str(arr.shape).encode())
-        h.update(arr.tobytes())
-    return h.hexdigest()
+    weights = network if isinstance(network, NetworkWeights) else NetworkWeights.from_network(network)
+    return weights.fingerprint()

@@ -11,9 +11,13 @@ member's weights are in the state dict, stacked, and the config has ``param="low
 ``linear_center`` and ``members``). A network with the paper's heads is still written as
 version 1, exactly as before, so older ipcverify versions read it; both versions are read.
 
-It is read with ``torch.load(..., weights_only=True)``, which unpickles only
-tensors and plain containers: a file that holds any other object (which could run
-code when unpickled) is refused before anything in it executes.
+It is read without torch by :func:`ipcverify.torchfile.read_torch_file`, whose restricted
+unpickler resolves only torch's tensor-rebuilding names (to its own NumPy builders) and refuses
+every other global: a file that holds any other object (which could run code when unpickled)
+is refused before anything in it executes. A file in a part of torch's format that reader does
+not know is read with ``torch.load(..., weights_only=True)``, which refuses the same. The
+weights become a :class:`~ipcverify.weights.NetworkWeights` (names, shapes and dtypes checked
+against the architecture, values finite), so that ``predict`` and ``monitor`` run without torch.
 """
 
 from __future__ import annotations
@@ -25,7 +29,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import torch
 
 from ipcverify.architecture import ModelConfig
 from ipcverify.calibration.kinds import calibration_from_dict
@@ -38,8 +41,10 @@ from ipcverify.data import (
 from ipcverify.domain import DomainModel
 from ipcverify.errors import InvalidInputError, ModelFileError
 from ipcverify.files import atomic_write
-from ipcverify.model import IPCModel, build_network
+from ipcverify.model import IPCModel
 from ipcverify.tables import refuse_unknown_columns
+from ipcverify.torchfile import DamagedArchiveError, NeedsTorchError, UnsafeContentError, read_torch_file
+from ipcverify.weights import NetworkWeights
 
 __all__ = [
     "FORMAT",
@@ -95,12 +100,15 @@ def save_model(model: IPCModel, path: str | os.PathLike[str]) -> None:
     Examples
     --------
     >>> import tempfile, os, numpy as np
+    >>> from ipcverify.network import build_network
     >>> m = IPCModel(build_network(ModelConfig(x_dim=2, y_dim=3, hidden=(8,))))
     >>> p = os.path.join(tempfile.mkdtemp(), "model.pt")
     >>> save_model(m, p)
     >>> load_model(p).config.hidden
     (8,)
     """
+    import torch
+
     metadata = _plain(dict(model.metadata))
     calibration = None if model.calibration is None else _plain(model.calibration.to_dict())
     _check_plain(metadata, "metadata")
@@ -115,7 +123,7 @@ def save_model(model: IPCModel, path: str | os.PathLike[str]) -> None:
         "format": FORMAT,
         "format_version": FORMAT_VERSION if model.config.lowrank else 1,
         "config": model.config.to_dict(),
-        "state_dict": {k: v.detach().clone() for k, v in model.network.state_dict().items()},
+        "state_dict": {k: torch.from_numpy(np.array(v)) for k, v in model.weights.state.items()},
         "metadata": metadata,
         "calibration": calibration,
         "domain": domain,
@@ -124,7 +132,10 @@ def save_model(model: IPCModel, path: str | os.PathLike[str]) -> None:
 
 
 def load_model(path: str | os.PathLike[str]) -> IPCModel:
-    """Load a model file safely (``weights_only=True``) and rebuild the model.
+    """Load a model file safely (tensors and plain data only; nothing in it runs) and rebuild the model.
+
+    torch is not imported (unless the file uses a part of torch's format the torch-free reader
+    does not know): the model predicts, calibrates and is monitored with NumPy alone.
 
     Raises
     ------
@@ -145,17 +156,7 @@ def load_model(path: str | os.PathLike[str]) -> IPCModel:
             f"{p}: not a readable model file: it is not the archive `ipcverify train` or "
             "`ipcverify calibrate` writes (a text, CSV or other file was given as the model?)"
         )
-    try:
-        payload = torch.load(p, map_location="cpu", weights_only=True)
-    except pickle.UnpicklingError as exc:
-        if "Unsupported global" in str(exc):
-            raise ModelFileError(
-                f"{p}: refused to load: the file holds objects other than tensors and plain "
-                "data, which could run code; only load model files written by ipcverify"
-            ) from None
-        raise ModelFileError(f"{p}: not a readable model file: its archive is damaged") from None
-    except Exception:  # noqa: BLE001 - torch raises many kinds; none of their internals helps the user
-        raise ModelFileError(f"{p}: not a readable model file: its archive is damaged or truncated") from None
+    payload = _read(p)
     if not isinstance(payload, dict) or payload.get("format") != FORMAT:
         raise ModelFileError(f"{p}: not an ipcverify model file (no 'format': '{FORMAT}' entry)")
     version = payload.get("format_version")
@@ -168,13 +169,12 @@ def load_model(path: str | os.PathLike[str]) -> IPCModel:
         config = ModelConfig.from_dict(payload["config"])
         if config.lowrank and version < 2:
             raise InvalidInputError("a low-rank network in a version-1 file")
-        net = build_network(config)
-        net.load_state_dict(payload["state_dict"], strict=True)
-    except (KeyError, TypeError, RuntimeError, InvalidInputError) as exc:
+        weights = NetworkWeights.from_state_dict(config, payload["state_dict"])
+    except (KeyError, TypeError, AttributeError, ValueError) as exc:  # InvalidInputError is a ValueError
         first = str(exc).strip().splitlines()[0]
         raise ModelFileError(f"{p}: damaged model file ({first[:200]})") from None
-    for name, t in net.state_dict().items():
-        if t.is_floating_point() and not torch.isfinite(t).all():
+    for name, value in weights.state.items():
+        if not np.isfinite(value).all():
             raise ModelFileError(f"{p}: parameter {name!r} holds non-finite values")
     calibration = None
     if payload.get("calibration") is not None:
@@ -185,15 +185,54 @@ def load_model(path: str | os.PathLike[str]) -> IPCModel:
     domain = None
     if payload.get("domain") is not None:
         try:
-            record = dict(payload["domain"])
-            record["reference"] = record["reference"].numpy()
-            domain = DomainModel.from_dict(record)
+            domain = DomainModel.from_dict(dict(payload["domain"]))
         except (KeyError, TypeError, ValueError, AttributeError) as exc:
             raise ModelFileError(f"{p}: damaged domain-of-validity record ({exc})") from None
     try:
-        return IPCModel(net, calibration, payload.get("metadata") or {}, domain)
+        return IPCModel(weights, calibration, payload.get("metadata") or {}, domain)
     except InvalidInputError as exc:
         raise ModelFileError(f"{p}: inconsistent model file ({exc})") from None
+
+
+_REFUSED = (
+    "refused to load: the file holds objects other than tensors and plain data, which could run code; "
+    "only load model files written by ipcverify"
+)
+
+
+def _read(p: Path) -> Any:
+    """The archive's payload with NumPy arrays for tensors: without torch, or by torch for a layout
+    the torch-free reader does not know (both refuse anything but tensors and plain data)."""
+    try:
+        return read_torch_file(p)
+    except UnsafeContentError:
+        raise ModelFileError(f"{p}: {_REFUSED}") from None
+    except DamagedArchiveError:
+        raise ModelFileError(f"{p}: not a readable model file: its archive is damaged or truncated") from None
+    except NeedsTorchError:
+        pass
+    import torch
+
+    try:
+        payload = torch.load(p, map_location="cpu", weights_only=True)
+    except pickle.UnpicklingError as exc:
+        if "Unsupported global" in str(exc):
+            raise ModelFileError(f"{p}: {_REFUSED}") from None
+        raise ModelFileError(f"{p}: not a readable model file: its archive is damaged") from None
+    except Exception:  # noqa: BLE001 - torch raises many kinds; none of their internals helps the user
+        raise ModelFileError(f"{p}: not a readable model file: its archive is damaged or truncated") from None
+    return _numpy(payload, torch.Tensor)
+
+
+def _numpy(obj: Any, tensor: type) -> Any:
+    """``obj`` with every tensor replaced by a NumPy copy of it."""
+    if isinstance(obj, tensor):
+        return obj.detach().cpu().numpy().copy()  # type: ignore[attr-defined]
+    if isinstance(obj, Mapping):
+        return {k: _numpy(v, tensor) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return type(obj)(_numpy(v, tensor) for v in obj)
+    return obj
 
 
 def _columns(model: IPCModel, kind: str) -> list[str]:
@@ -219,6 +258,7 @@ def load_data_for_model(path: str | os.PathLike[str], model: IPCModel) -> Percep
     >>> from ipcverify.architecture import ModelConfig
     >>> p = os.path.join(tempfile.mkdtemp(), "d.csv")
     >>> save_dataset(make_lagged_perception(5, seed=0), p)
+    >>> from ipcverify.network import build_network
     >>> len(load_data_for_model(p, IPCModel(build_network(ModelConfig(x_dim=6, y_dim=3)))))
     5
     """
@@ -240,6 +280,7 @@ def load_inputs_for_model(path: str | os.PathLike[str], model: IPCModel) -> Perc
     >>> from ipcverify.architecture import ModelConfig
     >>> p = os.path.join(tempfile.mkdtemp(), "q.csv")
     >>> pd.DataFrame({"x_0": [0.0, 1.0], "yhat_0": [0.5, 0.5]}).to_csv(p, index=False)
+    >>> from ipcverify.network import build_network
     >>> load_inputs_for_model(p, IPCModel(build_network(ModelConfig(x_dim=1, y_dim=1)))).x.shape
     (2, 1)
     """

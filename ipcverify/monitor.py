@@ -34,15 +34,17 @@ from __future__ import annotations
 import math
 import numbers
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from matplotlib.figure import Figure
 from numpy.typing import ArrayLike, NDArray
 from scipy.signal import lfilter
 from scipy.special import logsumexp
 
 from ipcverify.errors import InvalidInputError
+
+if TYPE_CHECKING:  # matplotlib is imported by plot_monitor only: predict needs none of it
+    from matplotlib.figure import Figure
 
 __all__ = [
     "ADAPTIVE_MEMORIES",
@@ -535,6 +537,8 @@ def plot_monitor(
     ['log e-value', 'running rate']
     """
     cfg, t = result.config, result.index
+    from matplotlib.figure import Figure
+
     fig = Figure(figsize=(7.0, 4.2))
     ax, ax2 = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": (2, 1)})
     ax.step(

@@ -140,7 +140,7 @@ class TrainConfig:
         head (default 1e-8: essentially least squares; it only keeps the solve well posed).
     start_at_estimate : bool
         Initialise the network so that its centre output equals ``yhat`` before the first
-        step (:meth:`ipcverify.model.IPCNetwork.start_at_estimate`; the paper's heads, ReLU
+        step (:meth:`ipcverify.network.IPCNetwork.start_at_estimate`; the paper's heads, ReLU
         only). On by default in the recipe ``"paper"``, whose centre is predicted outright:
         the paper does not state its initialisation, and from PyTorch's default one its
         network learns the centre on the case study's data only to 9-19 cm in 20 epochs

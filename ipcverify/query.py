@@ -29,7 +29,8 @@ Examples
 --------
 >>> import numpy as np
 >>> from ipcverify.architecture import ModelConfig
->>> from ipcverify.model import IPCModel, IPCNetwork
+>>> from ipcverify.model import IPCModel
+>>> from ipcverify.network import IPCNetwork
 >>> from ipcverify.sets import Box
 >>> G = Box([-0.05, -0.05, 0.0], [0.05, 0.05, 0.05])
 >>> q = IPCQuery(IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(8,), param="cholesky"))), G)
@@ -85,7 +86,8 @@ class IPCQuery:
     --------
     >>> import numpy as np
     >>> from ipcverify.architecture import ModelConfig
-    >>> from ipcverify.model import IPCModel, IPCNetwork
+    >>> from ipcverify.model import IPCModel
+    >>> from ipcverify.network import IPCNetwork
     >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(8,), param="cholesky")))
     >>> c, C = IPCQuery(m, Box([-1.0, -1.0, 0.0], [1.0, 1.0, 1.0])).ellipsoid([0.0, 1.0], [0.1, 0.2, 0.3])
     >>> bool(np.allclose(C, m.predict([0.0, 1.0], [0.1, 0.2, 0.3]).shapes[0]))

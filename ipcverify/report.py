@@ -485,7 +485,8 @@ def render_report(result: CertifyResult) -> str:
     Examples
     --------
     >>> from ipcverify.synthetic import make_lagged_perception
-    >>> from ipcverify.model import IPCModel, IPCNetwork
+    >>> from ipcverify.model import IPCModel
+    >>> from ipcverify.network import IPCNetwork
     >>> from ipcverify.architecture import ModelConfig
     >>> from ipcverify.certify import certify  # certify imports this module, not the other way round
     >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(8,), param="cholesky")))

@@ -4,7 +4,7 @@ A network ``net`` maps ``(x, yhat)`` to a centre ``c``, a shape matrix ``C`` and
 ``log det(C^T C)``; its raw set is ``E(c, C) = {y : ||C (y - c)|| <= 1}``. The score
 ``g = ||C (y - c)||`` is what training penalises and calibration ranks.
 :class:`ScoredNetwork` defines :meth:`~ScoredNetwork.score` once for the paper's heads
-(:class:`ipcverify.model.IPCNetwork`) and the low-rank ensemble
+(:class:`ipcverify.network.IPCNetwork`) and the low-rank ensemble
 (:class:`ipcverify.lowrank.LowRankEnsemble`).
 
 Examples

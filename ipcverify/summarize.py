@@ -216,7 +216,7 @@ def output_labels(
 
     Examples
     --------
-    >>> from ipcverify.model import IPCNetwork
+    >>> from ipcverify.network import IPCNetwork
     >>> from ipcverify.architecture import ModelConfig
     >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(4,), param="cholesky")))
     >>> output_labels(m, None), output_labels(m, None, [" forward", "left", "up"])
@@ -283,7 +283,8 @@ def summarize(
     Examples
     --------
     >>> from ipcverify.synthetic import make_lagged_perception
-    >>> from ipcverify.model import IPCModel, IPCNetwork
+    >>> from ipcverify.model import IPCModel
+    >>> from ipcverify.network import IPCNetwork
     >>> from ipcverify.architecture import ModelConfig
     >>> from ipcverify.calibrate import calibrate
     >>> from ipcverify.certify import certify

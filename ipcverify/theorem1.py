@@ -37,7 +37,7 @@ from numpy.typing import ArrayLike
 
 from ipcverify.data import PerceptionDataset
 from ipcverify.errors import InvalidInputError
-from ipcverify.lipschitz import DEFAULT_RADIUS, DataBox, empirical_lipschitz, sound_lipschitz
+from ipcverify.lipschitz_ball import DEFAULT_RADIUS, DataBox
 from ipcverify.model import IPCModel
 
 __all__ = [
@@ -98,6 +98,8 @@ class TrainingStatistics:
         >>> stats.n, TrainingStatistics.from_dict(stats.to_dict()).to_dict() == stats.to_dict()
         (200, True)
         """
+        from ipcverify.lipschitz import empirical_lipschitz  # torch: the records above need none of it
+
         scores = model.raw_scores(train_data.x, train_data.y, train_data.yhat)
         return cls(
             n=len(train_data),
@@ -392,6 +394,8 @@ def theorem1(
         alpha = (model.metadata.get("train_config") or {}).get("alpha")
         if alpha is None:
             raise InvalidInputError("the model file records no training alpha; pass alpha explicitly")
+    from ipcverify.lipschitz import sound_lipschitz  # torch (the sound bound differentiates the network)
+
     alpha = float(alpha)
     if isinstance(train_data, PerceptionDataset):
         if (train_data.x_dim, train_data.y_dim) != (model.config.x_dim, model.config.y_dim):

@@ -24,7 +24,8 @@ from ipcverify.data import PerceptionDataset
 from ipcverify.data_checks import check_informative, input_ranges
 from ipcverify.errors import InvalidInputError
 from ipcverify.lowrank_training import train_lowrank
-from ipcverify.model import IPCModel, IPCNetwork, Network
+from ipcverify.model import IPCModel
+from ipcverify.network import IPCNetwork, Network
 from ipcverify.objectives import (
     Loss,
     NonFiniteLossError,

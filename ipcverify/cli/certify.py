@@ -1,7 +1,8 @@
 """CLI commands ``calibrate`` and ``certify``; registered on the shared app.
 
-Both are thin wrappers: parse, call :func:`ipcverify.calibration.calibrate` or
-:func:`ipcverify.certify.certify_files`, print a short summary.
+Both are thin wrappers: parse, call :func:`ipcverify.calibrate.calibrate` or
+:func:`ipcverify.certify.certify_files`, print a short summary. The library is imported inside
+each command, so that ``--help`` stays fast.
 """
 
 from __future__ import annotations
@@ -12,25 +13,16 @@ from pathlib import Path
 import click
 from rich.table import Table
 
-from ipcverify.calibrate import calibrate
-from ipcverify.certificate import CertificateStatus
-from ipcverify.certify import certify_files
 from ipcverify.cli.app import app, console, err_console
-from ipcverify.domain import DEFAULT_ALPHA
 from ipcverify.errors import InvalidInputError
-from ipcverify.lipschitz import DEFAULT_RADIUS
-from ipcverify.modelio import load_data_for_model, load_model, save_model
+from ipcverify.lipschitz_ball import DEFAULT_RADIUS
 
 __all__: list[str] = []
 
 _EXISTING = click.Path(exists=True, dir_okay=False, path_type=Path)
-_STYLE = {
-    CertificateStatus.CERTIFIED: "bold green",
-    CertificateStatus.UNCHECKED: "bold cyan",
-    CertificateStatus.NOT_CALIBRATED: "bold yellow",
-    CertificateStatus.CONTRADICTED: "bold red",
-    CertificateStatus.UNTESTED: "bold cyan",
-}
+#: ``ipcverify.domain.DEFAULT_ALPHA``, written out so that ``--help`` need not import the domain
+#: test (SciPy, Numba); ``tests/ipcverify/cli/test_startup.py`` checks that the two agree.
+_DOMAIN_ALPHA = 0.01
 
 
 @app.command("calibrate")
@@ -66,7 +58,7 @@ _STYLE = {
 @click.option(
     "--domain-alpha",
     type=float,
-    default=DEFAULT_ALPHA,
+    default=_DOMAIN_ALPHA,
     show_default=True,
     help="False-alarm rate of the domain-of-validity test fitted on the calibration inputs.",
 )
@@ -106,6 +98,9 @@ def calibrate_cmd(
     model), drawn like the data the contract will meet in deployment. The domain-of-validity
     test is fitted on its inputs and stored with the model.
     """
+    from ipcverify.calibrate import calibrate
+    from ipcverify.modelio import load_data_for_model, load_model, save_model
+
     m = load_model(model)
     ds = load_data_for_model(data, m)
     cal_model = calibrate(
@@ -205,6 +200,16 @@ def certify_cmd(
     row-level bound assumes independent rows, the per-group one only i.i.d. groups.
     Exits with status 1 if the test data contradicts the calibration's claim.
     """
+    from ipcverify.certificate import CertificateStatus
+    from ipcverify.certify import certify_files
+
+    style_of = {
+        CertificateStatus.CERTIFIED: "bold green",
+        CertificateStatus.UNCHECKED: "bold cyan",
+        CertificateStatus.NOT_CALIBRATED: "bold yellow",
+        CertificateStatus.CONTRADICTED: "bold red",
+        CertificateStatus.UNTESTED: "bold cyan",
+    }
     res = certify_files(
         model,
         test,
@@ -223,7 +228,7 @@ def certify_cmd(
     if summary is None:  # certify() always attaches one; guard the contract anyway
         raise InvalidInputError("the certificate has no summary; please report this")
     title, detail = summary.verdict_text().split(": ", 1)
-    style = "bold yellow" if summary.certified and summary.strength == "weak" else _STYLE[cert.status]
+    style = "bold yellow" if summary.certified and summary.strength == "weak" else style_of[cert.status]
     console.print(f"{title}:", style=style, markup=False, highlight=False, end=" ", soft_wrap=True)
     console.print(detail, markup=False, highlight=False, soft_wrap=True)
     console.print(cert.statement, soft_wrap=True, markup=False)

@@ -1,7 +1,8 @@
 """Core CLI commands: ``train``, ``evaluate``, ``predict`` and ``demo``.
 
 Each command parses its arguments, calls one library function and prints the
-result; nothing else happens here.
+result; nothing else happens here. The library is imported inside each command, so that
+``ipcverify --help`` does not load torch, Numba or pandas (docs/develop.md).
 """
 
 from __future__ import annotations
@@ -9,25 +10,19 @@ from __future__ import annotations
 import json
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 import numpy as np
 from rich.table import Table
 
-from ipcverify.architecture import DEFAULT_RECIPE, RECIPES, ModelConfig
+from ipcverify.architecture import DEFAULT_RECIPE, RECIPES
 from ipcverify.cli.app import EXIT_VERDICT, app, console, err_console
-from ipcverify.data import load_dataset
-from ipcverify.data_checks import warn_correlated_rows
-from ipcverify.demo import run_demo
-from ipcverify.domain import DomainReport
 from ipcverify.errors import InvalidInputError
-from ipcverify.evaluation import Evaluation, evaluate
-from ipcverify.files import atomic_write, json_data, write_json
-from ipcverify.modelio import load_data_for_model, load_inputs_for_model, load_model, save_model
-from ipcverify.monitor import plot_monitor
-from ipcverify.prediction import monitor_log, predict_sets, write_predictions
-from ipcverify.report import figure_to_png
-from ipcverify.training import HingeSelection, TrainConfig, train
+
+if TYPE_CHECKING:
+    from ipcverify.domain import DomainReport
+    from ipcverify.evaluation import Evaluation
 
 __all__ = ["parse_hidden"]
 
@@ -185,6 +180,11 @@ def train_cmd(
     --alpha, --lam or --batch-size is given. Every recipe stores the statistics Theorem 1
     needs in the model file.
     """
+    from ipcverify.architecture import ModelConfig
+    from ipcverify.data import load_dataset
+    from ipcverify.modelio import save_model
+    from ipcverify.training import HingeSelection, TrainConfig, train
+
     ds = load_dataset(data, _columns(x_columns), _columns(y_columns), _columns(yhat_columns))
     mc = ModelConfig.recipe(
         recipe,
@@ -244,6 +244,10 @@ def train_cmd(
 @click.option("--bins", default=10, show_default=True, type=int)
 def evaluate_cmd(model: Path, data: Path, as_json: bool, bin_column: str | None, bins: int) -> None:
     """Empirical violation rate and set sizes of MODEL on labelled DATA."""
+    from ipcverify.evaluation import evaluate
+    from ipcverify.files import json_data
+    from ipcverify.modelio import load_data_for_model, load_model
+
     m = load_model(model)
     ds = load_data_for_model(data, m)
     ev = evaluate(m, ds, bin_column=bin_column, bins=bins)
@@ -265,6 +269,9 @@ def predict_cmd(model: Path, data: Path, out: Path) -> None:
     `in_domain` (B,) -- the calibration certificate covers only these queries --,
     `domain_distance` (B,) and `singular` (B,). DATA needs only the state and estimate columns.
     """
+    from ipcverify.modelio import load_inputs_for_model, load_model
+    from ipcverify.prediction import predict_sets, write_predictions
+
     if out.suffix.lower() != ".npz":
         raise InvalidInputError(f"--out must end in .npz; got {out.name}")
     m = load_model(model)
@@ -314,6 +321,13 @@ def monitor_cmd(model: Path, log: Path, out: Path, delta: float | None, group_co
     false-alarm probability of at most --delta. A flight-level model is monitored one flight at a
     time. Exits with status 1 on an alarm.
     """
+    from ipcverify.data_checks import warn_correlated_rows
+    from ipcverify.files import atomic_write, write_json
+    from ipcverify.modelio import load_data_for_model, load_model
+    from ipcverify.monitor import plot_monitor
+    from ipcverify.prediction import monitor_log
+    from ipcverify.report_plots import figure_to_png
+
     m = load_model(model)
     data = load_data_for_model(log, m)
     res = monitor_log(m, data, delta=delta, group_column=group_column)
@@ -343,6 +357,8 @@ def monitor_cmd(model: Path, log: Path, out: Path, delta: float | None, group_co
 @click.option("--seed", default=0, show_default=True, type=int)
 def demo_cmd(out: Path, n_samples: int, seed: int) -> None:
     """Generate synthetic lagged-perception data, train an IPC, calibrate it, evaluate it."""
+    from ipcverify.demo import run_demo
+
     s = run_demo(out, n_train=n_samples, seed=seed, progress=True)
     table = Table(title=f"on {s.calibrated.n} fresh test samples")
     table.add_column("sets")

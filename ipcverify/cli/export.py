@@ -13,8 +13,6 @@ import numpy as np
 
 from ipcverify.cli.app import app, console, err_console
 from ipcverify.errors import InvalidInputError
-from ipcverify.export import check_onnx, export_onnx
-from ipcverify.modelio import load_model
 
 __all__: list[str] = []
 
@@ -52,6 +50,9 @@ def export_cmd(model: Path, onnx_path: Path, dtype: str, no_domain: bool) -> Non
     A global calibration is included (shape = C / scale); a Mondrian calibration is refused. The
     domain-of-validity test is not in the graph: a model with one needs --no-domain.
     """
+    from ipcverify.export import check_onnx, export_onnx
+    from ipcverify.modelio import load_model
+
     m = load_model(model)
     info = export_onnx(m, onnx_path, dtype=dtype, without_domain=no_domain)  # type: ignore[arg-type]
     what = f"calibrated (scale {info.scale:.6g})" if info.calibrated else "UNCALIBRATED raw network sets"

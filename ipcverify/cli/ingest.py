@@ -8,21 +8,26 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
-import pandas as pd
 
 from ipcverify.cli.app import app, console
 from ipcverify.errors import InvalidInputError
-from ipcverify.ingest import IngestOptions, ingest_bags, ingest_trajectories, list_topics, write_ingested
-from ipcverify.ingest.formats import FORMATS
-from ipcverify.ingest.quantity import QUANTITIES
-from ipcverify.ingest.samples import MANIFEST_KEY
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from ipcverify.ingest import IngestOptions
 
 __all__: list[str] = []
 
 _IN = click.Path(exists=True, path_type=Path)
+#: ``ipcverify.ingest.formats.FORMATS`` and ``ipcverify.ingest.quantity.QUANTITIES``, written out
+#: so that ``--help`` need not import the ingest package (pandas, SciPy); checked equal by
+#: ``tests/ipcverify/cli/test_startup.py``.
+_FORMAT = click.Choice(("tum", "euroc", "kitti"))
+_QUANTITY = click.Choice(("displacement", "position", "pose"))
 
 
 @app.group("ingest")
@@ -41,7 +46,7 @@ def _sampling(f: Callable[..., Any]) -> Callable[..., Any]:
         ),
         click.option(
             "--quantity",
-            type=click.Choice(QUANTITIES),
+            type=_QUANTITY,
             default="displacement",
             show_default=True,
             help="displacement needs no alignment; position and pose take --align.",
@@ -82,6 +87,8 @@ def _sampling(f: Callable[..., Any]) -> Callable[..., Any]:
 
 def _common(sampling: dict[str, Any]) -> tuple[Path, IngestOptions, list[str] | None, dict[str, str]]:
     """The output path, the options, the run names and the tags from the shared options' values."""
+    from ipcverify.ingest import IngestOptions
+
     align_runs = sampling["align_runs"]
     options = IngestOptions(
         quantity=sampling["quantity"],
@@ -106,6 +113,8 @@ def _tags(items: tuple[str, ...]) -> dict[str, str]:
 
 
 def _report(frame: pd.DataFrame, out: Path, manifest: Path) -> None:
+    from ipcverify.ingest.samples import MANIFEST_KEY
+
     account = frame.attrs[MANIFEST_KEY]
     for run in account["runs"]:
         dropped = ", ".join(f"{k} {v}" for k, v in run["dropped"].items() if v) or "none"
@@ -139,6 +148,8 @@ def _report(frame: pd.DataFrame, out: Path, manifest: Path) -> None:
 )
 def topics_cmd(path: Path, typestore: str | None) -> None:
     """List the topics of a bag or MCAP file: type, message count and time span (receive times)."""
+    from ipcverify.ingest import list_topics
+
     for info in list_topics(path, typestore):
         console.print(info.describe(), markup=False, highlight=False, soft_wrap=True)
 
@@ -183,6 +194,8 @@ def bag_cmd(
     **sampling: Any,
 ) -> None:
     """Build samples from ROS 1 bags, ROS 2 bags (.db3 or .mcap) or raw MCAP files; each PATH is a run."""
+    from ipcverify.ingest import ingest_bags, write_ingested
+
     out, options, runs, tags = _common(sampling)
     frame = ingest_bags(
         list(paths),
@@ -219,11 +232,9 @@ def bag_cmd(
     type=_IN,
     help="Estimated trajectory file; each is a run (repeatable).",
 )
-@click.option("--format", "fmt", type=click.Choice(FORMATS), default=None, help="Layout of both files [tum].")
-@click.option("--truth-format", type=click.Choice(FORMATS), default=None, help="Layout of the truth file(s).")
-@click.option(
-    "--estimate-format", type=click.Choice(FORMATS), default=None, help="Layout of the estimate file(s)."
-)
+@click.option("--format", "fmt", type=_FORMAT, default=None, help="Layout of both files [tum].")
+@click.option("--truth-format", type=_FORMAT, default=None, help="Layout of the truth file(s).")
+@click.option("--estimate-format", type=_FORMAT, default=None, help="Layout of the estimate file(s).")
 @click.option("--times", type=_IN, default=None, help="KITTI: times file, one time (s) a line.")
 @_sampling
 def trajectories_cmd(
@@ -236,6 +247,8 @@ def trajectories_cmd(
     **sampling: Any,
 ) -> None:
     """Build samples from TUM, EuRoC or KITTI trajectory files; each --estimate is a run."""
+    from ipcverify.ingest import ingest_trajectories, write_ingested
+
     out, options, runs, tags = _common(sampling)
     frame = ingest_trajectories(
         list(truth),

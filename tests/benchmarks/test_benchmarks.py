@@ -69,6 +69,7 @@ def test_quick_run_writes_every_required_key(tmp_path):
     assert set(shift["hetlag_shift1"]) == {"ipc", "ipc_v1", "global_mahalanobis"}
     assert 0.0 <= shift["hetlag_shift1"]["ipc"]["violation_mean"] <= 1.0
     assert res["latency"]["onnx_check"]["float64"]["vs_engine_shape"] < 1e-12
+    assert res["startup"]["all_succeeded"] and res["targets"]["cli_startup"]["limit"] == 3.0
     md = (tmp_path / "results.md").read_text()
     assert "| method | calibrated | mean volume |" in md and "UNCALIBRATED" in md
     assert "Before and after" in md and "diagnosis against the oracle" in md and "Under shift" in md

@@ -170,3 +170,33 @@ def test_a_lowrank_network_in_a_version_1_file_is_refused(tmp_path):
     torch.save(payload, p)
     with pytest.raises(ModelFileError, match="damaged model file .a low-rank network in a version-1 file"):
         load_model(p)
+
+
+def test_a_layout_the_torch_free_reader_does_not_know_is_read_by_torch(tmp_path, monkeypatch):
+    import ipcverify.modelio as modelio
+    from ipcverify.torchfile import NeedsTorchError
+
+    ds = make_lagged_perception(200, seed=0)
+    model = train(ds, train_config=TrainConfig(epochs=1)).model
+    p = tmp_path / "m.pt"
+    save_model(model, p)
+    direct = load_model(p)
+
+    def unknown(path):
+        raise NeedsTorchError("a later torch's layout")
+
+    monkeypatch.setattr(modelio, "read_torch_file", unknown)
+    via_torch = load_model(p)  # torch.load(weights_only=True), tensors turned into arrays
+    assert (
+        via_torch.weights.fingerprint() == direct.weights.fingerprint() == network_fingerprint(model.network)
+    )
+    np.testing.assert_array_equal(
+        via_torch.predict(ds.x, ds.yhat).shapes, direct.predict(ds.x, ds.yhat).shapes
+    )
+
+
+def test_a_torch_object_in_a_model_file_is_refused_by_torch_too(tmp_path):
+    p = tmp_path / "module.pt"
+    torch.save({"format": "ipcverify-model", "format_version": 2, "net": torch.nn.Linear(2, 2)}, p)
+    with pytest.raises(ModelFileError, match=r"refused to load: the file holds objects other than tensors"):
+        load_model(p)

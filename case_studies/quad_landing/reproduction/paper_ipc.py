@@ -7,7 +7,7 @@ predicted outright, and the nine entries of ``C``), the hinge ``max(0, t / alpha
 the full run), inputs standardised. What the paper leaves open is stated here and in
 ``docs/reproduce.md``: ``alpha``, ``lambda`` and the batch size are chosen by
 :class:`ipcverify.selection.HingeSelection` on held-out *training* rows only, and the network
-starts with its centre output at ``yhat`` (:meth:`ipcverify.model.IPCNetwork.start_at_estimate`).
+starts with its centre output at ``yhat`` (:meth:`ipcverify.network.IPCNetwork.start_at_estimate`).
 
 From the one trained network come two contracts (:mod:`.contracts`):
 

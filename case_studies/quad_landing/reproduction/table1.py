@@ -175,7 +175,7 @@ def table1(model: IPCModel, tests: Mapping[int, PerceptionDataset], delta: float
 
     Examples
     --------
-    >>> from ipcverify.model import IPCNetwork
+    >>> from ipcverify.network import IPCNetwork
     >>> from ipcverify.architecture import ModelConfig
     >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(4,), param="cholesky")))
     >>> ds = PerceptionDataset(np.zeros((10, 2)), np.ones((10, 3)) * 100, np.zeros((10, 3)))

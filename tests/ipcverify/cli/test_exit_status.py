@@ -8,7 +8,7 @@ import warnings
 import click
 import pytest
 
-import ipcverify.cli.core as core
+import ipcverify.demo as demo  # the demo command imports run_demo from here when it runs
 from ipcverify.cli.app import EXIT_INTERNAL, EXIT_USER, EXIT_VERDICT, run_group
 from ipcverify.errors import DataWarning, Hint
 
@@ -18,7 +18,7 @@ def _crash(*args, **kwargs):
 
 
 def test_an_internal_error_exits_3_with_one_line_and_a_pointer_to_debug(run_cli, monkeypatch, tmp_path):
-    monkeypatch.setattr(core, "run_demo", _crash)
+    monkeypatch.setattr(demo, "run_demo", _crash)
     res = run_cli("demo", "--out", tmp_path / "d")
     assert res.code == EXIT_INTERNAL == 3
     lines = res.stderr.strip().splitlines()
@@ -28,7 +28,7 @@ def test_an_internal_error_exits_3_with_one_line_and_a_pointer_to_debug(run_cli,
 
 
 def test_debug_prints_the_traceback_and_keeps_the_status(run_cli, monkeypatch, tmp_path):
-    monkeypatch.setattr(core, "run_demo", _crash)
+    monkeypatch.setattr(demo, "run_demo", _crash)
     res = run_cli("--debug", "demo", "--out", tmp_path / "d")
     assert res.code == 3
     assert (
@@ -42,7 +42,7 @@ def test_debug_prints_the_traceback_and_keeps_the_status(run_cli, monkeypatch, t
 
 
 def test_the_debug_flag_does_not_stick_to_the_next_command_line(run_cli, monkeypatch, tmp_path):
-    monkeypatch.setattr(core, "run_demo", _crash)
+    monkeypatch.setattr(demo, "run_demo", _crash)
     run_cli("--debug", "demo", "--out", tmp_path / "d")
     res = run_cli("demo", "--out", tmp_path / "d")
     assert res.code == 3 and "Traceback" not in res.stderr
@@ -52,10 +52,10 @@ def test_an_os_error_without_a_file_is_internal_and_with_a_file_is_the_users(run
     def no_space(*args, **kwargs):
         raise OSError(28, "No space left on device", str(tmp_path / "d" / "train.csv"))
 
-    monkeypatch.setattr(core, "run_demo", no_space)
+    monkeypatch.setattr(demo, "run_demo", no_space)
     res = run_cli("demo", "--out", tmp_path / "d")
     assert res.code == 2 and res.stderr == f"error: {tmp_path / 'd' / 'train.csv'}: No space left on device\n"
-    monkeypatch.setattr(core, "run_demo", lambda *a, **k: (_ for _ in ()).throw(OSError("socket closed")))
+    monkeypatch.setattr(demo, "run_demo", lambda *a, **k: (_ for _ in ()).throw(OSError("socket closed")))
     assert run_cli("demo", "--out", tmp_path / "d").code == 3
 
 
