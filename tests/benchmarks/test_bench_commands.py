@@ -15,7 +15,17 @@ from benchmarks import bench_commands  # noqa: E402
 
 def test_the_commands_are_the_documented_ones(tmp_path):
     names = bench_commands.commands(tmp_path, full=True)
-    assert list(names) == ["demo", "collect", "train", "train_paper", "reproduce_quick", "reproduce_full"]
+    assert list(names) == [
+        "demo",
+        "collect",
+        "train",
+        "train_paper",
+        "reproduce_quick",
+        "sensitivity",
+        "ingest_example",
+        "certify_euroc",
+        "reproduce_full",
+    ]
     described = {k: bench_commands._describe(v, tmp_path) for k, v in names.items()}
     assert described["demo"] == "ipcverify demo --out TMP/demo"
     assert described["reproduce_quick"] == (
@@ -23,6 +33,10 @@ def test_the_commands_are_the_documented_ones(tmp_path):
     )
     assert described["reproduce_full"].endswith("reproduce --out TMP/full --fly-uncalibrated")
     assert "reproduce_full" not in bench_commands.commands(tmp_path)  # only with --full
+    assert described["certify_euroc"].startswith("docs/certify.md's EuRoC example")
+    script = names["certify_euroc"][2]  # the same commands as docs/certify.md's example
+    for step in ("train train.csv --out model.pt", "--group-column flight", "--domain-alpha 0.2"):
+        assert step in script and step in (Path(__file__).parents[2] / "docs" / "certify.md").read_text()
     assert set(bench_commands.TARGETS) == {"reproduce_quick", "reproduce_full"}
 
 
