@@ -180,6 +180,9 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         import json
 
         previous = json.loads(args.out.read_text())
+        result["command"] = (
+            f"{previous.get('command', '?')}; then {result['command']} --only {' '.join(args.only)}"
+        )
         result["commands"] = previous.get("commands", {}) | result["commands"]
         result["targets"] = previous.get("targets", {}) | result["targets"]
         result["all_succeeded"] = all(r["exit_code"] == 0 for r in result["commands"].values())
