@@ -40,8 +40,8 @@ def plot_contracts(
 ) -> Figure:
     """Table I per contract (left), landing outcomes with the baseline's (middle), hover half-widths (right).
 
-    Rates of zero are drawn at the bottom of the log axis; a contract that was not flown has
-    no bars.
+    Rates of zero are drawn at the bottom of the log axis, whose tick reads 0 (the floor must lie
+    below the smallest non-zero rate, 1 / n); a contract that was not flown has no bars.
     """
     fig = Figure(figsize=(13.5, 4.4))
     ax_t, ax_l, ax_h = fig.subplots(1, 3, gridspec_kw={"width_ratios": [1.1, 1.0, 1.1]})
@@ -58,7 +58,9 @@ def plot_contracts(
             ks, [max(r.rate, floor) for r in rows], "o-", color=CONTRACT_COLORS[name], lw=1.6, label=name
         )
     ax_t.set_yscale("log")
-    ax_t.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{100 * v:g} %"))
+    # the bottom tick is where rates of zero are drawn: labelled 0, not the floor's value
+    ax_t.set_yticks([floor, 1e-2, 1e-1, 1.0])
+    ax_t.yaxis.set_major_formatter(FuncFormatter(lambda v, _: "0" if v <= floor else f"{100 * v:g} %"))
     ax_t.set_ylim(floor * 0.8, 1.0)
     ax_t.set_xlabel("camera buffer size")
     ax_t.set_ylabel("Table I: truths outside the set")
