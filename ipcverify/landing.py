@@ -63,7 +63,7 @@ from ipcverify.containment import (
 )
 from ipcverify.errors import IPCVerifyError, SetError
 from ipcverify.exact import exact_vector, float_down, float_up, sqnorm, sqrt_upper
-from ipcverify.landing_bound import bound_target, landing_by_bound
+from ipcverify.landing_bound import bound_target, landing_by_bound_compiled
 from ipcverify.sets import Box, Ellipsoid
 
 __all__ = [
@@ -494,7 +494,7 @@ class LandingRule:
         """:meth:`decide` given the set both as floats (for the bound) and as arrays (for the answer)."""
         bounds = self._bounds  # type: ignore[attr-defined]
         if bounds is not None:
-            r = landing_by_bound(cl, flat, *bounds)
+            r = landing_by_bound_compiled(cl, flat, *bounds)
             if r is not None:
                 p = np.array((cl[0], cl[1], r.turnoff_z))
                 return QueryDecision(c, C, r.accept, p, DecidedBy.BOUND, True, self.target)

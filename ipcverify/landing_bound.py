@@ -37,15 +37,27 @@ Examples
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from fractions import Fraction
-from typing import NamedTuple
+from typing import Any, NamedTuple
+
+from numba.extending import register_jitable
 
 from ipcverify.exact import dyadic, float_up, sqrt_upper
 from ipcverify.sets import SINGULAR_RCOND
 
-__all__ = ["BoundDecision", "landing_by_bound", "RANGE", "bound_target"]
+__all__ = [
+    "BoundDecision",
+    "RANGE",
+    "bound_target",
+    "finish",
+    "float_tier",
+    "landing_by_bound",
+    "landing_by_bound_compiled",
+    "prepare",
+]
 
 #: Entries of ``C`` are brought into ``[-RANGE, RANGE]`` by an exact power-of-two scaling (the centre
 #: and ``G`` must lie in ``[-2^600, 2^600]``): then nothing in the analysis overflows, and underflow
@@ -100,6 +112,7 @@ def bound_target(lower: Sequence[float], upper: Sequence[float]) -> bool:
     return bool(max(values) <= _CENTER_RANGE and min(values) >= -_CENTER_RANGE)
 
 
+@register_jitable
 def _up_sum(x: float, y: float) -> float:
     """The smallest float ``>= x + y`` (exact: TwoSum gives the rounding error of ``x + y``)."""
     s = x + y
@@ -108,6 +121,7 @@ def _up_sum(x: float, y: float) -> float:
     return _nextafter(s, _INF) if err > 0.0 else s
 
 
+@register_jitable
 def _down_sum(x: float, y: float) -> float:
     """The largest float ``<= x + y``."""
     s = x + y
@@ -116,6 +130,7 @@ def _down_sum(x: float, y: float) -> float:
     return _nextafter(s, -_INF) if err < 0.0 else s
 
 
+@register_jitable
 def _face(x: float, y: float, h_lo: float, h_hi: float) -> int:
     """Face ``x - y >= h`` for ``h in [h_lo, h_hi]``: 1 holds, -1 fails, 0 undecided (rounding band)."""
     y = -y
@@ -266,6 +281,46 @@ def landing_by_bound(
         a, b, c, d, e, f, g, h, i = scaled
     else:
         a, b, c, d, e, f, g, h, i = shape
+    gl0, gl1, gl2 = lower
+    gu0, gu1, gu2 = upper
+    tier = float_tier(cx, cy, cz, a, b, c, d, e, f, g, h, i, scale, top, gl0, gl1, gu0, gu1)
+    return finish(tier, shape, cz, gl2, gu2)
+
+
+def float_tier(
+    cx: float,
+    cy: float,
+    cz: float,
+    a: float,
+    b: float,
+    c: float,
+    d: float,
+    e: float,
+    f: float,
+    g: float,
+    h: float,
+    i: float,
+    scale: float,
+    top: float,
+    gl0: float,
+    gl1: float,
+    gu0: float,
+    gu1: float,
+) -> tuple[int, int, int, int, int, float, float, float, float, bool]:
+    """Tier 1 in floats alone: the half-widths' enclosures, the ``x`` and ``y`` faces, ``P_z``'s bracket.
+
+    ``a .. i`` is ``C`` (row-major) already scaled by ``scale``, ``top`` the largest ``|C_ij|``
+    before scaling, the centre and ``G``'s ``x`` and ``y`` bounds finite and in range (as
+    :func:`landing_by_bound` checks). Returns ``(ok, f0, f1, f2, f3, t_lo, t_hi, hz_lo, hz_hi,
+    nonsingular)``: ``ok = 0`` means no answer (:func:`landing_by_bound` returns None);
+    otherwise the four ``x``/``y`` faces (1 holds, -1 fails, 0 undecided), the floats that
+    bracket ``P_z``, the enclosure of ``h_z`` and whether an accept clears the singularity rule.
+
+    Its only operations are IEEE 754 float arithmetic, ``abs``, ``min``, ``max``,
+    ``math.sqrt`` and ``math.nextafter`` on Python floats, so Numba compiles it without
+    fast-math to the same numbers (:meth:`ipcverify.landing.LandingRule.decide` runs it
+    compiled; a test checks both on every property-test input).
+    """
     # cofactors K_rc (row r, column c) and the sums |p| + |q| of their two products
     p, q = e * i, f * h
     k00, a00 = p - q, abs(p) + abs(q)
@@ -289,38 +344,54 @@ def landing_by_bound(
     e_det = _D_SUM * (abs(a) * a00 + abs(b) * a01 + abs(c) * a02) + _ABS_DET
     d_lo, d_hi = det - e_det, det + e_det
     if not d_lo > 0.0:
-        return None  # singular, or too close to it for the bound
+        return 0, 0, 0, 0, 0, 0.0, 0.0, 0.0, 0.0, False  # singular, or too close to it for the bound
     # h_i = ||column i of the cofactor matrix|| / |det|, enclosed in [h_lo, h_hi]
-    s0 = _sqrt(k00 * k00 + k10 * k10 + k20 * k20)
-    s1 = _sqrt(k01 * k01 + k11 * k11 + k21 * k21)
-    s2 = _sqrt(k02 * k02 + k12 * k12 + k22 * k22)
+    s0 = math.sqrt(k00 * k00 + k10 * k10 + k20 * k20)
+    s1 = math.sqrt(k01 * k01 + k11 * k11 + k21 * k21)
+    s2 = math.sqrt(k02 * k02 + k12 * k12 + k22 * k22)
     e0 = _N_SUM * (a00 + a10 + a20) + _N_EST * s0 + _ABS_NORM
     e1 = _N_SUM * (a01 + a11 + a21) + _N_EST * s1 + _ABS_NORM
     e2 = _N_SUM * (a02 + a12 + a22) + _N_EST * s2 + _ABS_NORM
     n0, n1, n2 = s0 + e0, s1 + e1, s2 + e2
     hx_hi, hy_hi, hz_hi = n0 / d_lo * _UP * scale, n1 / d_lo * _UP * scale, n2 / d_lo * _UP * scale
     if not (min(hx_hi, hy_hi, hz_hi) >= _SMALLEST and max(hx_hi, hy_hi, hz_hi) < _INF):
-        return None  # out of the range the analysis covers
+        return 0, 0, 0, 0, 0, 0.0, 0.0, 0.0, 0.0, False  # out of the range the analysis covers
     hx_lo = (s0 - e0) / d_hi * _DOWN * scale
     hy_lo = (s1 - e1) / d_hi * _DOWN * scale
     hz_lo = (s2 - e2) / d_hi * _DOWN * scale
     hx_lo = hx_lo if hx_lo >= _SMALLEST else 0.0
     hy_lo = hy_lo if hy_lo >= _SMALLEST else 0.0
     hz_lo = hz_lo if hz_lo >= _SMALLEST else 0.0
-    gl0, gl1, gl2 = lower
-    gu0, gu1, gu2 = upper
     # x and y: P_x = c_x, P_y = c_y; the box [P - G.upper, P - G.lower] rounded inward, exactly
     up0, low0, up1, low1 = _down_sum(cx, -gl0), _up_sum(cx, -gu0), _down_sum(cy, -gl1), _up_sum(cy, -gu1)
     if low0 > up0 or low1 > up1:
-        return None  # G narrower than one float spacing here: the exact path raises the error
-    faces = [
-        _face(up0, cx, hx_lo, hx_hi),
-        _face(cx, low0, hx_lo, hx_hi),
-        _face(up1, cy, hy_lo, hy_hi),
-        _face(cy, low1, hy_lo, hy_hi),
-    ]
+        return 0, 0, 0, 0, 0, 0.0, 0.0, 0.0, 0.0, False  # G narrower than one float spacing here
+    f0 = _face(up0, cx, hx_lo, hx_hi)
+    f1 = _face(cx, low0, hx_lo, hx_hi)
+    f2 = _face(up1, cy, hy_lo, hy_hi)
+    f3 = _face(cy, low1, hy_lo, hy_hi)
     # P_z = the smallest float >= c_z + sqrt_upper(h_z^2), and h_z <= sqrt_upper(h_z^2) < next(h_hi)
-    t_lo, t_hi = _up_sum(cz, hz_lo), _up_sum(cz, _nextafter(hz_hi, _INF))
+    t_lo, t_hi = _up_sum(cz, hz_lo), _up_sum(cz, math.nextafter(hz_hi, _INF))
+    # accept only what Ellipsoid accepts: rcond >= |det| / (||C||_F ||adj C||_F) >= 2 * its minimum
+    nonsingular = not d_lo < 2.0 * SINGULAR_RCOND * 3.0 * top * scale * (n0 + n1 + n2) * _UP
+    return 1, f0, f1, f2, f3, t_lo, t_hi, hz_lo, hz_hi, nonsingular
+
+
+def finish(
+    tier: tuple[int, int, int, int, int, float, float, float, float, bool],
+    shape: Sequence[float],
+    cz: float,
+    gl2: float,
+    gu2: float,
+) -> BoundDecision | None:
+    """The rest of :func:`landing_by_bound` after :func:`float_tier`: ``P_z`` and the ``z`` faces.
+
+    In floats when ``P_z``'s bracket is one float and the faces clear their bands, in exact
+    integers (tier 2, on the unscaled ``shape``) otherwise.
+    """
+    ok, f0, f1, f2, f3, t_lo, t_hi, hz_lo, hz_hi, nonsingular = tier
+    if not ok:
+        return None
     exact = None
     if t_lo == t_hi:
         pz = t_hi
@@ -340,12 +411,56 @@ def landing_by_bound(
         exact = exact or _ExactZ(shape, cz)
         face_up = face_up or exact.compare(up2, True)
         face_low = face_low or exact.compare(low2, False)
-    faces += (face_up, face_low)
+    faces = (f0, f1, f2, f3, face_up, face_low)
     if -1 in faces:
         return BoundDecision(False, pz, exact is not None)
-    if 0 in faces:
-        return None
-    # accept only what Ellipsoid accepts: rcond >= |det| / (||C||_F ||adj C||_F) >= 2 * its minimum
-    if d_lo < 2.0 * SINGULAR_RCOND * 3.0 * top * scale * (n0 + n1 + n2) * _UP:
+    if 0 in faces or not nonsingular:
         return None
     return BoundDecision(True, pz, exact is not None)
+
+
+@functools.cache
+def _compiled_tier() -> Any:
+    """:func:`float_tier` compiled by Numba (no fast-math: the same IEEE operations), once per process."""
+    from ipcverify.kernels import compiled
+
+    return compiled(float_tier)
+
+
+def prepare() -> None:
+    """Compile :func:`float_tier` now (a few seconds after installation, then from Numba's disk cache).
+
+    :class:`ipcverify.query.IPCQuery` calls it when it is built, so that a control loop's first
+    frame costs what the others do.
+    """
+    identity = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
+    landing_by_bound_compiled([0.0, 0.0, 1.0], identity, (-1.0,) * 3, (1.0,) * 3)
+
+
+def landing_by_bound_compiled(
+    center: list[float], shape: list[float], lower: Sequence[float], upper: Sequence[float]
+) -> BoundDecision | None:
+    """:func:`landing_by_bound`, with its float tier compiled: the same answer, about 5 µs sooner.
+
+    The compiled :func:`float_tier` runs where the matrix needs no scaling and every value is
+    finite (the usual case); anything else goes to :func:`landing_by_bound` itself. The
+    continuation (:func:`finish`, exact integers where needed) is the same Python code.
+
+    Examples
+    --------
+    >>> r = landing_by_bound_compiled([0.0, 0.0, 1.0], [40.0, 0.0, 0.0, 0.0, 40.0, 0.0, 0.0, 0.0, 80.0],
+    ...                               (-0.05, -0.05, 0.0), (0.05, 0.05, 0.05))
+    >>> r.accept, r.turnoff_z
+    (True, 1.0125000000000002)
+    """
+    cx, cy, cz = center
+    top = max(max(shape), -min(shape))
+    # a finite sum means finite values; the centre's range check is landing_by_bound's own
+    if _MIN_TOP <= top <= RANGE and math.isfinite(cx + cy + cz):
+        if not -_CENTER_RANGE <= min(center) <= max(center) <= _CENTER_RANGE:
+            return None
+        gl0, gl1, gl2 = lower
+        gu0, gu1, gu2 = upper
+        tier = _compiled_tier()(cx, cy, cz, *shape, 1.0, top, gl0, gl1, gu0, gu1)
+        return finish(tier, shape, cz, gl2, gu2)
+    return landing_by_bound(center, shape, lower, upper)

@@ -51,6 +51,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ipcverify import landing_bound
 from ipcverify.architecture import LOGDIAG_CLAMP
 from ipcverify.errors import InvalidInputError, SetError
 from ipcverify.inference import InferenceEngine
@@ -136,6 +137,7 @@ class IPCQuery:
             eng.prepare()
         if self.model.domain is not None:
             self.model.domain.prepare()
+        landing_bound.prepare()  # the landing bound's compiled float tier
 
     # ----------------------------------------------------------------- ellipsoid
     def _inputs(self, x: ArrayLike, yhat: ArrayLike) -> tuple[FloatArray, FloatArray, FloatArray]:

@@ -29,7 +29,7 @@ from hypothesis import strategies as st
 from ipcverify.containment import Status
 from ipcverify.errors import SetError
 from ipcverify.landing import DecidedBy, LandingRule, check_landing, landing_decision
-from ipcverify.landing_bound import RANGE, bound_target, landing_by_bound
+from ipcverify.landing_bound import RANGE, bound_target, landing_by_bound, landing_by_bound_compiled
 from ipcverify.sets import Box, Ellipsoid
 
 PAPER_G = Box([-0.05, -0.05, 0.0], [0.05, 0.05, 0.05])
@@ -127,8 +127,16 @@ def _exact(c: np.ndarray, C: np.ndarray, G: Box):
 
 
 def _check(c: np.ndarray, C: np.ndarray, G: Box):
-    """Both decisions; the fast one, if any, must equal the exact one. Returns (fast, exact)."""
+    """Both decisions; the fast one, if any, must equal the exact one. Returns (fast, exact).
+
+    The compiled float tier (:func:`~ipcverify.landing_bound.landing_by_bound_compiled`) must give
+    the Python function's answer on every input.
+    """
     fast = landing_by_bound(c.tolist(), C.ravel().tolist(), G.lower.tolist(), G.upper.tolist())
+    # the decision of record runs the float tier compiled: the same answer, to the bit
+    assert (
+        landing_by_bound_compiled(c.tolist(), C.ravel().tolist(), G.lower.tolist(), G.upper.tolist()) == fast
+    )
     exact = _exact(c, C, G)
     if fast is not None:
         if exact is None:  # the exact path refuses: the fast path may only reject
