@@ -274,6 +274,8 @@ def landing_by_bound(
         if not 0.0 < top < _INF:
             return None  # zero, non-finite or NaN
         k = math.frexp(top)[1]
+        if k < -1023:  # 2^-k is beyond float's range; so are the half-widths (>= 1 / (3 top))
+            return None  # the exact path answers (a degenerate set: OUTSIDE_DOMAIN)
         scale = math.ldexp(1.0, -k)
         scaled = [v * scale for v in shape]
         if any(v and abs(w) < _NORMAL for v, w in zip(shape, scaled, strict=True)):

@@ -22,6 +22,7 @@ from ipcverify.containment.certificate import ContainmentCertificate
 from ipcverify.containment.geometry import ExactEllipsoid, exact_faces, face_witness
 from ipcverify.containment.rounding import support_slack_bounds
 from ipcverify.containment.status import Method, Status
+from ipcverify.exact import sqrt_upper
 from ipcverify.sets import Box, Ellipsoid, Polytope
 
 __all__ = ["prove_closed_form"]
@@ -61,9 +62,12 @@ def prove_closed_form(
             )
     ex = ExactEllipsoid.of(inner) if exact is None else exact
     faces = exact_faces(ex, outer)
-    support = [math.sqrt(float(f.zz)) for f in faces]
-    margin = min(f.margin for f in faces)
-    mult = {"support": tuple(Fraction(s) for s in support)}
+    margin: float | None = min(f.margin for f in faces)
+    margin = margin if margin is not None and math.isfinite(margin) else None  # beyond float's range
+    # informative estimates; an extent beyond float's range is given as its exact upper bound
+    mult = {
+        "support": tuple(Fraction(f.support) if f.support < math.inf else sqrt_upper(f.zz, 64) for f in faces)
+    }
     violated = [f for f in faces if not f.holds]
     if not violated:
         return ContainmentCertificate(

@@ -112,7 +112,18 @@ class Face:
 
     @property
     def margin(self) -> float:
-        return float(self.slack) - math.sqrt(float(self.zz))
+        return float(self.slack) - self.support
+
+    @property
+    def support(self) -> float:
+        """``sqrt(zz)`` in float (``inf`` for a set whose extent is beyond float's range)."""
+        try:
+            return math.sqrt(float(self.zz))
+        except OverflowError:  # zz beyond float's range: its square root may still be a float
+            try:
+                return float(sqrt_upper(self.zz, 64))
+            except OverflowError:
+                return math.inf
 
 
 def exact_faces(ex: ExactEllipsoid, outer: Box | Polytope) -> list[Face]:
@@ -155,8 +166,11 @@ def is_outside(outer: OuterSet, y: Sequence[Fraction]) -> bool:
 
 
 def _as_float_witness(ex: ExactEllipsoid, outer: OuterSet, y: Sequence[Fraction]) -> ExactVector | None:
-    """The witness rounded to floats, if it still checks exactly (nicer to read)."""
-    yf = [Fraction(float(v)) for v in y]
+    """The witness rounded to floats, if it still checks exactly (nicer to read; None beyond range)."""
+    try:
+        yf = [Fraction(float(v)) for v in y]
+    except OverflowError:
+        return None
     if ex.g2(yf) <= 1 and is_outside(outer, yf):
         return yf
     return None

@@ -76,7 +76,16 @@ def prove_socp(
             status=Status.UNKNOWN,
             detail=f"Clarabel status '{status}' is not 'optimal'",
         )
-    wv = np.asarray(w.value) / scale
+    with np.errstate(over="ignore"):
+        wv = np.asarray(w.value) / scale
+    if not np.isfinite(wv).all():
+        return ContainmentCertificate(
+            inner=inner,
+            outer=outer,
+            method=Method.SOCP,
+            status=Status.UNKNOWN,
+            detail="the inner set's extent is beyond float's range; decide it with method='closed-form'",
+        )
     support = np.einsum("ji,ji->j", a / anorm[:, None], wv) * anorm
     slack = b - a @ c - support
     margin = float(slack.min())

@@ -387,3 +387,14 @@ def test_a_turnoff_height_within_2_to_the_minus_100_of_a_float_is_the_exact_path
     assert fast is not None and fast.exact_turnoff  # sqrt_upper's rational, evaluated as the exact path does
     d = LandingRule(Box([-2.0, -2.0, 0.0], [2.0, 2.0, 1.0])).decide(c, C)
     assert np.array_equal(d.turnoff, exact.turnoff) and d.accept == exact.accept
+
+
+@pytest.mark.parametrize("top", [5e-324, 1e-320, 1e-310, 2.0**-1023, 2.0**-1022, 1e-300])
+def test_subnormal_shape_matrices_are_never_an_error_and_never_accepted(top):
+    """Scaling such a matrix by 2^-k needed a float beyond the range (an OverflowError before)."""
+    C = np.diag([top, top, top])
+    c = np.array([0.0, 0.0, 1.0])
+    fast, exact = _check(c, C, PAPER_G)
+    assert fast is None or not fast.accept
+    d = LandingRule(PAPER_G).decide(c, C)
+    assert not d.accept and d.verdict.name in ("REJECT", "OUTSIDE_DOMAIN")
