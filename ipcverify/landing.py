@@ -455,6 +455,7 @@ class LandingRule:
         _check_target(self.target)
         lower, upper = tuple(self.target.lower.tolist()), tuple(self.target.upper.tolist())
         object.__setattr__(self, "_bounds", (lower, upper) if bound_target(lower, upper) else None)
+        object.__setattr__(self, "_bounds_lists", (list(lower), list(upper)))
 
     def _float(self, center: FloatArray, shape: FloatArray) -> tuple[FloatArray, float]:
         c, C = _arrays(center, shape)
@@ -523,6 +524,24 @@ class LandingRule:
         c, C = _arrays(center, shape)
         return QueryDecision(c, C, worst >= -PRECHECK_MARGIN, p, DecidedBy.FLOAT_RULE, True, self.target)
 
+    def decide_float_values(self, center: list[float], shape: list[float]) -> QueryDecision:
+        """:meth:`decide_float` for a centre (3 floats) and a row-major shape (9 floats).
+
+        The same operations, one element at a time, on Python floats: the same decision and ``P``.
+        """
+        both = _values_array(center, shape)
+        values = both.tolist()
+        c, h, (lo, up) = values[:3], _half_widths_values(values[3:]), self._bounds_lists  # type: ignore[attr-defined]
+        p = [c[0], c[1], c[2] + h[2]]
+        c_arr, C_arr = both[:3], both[3:].reshape(3, 3)
+        if not all(map(math.isfinite, p)):
+            return self.outside_domain(c_arr, C_arr)
+        slack = [((p[i] - lo[i]) - (c[i] + h[i])) / _size(p, c, h, lo, up, i) for i in range(3)]
+        slack += [((c[i] - h[i]) - (p[i] - up[i])) / _size(p, c, h, lo, up, i) for i in range(3)]
+        worst = min(slack) if all(v == v for v in slack) else math.nan  # NumPy's min: NaN wins
+        accept = (worst if math.isfinite(worst) else -math.inf) >= -PRECHECK_MARGIN
+        return QueryDecision(c_arr, C_arr, accept, np.array(p), DecidedBy.FLOAT_RULE, True, self.target)
+
     def outside_domain(self, center: FloatArray, shape: FloatArray) -> QueryDecision:
         """The OUTSIDE_DOMAIN answer for a query the domain test flagged (no proof attempted).
 
@@ -548,6 +567,11 @@ class LandingRule:
         p = np.array(values[:3])
         p[2] += _half_widths_values(values[3:])[2]
         return QueryDecision(both[:3], both[3:].reshape(3, 3), False, p, DecidedBy.DOMAIN, False, self.target)
+
+
+def _size(p: list[float], c: list[float], h: list[float], lo: list[float], up: list[float], i: int) -> float:
+    """:func:`landing_slack`'s scale of face ``i``, summed in its order."""
+    return 1.0 + abs(p[i]) + abs(c[i]) + h[i] + abs(lo[i]) + abs(up[i])
 
 
 def _values_array(center: list[float], shape: list[float]) -> FloatArray:

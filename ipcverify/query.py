@@ -301,6 +301,14 @@ class IPCQuery:
         The rule of :func:`~ipcverify.landing.landing_slack`; near the threshold it may
         differ from the exact decision. Use :meth:`decide` when the answer steers the vehicle.
         """
+        if transform is None and self._n == 3:  # type: ignore[attr-defined]
+            xa, ya, z = self._inputs(x, yhat)
+            values = self._values(xa, ya, z)
+            if values is not None:  # Python floats, as decide()
+                domain = self.model.domain
+                if domain is not None and not domain.contains_one(z):
+                    return self.rule.outside_domain_values(*values)
+                return self.rule.decide_float_values(*values)
         center, shape, z = self._ellipsoid_in_frame(x, yhat, transform)
         domain = self.model.domain
         if domain is not None and not domain.contains_one(z):

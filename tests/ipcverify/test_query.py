@@ -142,6 +142,47 @@ def test_decide_is_the_rules_decision_on_the_querys_own_set(trained, data):
     assert {"ACCEPT", "REJECT"} <= verdicts
 
 
+def test_decide_float_on_floats_is_the_array_paths_decision(trained, data):
+    """decide_float() works on Python floats like decide(): the array path's answer and P, exactly."""
+    q_small = IPCQuery(calibrate(trained, data[1], 0.05, 0.01), G)
+    q_wide = IPCQuery(q_small.model, Box([-20.0, -20.0, -20.0], [20.0, 20.0, 20.0]))
+    q_tiny = IPCQuery(q_small.model, Box([-1e-6, -1e-6, 0.0], [1e-6, 1e-6, 1e-6]))
+    test = make_lagged_perception(40, seed=7)
+    verdicts = set()
+    for q in (q_small, q_wide, q_tiny):
+        for i in range(len(test)):
+            d = q.decide_float(test.x[i], test.yhat[i])
+            ref = q.decide_float(test.x[i], test.yhat[i], transform=lambda c, C: (c, C))  # the array path
+            assert (d.accept, d.decided_by, d.verdict) == (ref.accept, ref.decided_by, ref.verdict)
+            np.testing.assert_array_equal(d.turnoff, ref.turnoff)
+            verdicts.add(d.verdict.name)
+    assert {"ACCEPT", "REJECT"} <= verdicts
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_float_rule_on_floats_equals_the_array_rule_near_ties_and_on_degenerate_sets(seed):
+    rng = np.random.default_rng(seed)
+    rule = LandingRule(G)
+    for _ in range(500):
+        C = np.diag(1.0 / rng.uniform(0.005, 0.05, 3)) @ np.array(
+            [[1.0, rng.uniform(-0.5, 0.5), 0.0], [0.0, 1.0, rng.uniform(-0.5, 0.5)], [0.0, 0.0, 1.0]]
+        )
+        c = rng.normal(size=3)
+        h = Ellipsoid(c, C).half_widths()[0]
+        C = C * max(h[0], h[1], 2 * h[2]) / 0.05 * (1.0 + rng.choice([-1, 1]) * 10.0 ** rng.uniform(-16, -1))
+        kind = rng.integers(6)
+        if kind == 0:
+            C[2] = 0.0  # singular: infinite half-widths
+        elif kind == 1:
+            C[0, 0] = np.inf
+        elif kind == 2:
+            c[1] = np.nan
+        d = rule.decide_float_values(c.tolist(), C.ravel().tolist())
+        ref = rule.decide_float(c, C)
+        assert (d.accept, d.decided_by, d.verdict) == (ref.accept, ref.decided_by, ref.verdict)
+        np.testing.assert_array_equal(d.turnoff, ref.turnoff)
+
+
 def test_the_rule_on_floats_needs_three_and_nine_values():
     rule = LandingRule(G)
     with pytest.raises(SetError, match="3 centre and 9 shape values; got 2 and 9"):
