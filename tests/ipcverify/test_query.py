@@ -118,17 +118,19 @@ def test_decide_end_to_end_runs_and_reports_a_proof_only_for_accepts(trained, da
         assert q.decide_float(test.x[i], test.yhat[i]).accept >= d.accept  # float never stricter here
 
 
-def test_decide_is_the_rules_decision_on_the_querys_own_set(trained, data):
-    """decide() keeps the set in Python floats until the answer: the answer of the array path."""
+@pytest.mark.parametrize(("method", "seed"), [("decide", 6), ("decide_float", 7)])
+def test_decide_is_the_rules_decision_on_the_querys_own_set(trained, data, method, seed):
+    """decide() and decide_float() keep the set in Python floats until the answer: the array path's."""
     q_small = IPCQuery(calibrate(trained, data[1], 0.05, 0.01), G)
     q_wide = IPCQuery(q_small.model, Box([-20.0, -20.0, -20.0], [20.0, 20.0, 20.0]))
     q_tiny = IPCQuery(q_small.model, Box([-1e-6, -1e-6, 0.0], [1e-6, 1e-6, 1e-6]))
-    test = make_lagged_perception(40, seed=6)
+    test = make_lagged_perception(40, seed=seed)
     verdicts = set()
     for q in (q_small, q_wide, q_tiny):
+        decide = getattr(q, method)
         for i in range(len(test)):
-            d = q.decide(test.x[i], test.yhat[i])
-            ref = q.decide(test.x[i], test.yhat[i], transform=lambda c, C: (c, C))  # the array path
+            d = decide(test.x[i], test.yhat[i])
+            ref = decide(test.x[i], test.yhat[i], transform=lambda c, C: (c, C))  # the array path
             c, C = q.ellipsoid(test.x[i], test.yhat[i])
             assert (d.accept, d.decided_by, d.verdict, d.proven) == (
                 ref.accept,
@@ -138,23 +140,6 @@ def test_decide_is_the_rules_decision_on_the_querys_own_set(trained, data):
             )
             for a, b in ((d.turnoff, ref.turnoff), (d.center, c), (d.shape, C)):
                 np.testing.assert_array_equal(a, b)
-            verdicts.add(d.verdict.name)
-    assert {"ACCEPT", "REJECT"} <= verdicts
-
-
-def test_decide_float_on_floats_is_the_array_paths_decision(trained, data):
-    """decide_float() works on Python floats like decide(): the array path's answer and P, exactly."""
-    q_small = IPCQuery(calibrate(trained, data[1], 0.05, 0.01), G)
-    q_wide = IPCQuery(q_small.model, Box([-20.0, -20.0, -20.0], [20.0, 20.0, 20.0]))
-    q_tiny = IPCQuery(q_small.model, Box([-1e-6, -1e-6, 0.0], [1e-6, 1e-6, 1e-6]))
-    test = make_lagged_perception(40, seed=7)
-    verdicts = set()
-    for q in (q_small, q_wide, q_tiny):
-        for i in range(len(test)):
-            d = q.decide_float(test.x[i], test.yhat[i])
-            ref = q.decide_float(test.x[i], test.yhat[i], transform=lambda c, C: (c, C))  # the array path
-            assert (d.accept, d.decided_by, d.verdict) == (ref.accept, ref.decided_by, ref.verdict)
-            np.testing.assert_array_equal(d.turnoff, ref.turnoff)
             verdicts.add(d.verdict.name)
     assert {"ACCEPT", "REJECT"} <= verdicts
 
