@@ -17,9 +17,7 @@ Theorem 1 numbers. Writes ``benchmarks/certify_results.json``.
 from __future__ import annotations
 
 import json
-import resource
 import statistics
-import subprocess
 import sys
 import tempfile
 import time
@@ -28,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.common import machine_info
+from benchmarks.timing import run_child
 from ipcverify.baselines import fit_bonferroni_box, fit_global_mahalanobis
 from ipcverify.bounds import clopper_pearson_upper
 from ipcverify.calibrate import calibrate
@@ -77,12 +76,9 @@ def main(repeats: int = 3) -> dict[str, object]:
     for i in range(repeats):
         cmd = [*exe, "certify", str(work / "calibrated.pt"), "--data", str(work / "test.csv")]
         cmd += ["--train-data", str(work / "train.csv"), "--out", str(work / f"cli{i}")]
-        before = resource.getrusage(resource.RUSAGE_CHILDREN)
-        t0 = time.perf_counter()
-        subprocess.run(cmd, check=True, capture_output=True)
-        cli_times.append(time.perf_counter() - t0)
-        after = resource.getrusage(resource.RUSAGE_CHILDREN)
-        cli_cpu.append(after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime)
+        run = run_child(cmd, check=True)
+        cli_times.append(run.wall_s)
+        cli_cpu.append(run.cpu_s)
     results["certify_library_seconds"] = {
         "median": statistics.median(lib_times),
         "min": min(lib_times),

@@ -33,14 +33,13 @@ from __future__ import annotations
 import argparse
 import contextlib
 import os
-import resource
-import subprocess
 import sys
 import tempfile
-import time
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
+
+from benchmarks.timing import run_child
 
 __all__ = ["TARGETS", "bench_commands", "commands", "main"]
 
@@ -111,16 +110,12 @@ def _describe(argv: list[str], folder: Path) -> str:
 def _run(argv: list[str]) -> dict[str, Any]:
     """Wall and CPU seconds of one run, its exit status and the load average around it."""
     load = os.getloadavg()[0]
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    t0 = time.perf_counter()
-    res = subprocess.run(argv, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, check=False)
-    wall = time.perf_counter() - t0
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    res = run_child(argv, cwd=ROOT)
     if res.returncode != 0:
-        print(res.stderr.decode(errors="replace")[-2000:], file=sys.stderr)
+        print(res.stderr[-2000:], file=sys.stderr)
     return {
-        "wall_s": round(wall, 2),
-        "cpu_s": round((after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime), 2),
+        "wall_s": round(res.wall_s, 2),
+        "cpu_s": round(res.cpu_s, 2),
         "exit_code": res.returncode,
         "load_1min_before": round(load, 2),
         "load_1min_after": round(os.getloadavg()[0], 2),

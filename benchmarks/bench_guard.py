@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import resource
 import subprocess
 import sys
 import tempfile
@@ -45,6 +44,7 @@ import torch
 from benchmarks.common import blas_single_thread, machine_info, write_json
 from benchmarks.datasets import load_splits, quad_flights
 from benchmarks.oracle_data import make_hetlag
+from benchmarks.timing import run_child
 from ipcverify.calibrate import calibrate
 from ipcverify.data import PerceptionInputs
 from ipcverify.domain import DomainModel
@@ -231,14 +231,11 @@ def cli_predict(model: IPCModel, queries: PerceptionInputs, n: int) -> dict[str,
         runs: dict[str, Any] = {}
         one = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
         for name, extra in (("one_blas_thread", one), ("default_threads", {})):
-            before = resource.getrusage(resource.RUSAGE_CHILDREN)
-            t0 = time.perf_counter()
-            proc = subprocess.run(cmd, env=env | extra, capture_output=True, text=True, check=True)
-            wall = time.perf_counter() - t0
-            after = resource.getrusage(resource.RUSAGE_CHILDREN)
+            proc = run_child(cmd, env=env | extra, check=True)
+            wall = proc.wall_s
             runs[name] = {
                 "wall_seconds": wall,
-                "cpu_seconds": (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime),
+                "cpu_seconds": proc.cpu_s,
                 "environment": extra or "no *_NUM_THREADS set: NumPy's BLAS with one thread per core",
             }
             print(f"  {name}: {wall:.1f} s wall, {runs[name]['cpu_seconds']:.1f} s CPU", flush=True)

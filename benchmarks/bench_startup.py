@@ -25,15 +25,15 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import resource
 import statistics
 import subprocess
 import sys
 import tempfile
-import time
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
+
+from benchmarks.timing import run_child
 
 __all__ = ["TARGET_FACTOR", "HEAVY", "bench_startup", "main"]
 
@@ -90,15 +90,10 @@ def _describe(argv: list[str]) -> str:
 
 def _run(argv: list[str]) -> tuple[float, float, int]:
     """Wall and CPU seconds (user + system of the child) of one run, and its exit status."""
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    t0 = time.perf_counter()
-    res = subprocess.run(argv, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, check=False)
-    wall = time.perf_counter() - t0
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    res = run_child(argv, cwd=ROOT)
     if res.returncode != 0:
-        print(res.stderr.decode(errors="replace"), file=sys.stderr)
-    return wall, cpu, res.returncode
+        print(res.stderr, file=sys.stderr)
+    return res.wall_s, res.cpu_s, res.returncode
 
 
 def _heavy_imports(argv: list[str], folder: Path) -> list[str] | None:
