@@ -2,7 +2,7 @@
 
 Run ``python -m benchmarks.bench_certify``. Target: certify on 10,000 test
 samples, Lipschitz computations included, in <= 10 s on 2 CPU cores. Two timings are
-recorded: the library call :func:`ipcverify.certify.certify_files` in a warm process
+recorded: the library call :func:`ipcverify.certification.certify_files` in a warm process
 (load files, certify with Theorem 1 and both Lipschitz constants, write JSON and HTML)
 and the full CLI command in a fresh process (interpreter start and imports included).
 
@@ -27,14 +27,12 @@ import numpy as np
 
 from benchmarks.common import machine_info
 from benchmarks.timing import run_child
-from ipcverify.baselines import fit_bonferroni_box, fit_global_mahalanobis
-from ipcverify.bounds import clopper_pearson_upper
-from ipcverify.calibrate import calibrate
-from ipcverify.certify import certify_files
-from ipcverify.data import save_dataset
-from ipcverify.modelio import save_model
-from ipcverify.synthetic import make_lagged_perception
-from ipcverify.training import TrainConfig, train
+from ipcverify.calibration import clopper_pearson_upper
+from ipcverify.certification import certify_files, fit_bonferroni_box, fit_global_mahalanobis
+from ipcverify.contract import calibrate
+from ipcverify.data import make_lagged_perception, save_dataset
+from ipcverify.io import save_model
+from ipcverify.training._train import TrainConfig, train
 
 OUT = Path(__file__).with_name("certify_results.json")
 EPS, DELTA = 0.01, 0.001

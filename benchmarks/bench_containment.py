@@ -38,13 +38,20 @@ import numpy as np
 
 from benchmarks.common import machine_info
 from case_studies.quad_landing.landing.state_machine import LandingParams
-from ipcverify.containment import Status, contained_float, prove, support_slack, verify
-from ipcverify.containment.face_lmi import FaceSystem, face_centre
-from ipcverify.containment.face_sdp import solve_face_sdp
-from ipcverify.containment.sdp import sdp_problem
-from ipcverify.files import atomic_write
-from ipcverify.landing import LandingRule, landing_decision
-from ipcverify.report import figure_to_png
+from ipcverify.certification._report import figure_to_png
+from ipcverify.data import atomic_write
+from ipcverify.decision import LandingRule, landing_decision
+from ipcverify.decision.containment import (
+    FaceSystem,
+    Status,
+    contained_float,
+    face_centre,
+    prove,
+    sdp_problem,
+    solve_face_sdp,
+    support_slack,
+    verify,
+)
 from ipcverify.sets import Box, Ellipsoid, Polytope
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -176,7 +183,7 @@ def _general(rng, n, log_cond, margin, sign):
         e1.centers[0] + rng.normal(size=n) / np.linalg.norm(e1.shapes[0], 2),
         _shape(rng, n, min(log_cond, 3.0)),
     )
-    from ipcverify.containment.sdp import normalised, trust_region_maximiser
+    from ipcverify.decision.containment import normalised, trust_region_maximiser
 
     d_mat, d = normalised(e1, e2)
     u, _ = trust_region_maximiser(d_mat, d)

@@ -2,7 +2,7 @@
 
 Training and calibration times are taken from the tightness runs of the default recipe
 ("tight": 5 low-rank-head networks (64, 64) trained together, N = 5000, at most 60 epochs
-with early stopping, batch 128). Certification calls :func:`ipcverify.certify.certify`
+with early stopping, batch 128). Certification calls :func:`ipcverify.certification.certify`
 with the training data (Theorem 1 included: its training statistics and the sound Lipschitz
 bound of the default ensemble).
 Containment: the vectorised float landing check and the closed
@@ -21,17 +21,17 @@ from benchmarks.bench_containment import bench_closed_form_batch, bench_sdp
 from benchmarks.common import spread
 from benchmarks.datasets import Splits
 from case_studies.quad_landing.landing.state_machine import LandingParams
-from ipcverify.landing import landing_accept_float
-from ipcverify.model import IPCModel
+from ipcverify.contract import IPCModel
+from ipcverify.decision import landing_accept_float
 
 __all__ = ["bench_cost"]
 
 
 def _certify_seconds(model: IPCModel, splits: Splits, repeats: int) -> dict[str, Any]:
     try:
-        from ipcverify.certify import certify
+        from ipcverify.certification import certify
     except ImportError as exc:  # certify.py is being finished by another engineer
-        return {"skipped": f"ipcverify.certify not importable: {exc}"}
+        return {"skipped": f"ipcverify.certification._certify not importable: {exc}"}
     times = []
     status = None
     for _ in range(repeats):

@@ -35,17 +35,13 @@ from matplotlib.figure import Figure
 from scipy.spatial import cKDTree
 
 from benchmarks.common import machine_info, write_json
-from ipcverify.bounds import marginal_conformal_index
-from ipcverify.calibrate import calibrate
-from ipcverify.certify import certify
-from ipcverify.data import PerceptionDataset
-from ipcverify.domain import DEFAULT_ALPHA, DEFAULT_K, DomainModel
-from ipcverify.files import atomic_write
-from ipcverify.monitor import plot_monitor
-from ipcverify.prediction import monitor_log
-from ipcverify.report import figure_to_png
-from ipcverify.synthetic import make_lagged_perception
-from ipcverify.training import TrainConfig, train
+from ipcverify.calibration import marginal_conformal_index
+from ipcverify.certification import certify
+from ipcverify.certification._report import figure_to_png
+from ipcverify.contract import calibrate, monitor_log
+from ipcverify.data import PerceptionDataset, atomic_write, make_lagged_perception
+from ipcverify.guard import DEFAULT_ALPHA, DEFAULT_K, DomainModel, plot_monitor
+from ipcverify.training._train import TrainConfig, train
 
 __all__ = ["EUROC", "load_euroc", "real_log", "synthetic_shifts", "candidates", "query_cost", "main"]
 

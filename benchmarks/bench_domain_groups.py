@@ -22,7 +22,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from benchmarks.common import machine_info, write_json
-from ipcverify.domain import DomainModel
+from ipcverify.guard import DomainModel
 
 ROOT = Path(__file__).resolve().parent.parent
 ALPHA = 0.05

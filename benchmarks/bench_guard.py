@@ -6,7 +6,7 @@ test). It writes ``benchmarks/guard_results.json`` and ``docs/img/guard_scale.pn
 * **Calibration size** (``calibration``): the domain test fitted on 10^3 to 10^6 calibration
   rows of the synthetic law (9 inputs; :func:`benchmarks.oracle_data.make_hetlag`). Fit seconds
   (whitening, the reference subset, the leave-one-out threshold), the index's build seconds,
-  the references kept (at most :data:`ipcverify.domain.MAX_REFERENCE`), and per query of an
+  the references kept (at most :data:`ipcverify.guard.MAX_REFERENCE`), and per query of an
   independent in-distribution draw: the batch test, the single-query test, the exact distance;
   the share flagged in distribution and under a subtle and a strong shift (states scaled by
   1.1 and 1.5).
@@ -45,14 +45,11 @@ from benchmarks.common import blas_single_thread, machine_info, write_json
 from benchmarks.datasets import load_splits, quad_flights
 from benchmarks.oracle_data import make_hetlag
 from benchmarks.timing import run_child
-from ipcverify.calibrate import calibrate
-from ipcverify.data import PerceptionInputs
-from ipcverify.domain import DomainModel
-from ipcverify.files import atomic_write
-from ipcverify.model import IPCModel
-from ipcverify.modelio import load_inputs_for_model, load_model, save_model
-from ipcverify.prediction import predict_sets, write_predictions
-from ipcverify.training import TrainConfig, train
+from ipcverify.contract import IPCModel, calibrate, predict_sets, write_predictions
+from ipcverify.data import PerceptionInputs, atomic_write
+from ipcverify.guard import DomainModel
+from ipcverify.io import load_inputs_for_model, load_model, save_model
+from ipcverify.training._train import TrainConfig, train
 
 __all__ = ["batches", "calibration_sizes", "cli_predict", "main", "plot", "reference_cap"]
 

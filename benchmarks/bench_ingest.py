@@ -8,7 +8,7 @@ both are recorded, with the load average before and after.
 For each container (a ROS 1 bag and a ROS 2 MCAP bag) one bag is written with rosbags:
 a motion-capture topic (``geometry_msgs/PoseStamped``, 200 Hz) and an odometry topic
 (``nav_msgs/Odometry``, 50 Hz) of one long flight, ``messages`` pose messages in all, the
-odometry on a clock offset from the motion capture's. Then ``ipcverify.ingest.ingest_bags``
+odometry on a clock offset from the motion capture's. Then ``ipcverify.io.ingest.ingest_bags``
 (read, deserialize, interpolate, build the samples) and ``write_ingested`` (Parquet and the
 manifest, with the input's SHA-256) are timed together: wall time and the process's CPU time.
 The rows are checked against the motion's own displacement, so a fast wrong answer fails.
@@ -30,7 +30,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from benchmarks.common import machine_info, write_json
-from ipcverify.ingest import IngestOptions, ingest_bags, write_ingested
+from ipcverify.io.ingest import IngestOptions, ingest_bags, write_ingested
 
 __all__ = ["TARGET_SECONDS", "PoseStream", "write_pose_bag", "write_flight", "bench_ingest", "main"]
 

@@ -15,19 +15,19 @@ ONNX Runtime limited to **one thread**:
   ``torch.nn.Sequential``) on a pre-normalised float32 tensor of shape (1, d + n),
   inside one ``torch.inference_mode()`` block entered outside the timing loop (the
   cheapest torch call there is; no normalisation, no set, no decision).
-* ``ellipsoid`` -- :meth:`ipcverify.query.IPCQuery.ellipsoid`: (x, yhat) -> calibrated (c, C).
+* ``ellipsoid`` -- :meth:`ipcverify.decision.IPCQuery.ellipsoid`: (x, yhat) -> calibrated (c, C).
 * ``decide_float`` -- query -> ellipsoid -> domain test -> float landing decision (not a proof).
 * ``decide`` -- query -> ellipsoid -> domain test -> landing decision of record (float64 with a
   rigorous rounding bound, exact arithmetic inside the band: every answer proven), over the
   test split's queries in order: the path the landing controller runs. The model should carry
-  the domain of validity a default :func:`~ipcverify.calibrate.calibrate` fits (as
+  the domain of validity a default :func:`~ipcverify.contract.calibrate` fits (as
   ``python -m benchmarks.run`` gives it); ``decide_without_domain_test`` is the same model and
   queries with the domain dropped, to show what the domain test costs. Also over the same
   queries shuffled (``decide_shuffled``: no frame-to-frame coherence for the domain test's
   cache), and split by answer: accepted, rejected inside the domain, outside the domain.
 * ``onnx_float64`` / ``onnx_float32`` -- ONNX Runtime on the exported graph, (1, d) inputs.
 
-``predict_sets`` is :func:`ipcverify.prediction.predict_sets`, the guarded batch path of
+``predict_sets`` is :func:`ipcverify.contract.predict_sets`, the guarded batch path of
 ``ipcverify predict`` (sets, calibration, singular test and the domain test's ``in_domain``;
 the distances are computed only when read); ``predict_sets_without_domain`` is the same with
 the model's domain dropped, ``domain_contains`` the domain test alone.
@@ -38,7 +38,7 @@ that ships) and the exact distances.
 Each is timed call by call in interleaved rounds; p50 and p99 are taken per round and
 the median (and min/max) over rounds is reported, with both ratios to the bare forward.
 ``fast_path`` reports how the landing decisions of the test split were reached
-(:func:`ipcverify.landing_bound.landing_by_bound`: float bound alone, exact integer turn-off
+(:func:`ipcverify.decision.landing_by_bound`: float bound alone, exact integer turn-off
 height, or the exact rational fallback). Batch throughput is queries per second of
 ``model.predict`` (validated ``Ellipsoid``), the bare float64 engine arrays,
 ONNX Runtime (float64 and float32) and the bare torch forward, all single-threaded;
@@ -65,13 +65,10 @@ import torch
 
 from benchmarks.common import spread, time_calls
 from case_studies.quad_landing.landing.state_machine import LandingParams
+from ipcverify.contract import IPCModel, predict_sets
 from ipcverify.data import PerceptionDataset, PerceptionInputs
-from ipcverify.inference import CHUNK
-from ipcverify.landing_bound import landing_by_bound
-from ipcverify.lowrank_engine import LowRankEngine
-from ipcverify.model import IPCModel
-from ipcverify.prediction import predict_sets
-from ipcverify.query import IPCQuery
+from ipcverify.decision import IPCQuery, landing_by_bound
+from ipcverify.network import CHUNK, LowRankEngine
 
 __all__ = [
     "BATCH_SIZES",
@@ -106,7 +103,7 @@ def outside_fraction(model: IPCModel, queries: PerceptionDataset) -> float | Non
 
 
 def _onnx_sessions(model: IPCModel, folder: Path) -> dict[str, Any]:
-    from ipcverify.export import export_onnx, onnx_session
+    from ipcverify.io import export_onnx, onnx_session
 
     try:
         import onnx  # noqa: F401
@@ -358,10 +355,10 @@ def domain_methods(model: IPCModel, queries: PerceptionDataset, size: int = 10_0
 
     ``exact_ckdtree``: SciPy's k-d tree on every whitened query (the test before issue 30);
     ``blas_product``: the float32 product over every reference with its rounding bound
-    (:meth:`~ipcverify.domain_index.DomainIndex.scan`), the exact test in the band;
-    ``tree_search``: :meth:`~ipcverify.domain.DomainModel.contains` (what ships: the compiled
+    (:meth:`~ipcverify.guard.DomainIndex.scan`), the exact test in the band;
+    ``tree_search``: :meth:`~ipcverify.guard.DomainModel.contains` (what ships: the compiled
     search, the product only for queries over the search budget); ``distance``: the exact
-    distances (:meth:`~ipcverify.domain.DomainModel.distance`). Microseconds per query, wall and
+    distances (:meth:`~ipcverify.guard.DomainModel.distance`). Microseconds per query, wall and
     CPU, median of 3; ``agree``: the three tests gave the same answer for every query.
     """
     dom = model.domain
@@ -462,7 +459,7 @@ def bench_latency(
         onnx = _onnx_sessions(first.model, Path(tmp))
         result["onnx_available"] = bool(onnx)
         if onnx:
-            from ipcverify.export import check_onnx
+            from ipcverify.io import check_onnx
 
             n = min(len(first.queries), 2000)
             result["onnx_check"] = {

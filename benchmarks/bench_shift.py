@@ -34,10 +34,10 @@ import pandas as pd
 
 from benchmarks.common import write_json
 from benchmarks.oracle_data import make_fresh_lagged, make_hetlag
-from ipcverify.baselines import fit_global_mahalanobis
-from ipcverify.calibrate import calibrate
+from ipcverify.certification import fit_global_mahalanobis
+from ipcverify.contract import calibrate
 from ipcverify.data import PerceptionDataset
-from ipcverify.training import TrainConfig, train
+from ipcverify.training._train import TrainConfig, train
 
 __all__ = ["EUROC", "SHIFTS", "SHIFT_METHODS", "euroc", "euroc_splits", "bench_shift", "main"]
 

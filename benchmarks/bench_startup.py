@@ -54,11 +54,10 @@ _PROBE = (
 
 def _model_and_queries(folder: Path, n_train: int, epochs: int) -> tuple[Path, Path]:
     """A calibrated default-recipe model file and a 100-row query file (trained in this process)."""
-    from ipcverify.calibrate import calibrate
-    from ipcverify.data import save_dataset
-    from ipcverify.modelio import save_model
-    from ipcverify.synthetic import make_lagged_perception
-    from ipcverify.training import TrainConfig, train
+    from ipcverify.contract import calibrate
+    from ipcverify.data import make_lagged_perception, save_dataset
+    from ipcverify.io import save_model
+    from ipcverify.training._train import TrainConfig, train
 
     config = TrainConfig(epochs=epochs, val_fraction=0.0, patience=None)
     model = train(make_lagged_perception(n_train, seed=0), train_config=config).model

@@ -2,17 +2,17 @@
 
 Run ``python -m benchmarks.bench_theorem1``. For the default recipe ("tight": an ensemble of
 5 low-rank-head MLPs (64, 64), p = 29,475 parameters for x_dim = 6 and y_dim = 3) trained
-on two logs -- the demo's data (:func:`ipcverify.synthetic.make_lagged_perception`, 5,000
+on two logs -- the demo's data (:func:`ipcverify.data.make_lagged_perception`, 5,000
 rows, seed 0) and the real EuRoC log (``data/euroc_mh04_vislam.csv``, all 5,249 rows,
 x = ``x_0..x_4``) -- it records:
 
 * Theorem 1 (delta = 0.001, the training alpha = 1.0, radius 0.1): ``p``, ``N``, the
   empirical term, the sound and empirical ``L_g``, both bounds and the ``N`` each needs;
-* the time ``train()`` spends on :class:`ipcverify.theorem1.TrainingStatistics` (scores,
+* the time ``train()`` spends on :class:`ipcverify.certification.TrainingStatistics` (scores,
   per-sample gradients, box, hash: wall and CPU seconds, median of 3) next to the whole
   ``train()``, and the time of the sound bound;
 * the per-sample gradient norms by ``torch.func``'s ``vmap(grad)`` (what the paper's heads
-  use) against :func:`ipcverify.lipschitz_lowrank.ensemble_gradient_norms`: their largest
+  use) against :func:`ipcverify.network.ensemble_gradient_norms`: their largest
   relative difference and both times.
 
 Writes ``benchmarks/theorem1_results.json``.
@@ -30,12 +30,9 @@ import torch
 from torch.func import functional_call, grad, vmap
 
 from benchmarks.common import machine_info, spread, write_json
-from ipcverify.data import PerceptionDataset, load_dataset
-from ipcverify.lipschitz import sound_lipschitz
-from ipcverify.lipschitz_lowrank import ensemble_gradient_norms, ensemble_scores
-from ipcverify.lowrank import LowRankEnsemble
-from ipcverify.synthetic import make_lagged_perception
-from ipcverify.theorem1 import TrainingStatistics, theorem1
+from ipcverify.certification import TrainingStatistics, sound_lipschitz, theorem1
+from ipcverify.data import PerceptionDataset, load_dataset, make_lagged_perception
+from ipcverify.network import LowRankEnsemble, ensemble_gradient_norms, ensemble_scores
 from ipcverify.training import train
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -10,9 +10,9 @@ on the same test split:
   hinge alpha = 1, 20 epochs), calibrated.
 * ``ipc_paper`` -- the recipe ``"paper"`` (the paper's head and loss), calibrated.
 * ``global_mahalanobis`` -- one residual-covariance ellipsoid for every input
-  (:class:`ipcverify.baselines.GlobalMahalanobis`; Johnstone & Cox 2021, Messoudi et al. 2022).
+  (:class:`ipcverify.certification.GlobalMahalanobis`; Johnstone & Cox 2021, Messoudi et al. 2022).
 * ``bonferroni_box`` -- per-axis intervals at ``epsilon / n``
-  (:class:`ipcverify.baselines.BonferroniBox`; what puncc and MAPIE users build).
+  (:class:`ipcverify.certification.BonferroniBox`; what puncc and MAPIE users build).
 * ``mapie_multivariate`` -- MAPIE 1.6's ``MultivariateResidualNormalisedScore``
   (:mod:`benchmarks.peers`), if ``mapie==1.6.0`` is installed.
 * ``oracle`` -- on data with a known conditional law (:mod:`benchmarks.oracle_data`): the
@@ -29,7 +29,7 @@ on the same test split:
 
 Per method: mean and median volume (units of y cubed), coverage, worst-bin coverage over
 10 quantile bins of every state column and of ``||yhat||``
-(:func:`ipcverify.evaluation.worst_bin_coverage`), training seconds, and the mean-volume
+(:func:`ipcverify.certification.worst_bin_coverage`), training seconds, and the mean-volume
 ratios to the global ellipsoid, MAPIE and the oracle (PAC and exact). On oracle data the
 ellipsoidal methods of the first seed are diagnosed (:func:`benchmarks.diagnose_tightness.diagnose`).
 Learned methods are repeated over training seeds (medians and spread); the baselines are
@@ -49,16 +49,13 @@ from benchmarks.common import spread
 from benchmarks.datasets import Splits
 from benchmarks.diagnose_tightness import diagnose
 from benchmarks.peers import MAPIE_VERSION, fit_mapie_multivariate, mapie_available
-from ipcverify.architecture import ModelConfig
-from ipcverify.baselines import fit_bonferroni_box, fit_global_mahalanobis
-from ipcverify.bounds import CalibrationMode
-from ipcverify.calibrate import calibrate
-from ipcverify.calibration import threshold_scores
+from ipcverify.calibration import CalibrationMode, threshold_scores
+from ipcverify.certification import fit_bonferroni_box, fit_global_mahalanobis, worst_bin_coverage
+from ipcverify.contract import IPCModel, calibrate
 from ipcverify.data import PerceptionDataset
-from ipcverify.evaluation import worst_bin_coverage
-from ipcverify.model import IPCModel
+from ipcverify.network import ModelConfig
 from ipcverify.sets import Ellipsoid
-from ipcverify.training import HingeSelection, TrainConfig, train
+from ipcverify.training._train import HingeSelection, TrainConfig, train
 
 __all__ = ["METHODS", "ORACLE_METHODS", "RECIPE_METHODS", "measure", "bench_tightness", "worst_bin_allowance"]
 

@@ -7,7 +7,7 @@ and measured on the same test split.
 * ``synthetic``: heteroscedastic lagged perception with a known Gaussian conditional law
   (:func:`benchmarks.oracle_data.make_hetlag`), seeds 1000, 1001, 1002; its oracle comes
   with it. (Until the tight recipe this was the demo's
-  :func:`ipcverify.synthetic.make_lagged_perception`, whose target height is exactly minus
+  :func:`ipcverify.data.make_lagged_perception`, whose target height is exactly minus
   an input, ``y_z = -p_z``: an axis with no noise at all, on which a method that learns the
   linear relation gets a set of near-zero volume, so volume ratios measured z-axis
   regression precision more than tightness.)
@@ -33,9 +33,8 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.oracle_data import Oracle, make_fresh_lagged, make_hetlag
-from ipcverify.data import PerceptionDataset, load_dataset
+from ipcverify.data import PerceptionDataset, atomic_write, load_dataset
 from ipcverify.errors import InvalidInputError
-from ipcverify.files import atomic_write
 
 __all__ = [
     "CACHE",

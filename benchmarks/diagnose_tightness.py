@@ -294,8 +294,8 @@ def diagnose_recipes(
     """
     import torch
 
-    from ipcverify.calibrate import calibrate
-    from ipcverify.training import TrainConfig, train
+    from ipcverify.contract import calibrate
+    from ipcverify.training._train import TrainConfig, train
 
     torch.set_num_threads(1)
     res: dict[str, Any] = {}

@@ -12,7 +12,7 @@ exactly (float64), the target and the landing's verdicts; the containment proble
 decision is ``landing_decision(Ellipsoid(c, C), G_tau)``'s (``E`` against ``{P} ⊕ (-G_tau)``).
 
 Run ``python -m benchmarks.landing_sets`` (about three minutes on two cores; it overwrites the
-file). ``tests/ipcverify/containment/test_landing_sdp.py`` reads it.
+file). ``tests/ipcverify/decision/containment/test_landing_sdp.py`` reads it.
 """
 
 from __future__ import annotations
@@ -32,8 +32,8 @@ from case_studies.quad_landing.reproduction.learn import learn_ipc
 from case_studies.quad_landing.sim.camera import Camera
 from case_studies.quad_landing.sim.config import load_config
 from case_studies.quad_landing.sim.frames import transform_ellipsoid
-from ipcverify.files import atomic_write
-from ipcverify.query import IPCQuery
+from ipcverify.data import atomic_write
+from ipcverify.decision import IPCQuery
 
 OUT = Path(__file__).resolve().parents[1] / "tests" / "data" / "landing_sets.npz"
 N_QUERIES = 10_000

@@ -32,8 +32,7 @@ import numpy as np
 import torch
 from numpy.typing import NDArray
 
-from ipcverify.bounds import CalibrationMode
-from ipcverify.calibration import ScoreThreshold, threshold_scores
+from ipcverify.calibration import CalibrationMode, ScoreThreshold, threshold_scores
 from ipcverify.data import PerceptionDataset
 from ipcverify.errors import InvalidInputError
 from ipcverify.sets import Ellipsoid

@@ -39,7 +39,7 @@ from benchmarks.bench_tightness import bench_tightness
 from benchmarks.common import blas_single_thread, machine_info, write_json
 from benchmarks.datasets import CACHE, DATASETS, Splits, load_splits, quad_flights
 from benchmarks.report import render_markdown, targets
-from ipcverify.calibrate import calibrate
+from ipcverify.contract import calibrate
 from ipcverify.errors import InvalidInputError
 
 __all__ = ["RunConfig", "latency_workloads", "run", "main"]
@@ -111,7 +111,7 @@ def latency_workloads(models: dict[str, tuple[Any, Splits, float]], cfg: RunConf
       every 2nd frame; row-level domain); queries: the quad test split, 12 unseen flights, most of
       them outside the domain (the workload the benchmark used before).
 
-    As a user gets them: :func:`~ipcverify.calibrate.calibrate` fits the domain of validity by
+    As a user gets them: :func:`~ipcverify.contract.calibrate` fits the domain of validity by
     default, so the decision of record runs its domain test.
     """
     eps, delta = cfg.epsilon, cfg.delta

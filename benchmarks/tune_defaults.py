@@ -7,7 +7,7 @@ hinge) -- and each of three training seeds it trains an IPC on the train split o
 epsilon = 0.01, delta = 0.001) on the calibration split and measures the mean and median
 set volume and the coverage on the test split. Writes ``benchmarks/tuning_results.json``;
 the conclusions are in ``docs/benchmarks.md``. The committed results were measured when
-``synthetic`` was the demo's :func:`ipcverify.synthetic.make_lagged_perception`; the
+``synthetic`` was the demo's :func:`ipcverify.data.make_lagged_perception`; the
 default recipe ``"tight"`` came later, from ``benchmarks/diagnose_tightness.py``.
 """
 
@@ -25,9 +25,9 @@ import torch
 
 from benchmarks.common import blas_single_thread, machine_info
 from benchmarks.datasets import load_splits
-from ipcverify.architecture import ModelConfig
-from ipcverify.calibrate import calibrate
-from ipcverify.training import TrainConfig, train
+from ipcverify.contract import calibrate
+from ipcverify.network import ModelConfig
+from ipcverify.training._train import TrainConfig, train
 
 OUT = Path(__file__).with_name("tuning_results.json")
 EPSILON, DELTA = 0.01, 0.001

@@ -9,16 +9,16 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from ipcverify.baselines import fit_global_mahalanobis
-from ipcverify.calibrate import calibrate
-from ipcverify.data import PerceptionDataset, save_dataset
-from ipcverify.evaluation import Evaluation, evaluate
-from ipcverify.files import atomic_write
-from ipcverify.modelio import save_model
-from ipcverify.report import ellipse_outline, figure_to_png
-from ipcverify.sets import Ellipsoid
-from ipcverify.synthetic import make_lagged_perception
-from ipcverify.training import TrainConfig, train
+from ipcverify.certification._baselines import fit_global_mahalanobis
+from ipcverify.certification._evaluation import Evaluation, evaluate
+from ipcverify.certification._report import ellipse_outline, figure_to_png
+from ipcverify.contract._calibrate import calibrate
+from ipcverify.data._dataset import PerceptionDataset, save_dataset
+from ipcverify.data._files import atomic_write
+from ipcverify.data._synthetic import make_lagged_perception
+from ipcverify.io._modelio import save_model
+from ipcverify.sets._shapes import Ellipsoid
+from ipcverify.training._train import TrainConfig, train
 
 __all__ = ["DemoSummary", "run_demo", "plot_demo_sets"]
 
@@ -122,7 +122,7 @@ def plot_demo_sets(data: PerceptionDataset, ipc: Ellipsoid, base: Ellipsoid) -> 
 
     Examples
     --------
-    >>> from ipcverify.synthetic import make_lagged_perception
+    >>> from ipcverify.data._synthetic import make_lagged_perception
     >>> d = make_lagged_perception(50, seed=0)
     >>> e = Ellipsoid(d.yhat, np.broadcast_to(np.eye(3) * 20.0, (50, 3, 3)))
     >>> len(plot_demo_sets(d, e, e).axes)

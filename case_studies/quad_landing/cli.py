@@ -21,8 +21,8 @@ from case_studies.quad_landing.settings import DEFAULTS_PATH, REPRODUCE_PATH, re
 from case_studies.quad_landing.sim.config import SimConfig, load_config
 from case_studies.quad_landing.sim.framebuffer import MAX_BUFFER_SIZE
 from ipcverify.cli.app import run_group
+from ipcverify.data import json_data
 from ipcverify.errors import InvalidInputError
-from ipcverify.files import json_data
 
 __all__ = ["quad", "main"]
 

@@ -1,10 +1,10 @@
 """Calibrating a learned IPC on held-out data with one scale factor (or one per group).
 
-One module per job: :mod:`~ipcverify.calibration.threshold` (the order statistic of one
-set of scores), :mod:`~ipcverify.calibration.protocol` (what every kind provides),
-:mod:`~ipcverify.calibration.global_scale` and :mod:`~ipcverify.calibration.mondrian` (the
-kinds) and :mod:`~ipcverify.calibration.kinds` (their registry). The pipeline step that
-calibrates a model is :func:`ipcverify.calibrate.calibrate`.
+One module per job: :mod:`~ipcverify.calibration._threshold` (the order statistic of one
+set of scores), :mod:`~ipcverify.calibration._protocol` (what every kind provides),
+:mod:`~ipcverify.calibration._global_scale` and :mod:`~ipcverify.calibration._mondrian` (the
+kinds) and :mod:`~ipcverify.calibration._kinds` (their registry). The pipeline step that
+calibrates a model is :func:`ipcverify.contract.calibrate`.
 
 The network's score ``g = ||C (y - c)||`` is computed on ``n`` calibration samples
 that were *not* used for training. The calibrated contract is ``E(c, C / s)`` with
@@ -12,7 +12,7 @@ that were *not* used for training. The calibrated contract is ``E(c, C / s)`` wi
 ``g <= s``:
 
 * ``mode="pac"`` (training-conditional): ``k`` from
-  :func:`ipcverify.bounds.pac_calibration_index`; with probability at least
+  :func:`ipcverify.calibration.pac_calibration_index`; with probability at least
   ``1 - delta`` over the calibration set, a fresh sample violates the contract
   with probability at most ``epsilon``.
 * ``mode="marginal"`` (split conformal): ``k = ceil((n + 1)(1 - epsilon))``; the
@@ -30,7 +30,7 @@ mode every group is calibrated at ``delta / G`` (Bonferroni over the ``G``
 groups), so that with probability at least ``1 - delta`` *every* group's
 violation rate is at most ``epsilon``.
 
-Grouped calibration (:mod:`~ipcverify.calibration.grouped`) treats groups of correlated
+Grouped calibration (:mod:`~ipcverify.calibration._grouped`) treats groups of correlated
 samples (flights, runs; a column of the calibration data only) as the exchangeable units
 and gives one scale with a trajectory-level guarantee (every sample of a new flight inside)
 or a per-sample one valid under group exchangeability. Proofs:
@@ -43,36 +43,107 @@ turn a calibration sample on the boundary into a violation.
 
 from __future__ import annotations
 
-from ipcverify.calibration.global_scale import GlobalCalibration
-from ipcverify.calibration.grouped import (
-    GUARANTEES,
-    GroupedCalibration,
-    GroupViolations,
-    group_violation_counts,
-    risk_control_threshold,
-)
-from ipcverify.calibration.kinds import KINDS, calibration_from_dict
-from ipcverify.calibration.mondrian import MAX_GROUPS, GroupScale, MondrianCalibration
-from ipcverify.calibration.protocol import AllowedRate, Calibration, CalibrationSummary, GroupInfo
-from ipcverify.calibration.threshold import SCALE_MARGIN, ScoreThreshold, threshold_scores
+from typing import TYPE_CHECKING
+
+from ipcverify._package import lazy_exports
+
+if TYPE_CHECKING:
+    from ipcverify.calibration._bounds import (
+        TAIL_MARGIN,
+        CalibrationMode,
+        calibration_index,
+        clopper_pearson_interval,
+        clopper_pearson_lower,
+        clopper_pearson_upper,
+        marginal_conformal_index,
+        min_calibration_size,
+        pac_calibration_index,
+        pac_epsilon,
+        smallest_epsilon,
+    )
+    from ipcverify.calibration._global_scale import (
+        GlobalCalibration,
+    )
+    from ipcverify.calibration._grouped import (
+        GUARANTEES,
+        GroupedCalibration,
+        GroupViolations,
+        GuaranteeKind,
+        group_violation_counts,
+        risk_control_threshold,
+    )
+    from ipcverify.calibration._kinds import (
+        KINDS,
+        calibration_from_dict,
+    )
+    from ipcverify.calibration._mondrian import (
+        MAX_GROUPS,
+        GroupScale,
+        MondrianCalibration,
+    )
+    from ipcverify.calibration._protocol import (
+        GROUP_UNITS,
+        AllowedRate,
+        Calibration,
+        CalibrationSummary,
+        GroupClaim,
+        GroupInfo,
+        GroupUnit,
+        TestCounts,
+        row_counts,
+    )
+    from ipcverify.calibration._threshold import (
+        MIN_SCALE,
+        MODES,
+        SCALE_MARGIN,
+        ScoreThreshold,
+        check_eps_delta,
+        check_mode,
+        guarantee_sentence,
+        threshold_scores,
+    )
 
 __all__ = [
+    "GROUP_UNITS",
     "GUARANTEES",
     "KINDS",
     "MAX_GROUPS",
+    "MIN_SCALE",
+    "MODES",
     "SCALE_MARGIN",
+    "TAIL_MARGIN",
     "AllowedRate",
     "Calibration",
+    "CalibrationMode",
     "CalibrationSummary",
     "GlobalCalibration",
+    "GroupClaim",
     "GroupInfo",
+    "GroupScale",
+    "GroupUnit",
     "GroupViolations",
     "GroupedCalibration",
-    "GroupScale",
+    "GuaranteeKind",
     "MondrianCalibration",
     "ScoreThreshold",
+    "TestCounts",
     "calibration_from_dict",
+    "calibration_index",
+    "check_eps_delta",
+    "check_mode",
+    "clopper_pearson_interval",
+    "clopper_pearson_lower",
+    "clopper_pearson_upper",
     "group_violation_counts",
+    "guarantee_sentence",
+    "marginal_conformal_index",
+    "min_calibration_size",
+    "pac_calibration_index",
+    "pac_epsilon",
     "risk_control_threshold",
+    "row_counts",
+    "smallest_epsilon",
     "threshold_scores",
 ]
+
+__getattr__, __dir__ = lazy_exports(__name__, __file__)

@@ -1,7 +1,7 @@
 """CLI commands ``calibrate`` and ``certify``; registered on the shared app.
 
-Both are thin wrappers: parse, call :func:`ipcverify.calibrate.calibrate` or
-:func:`ipcverify.certify.certify_files`, print a short summary. The library is imported inside
+Both are thin wrappers: parse, call :func:`ipcverify.contract.calibrate` or
+:func:`ipcverify.certification.certify_files`, print a short summary. The library is imported inside
 each command, so that ``--help`` stays fast.
 """
 
@@ -15,12 +15,12 @@ from rich.table import Table
 
 from ipcverify.cli.app import app, console, err_console
 from ipcverify.errors import InvalidInputError
-from ipcverify.lipschitz_ball import DEFAULT_RADIUS
+from ipcverify.network._lipschitz_ball import DEFAULT_RADIUS
 
 __all__: list[str] = []
 
 _EXISTING = click.Path(exists=True, dir_okay=False, path_type=Path)
-#: ``ipcverify.domain.DEFAULT_ALPHA``, written out so that ``--help`` need not import the domain
+#: ``ipcverify.guard.DEFAULT_ALPHA``, written out so that ``--help`` need not import the domain
 #: test (SciPy, Numba); ``tests/ipcverify/cli/test_startup.py`` checks that the two agree.
 _DOMAIN_ALPHA = 0.01
 
@@ -98,8 +98,8 @@ def calibrate_cmd(
     model), drawn like the data the contract will meet in deployment. The domain-of-validity
     test is fitted on its inputs and stored with the model.
     """
-    from ipcverify.calibrate import calibrate
-    from ipcverify.modelio import load_data_for_model, load_model, save_model
+    from ipcverify.contract._calibrate import calibrate
+    from ipcverify.io._modelio import load_data_for_model, load_model, save_model
 
     m = load_model(model)
     ds = load_data_for_model(data, m)
@@ -200,8 +200,8 @@ def certify_cmd(
     row-level bound assumes independent rows, the per-group one only i.i.d. groups.
     Exits with status 1 if the test data contradicts the calibration's claim.
     """
-    from ipcverify.certificate import CertificateStatus
-    from ipcverify.certify import certify_files
+    from ipcverify.certification._certificate import CertificateStatus
+    from ipcverify.certification._certify import certify_files
 
     style_of = {
         CertificateStatus.CERTIFIED: "bold green",

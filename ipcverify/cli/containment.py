@@ -1,6 +1,6 @@
 """CLI commands ``prove-containment`` and ``check-certificate``.
 
-Thin wrappers over :mod:`ipcverify.containment`: parse the JSON, call the library,
+Thin wrappers over :mod:`ipcverify.decision.containment`: parse the JSON, call the library,
 write or print the result. The JSON formats are described in ``docs/containment.md``.
 """
 
@@ -13,7 +13,8 @@ from typing import Any
 import click
 
 from ipcverify.cli.app import app, console
-from ipcverify.containment import (
+from ipcverify.data._files import atomic_write
+from ipcverify.decision.containment import (
     ContainmentCertificate,
     Method,
     certificate_from_dict,
@@ -21,9 +22,8 @@ from ipcverify.containment import (
     prove,
     verify,
 )
-from ipcverify.containment.status import check_method
+from ipcverify.decision.containment._status import check_method
 from ipcverify.errors import InvalidInputError
-from ipcverify.files import atomic_write
 
 __all__ = ["load_json_items"]
 

@@ -16,13 +16,13 @@ import click
 import numpy as np
 from rich.table import Table
 
-from ipcverify.architecture import DEFAULT_RECIPE, RECIPES
 from ipcverify.cli.app import EXIT_VERDICT, app, console, err_console
 from ipcverify.errors import InvalidInputError
+from ipcverify.network._architecture import DEFAULT_RECIPE, RECIPES
 
 if TYPE_CHECKING:
-    from ipcverify.domain import DomainReport
-    from ipcverify.evaluation import Evaluation
+    from ipcverify.certification._evaluation import Evaluation
+    from ipcverify.guard._domain import DomainReport
 
 __all__ = ["parse_hidden"]
 
@@ -180,10 +180,10 @@ def train_cmd(
     --alpha, --lam or --batch-size is given. Every recipe stores the statistics Theorem 1
     needs in the model file.
     """
-    from ipcverify.architecture import ModelConfig
-    from ipcverify.data import load_dataset
-    from ipcverify.modelio import save_model
-    from ipcverify.training import HingeSelection, TrainConfig, train
+    from ipcverify.data._dataset import load_dataset
+    from ipcverify.io._modelio import save_model
+    from ipcverify.network._architecture import ModelConfig
+    from ipcverify.training._train import HingeSelection, TrainConfig, train
 
     ds = load_dataset(data, _columns(x_columns), _columns(y_columns), _columns(yhat_columns))
     mc = ModelConfig.recipe(
@@ -244,9 +244,9 @@ def train_cmd(
 @click.option("--bins", default=10, show_default=True, type=int)
 def evaluate_cmd(model: Path, data: Path, as_json: bool, bin_column: str | None, bins: int) -> None:
     """Empirical violation rate and set sizes of MODEL on labelled DATA."""
-    from ipcverify.evaluation import evaluate
-    from ipcverify.files import json_data
-    from ipcverify.modelio import load_data_for_model, load_model
+    from ipcverify.certification._evaluation import evaluate
+    from ipcverify.data._files import json_data
+    from ipcverify.io._modelio import load_data_for_model, load_model
 
     m = load_model(model)
     ds = load_data_for_model(data, m)
@@ -269,8 +269,8 @@ def predict_cmd(model: Path, data: Path, out: Path) -> None:
     `in_domain` (B,) -- the calibration certificate covers only these queries --,
     `domain_distance` (B,) and `singular` (B,). DATA needs only the state and estimate columns.
     """
-    from ipcverify.modelio import load_inputs_for_model, load_model
-    from ipcverify.prediction import predict_sets, write_predictions
+    from ipcverify.contract._prediction import predict_sets, write_predictions
+    from ipcverify.io._modelio import load_inputs_for_model, load_model
 
     if out.suffix.lower() != ".npz":
         raise InvalidInputError(f"--out must end in .npz; got {out.name}")
@@ -321,12 +321,12 @@ def monitor_cmd(model: Path, log: Path, out: Path, delta: float | None, group_co
     false-alarm probability of at most --delta. A flight-level model is monitored one flight at a
     time. Exits with status 1 on an alarm.
     """
-    from ipcverify.data_checks import warn_correlated_rows
-    from ipcverify.files import atomic_write, write_json
-    from ipcverify.modelio import load_data_for_model, load_model
-    from ipcverify.monitor import plot_monitor
-    from ipcverify.prediction import monitor_log
-    from ipcverify.report_plots import figure_to_png
+    from ipcverify.certification._report_plots import figure_to_png
+    from ipcverify.contract._prediction import monitor_log
+    from ipcverify.data._checks import warn_correlated_rows
+    from ipcverify.data._files import atomic_write, write_json
+    from ipcverify.guard._monitor import plot_monitor
+    from ipcverify.io._modelio import load_data_for_model, load_model
 
     m = load_model(model)
     data = load_data_for_model(log, m)

@@ -1,7 +1,7 @@
 """CLI command ``export`` (ONNX); registered on the shared app.
 
-A thin wrapper: load the model, call :func:`ipcverify.export.export_onnx`, and -- when
-ONNX Runtime is installed -- :func:`ipcverify.export.check_onnx` on random inputs.
+A thin wrapper: load the model, call :func:`ipcverify.io.export_onnx`, and -- when
+ONNX Runtime is installed -- :func:`ipcverify.io.check_onnx` on random inputs.
 """
 
 from __future__ import annotations
@@ -50,8 +50,8 @@ def export_cmd(model: Path, onnx_path: Path, dtype: str, no_domain: bool) -> Non
     A global calibration is included (shape = C / scale); a Mondrian calibration is refused. The
     domain-of-validity test is not in the graph: a model with one needs --no-domain.
     """
-    from ipcverify.export import check_onnx, export_onnx
-    from ipcverify.modelio import load_model
+    from ipcverify.io._modelio import load_model
+    from ipcverify.io._onnx import check_onnx, export_onnx
 
     m = load_model(model)
     info = export_onnx(m, onnx_path, dtype=dtype, without_domain=no_domain)  # type: ignore[arg-type]

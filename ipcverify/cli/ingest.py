@@ -1,6 +1,6 @@
 """CLI commands ``ingest topics``, ``ingest bag`` and ``ingest trajectories``; registered on the shared app.
 
-Thin wrappers over :mod:`ipcverify.ingest`: parse, build the samples, write the table and its
+Thin wrappers over :mod:`ipcverify.io.ingest`: parse, build the samples, write the table and its
 manifest, print what was kept and dropped.
 """
 
@@ -18,12 +18,12 @@ from ipcverify.errors import InvalidInputError
 if TYPE_CHECKING:
     import pandas as pd
 
-    from ipcverify.ingest import IngestOptions
+    from ipcverify.io.ingest import IngestOptions
 
 __all__: list[str] = []
 
 _IN = click.Path(exists=True, path_type=Path)
-#: ``ipcverify.ingest.formats.FORMATS`` and ``ipcverify.ingest.quantity.QUANTITIES``, written out
+#: ``ipcverify.io.ingest.FORMATS`` and ``ipcverify.io.ingest.QUANTITIES``, written out
 #: so that ``--help`` need not import the ingest package (pandas, SciPy); checked equal by
 #: ``tests/ipcverify/cli/test_startup.py``.
 _FORMAT = click.Choice(("tum", "euroc", "kitti"))
@@ -87,7 +87,7 @@ def _sampling(f: Callable[..., Any]) -> Callable[..., Any]:
 
 def _common(sampling: dict[str, Any]) -> tuple[Path, IngestOptions, list[str] | None, dict[str, str]]:
     """The output path, the options, the run names and the tags from the shared options' values."""
-    from ipcverify.ingest import IngestOptions
+    from ipcverify.io.ingest import IngestOptions
 
     align_runs = sampling["align_runs"]
     options = IngestOptions(
@@ -113,7 +113,7 @@ def _tags(items: tuple[str, ...]) -> dict[str, str]:
 
 
 def _report(frame: pd.DataFrame, out: Path, manifest: Path) -> None:
-    from ipcverify.ingest.samples import MANIFEST_KEY
+    from ipcverify.io.ingest._samples import MANIFEST_KEY
 
     account = frame.attrs[MANIFEST_KEY]
     for run in account["runs"]:
@@ -148,7 +148,7 @@ def _report(frame: pd.DataFrame, out: Path, manifest: Path) -> None:
 )
 def topics_cmd(path: Path, typestore: str | None) -> None:
     """List the topics of a bag or MCAP file: type, message count and time span (receive times)."""
-    from ipcverify.ingest import list_topics
+    from ipcverify.io.ingest import list_topics
 
     for info in list_topics(path, typestore):
         console.print(info.describe(), markup=False, highlight=False, soft_wrap=True)
@@ -194,7 +194,7 @@ def bag_cmd(
     **sampling: Any,
 ) -> None:
     """Build samples from ROS 1 bags, ROS 2 bags (.db3 or .mcap) or raw MCAP files; each PATH is a run."""
-    from ipcverify.ingest import ingest_bags, write_ingested
+    from ipcverify.io.ingest import ingest_bags, write_ingested
 
     out, options, runs, tags = _common(sampling)
     frame = ingest_bags(
@@ -247,7 +247,7 @@ def trajectories_cmd(
     **sampling: Any,
 ) -> None:
     """Build samples from TUM, EuRoC or KITTI trajectory files; each --estimate is a run."""
-    from ipcverify.ingest import ingest_trajectories, write_ingested
+    from ipcverify.io.ingest import ingest_trajectories, write_ingested
 
     out, options, runs, tags = _common(sampling)
     frame = ingest_trajectories(

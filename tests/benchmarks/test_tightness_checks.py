@@ -13,9 +13,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from benchmarks.diagnose_tightness import diagnose, toy_check  # noqa: E402
 from benchmarks.oracle_data import make_fresh_lagged, make_hetlag  # noqa: E402
-from ipcverify.baselines import fit_global_mahalanobis  # noqa: E402
-from ipcverify.calibrate import calibrate  # noqa: E402
-from ipcverify.training import TrainConfig, train  # noqa: E402
+from ipcverify.certification._baselines import fit_global_mahalanobis  # noqa: E402
+from ipcverify.contract._calibrate import calibrate  # noqa: E402
+from ipcverify.training._train import TrainConfig, train  # noqa: E402
 
 
 def test_the_diagnosis_recovers_a_planted_centre_bias_and_a_planted_shape_error():

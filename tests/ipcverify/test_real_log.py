@@ -16,14 +16,14 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from ipcverify.calibrate import calibrate
-from ipcverify.certificate import CertificateStatus
-from ipcverify.certify import certify
-from ipcverify.data import PerceptionDataset, save_dataset
+from ipcverify.certification._certificate import CertificateStatus
+from ipcverify.certification._certify import certify
+from ipcverify.contract._calibrate import calibrate
+from ipcverify.contract._prediction import monitor_log
+from ipcverify.data._dataset import PerceptionDataset, save_dataset
 from ipcverify.errors import SampleSizeError
-from ipcverify.modelio import save_model
-from ipcverify.prediction import monitor_log
-from ipcverify.training import TrainConfig, train
+from ipcverify.io._modelio import save_model
+from ipcverify.training._train import TrainConfig, train
 
 LOG = Path(__file__).resolve().parents[2] / "data" / "euroc_mh04_vislam.csv"
 

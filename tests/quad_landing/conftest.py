@@ -15,8 +15,8 @@ from case_studies.quad_landing.landing.scenario import draw_scenario
 from case_studies.quad_landing.landing.state_machine import run_landing
 from case_studies.quad_landing.reproduction.config import load_reproduce_config
 from case_studies.quad_landing.sim.config import load_config
-from ipcverify.architecture import ModelConfig
-from ipcverify.model import IPCModel, IPCNetwork
+from ipcverify.contract._model import IPCModel, IPCNetwork
+from ipcverify.network._architecture import ModelConfig
 
 
 @pytest.fixture
@@ -32,7 +32,7 @@ def make_ipc() -> Callable[[bool], IPCModel]:
         if not calibrated:
             return m
         from ipcverify.calibration import GlobalCalibration, threshold_scores
-        from ipcverify.model import network_fingerprint
+        from ipcverify.contract._model import network_fingerprint
 
         t = threshold_scores(np.linspace(0.1, 1.0, 200), 0.1, 0.1, "marginal")
         return m.with_calibration(

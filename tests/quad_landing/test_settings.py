@@ -17,7 +17,7 @@ from case_studies.quad_landing.settings import (
 )
 from case_studies.quad_landing.sim.config import SIM_SECTIONS, load_config
 from case_studies.quad_landing.sim.dynamics import QuadParams
-from ipcverify.training import TrainConfig
+from ipcverify.training._train import TrainConfig
 
 SECTIONS = [(DEFAULTS_PATH, name, cls) for name, cls in SIM_SECTIONS.items()] + [
     (REPRODUCE_PATH, name, cls) for name, cls in REPRODUCE_SECTIONS.items()

@@ -60,9 +60,8 @@ from case_studies.quad_landing.sim.config import SimConfig, load_config
 from case_studies.quad_landing.sim.flight import Flight
 from case_studies.quad_landing.sim.framebuffer import check_buffer_size
 from case_studies.quad_landing.sim.measurement import Measurement
-from ipcverify.data import PerceptionDataset
+from ipcverify.data import PerceptionDataset, atomic_write
 from ipcverify.errors import InvalidInputError
-from ipcverify.files import atomic_write
 
 __all__ = [
     "DatasetSpec",

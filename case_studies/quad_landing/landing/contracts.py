@@ -2,19 +2,19 @@
 
 * :class:`LearnedContract` — a trained, calibrated IPC in the camera frame. Each query
   ``(x_C, yhat_C)`` goes through the library's one query path,
-  :class:`ipcverify.query.IPCQuery`: the model's float64 engine (the same evaluation the
+  :class:`ipcverify.decision.IPCQuery`: the model's float64 engine (the same evaluation the
   calibration certified), the calibration's scale, the domain-of-validity test, then the
   set moved to W with the measurement's *current* camera pose ``T_WC``
   (:func:`.frames.transform_ellipsoid`), as in the paper, and the landing decision.
 * :class:`TrivialContract` — the paper's baseline ``E(yhat, 10000 I)``: a ball of radius
   0.1 mm around the perceived position, i.e. "trust every measurement", decided by the same
-  rule (:class:`ipcverify.landing.LandingRule`).
+  rule (:class:`ipcverify.decision.LandingRule`).
 
 Examples
 --------
 >>> import numpy as np
 >>> from case_studies.quad_landing import Flight, Pad, hover_state
->>> from ipcverify.sets import Box
+>>> from ipcverify.sets._shapes import Box
 >>> flight = Flight(buffer_size=1, seed=0)
 >>> flight.reset(hover_state((0.05, -0.03, 1.0)), Pad((0.0, 0.0, 0.0), yaw=0.3))
 >>> d = TrivialContract().decide(flight.measure(), Box([-0.05, -0.05, 0.0], [0.05, 0.05, 0.05]))
@@ -31,10 +31,9 @@ import numpy as np
 
 from case_studies.quad_landing.sim.flight import Measurement
 from case_studies.quad_landing.sim.frames import transform_ellipsoid
+from ipcverify.contract import IPCModel
+from ipcverify.decision import IPCQuery, LandingRule, QueryDecision
 from ipcverify.errors import InvalidInputError
-from ipcverify.landing import LandingRule, QueryDecision
-from ipcverify.model import IPCModel
-from ipcverify.query import IPCQuery
 from ipcverify.sets import Box
 
 __all__ = ["Contract", "LearnedContract", "TrivialContract"]

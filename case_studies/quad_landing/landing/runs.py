@@ -125,7 +125,7 @@ class LandingRun:
     cut_position, rest_position : ndarray (3,) or None
         Position at the motor-off command, and after falling to the floor.
     certificate_verified : bool or None
-        The accepted decision re-verified exactly (:func:`ipcverify.landing.check_landing`).
+        The accepted decision re-verified exactly (:func:`ipcverify.decision.check_landing`).
     trajectory : ndarray (T, 3)
         Positions every ``trajectory_every`` frames.
     flight_time, wall_time : float

@@ -5,9 +5,9 @@ States (paper, Fig. "state machine"), preceded by a search:
 * **Searching** — fly the scenario's transit (:mod:`.scenario`) and run the detector on
   every frame; the first detection is the first measurement (taken in motion).
 * **Measuring** — ask the contract (:meth:`.contracts.Contract.decide`): the learned IPC
-  answers through the library's one query path, :class:`ipcverify.query.IPCQuery`, with the
+  answers through the library's one query path, :class:`ipcverify.decision.IPCQuery`, with the
   set moved to W by the current camera pose. Accept iff the answer is PROVEN in exact
-  arithmetic (:func:`ipcverify.landing.landing_decision`): ``P - y in G_tau`` for every ``y``
+  arithmetic (:func:`ipcverify.decision.landing_decision`): ``P - y in G_tau`` for every ``y``
   in the ellipsoid, where ``P = [c_x, c_y, z_max]`` and ``G_tau`` is ``G`` (``[landing]
   target_lower/upper`` of ``reproduce.toml``, the paper's ``[-0.05, 0.05]^2 x [0, 0.05]``)
   shrunk by the tracking tolerance ``tau`` (:func:`decision_target`). A query outside the
@@ -65,11 +65,10 @@ from case_studies.quad_landing.sim.flight import Flight, Measurement
 from case_studies.quad_landing.sim.framebuffer import MAX_BUFFER_SIZE
 from case_studies.quad_landing.sim.legs import clamp_to_workspace, fly_leg
 from case_studies.quad_landing.sim.lqr import SettleParams
-from ipcverify.containment import Status
+from ipcverify.decision import QueryDecision, check_landing
+from ipcverify.decision.containment import Status
 from ipcverify.errors import InvalidInputError, SetError
-from ipcverify.exact import ExactVector, exact_vector
-from ipcverify.landing import QueryDecision, check_landing
-from ipcverify.sets import Box, Ellipsoid
+from ipcverify.sets import Box, Ellipsoid, ExactVector, exact_vector
 
 __all__ = [
     "LandingParams",
@@ -189,7 +188,7 @@ def decision_target(tau: float, target: Box) -> Box:
     """``G_tau``, the box the accept test proves ``P - y`` lies in (``P`` the turn-off point).
 
     ``[G.lower + (tau, tau, 0), G.upper - (tau, tau, 2 tau)]``: ``G`` shrunk by ``tau`` on
-    every side and shifted down by ``tau`` in ``z``, because :func:`ipcverify.landing.landing_decision`
+    every side and shifted down by ``tau`` in ``z``, because :func:`ipcverify.decision.landing_decision`
     puts ``P`` at the ellipsoid's top (``P_z - y_z >= 0``); the vehicle is sent to
     ``P + tau e_z`` instead.
 

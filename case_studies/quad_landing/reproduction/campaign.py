@@ -49,7 +49,11 @@ from case_studies.quad_landing.landing.scenario import ScenarioParams, draw_scen
 from case_studies.quad_landing.landing.state_machine import LandingParams, run_landing
 from case_studies.quad_landing.sim.config import SimConfig
 from case_studies.quad_landing.sim.flight import Flight
-from ipcverify.bounds import clopper_pearson_interval, clopper_pearson_lower, clopper_pearson_upper
+from ipcverify.calibration import (
+    clopper_pearson_interval,
+    clopper_pearson_lower,
+    clopper_pearson_upper,
+)
 from ipcverify.errors import InvalidInputError
 
 __all__ = ["BACKENDS", "CampaignSummary", "run_campaign", "summarize", "default_jobs"]

@@ -47,10 +47,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from case_studies.quad_landing.landing.runs import LandingRun, Outcome
-from ipcverify.bounds import clopper_pearson_interval, clopper_pearson_lower, clopper_pearson_upper
+from ipcverify.calibration import (
+    clopper_pearson_interval,
+    clopper_pearson_lower,
+    clopper_pearson_upper,
+)
+from ipcverify.contract import IPCModel
 from ipcverify.data import PerceptionDataset
 from ipcverify.errors import InvalidInputError
-from ipcverify.model import IPCModel
 
 __all__ = [
     "ASSUMPTION_A",
@@ -277,8 +281,8 @@ def coverage_check(
 ) -> dict[str, Any]:
     """Do the closed loop's queries look like the calibration data? The model's own domain test.
 
-    The same machinery every deployment path uses (:class:`ipcverify.domain.DomainModel`,
-    fitted by :func:`ipcverify.calibrate.calibrate` on the calibration inputs): a query is
+    The same machinery every deployment path uses (:class:`ipcverify.guard.DomainModel`,
+    fitted by :func:`ipcverify.contract.calibrate` on the calibration inputs): a query is
     outside the domain of validity when its whitened distance to the calibration inputs
     exceeds the test's threshold; an exchangeable query is flagged with probability at most
     ``alpha`` (``proofs/domain.md``).

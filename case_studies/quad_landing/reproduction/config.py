@@ -44,10 +44,10 @@ from case_studies.quad_landing.settings import (
     read_toml,
 )
 from case_studies.quad_landing.sim.framebuffer import MAX_BUFFER_SIZE
-from ipcverify.architecture import RECIPES
 from ipcverify.errors import InvalidInputError
-from ipcverify.selection import HingeSelection
-from ipcverify.training import TrainConfig
+from ipcverify.network import RECIPES
+from ipcverify.training import HingeSelection
+from ipcverify.training._train import TrainConfig
 
 __all__ = [
     "IpcParams",
@@ -76,7 +76,7 @@ class IpcParams(TomlSection):
     """The IPC recipe: the network, its training and its calibration (``[ipc]``).
 
     The ``[ipc]`` table is flat. Its keys that are fields of
-    :class:`ipcverify.training.TrainConfig` (``epochs``, ``lr``, ``batch_size``, ``alpha``,
+    :class:`ipcverify.training._train.TrainConfig` (``epochs``, ``lr``, ``batch_size``, ``alpha``,
     ``lam``, ``seed``, or any other the library defines) build :attr:`train`; the fields
     the table leaves out keep the values of the library's recipe ``recipe``
     (``TrainConfig.recipe(recipe)``). The other keys are not training:
@@ -84,18 +84,18 @@ class IpcParams(TomlSection):
     Parameters
     ----------
     recipe : str
-        The library's recipe (:data:`ipcverify.architecture.RECIPES`) of the contract
+        The library's recipe (:data:`ipcverify.network.RECIPES`) of the contract
         ``default_calibrated``: ``"tight"``, ipcverify's default, or ``"v1"``, its earlier
         Cholesky head with the hinge loss (``case_studies/quad_landing/v1_head.toml``). The
         paper's own network is :class:`PaperParams` (``[paper]``), always run beside it.
     hidden : tuple of int
-        Hidden layer sizes of the network (:class:`ipcverify.model.ModelConfig`).
+        Hidden layer sizes of the network (:class:`ipcverify.contract._model.ModelConfig`).
     train : TrainConfig
         The training settings.
     epsilon, delta : float
         PAC calibration target and confidence parameter.
     coverage_quantile : float
-        The domain of validity fitted at calibration (:class:`ipcverify.domain.DomainModel`)
+        The domain of validity fitted at calibration (:class:`ipcverify.guard.DomainModel`)
         flags queries beyond this quantile of the calibration inputs' nearest-neighbour
         distances: its false-alarm rate is ``1 - coverage_quantile`` (fitted by flight when
         there are enough flights: :func:`~.learn.domain_groups`). The closed loop's
@@ -190,7 +190,7 @@ class PaperParams(TomlSection):
     target_miss, val_fraction : float
         The selection rule: the smallest held-out log-volume with a raw held-out miss rate at
         most ``target_miss``, on ``val_fraction`` of the training rows
-        (:class:`ipcverify.selection.HingeSelection`).
+        (:class:`ipcverify.training.HingeSelection`).
     selection_groups : str
         Hold out whole groups of this column (``"flight"``: rows of one flight are correlated);
         ``""`` holds out rows.

@@ -183,11 +183,11 @@ class ContractSummary:
     certified, empirical_vs_certified : optional
         The certified bound on unsafe landings beside the empirical rate (calibrated only).
     selection : mapping or None
-        How the paper's unstated settings were chosen (:mod:`ipcverify.selection`).
+        How the paper's unstated settings were chosen (:mod:`ipcverify.training._selection`).
     calibration : mapping or None
         The calibration summary (calibrated only).
     certificate : mapping or None
-        ``ipcverify.certify`` on the held-out test set (calibrated only).
+        ``ipcverify.certification._certify`` on the held-out test set (calibrated only).
     claims : mapping of str to Claim
         :func:`contract_claims`.
     not_flown : str or None

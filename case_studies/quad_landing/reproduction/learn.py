@@ -6,7 +6,7 @@ default ``tight`` (an ensemble with a low-rank covariance head, trained by likel
 earlier ``v1`` head with ``v1_head.toml`` (``docs/reproduce.md``; the paper's own network is
 :mod:`.paper_ipc`). It is trained
 (:func:`ipcverify.training.train`), then calibrated in PAC
-mode on a separate calibration set (:func:`ipcverify.calibrate.calibrate`): with probability at least
+mode on a separate calibration set (:func:`ipcverify.contract.calibrate`): with probability at least
 ``1 - delta`` over the calibration draw, a fresh sample from the calibration
 distribution violates the calibrated contract with probability at most ``epsilon``.
 
@@ -34,13 +34,11 @@ import pandas as pd
 import torch
 
 from case_studies.quad_landing.reproduction.config import IpcParams
-from ipcverify.architecture import ModelConfig
-from ipcverify.calibrate import calibrate
-from ipcverify.data import PerceptionDataset
+from ipcverify.contract import IPCModel, calibrate
+from ipcverify.data import PerceptionDataset, atomic_write
 from ipcverify.errors import Hint, ModelFileError, SampleSizeError
-from ipcverify.files import atomic_write
-from ipcverify.model import IPCModel
-from ipcverify.modelio import load_model, save_model
+from ipcverify.io import load_model, save_model
+from ipcverify.network import ModelConfig
 from ipcverify.training import train
 
 __all__ = [
@@ -68,7 +66,7 @@ def learn_ipc(
     train_data, calibration_data : PerceptionDataset
         Disjoint data (different seeds, so different paths and flights).
     params : IpcParams
-        Network (``hidden``), training (``train``, a :class:`~ipcverify.training.TrainConfig`)
+        Network (``hidden``), training (``train``, a :class:`~ipcverify.training._train.TrainConfig`)
         and calibration (``epsilon``, ``delta``) settings.
     progress : bool
         Show the training progress bar.
@@ -117,7 +115,7 @@ def row_level_calibration(
 def domain_groups(calibration_data: PerceptionDataset, alpha: float) -> str | None:
     """``"flight"`` if the domain of validity can be fitted by flight at false-alarm rate ``alpha``.
 
-    The domain of validity (:class:`ipcverify.domain.DomainModel`) flags a query farther from
+    The domain of validity (:class:`ipcverify.guard.DomainModel`) flags a query farther from
     the calibration inputs than they lie from each other. Rows of one flight lie close to each
     other, so a row-level threshold flags much of a *new* flight; fitted by flight (each input
     measured against other flights, a risk-control threshold), a new flight's expected share
@@ -128,7 +126,7 @@ def domain_groups(calibration_data: PerceptionDataset, alpha: float) -> str | No
     Examples
     --------
     >>> import numpy as np
-    >>> from ipcverify.data import PerceptionDataset
+    >>> from ipcverify.data._dataset import PerceptionDataset
     >>> z = np.zeros((200, 1))
     >>> data = PerceptionDataset(z, z, z, extra={"flight": np.arange(200) // 2})
     >>> domain_groups(data, 0.01), domain_groups(data, 0.001)

@@ -47,12 +47,11 @@ from case_studies.quad_landing.reproduction.contracts import hover_half_widths
 from case_studies.quad_landing.reproduction.figures import figure_png
 from case_studies.quad_landing.reproduction.table1 import table1
 from case_studies.quad_landing.sim.config import SimConfig, load_config
-from ipcverify.architecture import ModelConfig
-from ipcverify.data import PerceptionDataset
+from ipcverify.contract import IPCModel
+from ipcverify.data import PerceptionDataset, atomic_write, write_json
 from ipcverify.errors import InvalidInputError
-from ipcverify.files import atomic_write, write_json
-from ipcverify.model import IPCModel
-from ipcverify.modelio import load_model
+from ipcverify.io import load_model
+from ipcverify.network import ModelConfig
 from ipcverify.training import train
 
 __all__ = ["Variant", "VARIANTS", "run_paper_ablation", "ablation_markdown"]

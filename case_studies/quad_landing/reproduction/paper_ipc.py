@@ -1,12 +1,12 @@
 """The paper's IPC, trained the paper's way: ``[paper]`` of ``reproduce.toml``, learned once, cached.
 
-The network and loss are the library's recipe ``"paper"`` (:mod:`ipcverify.selection`): an MLP
+The network and loss are the library's recipe ``"paper"`` (:mod:`ipcverify.training._selection`): an MLP
 on ``concat(x_C, yhat_C)`` with hidden layers (64, 128) and ReLU, 12 outputs (the centre,
 predicted outright, and the nine entries of ``C``), the hinge ``max(0, t / alpha + 1)`` plus
 ``lambda (-log|C^T C|)``, Adam at 1e-3 for 20 epochs on the training set (5,000 samples in
 the full run), inputs standardised. What the paper leaves open is stated here and in
 ``docs/reproduce.md``: ``alpha``, ``lambda`` and the batch size are chosen by
-:class:`ipcverify.selection.HingeSelection` on held-out *training* rows only, and the network
+:class:`ipcverify.training.HingeSelection` on held-out *training* rows only, and the network
 starts with its centre output at ``yhat`` (:meth:`ipcverify.network.IPCNetwork.start_at_estimate`).
 
 From the one trained network come two contracts (:mod:`.contracts`):
@@ -29,12 +29,11 @@ import torch
 
 from case_studies.quad_landing.reproduction.config import PaperParams
 from case_studies.quad_landing.reproduction.learn import row_level_calibration
-from ipcverify.architecture import ModelConfig
-from ipcverify.data import PerceptionDataset
+from ipcverify.contract import IPCModel
+from ipcverify.data import PerceptionDataset, atomic_write
 from ipcverify.errors import ModelFileError
-from ipcverify.files import atomic_write
-from ipcverify.model import IPCModel
-from ipcverify.modelio import load_model, save_model
+from ipcverify.io import load_model, save_model
+from ipcverify.network import ModelConfig
 from ipcverify.training import train
 
 __all__ = ["PaperModels", "learn_paper_ipc", "cached_paper_ipc"]

@@ -9,7 +9,7 @@
    ablation (:mod:`.variants`).
 2. **IPCs** (cached in ``OUT/models``): the ``[ipc]`` recipe trained and PAC-calibrated at buffer
    size 1 (:mod:`.learn`) and certified on its held-out test set
-   (:func:`ipcverify.certify.certify`, written to ``OUT/certificates``); likewise at the extra
+   (:func:`ipcverify.certification.certify`, written to ``OUT/certificates``); likewise at the extra
    landing buffer size.
 3. **Table I** on the pilot test flights (:mod:`.table1`), and the **ablation**: Table I of every
    camera variant, each with its own buffer-1 IPC (:mod:`.variants`).
@@ -92,10 +92,9 @@ from case_studies.quad_landing.reproduction.variants import (
     variant_tables,
 )
 from case_studies.quad_landing.sim.config import SimConfig, load_config
-from ipcverify.data import PerceptionDataset
+from ipcverify.contract import IPCModel
+from ipcverify.data import PerceptionDataset, atomic_write, json_data, write_json
 from ipcverify.errors import InvalidInputError
-from ipcverify.files import atomic_write, json_data, write_json
-from ipcverify.model import IPCModel
 
 __all__ = ["SEEDS", "PAPER_LANDING", "REPORT_DELTA", "ReproduceResult", "reproduce"]
 
@@ -256,7 +255,7 @@ def _collect_datasets(run: _Run) -> tuple[dict[str, PerceptionDataset], dict[str
 
 
 def _certify(model: IPCModel, test: PerceptionDataset, out_dir: Path) -> dict[str, Any]:
-    from ipcverify.certify import certify, write_certificate
+    from ipcverify.certification import certify, write_certificate
 
     # the test samples come from a few dozen flights: also count violations per flight
     result = certify(model, test, group_column="flight")

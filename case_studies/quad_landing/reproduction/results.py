@@ -2,7 +2,7 @@
 
 :func:`~case_studies.quad_landing.reproduction.pipeline.reproduce` returns a
 :class:`ReproductionSummary`; ``summary.json`` is its :meth:`~ReproductionSummary.to_dict`
-written by :func:`ipcverify.files.write_json` (the one JSON encoder: ``inf`` as ``"inf"``,
+written by :func:`ipcverify.data.write_json` (the one JSON encoder: ``inf`` as ``"inf"``,
 NaN as ``null``). The layout of ``summary.json`` is a published format: keys are added,
 never renamed or removed.
 
@@ -60,7 +60,7 @@ class IpcSummary:
     """One learned IPC: buffer size, calibration, test certificate, size and flight-level check.
 
     ``calibration`` and ``certificate`` are the library's plain data
-    (:func:`~.learn.calibration_summary`, :func:`ipcverify.certify.certify`);
+    (:func:`~.learn.calibration_summary`, :func:`ipcverify.certification.certify`);
     ``flight_level`` is :func:`~.learn.flight_level_check` (the same network calibrated with
     the calibration flights as the exchangeable units).
     """

@@ -25,10 +25,10 @@ from typing import Any
 
 import numpy as np
 
-from ipcverify.bounds import clopper_pearson_interval, clopper_pearson_upper
+from ipcverify.calibration import clopper_pearson_interval, clopper_pearson_upper
+from ipcverify.contract import IPCModel
 from ipcverify.data import PerceptionDataset
 from ipcverify.errors import InvalidInputError
-from ipcverify.model import IPCModel
 
 __all__ = ["PAPER_TABLE1", "Table1Row", "RatesRising", "Table1", "table1", "table1_text"]
 
@@ -175,8 +175,8 @@ def table1(model: IPCModel, tests: Mapping[int, PerceptionDataset], delta: float
 
     Examples
     --------
-    >>> from ipcverify.network import IPCNetwork
-    >>> from ipcverify.architecture import ModelConfig
+    >>> from ipcverify.network._modules import IPCNetwork
+    >>> from ipcverify.network._architecture import ModelConfig
     >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(4,), param="cholesky")))
     >>> ds = PerceptionDataset(np.zeros((10, 2)), np.ones((10, 3)) * 100, np.zeros((10, 3)))
     >>> table1(m, {1: ds}).row(1).violations

@@ -9,9 +9,6 @@ import pytest
 import torch
 from scipy import stats
 
-from ipcverify.architecture import ModelConfig
-from ipcverify.bounds import marginal_conformal_index, pac_calibration_index
-from ipcverify.calibrate import calibrate
 from ipcverify.calibration import (
     SCALE_MARGIN,
     GlobalCalibration,
@@ -19,12 +16,15 @@ from ipcverify.calibration import (
     calibration_from_dict,
     threshold_scores,
 )
-from ipcverify.data import PerceptionDataset
+from ipcverify.calibration._bounds import marginal_conformal_index, pac_calibration_index
+from ipcverify.contract._calibrate import calibrate
+from ipcverify.contract._model import network_fingerprint
+from ipcverify.data._dataset import PerceptionDataset
+from ipcverify.data._synthetic import make_lagged_perception
 from ipcverify.errors import DataError, InvalidInputError, ModelFileError, SampleSizeError
-from ipcverify.model import network_fingerprint
-from ipcverify.modelio import load_model, save_model
-from ipcverify.synthetic import make_lagged_perception
-from ipcverify.training import TrainConfig, train
+from ipcverify.io._modelio import load_model, save_model
+from ipcverify.network._architecture import ModelConfig
+from ipcverify.training._train import TrainConfig, train
 
 
 @pytest.fixture(scope="module")

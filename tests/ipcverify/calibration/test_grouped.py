@@ -28,7 +28,6 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from ipcverify.bounds import min_calibration_size, smallest_epsilon
 from ipcverify.calibration import (
     CalibrationSummary,
     GroupedCalibration,
@@ -37,6 +36,7 @@ from ipcverify.calibration import (
     risk_control_threshold,
     threshold_scores,
 )
+from ipcverify.calibration._bounds import min_calibration_size, smallest_epsilon
 from ipcverify.errors import DataError, InvalidInputError, SampleSizeError
 
 SB, SE = 1.0, 0.5
@@ -417,9 +417,9 @@ def test_group_violation_counts():
 
 
 def test_grouped_calibration_survives_a_model_file(tmp_path):
-    from ipcverify.architecture import ModelConfig
-    from ipcverify.model import IPCModel, IPCNetwork
-    from ipcverify.modelio import load_model, save_model
+    from ipcverify.contract._model import IPCModel, IPCNetwork
+    from ipcverify.io._modelio import load_model, save_model
+    from ipcverify.network._architecture import ModelConfig
 
     s, runs = _toy(seed=3)
     cal = _fit(s, runs, 0.1, 0.1, "pac", "sample", seed=9)

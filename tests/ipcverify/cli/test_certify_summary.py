@@ -6,12 +6,12 @@ import json
 
 import pytest
 
-from ipcverify.architecture import ModelConfig
-from ipcverify.calibrate import calibrate
-from ipcverify.data import save_dataset
-from ipcverify.model import IPCModel, IPCNetwork
-from ipcverify.modelio import save_model
-from ipcverify.synthetic import make_lagged_perception
+from ipcverify.contract._calibrate import calibrate
+from ipcverify.contract._model import IPCModel, IPCNetwork
+from ipcverify.data._dataset import save_dataset
+from ipcverify.data._synthetic import make_lagged_perception
+from ipcverify.io._modelio import save_model
+from ipcverify.network._architecture import ModelConfig
 
 
 @pytest.fixture(scope="module")

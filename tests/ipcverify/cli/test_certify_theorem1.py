@@ -10,11 +10,11 @@ import json
 
 import pytest
 
-from ipcverify.calibrate import calibrate
-from ipcverify.data import save_dataset
-from ipcverify.model import IPCModel
-from ipcverify.modelio import load_model, save_model
-from ipcverify.synthetic import make_lagged_perception
+from ipcverify.contract._calibrate import calibrate
+from ipcverify.contract._model import IPCModel
+from ipcverify.data._dataset import save_dataset
+from ipcverify.data._synthetic import make_lagged_perception
+from ipcverify.io._modelio import load_model, save_model
 
 
 @pytest.fixture(scope="module")

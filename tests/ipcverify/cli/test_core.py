@@ -7,9 +7,9 @@ import json
 import numpy as np
 import pytest
 
-from ipcverify.data import save_dataset
-from ipcverify.modelio import load_model
-from ipcverify.synthetic import make_lagged_perception
+from ipcverify.data._dataset import save_dataset
+from ipcverify.data._synthetic import make_lagged_perception
+from ipcverify.io._modelio import load_model
 
 
 @pytest.fixture(scope="module")
@@ -55,9 +55,9 @@ def test_train_loss_and_center_warm_start_flags(files, tmp_path):
 
 
 def test_train_recipes_by_name_and_explicit_options_override_them(files, tmp_path):
-    from ipcverify.architecture import ModelConfig
     from ipcverify.cli import main
-    from ipcverify.training import TrainConfig
+    from ipcverify.network._architecture import ModelConfig
+    from ipcverify.training._train import TrainConfig
 
     p = tmp_path / "m.pt"
     base = ["train", str(files / "train.parquet"), "--out", str(p), "--hidden", "8"]
@@ -100,8 +100,8 @@ def test_evaluate_json(run_cli, files, model_path):
     assert out["violations"] == round(out["violation_rate"] * 400)
     assert set(out["log_volume"]) == {"mean", "median"}
     # the numbers agree with the library
-    from ipcverify.data import load_dataset
-    from ipcverify.evaluation import evaluate
+    from ipcverify.certification._evaluation import evaluate
+    from ipcverify.data._dataset import load_dataset
 
     ev = evaluate(load_model(model_path), load_dataset(files / "test.csv"))
     assert out["violations"] == ev.violations
@@ -120,7 +120,7 @@ def test_predict_npz(run_cli, files, model_path, tmp_path):
     assert res.code == 0, res.stderr
     z = np.load(out)
     assert z["center"].shape == (400, 3) and z["shape"].shape == (400, 3, 3)
-    from ipcverify.data import load_dataset
+    from ipcverify.data._dataset import load_dataset
 
     ds = load_dataset(files / "test.csv")
     e = load_model(model_path).predict(ds.x, ds.yhat)
@@ -130,8 +130,8 @@ def test_predict_npz(run_cli, files, model_path, tmp_path):
 def test_predict_needs_no_truth_and_marks_the_domain(run_cli, files, model_path, tmp_path):
     import pandas as pd
 
-    from ipcverify.calibrate import calibrate
-    from ipcverify.modelio import save_model
+    from ipcverify.contract._calibrate import calibrate
+    from ipcverify.io._modelio import save_model
 
     cal = calibrate(load_model(model_path), make_lagged_perception(1000, seed=5), 0.1, 0.05)
     save_model(cal, tmp_path / "cal.pt")
@@ -148,8 +148,8 @@ def test_predict_needs_no_truth_and_marks_the_domain(run_cli, files, model_path,
 
 
 def test_bare_certify_works_from_the_model_file_alone(run_cli, model_path, tmp_path):
-    from ipcverify.calibrate import calibrate
-    from ipcverify.modelio import save_model
+    from ipcverify.contract._calibrate import calibrate
+    from ipcverify.io._modelio import save_model
 
     save_model(
         calibrate(load_model(model_path), make_lagged_perception(1000, seed=6), 0.1, 0.05), tmp_path / "c.pt"

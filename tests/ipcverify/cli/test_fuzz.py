@@ -18,12 +18,12 @@ import numpy as np
 import pytest
 import torch
 
-from ipcverify.architecture import ModelConfig
-from ipcverify.calibrate import calibrate
-from ipcverify.data import PerceptionDataset, save_dataset
-from ipcverify.modelio import save_model
-from ipcverify.synthetic import make_lagged_perception
-from ipcverify.training import TrainConfig, train
+from ipcverify.contract._calibrate import calibrate
+from ipcverify.data._dataset import PerceptionDataset, save_dataset
+from ipcverify.data._synthetic import make_lagged_perception
+from ipcverify.io._modelio import save_model
+from ipcverify.network._architecture import ModelConfig
+from ipcverify.training._train import TrainConfig, train
 
 MARKER = "pickle_code_ran.txt"
 

@@ -12,13 +12,13 @@ import json
 import numpy as np
 import pytest
 
-from ipcverify.architecture import ModelConfig
-from ipcverify.calibrate import calibrate
-from ipcverify.data import PerceptionDataset, save_dataset
-from ipcverify.modelio import save_model
-from ipcverify.prediction import monitor_log
-from ipcverify.synthetic import make_lagged_perception
-from ipcverify.training import TrainConfig, train
+from ipcverify.contract._calibrate import calibrate
+from ipcverify.contract._prediction import monitor_log
+from ipcverify.data._dataset import PerceptionDataset, save_dataset
+from ipcverify.data._synthetic import make_lagged_perception
+from ipcverify.io._modelio import save_model
+from ipcverify.network._architecture import ModelConfig
+from ipcverify.training._train import TrainConfig, train
 
 
 def _flights(ds: PerceptionDataset, flights: int, shift: float = 0.0) -> PerceptionDataset:
@@ -148,7 +148,7 @@ def test_monitor_takes_a_flight_level_model_one_observation_per_flight(setup, ru
 
 
 def test_monitor_log_per_group_statistics_are_taken_when_each_group_ends(setup):
-    from ipcverify.modelio import load_model
+    from ipcverify.io._modelio import load_model
 
     model = load_model(setup["calibrated"])
     test = make_lagged_perception(300, seed=5)

@@ -90,17 +90,17 @@ def test_the_probe_sees_a_heavy_import():
     out = _probe([["predict", "no-such-model.pt", "no-such-data.csv", "--out", "o.npz"]])
     assert out["runs"][0]["code"] == 2  # click refuses the missing file before the command body runs
     assert out["heavy"] == []
-    out = _probe([], extra="import ipcverify.calibrate")
+    out = _probe([], extra="import ipcverify.contract._calibrate")
     assert {"scipy", "pandas", "numba"} <= set(out["heavy"])
 
 
 def test_the_defaults_written_out_in_the_cli_are_the_librarys():
     """Defaults and choices the CLI spells out (so that --help imports nothing heavy) match their owners."""
+    from ipcverify.certification._lipschitz import DEFAULT_RADIUS
     from ipcverify.cli import app
-    from ipcverify.domain import DEFAULT_ALPHA
-    from ipcverify.ingest.formats import FORMATS
-    from ipcverify.ingest.quantity import QUANTITIES
-    from ipcverify.lipschitz import DEFAULT_RADIUS
+    from ipcverify.guard._domain import DEFAULT_ALPHA
+    from ipcverify.io.ingest._formats import FORMATS
+    from ipcverify.io.ingest._quantity import QUANTITIES
 
     def option(path: tuple[str, ...], name: str) -> click.Parameter:
         cmd: click.Command = app

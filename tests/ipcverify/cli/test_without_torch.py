@@ -15,14 +15,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ipcverify.architecture import ModelConfig
-from ipcverify.calibrate import calibrate
-from ipcverify.data import load_dataset, load_inputs, save_dataset
-from ipcverify.files import write_json
-from ipcverify.modelio import save_model
-from ipcverify.prediction import monitor_log, predict_sets
-from ipcverify.synthetic import make_lagged_perception
-from ipcverify.training import TrainConfig, train
+from ipcverify.contract._calibrate import calibrate
+from ipcverify.contract._prediction import monitor_log, predict_sets
+from ipcverify.data._dataset import load_dataset, load_inputs, save_dataset
+from ipcverify.data._files import write_json
+from ipcverify.data._synthetic import make_lagged_perception
+from ipcverify.io._modelio import save_model
+from ipcverify.network._architecture import ModelConfig
+from ipcverify.training._train import TrainConfig, train
 
 ROOT = Path(__file__).resolve().parents[3]
 

@@ -7,10 +7,10 @@ import pytest
 
 from case_studies.quad_landing import Flight, Pad, hover_state
 from case_studies.quad_landing.landing.contracts import LearnedContract, TrivialContract
-from ipcverify.architecture import ModelConfig
+from ipcverify.contract._model import IPCModel, IPCNetwork
 from ipcverify.errors import InvalidInputError
-from ipcverify.model import IPCModel, IPCNetwork
-from ipcverify.sets import Box, Ellipsoid
+from ipcverify.network._architecture import ModelConfig
+from ipcverify.sets._shapes import Box, Ellipsoid
 
 G = Box([-0.05, -0.05, 0.0], [0.05, 0.05, 0.05])
 

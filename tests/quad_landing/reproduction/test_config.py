@@ -35,8 +35,8 @@ def test_the_default_contract_is_the_default_recipe_and_v1_keeps_its_own_file():
     import dataclasses
 
     from case_studies.quad_landing.settings import V1_HEAD_PATH
-    from ipcverify.architecture import DEFAULT_RECIPE, ModelConfig
-    from ipcverify.training import TrainConfig
+    from ipcverify.network._architecture import DEFAULT_RECIPE, ModelConfig
+    from ipcverify.training._train import TrainConfig
 
     ipc = load_reproduce_config().ipc
     assert ipc.recipe == DEFAULT_RECIPE == "tight"
@@ -75,7 +75,7 @@ def test_the_paper_section_is_the_papers_network_and_loss_and_paper_head_spells_
     """``[paper]``: 12 outputs (centre outright + 9 entries of C), hidden (64, 128), ReLU, hinge,
     Adam 1e-3, 20 epochs, p = 10,892 for 15 inputs; ``paper_head.toml`` holds the same values."""
     from case_studies.quad_landing.settings import PAPER_HEAD_PATH
-    from ipcverify.architecture import ModelConfig
+    from ipcverify.network._architecture import ModelConfig
 
     paper = load_reproduce_config().paper
     mc = ModelConfig.recipe("paper", x_dim=12, y_dim=3, hidden=paper.hidden)

@@ -32,7 +32,7 @@ import pytest
 from PIL import Image
 
 from case_studies.quad_landing.cli import main
-from ipcverify.bounds import clopper_pearson_lower, clopper_pearson_upper
+from ipcverify.calibration._bounds import clopper_pearson_lower, clopper_pearson_upper
 
 DELTA = 0.05
 CHROMIUM = Path("/usr/bin/chromium")

@@ -20,7 +20,7 @@ def test_claims_and_summary_records_from_real_runs(baseline_runs, make_ipc):
     from case_studies.quad_landing.reproduction.campaign import summarize
     from case_studies.quad_landing.reproduction.claims import evaluate_claims
     from case_studies.quad_landing.reproduction.results import ContractResults, LandingExperiment
-    from ipcverify.data import PerceptionDataset
+    from ipcverify.data._dataset import PerceptionDataset
 
     runs = tuple(baseline_runs)
     bound = certified_bound(0.002, 0.001, max_queries=8, queries_per_run=[r.n_queries for r in runs])

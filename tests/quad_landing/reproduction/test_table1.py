@@ -10,7 +10,7 @@ from ipcverify.errors import InvalidInputError
 
 
 def test_table1_counts_and_simultaneous_intervals(make_ipc):
-    from ipcverify.data import PerceptionDataset
+    from ipcverify.data._dataset import PerceptionDataset
 
     m = make_ipc(True)
     x = np.zeros((50, 12))

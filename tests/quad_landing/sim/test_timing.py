@@ -14,7 +14,7 @@ from case_studies.quad_landing.sim.camera_stage import TimedCamera, flight_timin
 from case_studies.quad_landing.sim.config import load_config
 from case_studies.quad_landing.sim.history import StateHistory
 from case_studies.quad_landing.sim.timing import SOURCES, CameraTimingParams
-from ipcverify.bounds import clopper_pearson_interval
+from ipcverify.calibration._bounds import clopper_pearson_interval
 
 
 def test_every_timing_parameter_is_read_from_defaults_toml_and_has_no_code_default():

@@ -1,0 +1,329 @@
+"""What every calibration kind provides, so that no caller asks which kind it holds.
+
+A calibration rescales an IPC's raw sets: the calibrated set of a query is
+``E(c, C / s)`` with ``s = scale_for(x, yhat)``. Certificates, single queries, the
+ONNX export, reports and the case study use only the :class:`Calibration` protocol:
+
+* :meth:`~Calibration.scale_for` -- the scale of each query;
+* :meth:`~Calibration.groups` / :meth:`~Calibration.group_index` -- the groups that were
+  calibrated separately (one group for a global calibration), as :class:`GroupInfo`;
+* :meth:`~Calibration.allowed_violation_rate` -- the violation rate the calibration allows
+  with probability ``1 - delta`` (what test data may be checked against), as
+  :class:`AllowedRate`;
+* :meth:`~Calibration.test_counts` -- how test data checks the calibration's claim: the
+  violations counted in the unit the claim is about (samples, or whole groups), as
+  :class:`TestCounts`;
+* :meth:`~Calibration.group_claim` -- for a claim about groups (flights, runs), their column,
+  the per-group statistic and its seed, as :class:`GroupClaim` (None for a claim about rows);
+* :meth:`~Calibration.summary` -- one typed record (:class:`CalibrationSummary`), the
+  ``calibration`` block of ``certificate.json``;
+* :meth:`~Calibration.guarantee`, :meth:`~Calibration.to_dict`.
+
+A new kind is one module that implements this protocol and registers its ``kind`` in
+:mod:`ipcverify.calibration._kinds`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any, Literal, Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ipcverify.calibration._bounds import CalibrationMode
+from ipcverify.data._dataset import PerceptionDataset
+from ipcverify.errors import InvalidInputError
+
+__all__ = [
+    "Calibration",
+    "GroupInfo",
+    "AllowedRate",
+    "CalibrationSummary",
+    "TestCounts",
+    "GroupClaim",
+    "GroupUnit",
+    "GROUP_UNITS",
+    "row_counts",
+]
+
+FloatArray = NDArray[np.float64]
+#: The statistic of one group: any of its samples violates, or one random sample of it does.
+GroupUnit = Literal["trajectory", "sample"]
+#: The two group statistics.
+GROUP_UNITS: tuple[GroupUnit, ...] = ("trajectory", "sample")
+
+
+@dataclass(frozen=True, kw_only=True)
+class GroupInfo:
+    """One separately calibrated group: its label, calibration samples ``n``, order statistic ``k``, scale.
+
+    Examples
+    --------
+    >>> GroupInfo(label="all", n=100, k=96, scale=1.5).scale
+    1.5
+    """
+
+    label: str
+    n: int
+    k: int
+    scale: float
+
+    def __post_init__(self) -> None:
+        if not (1 <= self.k <= self.n) or not (math.isfinite(self.scale) and self.scale > 0):
+            raise InvalidInputError(
+                f"group {self.label!r}: need 1 <= k <= n and a finite scale > 0; "
+                f"got n={self.n}, k={self.k}, scale={self.scale!r}"
+            )
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data ``{label, n, k, scale}``."""
+        return {"label": self.label, "n": self.n, "k": self.k, "scale": self.scale}
+
+
+@dataclass(frozen=True, kw_only=True)
+class AllowedRate:
+    """The violation rate a calibration allows, if it makes a per-draw claim.
+
+    Attributes
+    ----------
+    rate : float or None
+        With probability at least ``1 - delta`` over the calibration draw, the violation
+        rate is at most ``rate``; None if the calibration makes no such claim.
+    reason : str
+        Why this is the allowed rate (or why there is none).
+
+    Examples
+    --------
+    >>> AllowedRate(rate=None, reason="marginal").checkable
+    False
+    """
+
+    rate: float | None
+    reason: str
+
+    def __post_init__(self) -> None:
+        if self.rate is not None and not (0.0 <= self.rate <= 1.0):
+            raise InvalidInputError(f"an allowed violation rate lies in [0, 1]; got {self.rate!r}")
+
+    @property
+    def checkable(self) -> bool:
+        """Whether test data can be checked against a rate."""
+        return self.rate is not None
+
+
+@dataclass(frozen=True, kw_only=True)
+class TestCounts:
+    """Violations of fresh test data counted in the unit a calibration's claim is about.
+
+    A per-sample claim over exchangeable samples is tested on rows; a claim over exchangeable
+    groups (flights) on one statistic per group, since the rows of a group are correlated and
+    a binomial bound on them would not be valid.
+
+    Examples
+    --------
+    >>> row_counts(np.array([True, False, False])).to_dict()
+    {'violations': 1, 'n': 3, 'unit': 'samples'}
+    """
+
+    __test__ = False  # not a pytest test class
+
+    violations: int
+    n: int
+    unit: str
+
+    def __post_init__(self) -> None:
+        if not (0 <= self.violations <= self.n and self.n >= 1):
+            raise InvalidInputError(f"need 0 <= violations <= n, n >= 1; got {self.violations}, {self.n}")
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data."""
+        return {"violations": self.violations, "n": self.n, "unit": self.unit}
+
+
+@dataclass(frozen=True, kw_only=True)
+class GroupClaim:
+    """What a claim about groups (flights, runs) is about, so that test data can be counted alike.
+
+    Attributes
+    ----------
+    column : str
+        The data column naming each sample's group.
+    unit : {"trajectory", "sample"}
+        The statistic of a group: any of its samples outside its set, or one sample drawn at
+        random (seeded) from it outside.
+    seed : int
+        Seeds the choice of one sample per group (``unit="sample"``).
+
+    Examples
+    --------
+    >>> GroupClaim(column="run", unit="sample", seed=0).unit
+    'sample'
+    """
+
+    column: str
+    unit: GroupUnit
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.unit not in GROUP_UNITS or not self.column:
+            raise InvalidInputError(
+                f"a group claim needs a column name and a unit in {GROUP_UNITS}; got {self.column!r}, "
+                f"{self.unit!r}"
+            )
+
+
+def row_counts(violated: NDArray[np.bool_]) -> TestCounts:
+    """Violations counted per test sample (the unit of a per-sample claim over exchangeable rows)."""
+    v = np.asarray(violated, dtype=bool)
+    return TestCounts(violations=int(v.sum()), n=int(v.size), unit="samples")
+
+
+@dataclass(frozen=True, kw_only=True)
+class CalibrationSummary:
+    """The ``calibration`` block of ``certificate.json``, one typed record for every kind.
+
+    Attributes
+    ----------
+    kind : str
+        ``"global"``, ``"mondrian"``, ...
+    mode : {"pac", "marginal"}
+    epsilon, delta : float
+        Target violation rate and confidence parameter.
+    n : int
+        Calibration samples whose scores were used.
+    certified_epsilon : float
+        The violation rate actually certified (at most ``epsilon``).
+    guarantee : str
+        The guarantee in one plain sentence.
+    data_sha256 : str
+        Content hash of the calibration data.
+    groups : tuple of GroupInfo
+        The separately calibrated groups (one for a global calibration).
+    grouping : str
+        What the groups are, in words ("all samples", "5 bins of x_0", ...).
+    details : mapping
+        Kind-specific fields (``k``, ``scale`` ...), written beside the common ones; a
+        ``groups`` entry replaces the plain group records in :meth:`to_dict`.
+
+    Examples
+    --------
+    >>> g = (GroupInfo(label="all", n=10, k=10, scale=2.0),)
+    >>> s = CalibrationSummary(kind="global", mode="pac", epsilon=0.1, delta=0.1, n=10,
+    ...     certified_epsilon=0.1, guarantee="...", data_sha256="d", groups=g, grouping="all samples",
+    ...     details={"k": 10})
+    >>> s.to_dict()["k"], s.to_dict()["groups"][0]["scale"]
+    (10, 2.0)
+    """
+
+    kind: str
+    mode: CalibrationMode
+    epsilon: float
+    delta: float
+    n: int
+    certified_epsilon: float
+    guarantee: str
+    data_sha256: str
+    groups: tuple[GroupInfo, ...]
+    grouping: str
+    details: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        clash = set(self.details) & {f for f in self.__dataclass_fields__ if f not in ("details", "groups")}
+        if clash:
+            raise InvalidInputError(f"calibration details may not redefine {sorted(clash)}")
+        if not self.groups or sum(g.n for g in self.groups) != self.n:
+            raise InvalidInputError("a calibration summary needs its groups, whose sizes add up to n")
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data: the common fields and the kind's details."""
+        return {
+            "kind": self.kind,
+            "mode": self.mode,
+            "epsilon": self.epsilon,
+            "delta": self.delta,
+            "n": self.n,
+            "grouping": self.grouping,
+            "groups": [g.to_dict() for g in self.groups],
+            **self.details,
+            "certified_epsilon": self.certified_epsilon,
+            "data_sha256": self.data_sha256,
+            "guarantee": self.guarantee,
+        }
+
+
+class Calibration(Protocol):
+    """What a calibration provides to the rest of ipcverify (see the module docstring)."""
+
+    @property
+    def kind(self) -> str:
+        """The kind's name, stored in model files (``"global"``, ``"mondrian"``, ...)."""
+        ...
+
+    @property
+    def mode(self) -> CalibrationMode:
+        """``"pac"`` or ``"marginal"``."""
+        ...
+
+    @property
+    def epsilon(self) -> float:
+        """Target violation rate."""
+        ...
+
+    @property
+    def delta(self) -> float:
+        """Confidence parameter."""
+        ...
+
+    @property
+    def n(self) -> int:
+        """Calibration samples whose scores were used."""
+        ...
+
+    @property
+    def data_hash(self) -> str:
+        """Content hash of the calibration data."""
+        ...
+
+    @property
+    def network_hash(self) -> str:
+        """Fingerprint of the calibrated network."""
+        ...
+
+    def scale_for(self, x: FloatArray, yhat: FloatArray) -> FloatArray:
+        """Per-query scale factors ``s`` (B,): the calibrated set is ``E(c, C / s)``."""
+        ...
+
+    def group_index(self, x: FloatArray, yhat: FloatArray) -> NDArray[np.intp]:
+        """Index into :meth:`groups` of every query (B,)."""
+        ...
+
+    def groups(self) -> tuple[GroupInfo, ...]:
+        """The separately calibrated groups (one for a global calibration)."""
+        ...
+
+    def allowed_violation_rate(self) -> AllowedRate:
+        """The rate test data may be checked against (w.p. ``1 - delta``), if any."""
+        ...
+
+    def test_counts(self, violated: NDArray[np.bool_], test_data: PerceptionDataset) -> TestCounts:
+        """The test data's violations counted in the unit of this calibration's claim."""
+        ...
+
+    def group_claim(self) -> GroupClaim | None:
+        """The groups this calibration's claim is about (None: the claim is about rows)."""
+        ...
+
+    def summary(self) -> CalibrationSummary:
+        """One typed record of the calibration."""
+        ...
+
+    def guarantee(self) -> str:
+        """The guarantee in one plain sentence."""
+        ...
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-data form stored in the model file (``kind`` included)."""
+        ...

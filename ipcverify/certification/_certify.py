@@ -1,0 +1,538 @@
+"""Certify an IPC: what is guaranteed, what the test data says, and what Theorem 1 says.
+
+:func:`certify` gathers three independent pieces of evidence about a model:
+
+1. The **calibration certificate** (if the model is calibrated): the guarantee of
+   :mod:`ipcverify.calibration`, e.g. "with probability >= 1 - delta over the
+   calibration draw, P(y outside the set) <= epsilon".
+2. The **test-set bound**: ``k`` violations among ``n`` fresh test samples give a
+   one-sided Clopper--Pearson upper bound on the violation rate at confidence
+   ``1 - delta`` -- valid by itself when the test samples are i.i.d. from the
+   deployment distribution and were not used to train, select or calibrate the model.
+   If the test data contradicts the calibration claim (its lower bound exceeds what
+   the calibration allows), the status says so.
+   With a group column (flights, runs; ``group_column=``, or the column of a flight-level
+   calibration), the test is also counted per group
+   (:func:`ipcverify.certification.group_test_step`): valid when the test groups are i.i.d.,
+   whatever the correlation of the rows within a group, which the row-level bound assumes away.
+3. **Theorem 1** of the paper, with both Lipschitz constants; computed only when the
+   training data is given, reported as vacuous when it is.
+
+It is a short pipeline of named steps (:func:`check_inputs`, :func:`score_test_set`,
+:func:`test_results`, :func:`theorem1_step`, :func:`statement`, ...); the result types
+live in :mod:`ipcverify.certification._certificate`. :func:`write_certificate` writes ``certificate.json``
+(atomically) and the self-contained ``report.html`` (:mod:`ipcverify.certification._report`).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ipcverify.calibration._protocol import Calibration, row_counts
+from ipcverify.certification._certificate import (
+    Certificate,
+    CertificateStatus,
+    CertifyEvidence,
+    CertifyResult,
+    Consistency,
+    DataIdentity,
+    GroupTest,
+    GroupTestResult,
+    ModelIdentity,
+    TestResult,
+    VolumeSummary,
+)
+from ipcverify.certification._evaluation import BinCoverage, WorstBin, coverage_by_bin, worst_bin_coverage
+from ipcverify.certification._group_check import group_test_step
+from ipcverify.certification._lipschitz import DEFAULT_RADIUS
+from ipcverify.certification._report import render_report
+from ipcverify.certification._summarize import output_labels, summarize
+from ipcverify.certification._theorem1 import Theorem1Result, TrainingStatistics, theorem1
+from ipcverify.contract._model import IPCModel
+from ipcverify.data._dataset import PerceptionDataset
+from ipcverify.data._files import atomic_write, file_sha256, write_json
+from ipcverify.errors import InvalidInputError
+from ipcverify.guard._domain import DomainReport
+from ipcverify.io._modelio import load_data_for_model, load_model
+from ipcverify.sets._shapes import Ellipsoid
+
+__all__ = [
+    "DEFAULT_DELTA",
+    "NO_STATISTICS",
+    "TestScores",
+    "certify",
+    "check_inputs",
+    "score_test_set",
+    "test_results",
+    "theorem1_step",
+    "statement",
+    "write_certificate",
+    "certify_files",
+]
+
+FloatArray = NDArray[np.float64]
+PathLike = str | os.PathLike[str]
+
+#: Confidence parameter of the test-set bound when the model carries no calibration.
+DEFAULT_DELTA = 0.001
+#: Number of example ellipsoids kept for the report's projections.
+N_EXAMPLES = 4
+#: Why Theorem 1 is not computed for a model file without training statistics and no training data.
+NO_STATISTICS = (
+    "not computed: training data not given, and the model records no training statistics (a model "
+    "not built by ipcverify.training.train, or a default-recipe model file written before Theorem 1 "
+    "covered the default recipe); pass the training data (--train-data), or retrain the model"
+)
+
+
+def _check_dims(model: IPCModel, data: PerceptionDataset, role: str) -> None:
+    cfg = model.config
+    if (data.x_dim, data.y_dim) != (cfg.x_dim, cfg.y_dim):
+        raise InvalidInputError(
+            f"{data.source}: {role} data has x_dim={data.x_dim}, y_dim={data.y_dim} but the model expects "
+            f"x_dim={cfg.x_dim}, y_dim={cfg.y_dim}"
+        )
+
+
+def check_inputs(
+    model: IPCModel,
+    test_data: PerceptionDataset | None,
+    train_data: PerceptionDataset | None,
+    delta: float | None,
+) -> float:
+    """Step 1: refuse data the certificate could not rest on; return the confidence ``delta``.
+
+    Raises
+    ------
+    InvalidInputError
+        If dimensions disagree, the test data is the calibration or training data, the
+        calibration belongs to a different network, or ``delta`` is not in ``(0, 1)``.
+    """
+    if train_data is not None:
+        _check_dims(model, train_data, "training")
+    cal = model.calibration
+    if cal is not None and cal.network_hash != model.weights.fingerprint():
+        raise InvalidInputError(
+            "the model's calibration was computed for a different network (fingerprint mismatch); "
+            "recalibrate this network"
+        )
+    if test_data is not None:
+        _check_test_data(model, test_data)
+    if delta is None:
+        delta = cal.delta if cal is not None else DEFAULT_DELTA
+    if not (isinstance(delta, (int, float)) and 0 < delta < 1):
+        raise InvalidInputError(f"delta must lie strictly between 0 and 1; got {delta!r}")
+    return float(delta)
+
+
+def _check_test_data(model: IPCModel, test_data: PerceptionDataset) -> None:
+    _check_dims(model, test_data, "test")
+    cal = model.calibration
+    test_hash = test_data.content_hash()
+    if cal is not None:
+        if cal.data_hash == test_hash:
+            raise InvalidInputError(
+                f"{test_data.source}: the test data is the calibration data; certify on fresh samples"
+            )
+    if test_hash == model.metadata.get("train_data_hash"):
+        raise InvalidInputError(f"{test_data.source}: the test data is the training data; use fresh samples")
+
+
+@dataclass(frozen=True, eq=False)
+class TestScores:
+    """The contract's sets on the test data and what they say about each sample."""
+
+    __test__ = False  # not a pytest test class
+
+    sets: Ellipsoid
+    raw: FloatArray
+    scales: FloatArray
+    normalized: FloatArray
+    violated: NDArray[np.bool_]
+    log_volume: FloatArray
+
+
+def score_test_set(model: IPCModel, test_data: PerceptionDataset) -> TestScores:
+    """Step 2: raw scores, calibration scales, calibrated sets and violations of every test sample."""
+    centers, shapes = model.raw_arrays(test_data.x, test_data.yhat)
+    raw = np.linalg.norm(np.einsum("bij,bj->bi", shapes, test_data.y - centers), axis=1)
+    cal = model.calibration
+    scales = np.ones(len(raw)) if cal is None else np.asarray(cal.scale_for(test_data.x, test_data.yhat))
+    sets = model.predict(test_data.x, test_data.yhat)
+    return TestScores(
+        sets=sets,
+        raw=raw,
+        scales=scales,
+        normalized=sets.g(test_data.y),
+        violated=~sets.contains(test_data.y),
+        log_volume=sets.log_volume(),
+    )
+
+
+def test_results(
+    cal: Calibration | None, test_data: PerceptionDataset, violated: NDArray[np.bool_], delta: float
+) -> tuple[TestResult, tuple[GroupTestResult, ...]]:
+    """Step 3: the test bound overall (counted in the unit of the calibration's claim) and, for a
+    calibration with several groups, per group."""
+    counts = row_counts(violated) if cal is None else cal.test_counts(violated, test_data)
+    test = TestResult.from_counts(counts.violations, counts.n, delta, counts.unit)
+    if cal is None or len(cal.groups()) == 1:
+        return test, ()
+    gi = cal.group_index(test_data.x, test_data.yhat)
+    groups = []
+    for j, g in enumerate(cal.groups()):
+        m = gi == j
+        res = TestResult.from_counts(int(violated[m].sum()), int(m.sum()), delta) if m.any() else None
+        groups.append(GroupTestResult(label=g.label, result=res))
+    return test, tuple(groups)
+
+
+def _status(cal: Calibration | None, checks: tuple[Consistency, ...], tested: bool) -> CertificateStatus:
+    """No calibration / untested; CONTRADICTED if any check fails; UNCHECKED if none was possible."""
+    if cal is None:
+        return CertificateStatus.NOT_CALIBRATED
+    if not tested:
+        return CertificateStatus.UNTESTED
+    done = [c for c in checks if c.checked]
+    if not done:
+        return CertificateStatus.UNCHECKED
+    return CertificateStatus.CERTIFIED if all(c.consistent for c in done) else CertificateStatus.CONTRADICTED
+
+
+def theorem1_step(
+    model: IPCModel, train_data: PerceptionDataset | None, delta: float, radius: float
+) -> tuple[Theorem1Result | None, str, str]:
+    """Step 4: Theorem 1 and where its training terms came from, or the reason it was not computed.
+
+    From the training data if given, else from the statistics :func:`ipcverify.training.train`
+    stored in the model file (for every recipe). A model file without them (a default-recipe
+    model written before they were stored for it) gets a reason instead: the PAC certificate
+    does not depend on Theorem 1.
+    """
+    if train_data is not None:
+        return theorem1(model, train_data, delta, radius=radius), "", "training data"
+    stored = model.metadata.get("training_statistics")
+    if stored is None:
+        return None, NO_STATISTICS, ""
+    stats = TrainingStatistics.from_dict(stored)
+    return theorem1(model, stats, delta, radius=radius), "", "statistics stored at training time"
+
+
+def statement(
+    cal: Calibration | None,
+    test: TestResult | None,
+    status: CertificateStatus,
+    group_test: GroupTest | None = None,
+) -> str:
+    """Step 5: the certificate's statement in plain words (with the group-level test, if any)."""
+    text = _statement(cal, test, status)
+    if group_test is None:
+        return text
+    if test is not None and test.unit == "samples":
+        text += " The row-level bound assumes independent rows; rows of one group are correlated."
+    return text + " " + group_test.sentence()
+
+
+def _statement(cal: Calibration | None, test: TestResult | None, status: CertificateStatus) -> str:
+    if test is None:
+        if cal is None:
+            return "No calibration certificate and no test data: nothing is guaranteed about this model."
+        return cal.guarantee() + " No test data was given: nothing here checks the calibration independently."
+    test_sentence = (
+        f"Independently, the ground truth fell outside its set for {test.violations} of {test.n} fresh "
+        f"test {test.unit}, so with "
+        f"confidence {1 - test.delta:.6g} the violation rate of this contract is at most "
+        f"{test.upper_bound:.4g} (Clopper-Pearson; valid if the test {test.unit} are i.i.d. from "
+        "deployment and unused in training and calibration)."
+    )
+    if cal is None:
+        return "No calibration certificate: the model was not calibrated. " + test_sentence
+    text = cal.guarantee() + " " + test_sentence
+    if status is CertificateStatus.CONTRADICTED:
+        text = "WARNING: the test data contradicts the calibration. " + text
+    return text
+
+
+def _identity(data: PerceptionDataset, path: PathLike | None, model: IPCModel | None = None) -> DataIdentity:
+    content = data.content_hash()
+    recorded = None if model is None else model.metadata.get("train_data_hash")
+    return DataIdentity(
+        source=data.source,
+        n=len(data),
+        content_sha256=content,
+        file_sha256=None if path is None else file_sha256(path),
+        matches_model_metadata=None if recorded is None else recorded == content,
+        is_training_data=model is not None,
+    )
+
+
+def _model_identity(model: IPCModel, path: PathLike | None) -> ModelIdentity:
+    return ModelIdentity(
+        path=None if path is None else str(path),
+        file_sha256=None if path is None else file_sha256(path),
+        network_sha256=model.weights.fingerprint(),
+        architecture=model.config.to_dict(),
+        n_parameters=model.n_parameters,
+        training=model.metadata.get("train_config"),
+        selection=model.metadata.get("selection"),
+    )
+
+
+def _examples(log_volumes: FloatArray, violated: NDArray[np.bool_]) -> NDArray[np.intp]:
+    order = np.argsort(log_volumes, kind="stable")
+    picks = [int(order[0]), int(order[len(order) // 2]), int(order[-1])]
+    bad = np.flatnonzero(violated)
+    picks.append(int(bad[0]) if len(bad) else int(order[(3 * len(order)) // 4]))
+    seen: list[int] = []
+    for p in picks:
+        if p not in seen:
+            seen.append(p)
+    return np.asarray(seen[:N_EXAMPLES], dtype=np.intp)
+
+
+def _evidence(scores: TestScores, test_data: PerceptionDataset) -> CertifyEvidence:
+    idx = _examples(scores.log_volume, scores.violated)
+    ex = scores.sets[idx]
+    return CertifyEvidence(
+        normalized_scores=scores.normalized,
+        raw_scores=scores.raw,
+        scales=scores.scales,
+        log_volumes=scores.log_volume,
+        violated=scores.violated,
+        example_index=idx,
+        example_centers=ex.centers,
+        example_shapes=ex.shapes,
+        example_truths=test_data.y[idx],
+        example_estimates=test_data.yhat[idx],
+        y_columns=test_data.y_columns,
+    )
+
+
+def certify(
+    model: IPCModel,
+    test_data: PerceptionDataset | None = None,
+    *,
+    train_data: PerceptionDataset | None = None,
+    delta: float | None = None,
+    bin_column: str | None = None,
+    bins: int = 10,
+    group_column: str | None = None,
+    lipschitz_radius: float = DEFAULT_RADIUS,
+    model_path: PathLike | None = None,
+    test_path: PathLike | None = None,
+    train_path: PathLike | None = None,
+    units: str | None = None,
+    labels: Sequence[str] | None = None,
+) -> CertifyResult:
+    """Certify a (preferably calibrated) IPC on fresh test data.
+
+    Parameters
+    ----------
+    model : IPCModel
+        The model; its calibration (if any) is what gets certified.
+    test_data : PerceptionDataset, optional
+        Fresh samples, used neither for training nor for calibration. Without them the
+        certificate holds what the model file holds: the calibration certificate, the
+        domain of validity and Theorem 1 from the statistics stored at training.
+    train_data : PerceptionDataset, optional
+        The training set, for Theorem 1 (its empirical term, ``L_g`` and ``N``). Without
+        it Theorem 1 uses the statistics stored at training, or is reported as not computed.
+    delta : float, optional
+        Confidence parameter of the test bound and Theorem 1; default: the
+        calibration's ``delta``, or :data:`DEFAULT_DELTA` without calibration.
+    bin_column : str, optional
+        Column for conditional coverage (default: the first ``x`` column).
+    bins : int
+        Number of quantile bins of that column.
+    group_column : str, optional
+        A column of the test data naming each row's group (flight, run): adds the test counted
+        per group (:func:`ipcverify.certification.group_test_step`), valid for correlated rows.
+        Default: the column of a flight-level calibration, if the test data has it.
+    lipschitz_radius : float
+        Parameter-ball radius of the sound Lipschitz bound (Theorem 1).
+    model_path, test_path, train_path : path-like, optional
+        Files to fingerprint (SHA-256) in the certificate.
+    units : str, optional
+        The units of ``y`` (e.g. ``"m"``), for the summary and every plot axis along ``y``;
+        default: none named (the page says "units of the data").
+    labels : sequence of str, optional
+        One label per coordinate of ``y`` (e.g. ``("forward", "left", "up")``); default: the
+        data's column names (:func:`output_labels`).
+
+    Raises
+    ------
+    InvalidInputError
+        If dimensions disagree, the test data is the calibration or training data,
+        the calibration belongs to a different network, the group column is missing from
+        the test data, has one group only, or is given without test data, or the labels do
+        not name every coordinate of ``y`` or the units are empty.
+
+    Examples
+    --------
+    >>> from ipcverify.data._synthetic import make_lagged_perception
+    >>> from ipcverify.network._modules import IPCNetwork
+    >>> from ipcverify.network._architecture import ModelConfig
+    >>> from ipcverify.contract._calibrate import calibrate
+    >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(8,), param="cholesky")))
+    >>> m = calibrate(m, make_lagged_perception(2000, seed=1), epsilon=0.05, delta=0.01)
+    >>> res = certify(m, make_lagged_perception(2000, seed=2))
+    >>> res.certificate.status.name, res.certificate.test.n
+    ('CERTIFIED', 2000)
+    """
+    delta = check_inputs(model, test_data, train_data, delta)
+    y_labels = output_labels(model, test_data, labels)
+    if units is not None and not units.strip():
+        raise InvalidInputError(
+            "the units of y must not be empty; name them (e.g. --units m) or leave them out"
+        )
+    if group_column is not None and test_data is None:
+        raise InvalidInputError(f"group column {group_column!r} needs test data to count per group (--data)")
+    cal = model.calibration
+    tested = (
+        _tested(model, test_data, delta, bin_column, bins, group_column) if test_data is not None else None
+    )
+    test = None if tested is None else tested.test
+    group_test = None if tested is None else tested.group_test
+    consistency = (
+        Consistency(checked=False, reason="no test data")
+        if test is None
+        else Consistency.check(None if cal is None else cal.allowed_violation_rate(), test)
+    )
+    checks = (consistency,) if group_test is None else (consistency, group_test.consistency)
+    status = _status(cal, checks, tested is not None)
+    t1, t1_reason, t1_source = theorem1_step(model, train_data, delta, lipschitz_radius)
+    cert = Certificate(
+        status=status,
+        statement=statement(cal, test, status, group_test),
+        model=_model_identity(model, model_path),
+        calibration=None if cal is None else cal.summary(),
+        test=test,
+        test_groups=() if tested is None else tested.groups,
+        consistency=consistency,
+        theorem1=t1,
+        theorem1_reason=t1_reason,
+        theorem1_source=t1_source,
+        volume=None if tested is None else tested.volume,
+        coverage=None if tested is None else tested.coverage,
+        worst_bin=None if tested is None else tested.worst_bin,
+        domain=_domain(model, test_data, None if tested is None else tested.scores.violated),
+        group_test=group_test,
+        test_data=None if test_data is None else _identity(test_data, test_path),
+        train_data=None if train_data is None else _identity(train_data, train_path, model),
+        group_claim=None if cal is None else cal.group_claim(),
+    )
+    rows_outside = (
+        None if tested is None else (int(tested.scores.violated.sum()), len(tested.scores.violated))
+    )
+    summary = summarize(
+        cert, units=None if units is None else units.strip(), labels=y_labels, rows_outside=rows_outside
+    )
+    cert = replace(cert, summary=summary)
+    return CertifyResult(
+        cert, None if tested is None or test_data is None else _evidence(tested.scores, test_data)
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class _Tested:
+    scores: TestScores
+    test: TestResult
+    groups: tuple[GroupTestResult, ...]
+    volume: VolumeSummary
+    coverage: BinCoverage
+    worst_bin: WorstBin
+    group_test: GroupTest | None
+
+
+def _tested(
+    model: IPCModel,
+    test_data: PerceptionDataset,
+    delta: float,
+    bin_column: str | None,
+    bins: int,
+    group_column: str | None,
+) -> _Tested:
+    """Steps 2-3 on the test data: scores, test bounds (per row and per group), volumes, coverage."""
+    scores = score_test_set(model, test_data)
+    test, groups = test_results(model.calibration, test_data, scores.violated, delta)
+    group_test = group_test_step(model.calibration, test_data, scores.violated, delta, group_column)
+    column = bin_column or test_data.x_columns[0]
+    values = test_data.column(column)  # numbers (quantile bins) or text (one bin per flight or run)
+    return _Tested(
+        scores=scores,
+        test=test,
+        groups=groups,
+        volume=VolumeSummary(
+            mean_log=float(np.mean(scores.log_volume)),
+            median_log=float(np.median(scores.log_volume)),
+            unit=f"log of volume in the units of y (dimension {model.config.y_dim})",
+        ),
+        coverage=coverage_by_bin(values, scores.violated, column, bins),
+        worst_bin=worst_bin_coverage(test_data.x, test_data.yhat, scores.violated, test_data.x_columns, bins),
+        group_test=group_test,
+    )
+
+
+def _domain(
+    model: IPCModel, test_data: PerceptionDataset | None, violated: NDArray[np.bool_] | None
+) -> DomainReport | None:
+    """The domain-of-validity block: the test's own description, and the test queries outside it."""
+    if model.domain is None:
+        return None
+    if test_data is None:
+        return model.domain.describe()
+    return model.domain.report(test_data.x, test_data.yhat, violated)
+
+
+def write_certificate(result: CertifyResult, out_dir: PathLike) -> tuple[Path, Path]:
+    """Write ``certificate.json`` and ``report.html`` into ``out_dir`` (atomically); return their paths."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    cert_path, report_path = out / "certificate.json", out / "report.html"
+    write_json(cert_path, result.certificate)
+    html = render_report(result)
+    atomic_write(report_path, lambda f: f.write(html), mode="w")
+    return cert_path, report_path
+
+
+def certify_files(
+    model_path: PathLike,
+    test_path: PathLike | None,
+    out_dir: PathLike,
+    *,
+    train_path: PathLike | None = None,
+    delta: float | None = None,
+    bin_column: str | None = None,
+    bins: int = 10,
+    group_column: str | None = None,
+    lipschitz_radius: float = DEFAULT_RADIUS,
+    units: str | None = None,
+    labels: Sequence[str] | None = None,
+) -> CertifyResult:
+    """Load a model file and data files, :func:`certify`, and :func:`write_certificate` (the CLI's call)."""
+    model = load_model(model_path)
+    test_data = None if test_path is None else load_data_for_model(test_path, model)
+    train_data = None if train_path is None else load_data_for_model(train_path, model)
+    result = certify(
+        model,
+        test_data,
+        train_data=train_data,
+        delta=delta,
+        bin_column=bin_column,
+        bins=bins,
+        group_column=group_column,
+        lipschitz_radius=lipschitz_radius,
+        model_path=model_path,
+        test_path=test_path,
+        train_path=train_path,
+        units=units,
+        labels=labels,
+    )
+    write_certificate(result, out_dir)
+    return result

@@ -1,0 +1,116 @@
+"""The test counted per group (flight, run): a certificate's check that stays valid for correlated rows.
+
+A row-level Clopper--Pearson bound on test violations assumes independent rows. Rows of one
+flight share its conditions, so they are correlated and that interval is too narrow. Counting
+one statistic per test group -- any violation (``trajectory``), or one seeded random sample
+(``sample``; :func:`~ipcverify.calibration.group_violation_counts`) -- gives one
+Bernoulli draw per group, i.i.d. when the test groups are, whatever happens within a group;
+the exact binomial bounds then hold (``proofs/group_calibration.md`` section 6).
+:func:`group_test_step` is the step of :func:`ipcverify.certification.certify` that does it; the
+record is :class:`ipcverify.certification.GroupTest`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ipcverify.calibration._grouped import group_violation_counts
+from ipcverify.calibration._protocol import GROUP_UNITS, Calibration, GroupUnit
+from ipcverify.certification._certificate import Consistency, GroupTest, TestResult
+from ipcverify.data._checks import warn_correlated_rows
+from ipcverify.data._dataset import PerceptionDataset, group_codes
+from ipcverify.errors import InvalidInputError
+
+__all__ = ["group_test_step"]
+
+
+def _group_labels(test_data: PerceptionDataset, column: str) -> NDArray[np.intp]:
+    """Group codes of the test rows; refuse an unknown column or a single group."""
+    names = (*test_data.x_columns, *test_data.y_columns, *test_data.yhat_columns, *test_data.extra)
+    if column not in names:
+        raise InvalidInputError(
+            f"{test_data.source}: no group column {column!r} in the test data (columns: {', '.join(names)}); "
+            "name the column of flights or runs, e.g. --group-column run"
+        )
+    codes, distinct = group_codes(test_data.column(column), f"{test_data.source}: group column {column!r}")
+    if len(distinct) < 2:
+        raise InvalidInputError(
+            f"{test_data.source}: group column {column!r} has one group only ({distinct.tolist()[0]!r}); a "
+            "group-level test needs test data from several independent groups (flights, runs) -- add "
+            "more, or drop --group-column"
+        )
+    return codes
+
+
+def group_test_step(
+    cal: Calibration | None,
+    test_data: PerceptionDataset,
+    violated: NDArray[np.bool_],
+    delta: float,
+    group_column: str | None,
+) -> GroupTest | None:
+    """Step 3b: the test counted per group of a column (flights, runs), valid for correlated rows.
+
+    The column is ``group_column``, else the column of a flight-level calibration if the test
+    data has it, else there is no group test (None). Both statistics of
+    :func:`~ipcverify.calibration.group_violation_counts` are bounded at ``1 - delta``
+    (one-sided Clopper--Pearson). The count checked against the calibration's allowed rate is
+    the one its claim is about: for a flight-level calibration its own unit (and seed); for a
+    row-level one ``sample`` (a random sample of a random group, which is what a row-level
+    claim promises when flight lengths are unrelated to their violations); the trajectory
+    count is then only reported (any violation in a long flight is no row-level event).
+
+    Raises
+    ------
+    InvalidInputError
+        If the column is not in the test data or has one group only.
+
+    Examples
+    --------
+    >>> from ipcverify.data._synthetic import make_lagged_perception
+    >>> ds = make_lagged_perception(40, seed=0)
+    >>> ds = PerceptionDataset(ds.x, ds.y, ds.yhat, extra={"run": np.repeat(np.arange(8), 5)})
+    >>> violated = np.zeros(40, dtype=bool); violated[[0, 1, 7]] = True
+    >>> g = group_test_step(None, ds, violated, 0.05, "run")
+    >>> g.n_groups, g.trajectory.violations, g.compared_unit
+    (8, 2, None)
+    """
+    claim = None if cal is None else cal.group_claim()
+    if group_column is None:
+        if claim is None or claim.column not in test_data.extra:
+            warn_correlated_rows(
+                test_data, "certifying", "to also count the test per group (valid for correlated rows)"
+            )
+            return None
+        group_column = claim.column
+    codes = _group_labels(test_data, group_column)
+    own = claim is not None and claim.column == group_column
+    seed = claim.seed if claim is not None and own else 0
+    counted = {u: group_violation_counts(violated, codes, u, seed) for u in GROUP_UNITS}
+    what = {"trajectory": "any violation", "sample": "one random sample each"}
+    res = {
+        u: TestResult.from_counts(c.violations, c.n_groups, delta, f"groups of {group_column} ({what[u]})")
+        for u, c in counted.items()
+    }
+    compared: GroupUnit | None = None
+    if cal is None:
+        consistency = Consistency(checked=False, reason="no calibration")
+    elif claim is not None and not own:
+        consistency = Consistency(
+            checked=False,
+            reason=f"the calibration's claim is about groups of {claim.column!r}, not of {group_column!r}",
+        )
+    else:
+        compared = "sample" if claim is None else claim.unit
+        consistency = Consistency.check(cal.allowed_violation_rate(), res[compared])
+    return GroupTest(
+        column=group_column,
+        n_groups=counted["trajectory"].n_groups,
+        n_rows=int(len(codes)),
+        seed=seed,
+        trajectory=res["trajectory"],
+        sample=res["sample"],
+        compared_unit=compared,
+        consistency=consistency,
+    )

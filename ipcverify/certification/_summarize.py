@@ -1,0 +1,325 @@
+"""Build a certificate's executive summary (:class:`~ipcverify.certification.CertificateSummary`).
+
+:func:`summarize` reads a :class:`~ipcverify.certification.Certificate` and writes down, without
+deciding anything anew, what its records already say: the claim in one sentence, ``epsilon``,
+``delta`` and the unit of the claim, and one line per check -- the calibration certificate, the
+held-out test, the per-flight test (when the test was counted per group), the domain of validity
+and Theorem 1 -- with the verdict the certificate reached and the numbers behind it.
+:func:`ipcverify.certification.certify` calls it and stores the result in the certificate.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from ipcverify._package import VERSION
+from ipcverify.certification._certificate import Certificate, CertificateStatus, GroupTest, TestResult
+from ipcverify.certification._summary import CertificateSummary, Check, CheckLevel, target_strength, utc_now
+from ipcverify.contract._model import IPCModel
+from ipcverify.data._dataset import PerceptionDataset
+from ipcverify.errors import InvalidInputError
+from ipcverify.guard._domain import DomainReport
+
+__all__ = ["summarize", "output_labels", "capitalized"]
+
+_NOT_RUN = "no test data given: the held-out test was not run"
+
+
+def capitalized(text: str) -> str:
+    """``text`` with its first letter upper-cased and the rest untouched (unlike ``str.capitalize``).
+
+    Examples
+    --------
+    >>> capitalized("not computed: before Theorem 1 covered it")
+    'Not computed: before Theorem 1 covered it'
+    """
+    return text[:1].upper() + text[1:]
+
+
+def _status_detail(status: CertificateStatus) -> str:
+    """The status text without a leading repetition of its name ("certified: ...")."""
+    return status.value.removeprefix(status.name.lower().replace("_", " ") + ": ")
+
+
+def _claim(cert: Certificate) -> str:
+    cal, test = cert.calibration, cert.test
+    if cal is not None:
+        return cal.guarantee
+    if test is None:
+        return "Nothing is claimed: the model is not calibrated and no test data was given."
+    return (
+        "No calibration certificate; the held-out test alone says that, with confidence "
+        f"{1 - test.delta:.6g}, the violation rate is at most {test.upper_bound:.4g} "
+        f"({test.violations} of {test.n} test {test.unit} outside their sets; valid if they are i.i.d. "
+        "from deployment)."
+    )
+
+
+def _calibration_check(cert: Certificate) -> Check:
+    cal = cert.calibration
+    name = "calibration certificate"
+    if cal is None:
+        return Check(
+            name=name,
+            verdict="absent",
+            level="fail",
+            detail="the model is not calibrated: run ipcverify calibrate on held-out data",
+        )
+    weak = target_strength(cal.epsilon) == "weak"
+    mode = (
+        "PAC (holds for this calibration, except with probability delta)"
+        if cal.mode == "pac"
+        else ("marginal (on average over calibration draws, not for this one)")
+    )
+    return Check(
+        name=name,
+        verdict="present, weak target" if weak else "present",
+        level="warn" if weak else "pass",
+        detail=(
+            f"{mode}; certified violation rate {cal.certified_epsilon:.4g} (target epsilon = "
+            f"{cal.epsilon:g}), delta = {cal.delta:g}; {cal.grouping}; n = {cal.n:,}"
+        ),
+    )
+
+
+def _counted(t: TestResult) -> str:
+    return (
+        f"{t.violations:,} of {t.n:,} test {t.unit} outside ({100 * t.empirical_rate:.3g} %); upper bound "
+        f"{t.upper_bound:.4g} at confidence {1 - t.delta:.6g}"
+    )
+
+
+def _test_check(cert: Certificate, rows_outside: tuple[int, int] | None) -> Check:
+    t, c = cert.test, cert.consistency
+    name = "held-out test"
+    if t is None:
+        return Check(name=name, verdict="not run", level="info", detail=_NOT_RUN + " (pass --data TEST)")
+    level: CheckLevel
+    if not c.checked:
+        verdict, level, versus = (
+            "reported, not compared",
+            "info",
+            f"not compared with the calibration: {c.reason}",
+        )
+    elif c.consistent:
+        verdict, level = "consistent with the calibration", "pass"
+        versus = f"lower bound {c.test_lower_bound:.4g} <= allowed {c.allowed_rate:.4g}"
+    else:
+        verdict, level = "CONTRADICTS the calibration", "fail"
+        versus = f"lower bound {c.test_lower_bound:.4g} > allowed {c.allowed_rate:.4g}"
+    detail = f"{_counted(t)}; {versus}"
+    if rows_outside is not None and t.unit != "samples":
+        k, n = rows_outside
+        detail += (
+            f"; all test rows: {k:,} of {n:,} outside ({100 * k / n:.3g} %; descriptive only, rows of a "
+            "group are correlated)"
+        )
+    return Check(name=name, verdict=verdict, level=level, detail=detail)
+
+
+def _group_checks(g: GroupTest) -> list[Check]:
+    """Two rows (one random row per group; any violation per group); the compared one has the verdict."""
+    rows = []
+    c = g.consistency
+    for unit, what, res in (
+        ("sample", "one random row per group", g.sample),
+        ("trajectory", "any violation in a group", g.trajectory),
+    ):
+        counted = (
+            f"{res.violations:,} of {res.n:,} groups ({100 * res.empirical_rate:.3g} %)"
+            + (" have a truth outside its set somewhere" if unit == "trajectory" else " outside")
+            + f"; upper bound {res.upper_bound:.4g} at confidence {1 - res.delta:.6g}"
+        )
+        level: CheckLevel
+        if g.compared_unit == unit and c.checked:
+            verdict, level = (
+                ("consistent with the calibration", "pass")
+                if c.consistent
+                else ("CONTRADICTS the calibration", "fail")
+            )
+            counted += f"; lower bound {c.test_lower_bound:.4g} vs. allowed rate {c.allowed_rate:.4g}"
+        else:
+            if g.compared_unit is None or not c.checked:
+                why = c.reason or "the calibration claims no rate to compare with"
+            elif unit == "trajectory":
+                why = "the claim bounds single rows, not whole groups"
+            else:
+                why = "the claim is about whole groups (the row below)"
+            verdict, level = "reported only", "info"
+            counted += f"; not compared: {why}"
+        name = f"per-flight test ({g.column!r}): {what}"
+        rows.append(Check(name=name, verdict=verdict, level=level, detail=counted))
+    return rows
+
+
+def _domain_check(d: DomainReport | None) -> Check:
+    name = "domain of validity"
+    if d is None:
+        return Check(
+            name=name,
+            verdict="absent",
+            level="warn",
+            detail="the model carries no domain-of-validity test; recalibrate with a current ipcverify",
+        )
+    fitted = f"fitted on {d.n_reference:,} calibration inputs, false-alarm rate alpha = {d.alpha:g}"
+    if d.n == 0:
+        return Check(name=name, verdict="not run", level="info", detail=f"{fitted}; {_NOT_RUN}")
+    counted = f"{d.outside:,} of {d.n:,} test queries ({100 * d.outside_fraction:.3g} %) outside; {fitted}"
+    if d.well_above_alpha:
+        return Check(
+            name=name,
+            verdict="SHIFT: far more queries outside than false alarms explain",
+            level="warn",
+            detail=counted + "; the certificate promises nothing for them",
+        )
+    return Check(name=name, verdict="as expected in distribution", level="pass", detail=counted)
+
+
+def _theorem1_check(cert: Certificate) -> Check:
+    t1 = cert.theorem1
+    name = "Theorem 1 (paper)"
+    if t1 is None:
+        return Check(
+            name=name, verdict="not computed", level="info", detail=capitalized(cert.theorem1_reason)
+        )
+    s = t1.sound
+    need = (
+        "no training-set size brings it below 1"
+        if s.n_needed is None
+        else f"below 1 needs N >= {s.n_needed:.3g}"
+    )
+    terms = f"sound L_g = {s.lipschitz:.3g}, p = {t1.n_parameters:,}, N = {t1.n_train:,}"
+    if s.vacuous:
+        return Check(
+            name=name,
+            verdict="vacuous (proves nothing)",
+            level="info",
+            detail=f"bound {s.bound:.3g} >= 1 ({terms}; {need}); the certificate does not rest on it",
+        )
+    return Check(
+        name=name,
+        verdict="not vacuous",
+        level="pass",
+        detail=f"bound {s.bound:.4g} < 1 ({terms}), under the assumptions of proofs/theorem1.md",
+    )
+
+
+def output_labels(
+    model: IPCModel, test_data: PerceptionDataset | None, labels: Sequence[str] | None = None
+) -> tuple[str, ...]:
+    """One label per coordinate of ``y``: the user's, else the data's or the model's column names.
+
+    Raises
+    ------
+    InvalidInputError
+        If ``labels`` does not name every coordinate of ``y`` exactly once with a non-empty label.
+
+    Examples
+    --------
+    >>> from ipcverify.network._modules import IPCNetwork
+    >>> from ipcverify.network._architecture import ModelConfig
+    >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(4,), param="cholesky")))
+    >>> output_labels(m, None), output_labels(m, None, [" forward", "left", "up"])
+    (('y_0', 'y_1', 'y_2'), ('forward', 'left', 'up'))
+    """
+    n = model.config.y_dim
+    if labels is None:
+        names = tuple(test_data.y_columns) if test_data is not None else ()
+        names = names or tuple(model.metadata.get("y_columns") or ())
+        return names if len(names) == n else tuple(f"y_{i}" for i in range(n))
+    given = tuple(str(label).strip() for label in labels)
+    if len(given) != n or not all(given):
+        example = (
+            ",".join(("forward", "left", "up", "speed")[:n])
+            if n <= 4
+            else ",".join(f"y{i}" for i in range(n))
+        )
+        raise InvalidInputError(
+            f"labels must name the {n} coordinates of y (the output columns), one non-empty label each; got "
+            f"{len(given)}: {list(given)}; pass them comma-separated, e.g. --labels {example}"
+        )
+    return given
+
+
+def _data_hashes(cert: Certificate) -> dict[str, str]:
+    out: dict[str, str] = {}
+    if cert.test_data is not None:
+        if cert.test_data.file_sha256 is not None:
+            out["test data file"] = cert.test_data.file_sha256
+        out["test data content"] = cert.test_data.content_sha256
+    if cert.calibration is not None:
+        out["calibration data content"] = cert.calibration.data_sha256
+    if cert.train_data is not None:
+        if cert.train_data.file_sha256 is not None:
+            out["training data file"] = cert.train_data.file_sha256
+        out["training data content"] = cert.train_data.content_sha256
+    return out
+
+
+def summarize(
+    cert: Certificate,
+    *,
+    created_utc: str | None = None,
+    units: str | None = None,
+    labels: Sequence[str] = (),
+    rows_outside: tuple[int, int] | None = None,
+) -> CertificateSummary:
+    """The executive summary of ``cert`` (its verdicts are the certificate's; nothing is re-decided).
+
+    Parameters
+    ----------
+    cert : Certificate
+        What :func:`~ipcverify.certification.certify` established.
+    created_utc : str, optional
+        When it was made (UTC, ISO 8601); default: now.
+    units : str, optional
+        The units of ``y`` (e.g. ``"m"``); default: none named ("units of the data").
+    labels : sequence of str, optional
+        One label per coordinate of ``y``; default ``y_0, y_1, ...``.
+    rows_outside : (int, int), optional
+        Test rows outside their sets and test rows: shown, as a description, beside a test
+        counted per group (whose bound does not count rows).
+
+    Examples
+    --------
+    >>> from ipcverify.data._synthetic import make_lagged_perception
+    >>> from ipcverify.contract._model import IPCModel
+    >>> from ipcverify.network._modules import IPCNetwork
+    >>> from ipcverify.network._architecture import ModelConfig
+    >>> from ipcverify.contract._calibrate import calibrate
+    >>> from ipcverify.certification._certify import certify
+    >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(8,), param="cholesky")))
+    >>> m = calibrate(m, make_lagged_perception(2000, seed=1), epsilon=0.2, delta=0.01)
+    >>> s = summarize(certify(m, make_lagged_perception(2000, seed=2)).certificate, units="m")
+    >>> s.verdict_text()[:67]
+    'CERTIFIED, WEAK TARGET (epsilon = 0.2: up to 20 % of the truths may'
+    >>> [c.name for c in s.checks]
+    ['calibration certificate', 'held-out test', 'domain of validity', 'Theorem 1 (paper)']
+    """
+    cal = cert.calibration
+    claim_of = cert.group_claim
+    checks = [_calibration_check(cert), _test_check(cert, rows_outside)]
+    if cert.group_test is not None:
+        checks += _group_checks(cert.group_test)
+    checks += [_domain_check(cert.domain), _theorem1_check(cert)]
+    y_dim = int(cert.model.architecture.get("y_dim", len(labels) or 1))
+    delta = cal.delta if cal is not None else (None if cert.test is None else cert.test.delta)
+    return CertificateSummary(
+        status=cert.status.name,
+        status_detail=_status_detail(cert.status),
+        claim=_claim(cert),
+        epsilon=None if cal is None else cal.epsilon,
+        certified_epsilon=None if cal is None else cal.certified_epsilon,
+        delta=delta,
+        unit="row" if claim_of is None else "group",
+        unit_column=None if claim_of is None else claim_of.column,
+        unit_statistic=None if claim_of is None else claim_of.unit,
+        checks=tuple(checks),
+        date_utc=utc_now() if created_utc is None else created_utc,
+        ipcverify_version=VERSION,
+        model_sha256=cert.model.file_sha256 or cert.model.network_sha256,
+        model_sha256_of="model file" if cert.model.file_sha256 else "network",
+        data_sha256=_data_hashes(cert),
+        units=units,
+        labels=tuple(labels) if labels else tuple(f"y_{i}" for i in range(y_dim)),
+    )

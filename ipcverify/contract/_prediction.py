@@ -1,0 +1,345 @@
+"""Deployment: a contract's sets for many queries (marked in or out of its domain), and logs replayed
+through the online monitor.
+
+:func:`predict_sets` needs only the queries ``(x, yhat)`` -- a deployment log has no ground
+truth. Every query gets its calibrated ellipsoid, its distance to the calibration inputs and
+an ``in_domain`` flag (:mod:`ipcverify.guard._domain`); a query whose set degenerates (singular shape
+matrix, which happens far from the training data) is kept, marked ``in_domain = False`` and
+counted, instead of stopping the batch. :func:`write_predictions` writes the arrays to NPZ.
+:func:`monitor_log` replays a labelled log, in order, through the anytime-valid monitor.
+
+Examples
+--------
+>>> import numpy as np
+>>> from ipcverify.network._architecture import ModelConfig
+>>> from ipcverify.data._dataset import PerceptionDataset, PerceptionInputs, group_codes
+>>> from ipcverify.contract._model import IPCModel, IPCNetwork
+>>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(8,), param="cholesky")))
+>>> p = predict_sets(m, PerceptionInputs(np.zeros((4, 2)), np.zeros((4, 3))))
+>>> p.centers.shape, p.in_domain.tolist()   # no domain model: every query counts as inside
+((4, 3), [True, True, True, True])
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ipcverify.contract._model import IPCModel
+from ipcverify.data._dataset import PerceptionDataset, PerceptionInputs, group_codes
+from ipcverify.data._files import atomic_write
+from ipcverify.errors import InvalidInputError
+from ipcverify.guard._domain import DomainModel, DomainReport
+from ipcverify.guard._index import one_blas_thread
+from ipcverify.guard._monitor import MonitorResult, ViolationMonitor
+from ipcverify.network._nonsingular import nonsingular
+
+__all__ = ["LogMonitoring", "Predictions", "monitor_log", "predict_sets", "write_predictions"]
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True, eq=False)
+class Predictions:
+    """Sets for a batch of queries and what is known about their validity.
+
+    Attributes
+    ----------
+    centers : ndarray (B, n)
+    shapes : ndarray (B, n, n)
+        ``E_i = {y : ||shapes_i (y - centers_i)|| <= 1}`` (calibrated if the model is).
+    in_domain : bool ndarray (B,)
+        The query is inside the domain of validity and its set is non-degenerate; the
+        calibration certificate covers only these queries.
+    singular : bool ndarray (B,)
+        The set is degenerate (singular or non-finite shape matrix).
+    calibrated : bool
+        Whether the model's calibration was applied.
+    domain : DomainReport or None
+        How many queries the domain test flags (None without a domain model).
+    """
+
+    centers: FloatArray
+    shapes: FloatArray
+    in_domain: NDArray[np.bool_]
+    singular: NDArray[np.bool_]
+    calibrated: bool
+    domain: DomainReport | None = None
+    distances: Callable[[], FloatArray] | None = field(default=None, repr=False)
+
+    @cached_property
+    def distance(self) -> FloatArray:
+        """Each query's distance to the calibration inputs (B,), computed on first access.
+
+        :meth:`ipcverify.guard.DomainModel.distance` (the ``k``-th neighbour distance; at most the
+        threshold exactly where the domain test says inside). ``in_domain`` does not need it:
+        the distance costs a search over every reference per query (a float32 BLAS product),
+        the domain test alone about one leaf of a k-d tree. NaN without a domain model.
+        """
+        if self.distances is None:
+            return np.full(len(self.centers), np.nan)
+        return self.distances()
+
+    @property
+    def outside(self) -> int:
+        """Queries outside the domain (or with a degenerate set)."""
+        return int((~self.in_domain).sum())
+
+
+def predict_sets(model: IPCModel, inputs: PerceptionInputs, chunk: int | None = None) -> Predictions:
+    """The model's sets for every query, with the domain test applied.
+
+    The sets come from :meth:`IPCModel.raw_arrays` (``chunk`` rows at a time; default: the engine's
+    cache-sized chunk), scaled by the calibration in place; the singular test is
+    :func:`ipcverify.network.nonsingular` (the SVD test, settled cheaply where it can be);
+    ``in_domain`` comes from :meth:`DomainModel.contains <ipcverify.guard.DomainModel.contains>`
+    (the exact test's answer, about one k-d tree leaf per in-distribution query). The distances
+    themselves are computed only when ``Predictions.distance`` is read. NumPy's BLAS runs on one
+    thread meanwhile (:func:`ipcverify.guard.one_blas_thread`): every product here is a
+    block sized to the cache, which a second thread only slows down.
+
+    Raises
+    ------
+    InvalidInputError
+        If the inputs' dimensions are not the model's.
+    """
+    cfg = model.config
+    if (inputs.x.shape[1], inputs.yhat.shape[1]) != (cfg.x_dim, cfg.y_dim):
+        raise InvalidInputError(
+            f"{inputs.source}: the queries have x_dim={inputs.x.shape[1]}, yhat_dim={inputs.yhat.shape[1]} "
+            f"but the model expects x_dim={cfg.x_dim}, y_dim={cfg.y_dim}"
+        )
+    with one_blas_thread():
+        return _predict_sets(model, inputs, chunk)
+
+
+def _predict_sets(model: IPCModel, inputs: PerceptionInputs, chunk: int | None) -> Predictions:
+    centers, shapes = model.raw_arrays(inputs.x, inputs.yhat, batch_size=chunk)
+    if model.calibration is not None:
+        shapes /= model.calibration.scale_for(inputs.x, inputs.yhat)[:, None, None]
+    finite = np.asarray(np.isfinite(shapes).all(axis=(1, 2)) & np.isfinite(centers).all(axis=1))
+    singular = np.asarray(~finite, dtype=np.bool_)
+    if finite.any():  # the SVD test of Ellipsoid, with an SVD only where a cheap bound does not settle it
+        singular[np.flatnonzero(finite)] = ~nonsingular(shapes[finite])[0]
+    report = None
+    domain = model.domain
+    if domain is None:
+        in_domain = np.asarray(~singular, dtype=np.bool_)
+    else:
+        inside = domain.contains(inputs.x, inputs.yhat)
+        in_domain = np.asarray(inside & ~singular, dtype=np.bool_)
+        report = domain.summarize_outside(~inside)
+    return Predictions(
+        centers=centers,
+        shapes=shapes,
+        in_domain=in_domain,
+        singular=singular,
+        calibrated=model.calibration is not None,
+        domain=report,
+        distances=None if domain is None else (lambda: _distances(domain, inputs)),
+    )
+
+
+def _distances(domain: DomainModel, inputs: PerceptionInputs) -> FloatArray:
+    with one_blas_thread():
+        return domain.distance(inputs.x, inputs.yhat)
+
+
+def write_predictions(predictions: Predictions, path: str | os.PathLike[str]) -> None:
+    """Write ``center``, ``shape``, ``in_domain``, ``domain_distance`` and ``singular`` to an NPZ (atomic)."""
+    p = predictions
+    atomic_write(
+        path,
+        lambda f: np.savez(
+            f,
+            center=p.centers,
+            shape=p.shapes,
+            in_domain=p.in_domain,
+            domain_distance=p.distance,
+            singular=p.singular,
+        ),
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class LogMonitoring:
+    """A labelled deployment log replayed through the online monitor (:mod:`ipcverify.guard._monitor`).
+
+    Attributes
+    ----------
+    result : MonitorResult
+        The monitor's trajectory (e-values, alarm, in-domain fraction).
+    violated : ndarray (B,)
+        Per observation: the truth fell outside its calibrated set (rows, bool); per group, the
+        group's statistic in ``[0, 1]`` (any violation, or the share of its rows outside).
+    in_domain : bool ndarray (B,)
+        Per observation: the query was in the domain (per group: most of its queries were).
+    epsilon, delta : float
+        The tested rate (the calibration's allowed rate) and the false-alarm bound.
+    calibration_delta : float
+        The calibration's own confidence parameter: given a calibration whose claim holds
+        (probability at least ``1 - calibration_delta``), a false alarm has probability at
+        most ``delta``.
+    unit : str
+        What one observation is: ``"rows"``, or the groups and their statistic.
+    labels : tuple of str
+        The group of each observation, in the order the groups ended (empty for rows).
+    n_rows : int
+        Rows of the log.
+    row_in_domain_fraction : float
+        Share of the log's rows inside the domain of validity.
+    """
+
+    result: MonitorResult
+    violated: NDArray[Any]
+    in_domain: NDArray[np.bool_]
+    epsilon: float
+    delta: float
+    calibration_delta: float
+    unit: str = "rows"
+    labels: tuple[str, ...] = ()
+    n_rows: int = 0
+    row_in_domain_fraction: float = 1.0
+
+    @property
+    def alarm_index(self) -> int | None:
+        """Observation (row, or group in ``labels``) at which the certificate was refuted, or None."""
+        return self.result.alarm_index
+
+    def _where(self, i: int) -> str:
+        return f"row {i}" if not self.labels else f"group {self.labels[i]!r} (observation {i} of {self.unit})"
+
+    def sentence(self) -> str:
+        """The outcome in words."""
+        share = f"{100 * self.row_in_domain_fraction:.1f} % of the queries were inside the domain of validity"
+        what = (
+            f"{self.n_rows} rows"
+            if not self.labels
+            else f"{len(self.labels)} {self.unit} ({self.n_rows} rows)"
+        )
+        if self.alarm_index is None:
+            return (
+                f"No alarm over {what}: the log is consistent with a violation rate of at most "
+                f"{self.epsilon:.4g} (anytime-valid test, false-alarm probability at most {self.delta:g}); "
+                f"{share}."
+            )
+        return (
+            f"ALARM at {self._where(self.alarm_index)}: the violations up to there refute a violation rate "
+            f"of at most {self.epsilon:.4g} (false-alarm probability at most {self.delta:g}, given a "
+            f"calibration whose claim holds, which it does with probability at least "
+            f"{1 - self.calibration_delta:g}); {share}."
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data for ``monitor.json`` (``unit``, ``observations`` and ``groups`` added for groups)."""
+        total = float(np.sum(self.violated))
+        return {
+            "rows": self.n_rows,
+            "unit": self.unit,
+            "observations": len(self.violated),
+            "groups": list(self.labels),
+            "violations": int(total) if total.is_integer() else total,
+            "epsilon": self.epsilon,
+            "delta": self.delta,
+            "calibration_delta": self.calibration_delta,
+            "alarm": self.alarm_index is not None,
+            "alarm_index": self.alarm_index,
+            "in_domain_fraction": self.row_in_domain_fraction,
+            "statement": self.sentence(),
+            "monitor": self.result.to_dict(),
+        }
+
+
+def _per_group(
+    data: PerceptionDataset,
+    column: str,
+    statistic: str,
+    violated: NDArray[np.bool_],
+    in_domain: NDArray[np.bool_],
+) -> tuple[FloatArray, NDArray[np.bool_], tuple[str, ...]]:
+    """One observation per group, in the order the groups end (an observation exists only then)."""
+    codes, distinct = group_codes(data.column(column), f"{data.source}: group column {column!r}")
+    G = len(distinct)
+    last = np.full(G, -1)
+    np.maximum.at(last, codes, np.arange(len(codes)))
+    order = np.argsort(last, kind="stable")
+    size = np.bincount(codes, minlength=G)
+    bad = np.bincount(codes, weights=violated.astype(np.float64), minlength=G)
+    inside = np.bincount(codes, weights=in_domain.astype(np.float64), minlength=G)
+    stat = (bad > 0).astype(np.float64) if statistic == "trajectory" else bad / size
+    return stat[order], (2 * inside > size)[order], tuple(str(v) for v in distinct[order])
+
+
+def monitor_log(
+    model: IPCModel, data: PerceptionDataset, *, delta: float | None = None, group_column: str | None = None
+) -> LogMonitoring:
+    """Replay a labelled log, in order, through :class:`~ipcverify.guard.ViolationMonitor`.
+
+    The tested rate is the calibration's allowed rate (:meth:`Calibration.allowed_violation_rate`,
+    or its epsilon when it makes no per-draw claim). A row-level calibration is monitored row by
+    row (every row an observation, in the domain or not, since the claim covers every
+    exchangeable query). A flight-level calibration (its claim is about groups) is monitored with
+    one observation per group of its column, taken when the group's last row arrives: whether the
+    group left its sets anywhere (``guarantee="trajectory"``), or the share of its rows outside
+    their sets (``"sample"``, whose expectation is what the claim bounds). ``group_column`` names
+    that column (it must be the calibration's), or, for a row-level calibration, monitors one
+    observation per group of it (the share of its rows outside), which stays valid when the rows
+    of a group are correlated but the groups are independent.
+
+    Raises
+    ------
+    InvalidInputError
+        If the model is not calibrated, the group column is not in the log, or differs from a
+        flight-level calibration's.
+    """
+    cal = model.require_calibration()
+    allowed = cal.allowed_violation_rate()
+    epsilon = allowed.rate if allowed.rate is not None else cal.epsilon
+    delta = cal.delta if delta is None else float(delta)
+    claim = cal.group_claim()
+    if claim is not None and group_column not in (None, claim.column):
+        raise InvalidInputError(
+            f"this calibration's claim is about groups of {claim.column!r}: monitor with --group-column "
+            f"{claim.column} (or leave --group-column out), not {group_column!r}"
+        )
+    column = claim.column if claim is not None else group_column
+    statistic = claim.unit if claim is not None else "sample"
+    if column is not None:
+        data.column(column)  # a missing column is refused before any work, naming the available ones
+    pred = predict_sets(model, PerceptionInputs(data.x, data.yhat, data.source))
+    d = data.y - pred.centers
+    g = np.linalg.norm(np.einsum("bij,bj->bi", pred.shapes, d), axis=1)
+    violated = np.asarray(~(g <= 1.0), dtype=np.bool_)
+    row_share = float(pred.in_domain.mean())
+    monitor = ViolationMonitor(epsilon, delta, in_domain_only=False)
+    if column is None:
+        return LogMonitoring(
+            result=monitor.run(violated, pred.in_domain),
+            violated=violated,
+            in_domain=pred.in_domain,
+            epsilon=epsilon,
+            delta=delta,
+            calibration_delta=cal.delta,
+            n_rows=len(violated),
+            row_in_domain_fraction=row_share,
+        )
+    obs, inside, labels = _per_group(data, column, statistic, violated, pred.in_domain)
+    what = "any violation" if statistic == "trajectory" else "share of rows outside"
+    return LogMonitoring(
+        result=monitor.run(obs, inside),
+        violated=obs,
+        in_domain=inside,
+        epsilon=epsilon,
+        delta=delta,
+        calibration_delta=cal.delta,
+        unit=f"groups of {column} ({what})",
+        labels=labels,
+        n_rows=len(violated),
+        row_in_domain_fraction=row_share,
+    )

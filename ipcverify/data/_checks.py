@@ -1,0 +1,246 @@
+"""Checks that a dataset can carry a contract, and hints about how its rows are related.
+
+* :func:`check_informative` -- data made mostly of repeated rows are refused (training and
+  calibration); a constant column is refused for training and is a warning for calibration.
+* :func:`input_ranges` / :func:`warn_outside_training` -- the ranges of the training inputs are
+  stored in the model at training; calibration inputs mostly outside them are a warning.
+* :func:`warn_correlated_rows` -- a file with a ``run``, ``flight``, ``sequence`` or ``group``
+  column used row by row gets a :class:`~ipcverify.errors.Hint` about correlated rows.
+
+Warnings are Python warnings (:class:`~ipcverify.errors.DataWarning`,
+:class:`~ipcverify.errors.Hint`); the CLI prints each on one line.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Mapping
+from typing import Any, Literal
+
+import numpy as np
+from scipy import stats
+
+from ipcverify.data._dataset import PerceptionDataset
+from ipcverify.errors import DataError, DataWarning, Hint
+
+__all__ = [
+    "GROUP_NAMES",
+    "MIN_DISTINCT_SHARE",
+    "MOSTLY_OUTSIDE",
+    "SURPRISE",
+    "check_informative",
+    "group_like_columns",
+    "input_ranges",
+    "warn_correlated_rows",
+    "warn_outside_training",
+]
+
+#: Column names (case-insensitive, also with ``_id``) that usually name a group of correlated rows.
+GROUP_NAMES = ("run", "flight", "sequence", "group", "episode", "trajectory", "session")
+#: Data with fewer distinct rows than this share of its rows are refused.
+MIN_DISTINCT_SHARE = 0.5
+#: Calibration inputs outside the training ranges above this share are a warning (if surprising).
+MOSTLY_OUTSIDE = 0.5
+#: ... and if data drawn like the training data would leave that many out with probability below this.
+SURPRISE = 1e-3
+
+Purpose = Literal["training", "calibration"]
+
+
+def _blocks(data: PerceptionDataset) -> tuple[np.ndarray, list[str]]:
+    names = [*data.x_columns, *data.y_columns, *data.yhat_columns]
+    return np.hstack([data.x, data.y, data.yhat]), names
+
+
+def check_informative(data: PerceptionDataset, purpose: Purpose) -> None:
+    """Refuse data that cannot carry a contract; warn about data that weaken it.
+
+    * Fewer distinct rows (of ``x``, ``y``, ``yhat``) than half the rows, or fewer than 2:
+      repeated rows are not independent samples -- refused.
+    * Some rows repeat an earlier one: a :class:`~ipcverify.errors.DataWarning`.
+    * A constant column: refused for training (the network cannot learn how the errors depend on
+      it, and extrapolates on any other value); a warning for calibration (the domain of validity
+      then flags every query with another value).
+
+    Raises
+    ------
+    DataError
+        For data made mostly of repeated rows, or a constant column in training data.
+
+    Examples
+    --------
+    >>> x = np.zeros((4, 1)); y = np.arange(4.0)[:, None]
+    >>> check_informative(PerceptionDataset(x, y, y + 1, source="log.csv"), "training")  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    ipcverify.errors.DataError: log.csv: column x_0 (every row is 0) is constant; ...
+    """
+    block, names = _blocks(data)
+    n = len(block)
+    distinct = len(np.unique(block, axis=0))
+    if distinct < max(2, math.ceil(MIN_DISTINCT_SHARE * n)):
+        raise DataError(
+            f"{data.source}: only {distinct} distinct row{'s' if distinct != 1 else ''} among {n}: repeated "
+            f"rows are not independent samples, and {purpose} would count them as such (the domain of "
+            "validity would shrink to the repeated points); remove the duplicates or check how the file "
+            "was assembled"
+        )
+    if distinct < n:
+        warnings.warn(
+            DataWarning(
+                f"{data.source}: {n - distinct} of {n} rows repeat an earlier row; repeated rows are not "
+                "independent samples -- remove them unless the data really repeat"
+            ),
+            stacklevel=2,
+        )
+    constant = [i for i in range(block.shape[1]) if block[0, i] == block[:, i].min() == block[:, i].max()]
+    if not constant:
+        return
+    listed = ", ".join(f"{names[i]} (every row is {block[0, i]:g})" for i in constant)
+    plural = "s" if len(constant) > 1 else ""
+    if purpose == "training":
+        raise DataError(
+            f"{data.source}: column{plural} {listed} {'are' if plural else 'is'} constant; "
+            "the network cannot learn how the errors depend on a constant column, and would extrapolate "
+            "on any other value -- leave it out (--x-columns / --y-columns / --yhat-columns name the "
+            "columns to use) or train on data where it varies"
+        )
+    warnings.warn(
+        DataWarning(
+            f"{data.source}: calibration column{plural} {listed} {'are' if plural else 'is'} constant; "
+            "the guarantee then covers only queries with this value, and the domain of validity flags "
+            "every other one"
+        ),
+        stacklevel=2,
+    )
+
+
+def input_ranges(data: PerceptionDataset) -> dict[str, Any]:
+    """The ranges of the inputs ``(x, yhat)`` and their number, stored in the model at training.
+
+    Examples
+    --------
+    >>> d = PerceptionDataset(np.array([[0.0], [2.0]]), np.zeros((2, 1)), np.array([[1.0], [-1.0]]))
+    >>> input_ranges(d)
+    {'columns': ['x_0', 'yhat_0'], 'lower': [0.0, -1.0], 'upper': [2.0, 1.0], 'n': 2}
+    """
+    z = np.hstack([data.x, data.yhat])
+    return {
+        "columns": [*data.x_columns, *data.yhat_columns],
+        "lower": [float(v) for v in z.min(axis=0)],
+        "upper": [float(v) for v in z.max(axis=0)],
+        "n": len(z),
+    }
+
+
+def warn_outside_training(metadata: Mapping[str, Any], data: PerceptionDataset) -> float | None:
+    """Warn if most calibration inputs lie outside the ranges of the training inputs.
+
+    A calibration input exchangeable with the ``n`` training inputs lies outside their range in a
+    given column with probability at most ``2 / (n + 1)`` (it would have to be the smallest or the
+    largest of ``n + 1``), so outside the box of ``D`` columns with probability at most
+    ``p0 = min(1, 2 D / (n + 1))``. The warning needs more than :data:`MOSTLY_OUTSIDE` of the rows
+    outside *and* a count that a binomial ``(m, p0)`` reaches with probability below ``1e-3``:
+    calibration data drawn like the training data trigger it at most that often (fewer training
+    rows than ``4 D`` can never trigger it).
+
+    Returns the share of rows with some input outside the training range (None if the model
+    stores no ranges: models trained before ipcverify stored them).
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> train = PerceptionDataset(rng.normal(size=(500, 1)), np.zeros((500, 1)), rng.normal(size=(500, 1)))
+    >>> far = PerceptionDataset(train.x + 9.0, train.y, train.yhat)
+    >>> import warnings
+    >>> with warnings.catch_warnings(record=True) as w:
+    ...     warnings.simplefilter("always")
+    ...     share = warn_outside_training({"training_inputs": input_ranges(train)}, far)
+    >>> share, "x_0: 100 % outside" in str(w[0].message)
+    (1.0, True)
+    """
+    ranges = metadata.get("training_inputs")
+    if not isinstance(ranges, Mapping):
+        return None
+    lower, upper = np.asarray(ranges["lower"], dtype=float), np.asarray(ranges["upper"], dtype=float)
+    z = np.hstack([data.x, data.yhat])
+    if z.shape[1] != len(lower):
+        return None
+    out = (z < lower) | (z > upper)
+    outside = int(out.any(axis=1).sum())
+    share = outside / len(z)
+    n_train = int(ranges.get("n", metadata.get("train_n", 0)))
+    p0 = min(1.0, 2.0 * len(lower) / (n_train + 1))
+    if share > MOSTLY_OUTSIDE and stats.binom.sf(outside - 1, len(z), p0) < SURPRISE:
+        names = [*data.x_columns, *data.yhat_columns]
+        counts = out.sum(axis=0)
+        worst = [i for i in np.argsort(-counts, kind="stable")[:3] if counts[i]]
+        detail = "; ".join(
+            f"{names[i]}: {100 * counts[i] / len(z):.0f} % outside [{lower[i]:.4g}, {upper[i]:.4g}]"
+            for i in worst
+        )
+        warnings.warn(
+            DataWarning(
+                f"{data.source}: {100 * share:.0f} % of the calibration inputs lie outside the ranges of the "
+                f"training inputs ({detail}; rows exchangeable with the {n_train} training rows would leave "
+                f"at most {100 * p0:.2g} %); the network extrapolates there, so the calibration will make "
+                "its sets large to cover it -- calibrate on data drawn like the training data, or train on "
+                "data that covers these inputs"
+            ),
+            stacklevel=2,
+        )
+    return share
+
+
+def group_like_columns(data: PerceptionDataset) -> list[str]:
+    """Extra columns that look like a group of correlated rows: named like ``run`` or ``flight_id``,
+    with at least 2 groups and fewer groups than rows; the one with the most groups first.
+
+    Examples
+    --------
+    >>> d = PerceptionDataset(np.zeros((4, 1)), np.zeros((4, 1)), np.zeros((4, 1)),
+    ...                       extra={"Run": np.array([1, 1, 2, 2]), "t": np.arange(4.0)})
+    >>> group_like_columns(d)
+    ['Run']
+    """
+    found: list[tuple[int, str]] = []
+    for name in data.extra:
+        base = name.strip().lower()
+        for suffix in ("_id", "id", "_name", "s"):
+            if base.endswith(suffix) and base[: -len(suffix)] in GROUP_NAMES:
+                base = base[: -len(suffix)]
+        if base in GROUP_NAMES:
+            groups = len(np.unique(np.asarray(data.extra[name]).astype(str)))
+            if 2 <= groups < len(data):
+                found.append((groups, name))
+    return [name for _, name in sorted(found, key=lambda t: -t[0])]
+
+
+def warn_correlated_rows(data: PerceptionDataset, what: str, remedy: str) -> None:
+    """A :class:`~ipcverify.errors.Hint` that rows of one run (flight, ...) are likely correlated.
+
+    Parameters
+    ----------
+    data : PerceptionDataset
+        The data about to be used row by row.
+    what : str
+        What is done row by row ("calibrating", "certifying").
+    remedy : str
+        What the option ``--group-column COL`` would do instead, e.g. "to calibrate with whole runs
+        as the exchangeable units".
+    """
+    columns = group_like_columns(data)
+    if not columns:
+        return
+    col = columns[0]
+    groups = len(np.unique(np.asarray(data.extra[col]).astype(str)))
+    others = "".join(f" (or --group-column {c})" for c in columns[1:])
+    warnings.warn(
+        Hint(
+            f"{data.source} has a {col!r} column ({groups} groups): rows of one {col} are usually "
+            f"correlated, and {what} row by row treats every row as an independent sample; pass "
+            f"--group-column {col}{others} (Python: group_column={col!r}) {remedy}"
+        ),
+        stacklevel=3,
+    )

@@ -1,0 +1,66 @@
+"""Decisions built on a set.
+
+Containment proofs (Proposition 1), the landing rule and its float bound, and the one-query path
+(``IPCQuery``).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from ipcverify._package import lazy_exports
+
+if TYPE_CHECKING:
+    from ipcverify.decision._landing import (
+        PRECHECK_MARGIN,
+        DecidedBy,
+        LandingDecision,
+        LandingRule,
+        QueryDecision,
+        Verdict,
+        check_landing,
+        landing_accept_float,
+        landing_decision,
+        landing_slack,
+        turnoff_point,
+    )
+    from ipcverify.decision._landing_bound import (
+        RANGE,
+        BoundDecision,
+        bound_target,
+        finish,
+        float_tier,
+        landing_by_bound,
+        landing_by_bound_compiled,
+        prepare,
+    )
+    from ipcverify.decision._query import (
+        IPCQuery,
+        Transform,
+    )
+
+__all__ = [
+    "PRECHECK_MARGIN",
+    "RANGE",
+    "BoundDecision",
+    "DecidedBy",
+    "IPCQuery",
+    "LandingDecision",
+    "LandingRule",
+    "QueryDecision",
+    "Transform",
+    "Verdict",
+    "bound_target",
+    "check_landing",
+    "finish",
+    "float_tier",
+    "landing_accept_float",
+    "landing_by_bound",
+    "landing_by_bound_compiled",
+    "landing_decision",
+    "landing_slack",
+    "prepare",
+    "turnoff_point",
+]
+
+__getattr__, __dir__ = lazy_exports(__name__, __file__)

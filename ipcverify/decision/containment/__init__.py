@@ -1,0 +1,180 @@
+"""Proofs that an ellipsoid lies inside a box, a polytope or another ellipsoid.
+
+Three provers behind one function, one certificate type, one exact checker; one module
+per job:
+
+* :mod:`~ipcverify.decision.containment._status` -- :class:`Status` and :class:`Method`;
+* :mod:`~ipcverify.decision.containment._certificate` -- :class:`ContainmentCertificate` and its exact
+  re-check :func:`verify`;
+* :mod:`~ipcverify.decision.containment._geometry` -- exact rational geometry and witnesses;
+* :mod:`~ipcverify.decision.containment._io` -- the JSON formats of sets and problems;
+* :mod:`~ipcverify.decision.containment._margin` -- float slacks for whole batches (not proofs);
+* :mod:`~ipcverify.decision.containment._rounding` -- the same slacks with rigorous rounding bounds
+  (a slack beyond its bound is a proof; the closed form tries them first);
+* :mod:`~ipcverify.decision.containment._closed_form`, :mod:`~ipcverify.decision.containment._socp`,
+  :mod:`~ipcverify.decision.containment._sdp`,
+  :mod:`~ipcverify.decision.containment._face_sdp` -- the provers,
+  behind :func:`prove`; :mod:`~ipcverify.decision.containment._face_lmi` -- the exact check of the
+  per-face S-lemma certificates.
+
+The set types themselves live in :mod:`ipcverify.sets._shapes`.
+
+* **closed form** (box, polytope): ``max_{y in E(c, C)} a^T y = a^T c + ||C^{-T} a||``,
+  so ``E`` is inside ``{y : A y <= b}`` iff ``a_j^T c + ||C^{-T} a_j|| <= b_j`` for every
+  face ``j``. :func:`support_slack` evaluates this in float for whole batches; the
+  certificate's status comes from the same inequality re-derived in exact rational
+  arithmetic (``b - a^T c >= 0`` and ``(b - a^T c)^2 >= ||C^{-T} a||^2``).
+* **SOCP** (box, polytope): the support values ``max a_j^T y`` computed by Clarabel,
+  as a cross-check of the closed form (a PROVEN status still needs the exact check).
+* **SDP** (ellipsoid): the S-lemma LMI ``lam Q1 - Q2 + tau e e^T >= 0``; minimising
+  ``tau`` gives ``tau* = max_{y in E1} ||C2 (y - c2)||^2``, so ``E1`` is inside ``E2``
+  iff ``tau* <= 1`` (derivation in ``proofs/containment.md``). Clarabel proposes
+  ``(lam, tau)``; the certificate holds multipliers that pass an exact PSD test.
+* **SDP** (box, polytope; ``method="sdp"``): one S-lemma LMI per face,
+  ``[[lam_j A, -a_j/2], [-a_j^T/2, b_j - a_j^T c - lam_j]] >= 0``, solved together by
+  Clarabel; each multiplier passes an exact integer definiteness test. An independent
+  second route: the closed form stays the default and the decision of record.
+
+:func:`verify` re-checks any certificate in exact arithmetic, independently of the
+float code and of the solver. A certificate is PROVEN only if that check passes;
+REFUTED carries a witness point (exact rationals) that is inside the inner set and
+outside the outer one; anything else is UNKNOWN.
+
+Examples
+--------
+>>> import numpy as np
+>>> from ipcverify.sets._shapes import Box, Ellipsoid
+>>> inner = Ellipsoid(np.zeros(2), np.diag([2.0, 4.0]))     # semi-axes 0.5, 0.25
+>>> cert = prove(inner, Box([-0.5, -0.25], [0.5, 0.25]))
+>>> cert.status.name, verify(cert).status.name
+('PROVEN', 'PROVEN')
+>>> cert = prove(inner, Box([-0.4, -1.0], [0.4, 1.0]))
+>>> cert.status.name, cert.witness_floats()
+('REFUTED', (0.5, 0.0))
+>>> sdp = prove(inner, Box([-0.5, -0.25], [0.5, 0.25]), method="sdp")   # the second route
+>>> sdp.status.name, verify(sdp).status.name
+('PROVEN', 'PROVEN')
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from ipcverify._package import lazy_exports
+
+if TYPE_CHECKING:
+    from ipcverify.decision.containment._certificate import (
+        ContainmentCertificate,
+        Verification,
+        certificate_from_dict,
+        verify,
+    )
+    from ipcverify.decision.containment._closed_form import (
+        prove_closed_form,
+    )
+    from ipcverify.decision.containment._face_lmi import (
+        FaceSystem,
+        check_face_lmis,
+        face_centre,
+        integer_definiteness,
+    )
+    from ipcverify.decision.containment._face_sdp import (
+        POLISH_TOLERANCE,
+        FaceSolution,
+        prove_sdp_faces,
+        solve_face_sdp,
+    )
+    from ipcverify.decision.containment._geometry import (
+        ExactEllipsoid,
+        Face,
+        check_faces,
+        check_lmi,
+        exact_faces,
+        face_witness,
+        is_outside,
+        witness_from_direction,
+    )
+    from ipcverify.decision.containment._io import (
+        json_field,
+        json_number,
+        problem_from_dict,
+        set_from_dict,
+        set_to_dict,
+    )
+    from ipcverify.decision.containment._margin import (
+        contained_float,
+        support_slack,
+    )
+    from ipcverify.decision.containment._prove import (
+        prove,
+        prove_batch,
+    )
+    from ipcverify.decision.containment._rounding import (
+        SlackBounds,
+        support_slack_bounds,
+    )
+    from ipcverify.decision.containment._sdp import (
+        normalised,
+        prove_sdp,
+        sdp_problem,
+        trust_region_maximiser,
+    )
+    from ipcverify.decision.containment._socp import (
+        prove_socp,
+        socp_problem,
+    )
+    from ipcverify.decision.containment._status import (
+        Method,
+        Status,
+        check_method,
+        default_method,
+        parse_method,
+    )
+
+__all__ = [
+    "POLISH_TOLERANCE",
+    "ContainmentCertificate",
+    "ExactEllipsoid",
+    "Face",
+    "FaceSolution",
+    "FaceSystem",
+    "Method",
+    "SlackBounds",
+    "Status",
+    "Verification",
+    "certificate_from_dict",
+    "check_face_lmis",
+    "check_faces",
+    "check_lmi",
+    "check_method",
+    "contained_float",
+    "default_method",
+    "exact_faces",
+    "face_centre",
+    "face_witness",
+    "integer_definiteness",
+    "is_outside",
+    "json_field",
+    "json_number",
+    "normalised",
+    "parse_method",
+    "problem_from_dict",
+    "prove",
+    "prove_batch",
+    "prove_closed_form",
+    "prove_sdp",
+    "prove_sdp_faces",
+    "prove_socp",
+    "sdp_problem",
+    "set_from_dict",
+    "set_to_dict",
+    "socp_problem",
+    "solve_face_sdp",
+    "support_slack",
+    "support_slack_bounds",
+    "trust_region_maximiser",
+    "verify",
+    "witness_from_direction",
+]
+
+__getattr__, __dir__ = lazy_exports(__name__, __file__)

@@ -1,0 +1,200 @@
+"""Float64 NumPy inference for trained IPC networks: the contract's reference evaluation.
+
+Training runs in torch (float32). Once trained, an IPC is *evaluated* everywhere —
+prediction, calibration, evaluation, certificates, the landing controller — by this
+engine: the same weights (float32 values are exact in float64) applied in float64
+NumPy. One evaluation path means the calibrated guarantee is about exactly the sets
+the controller uses, and NumPy has far less per-call overhead than torch for the
+single queries of a control loop.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ipcverify.errors import InvalidInputError
+from ipcverify.network._architecture import LOGDIAG_CLAMP, ModelConfig
+from ipcverify.network._weights import NetworkWeights
+
+if TYPE_CHECKING:
+    from ipcverify.network._modules import IPCNetwork
+
+__all__ = ["CACHE_BYTES", "CHUNK", "InferenceEngine", "activate", "chunk_rows", "float64_array"]
+
+#: Bytes of one layer's activations per chunk of a batch: half a megabyte, so that a layer's input
+#: and output stay in a core's L2 cache (1 MB and up on current x86 and ARM server cores).
+CACHE_BYTES = 1 << 19
+
+
+def chunk_rows(width: int) -> int:
+    """Rows per chunk of a batch whose widest layer has ``width`` float64 activations per row.
+
+    As many rows as fit :data:`CACHE_BYTES`, rounded down to a multiple of 64 (at least 64):
+    512 for the paper's heads (128 units), 192 for the default ensemble (5 members x 64). The
+    products of a chunk then run from cache; larger chunks measured up to 25 % slower in the
+    second layer of the ensemble (benchmarks/bench_latency.py, ``float64_layers_only``).
+
+    Examples
+    --------
+    >>> chunk_rows(128), chunk_rows(5 * 64), chunk_rows(10_000)
+    (512, 192, 64)
+    """
+    if width < 1:
+        raise InvalidInputError(f"a layer needs a positive width; got {width!r}")
+    return max(64, CACHE_BYTES // (8 * width) // 64 * 64)
+
+
+#: Rows evaluated together by :meth:`InferenceEngine.batch` (the paper's heads, 128 hidden units)
+CHUNK = chunk_rows(128)
+
+FloatArray = NDArray[np.float64]
+
+
+def float64_array(t: Any) -> FloatArray:
+    """A tensor's or an array's values as a contiguous float64 array (float32 is exact in float64).
+
+    Examples
+    --------
+    >>> import torch
+    >>> float64_array(torch.tensor([0.1], dtype=torch.float32)).dtype
+    dtype('float64')
+    >>> float64_array(np.float32([0.1]))[0] == float(np.float32(0.1))
+    np.True_
+    """
+    if hasattr(t, "detach"):  # a torch tensor (torch itself is not imported here)
+        t = t.detach().cpu().numpy()
+    return np.ascontiguousarray(t, dtype=np.float64)
+
+
+def activate(h: FloatArray, activation: str) -> FloatArray:
+    """A hidden layer's non-linearity (``ModelConfig.activation``), in place where NumPy allows.
+
+    Examples
+    --------
+    >>> activate(np.array([-1.0, 2.0]), "relu").tolist()
+    [0.0, 2.0]
+    """
+    if activation == "relu":
+        return np.maximum(h, 0.0, out=h)
+    if activation == "tanh":
+        return np.tanh(h, out=h)
+    return np.where(h > 0, h, np.expm1(np.minimum(h, 0.0)))  # elu, alpha = 1
+
+
+@dataclass(frozen=True, eq=False)
+class InferenceEngine:
+    """Float64 forward pass of an :class:`~ipcverify.network.IPCNetwork`.
+
+    Build it with :meth:`from_weights` (or :meth:`from_network`); call :meth:`batch` for (B, ·) arrays or
+    :meth:`single` for one query (1-D arrays, lowest latency).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from ipcverify.network._modules import IPCNetwork
+    >>> from ipcverify.network._architecture import ModelConfig
+    >>> net = IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(8,), param="cholesky"))
+    >>> eng = InferenceEngine.from_network(net)
+    >>> c, C = eng.batch(np.zeros((4, 2)), np.zeros((4, 3)))
+    >>> c.shape, C.shape
+    ((4, 3), (4, 3, 3))
+    """
+
+    config: ModelConfig
+    weights: tuple[FloatArray, ...]
+    biases: tuple[FloatArray, ...]
+    in_mean: FloatArray
+    in_scale: FloatArray
+    y_mean: FloatArray
+    sigma: FloatArray
+    inv_sigma: FloatArray
+    tril_rows: NDArray[np.intp]
+    tril_cols: NDArray[np.intp]
+    diag_pos: NDArray[np.intp]
+
+    @classmethod
+    def from_weights(cls, weights: NetworkWeights) -> InferenceEngine:
+        """The engine of a network's weights (:class:`~ipcverify.network.NetworkWeights`)."""
+        cfg, state = weights.config, weights.state
+        linear = [f"body.{2 * i}" for i in range(len(cfg.hidden) + 1)]  # nn.Sequential: Linear, act, ...
+        n = cfg.y_dim
+        rows, cols = np.tril_indices(n)
+        sigma = float64_array(state["sigma"])
+        return cls(
+            config=cfg,
+            weights=tuple(np.ascontiguousarray(float64_array(state[f"{m}.weight"]).T) for m in linear),
+            biases=tuple(float64_array(state[f"{m}.bias"]) for m in linear),
+            in_mean=float64_array(state["in_mean"]),
+            in_scale=1.0 / float64_array(state["in_std"]),
+            y_mean=float64_array(state["y_mean"]),
+            sigma=sigma,
+            inv_sigma=1.0 / sigma,
+            tril_rows=rows,
+            tril_cols=cols,
+            diag_pos=np.flatnonzero(rows == cols),
+        )
+
+    @classmethod
+    def from_network(cls, network: IPCNetwork) -> InferenceEngine:
+        """Extract the weights and normalisation of a trained network."""
+        return cls.from_weights(NetworkWeights.from_network(network))
+
+    def mlp(self, z: FloatArray) -> FloatArray:
+        """The network's raw outputs for standardised inputs ``z`` ((B, d + n) or one (d + n,) row)."""
+        last = len(self.weights) - 1
+        for i, (w, b) in enumerate(zip(self.weights, self.biases, strict=True)):
+            z = z @ w
+            z += b
+            if i < last:
+                z = activate(z, self.config.activation)
+        return z
+
+    def batch(
+        self, x: FloatArray, yhat: FloatArray, chunk: int | None = None
+    ) -> tuple[FloatArray, FloatArray]:
+        """Centres (B, n) and shape matrices (B, n, n) for validated float64 inputs.
+
+        Rows are evaluated ``chunk`` at a time (default :data:`CHUNK`): the hidden layers of a
+        chunk stay in the CPU cache, and the results are written straight into the output
+        arrays. Every row is computed by the same operations whatever the chunk (only the
+        matrix products' summation order may differ, in the last bits).
+        """
+        n = self.config.y_dim
+        size = CHUNK if chunk is None else int(chunk)
+        if size < 1:
+            raise InvalidInputError(f"chunk must be a positive number of rows; got {chunk!r}")
+        rows = len(x)
+        centers = np.empty((rows, n))
+        shapes = np.zeros((rows, n * n))
+        base_all = yhat if self.config.center == "offset" else None
+        full = self.config.param == "full"
+        flat = self.tril_rows * n + self.tril_cols
+        col_scale = self.inv_sigma[self.tril_cols]
+        for start in range(0, rows, size):
+            sl = slice(start, start + size)
+            z = np.concatenate([x[sl], yhat[sl]], axis=1)
+            z -= self.in_mean
+            z *= self.in_scale
+            out = self.mlp(z)
+            c = centers[sl]
+            np.multiply(self.sigma, out[:, :n], out=c)
+            c += self.y_mean if base_all is None else base_all[sl]
+            s = out[:, n:]
+            if full:
+                shapes[sl] = (s.reshape(-1, n, n) * self.inv_sigma).reshape(-1, n * n)
+            else:
+                diag = s[:, self.diag_pos]
+                np.exp(np.clip(diag, -LOGDIAG_CLAMP, LOGDIAG_CLAMP, out=diag), out=diag)
+                s[:, self.diag_pos] = diag
+                s *= col_scale
+                shapes[sl][:, flat] = s
+        return centers, shapes.reshape(rows, n, n)
+
+    def single(self, x: FloatArray, yhat: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Centre (n,) and shape matrix (n, n) for one query given as 1-D float64 arrays."""
+        c, C = self.batch(x[None, :], yhat[None, :])
+        return c[0], C[0]

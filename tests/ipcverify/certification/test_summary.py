@@ -1,0 +1,306 @@
+"""The certificate's executive summary: claim, target, unit, one row per check, date, version, hashes.
+
+The summary only writes down what the certificate decided: every verdict here is compared with
+the record it comes from (status, consistency, group test, domain report, Theorem 1).
+"""
+
+from __future__ import annotations
+
+import json
+from datetime import UTC, datetime
+
+import numpy as np
+import pytest
+from matplotlib.figure import Figure
+
+import ipcverify
+from ipcverify.certification._certificate import CertificateStatus
+from ipcverify.certification._certify import certify, write_certificate
+from ipcverify.certification._report_plots import plot_coverage, plot_projections, plot_scores
+from ipcverify.certification._summary import WEAK_EPSILON, CertificateSummary, target_strength
+from ipcverify.contract._calibrate import calibrate
+from ipcverify.contract._model import IPCModel, IPCNetwork
+from ipcverify.data._dataset import PerceptionDataset, save_dataset
+from ipcverify.data._files import file_sha256
+from ipcverify.data._synthetic import make_lagged_perception
+from ipcverify.errors import InvalidInputError
+from ipcverify.io._modelio import save_model
+from ipcverify.network._architecture import ModelConfig
+from ipcverify.training._train import TrainConfig
+from ipcverify.training._train import train as train_ipc
+
+CFG = ModelConfig(x_dim=6, y_dim=3, hidden=(8,), param="cholesky")
+#: The top-level keys of certificate.json before the summary: kept, never renamed (docs/develop.md).
+OLD_KEYS = {
+    "format", "format_version", "ipcverify_version", "status", "status_text", "statement", "assumption",
+    "n_parameters", "model", "calibration", "test", "consistency", "theorem1", "volume", "coverage_by_bin",
+    "conditional_coverage", "domain", "group_test", "data",
+}  # fmt: skip
+NAMES = ["calibration certificate", "held-out test", "domain of validity", "Theorem 1 (paper)"]
+
+
+def _flights(ds: PerceptionDataset, rows_per_flight: int) -> PerceptionDataset:
+    """``ds`` with a ``flight`` column: consecutive blocks of i.i.d. rows (so the flights are i.i.d.)."""
+    flight = np.arange(len(ds)) // rows_per_flight
+    return PerceptionDataset(ds.x, ds.y, ds.yhat, source=ds.source, extra={"flight": flight})
+
+
+@pytest.fixture(scope="module")
+def net():
+    """An untrained network: calibration makes its sets honest, which is all a certificate needs."""
+    return IPCModel(IPCNetwork(CFG))
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory, net):
+    d = tmp_path_factory.mktemp("summary")
+    cal = make_lagged_perception(1500, seed=71)
+    save_model(calibrate(net, cal, 0.01, 0.01), d / "strong.pt")
+    save_model(calibrate(net, cal, 0.5, 0.01), d / "weak.pt")
+    save_dataset(make_lagged_perception(2000, seed=72), d / "test.csv")
+    return d
+
+
+@pytest.mark.parametrize(
+    ("epsilon", "strength"),
+    [(None, "none"), (0.001, "strong"), (0.0999, "strong"), (0.1, "weak"), (0.5, "weak")],
+)
+def test_a_target_is_weak_from_epsilon_0_1(epsilon, strength):
+    assert WEAK_EPSILON == 0.1 and target_strength(epsilon) == strength
+
+
+def test_summary_of_a_strong_certificate(files):
+    from ipcverify.io._modelio import load_data_for_model, load_model
+
+    model = load_model(files / "strong.pt")
+    test = load_data_for_model(files / "test.csv", model)
+    before = datetime.now(UTC).replace(microsecond=0)
+    cert = certify(model, test, model_path=files / "strong.pt", test_path=files / "test.csv").certificate
+    after = datetime.now(UTC)
+    s = cert.summary
+    assert isinstance(s, CertificateSummary) and cert.status is CertificateStatus.CERTIFIED
+    cal = cert.calibration
+    assert s.claim == cal.guarantee and (s.epsilon, s.delta, s.certified_epsilon) == (
+        0.01,
+        0.01,
+        cal.certified_epsilon,
+    )
+    assert s.strength == "strong" and s.unit == "row" and s.unit_column is None
+    # the verdict line says the status once, then what it means
+    assert s.verdict_text() == "CERTIFIED: calibrated contract, test data consistent with the calibration"
+    assert [c.name for c in s.checks] == NAMES
+    levels = {c.name: (c.verdict, c.level) for c in s.checks}
+    assert levels["calibration certificate"] == ("present", "pass")
+    assert levels["held-out test"] == ("consistent with the calibration", "pass")
+    assert levels["Theorem 1 (paper)"][0] == "not computed"
+    t = cert.test
+    held = s.checks[1].detail
+    assert f"{t.violations:,} of {t.n:,} test samples outside" in held and f"{t.upper_bound:.4g}" in held
+    assert f"{cert.consistency.test_lower_bound:.4g} <= allowed {cert.consistency.allowed_rate:.4g}" in held
+    # date (UTC, ISO 8601), version, hashes
+    made = datetime.strptime(s.date_utc, "%Y-%m-%dT%H:%M:%SZ").replace(tzinfo=UTC)
+    assert before <= made <= after
+    assert s.ipcverify_version == ipcverify.__version__
+    assert s.model_sha256 == file_sha256(files / "strong.pt") and s.model_sha256_of == "model file"
+    assert dict(s.data_sha256) == {
+        "test data file": file_sha256(files / "test.csv"),
+        "test data content": test.content_hash(),
+        "calibration data content": cal.data_sha256,
+    }
+    assert (
+        s.labels == ("y_0", "y_1", "y_2") and s.units is None and s.axis_label(1) == "y_1 (units of the data)"
+    )
+
+
+def test_certificate_json_adds_the_summary_and_keeps_every_key(files, tmp_path):
+    from ipcverify.io._modelio import load_data_for_model, load_model
+
+    model = load_model(files / "weak.pt")
+    res = certify(
+        model, load_data_for_model(files / "test.csv", model), units="m", labels=("fwd", "left", "up")
+    )
+    write_certificate(res, tmp_path)
+    d = json.loads((tmp_path / "certificate.json").read_text())
+    assert OLD_KEYS | {"summary"} == set(d)
+    s = d["summary"]
+    assert s == json.loads(json.dumps(res.certificate.summary.to_dict()))
+    assert s["verdict"].startswith(
+        "CERTIFIED, WEAK TARGET (epsilon = 0.5: up to half the truths may lie outside)"
+    )
+    assert (s["strength"], s["epsilon"], s["delta"], s["unit"]) == ("weak", 0.5, 0.01, "row")
+    assert s["units"] == "m" and s["labels"] == ["fwd", "left", "up"]
+    assert s["ipcverify_version"] == d["ipcverify_version"] and s["status"] == d["status"]
+    assert [c["check"] for c in s["checks"]] == NAMES
+    assert s["checks"][0]["verdict"] == "present, weak target" and s["checks"][0]["level"] == "warn"
+
+
+@pytest.mark.parametrize("epsilon", [0.1, 0.2, 0.5])
+def test_a_weak_target_is_said_in_the_verdict(net, epsilon):
+    model = calibrate(net, make_lagged_perception(800, seed=73), epsilon, 0.05)
+    s = certify(model, make_lagged_perception(800, seed=74)).certificate.summary
+    assert s.status == "CERTIFIED" and s.strength == "weak"
+    share = "half the" if epsilon == 0.5 else f"{100 * epsilon:.3g} % of the"
+    assert s.verdict_text("ε").startswith(
+        f"CERTIFIED, WEAK TARGET (ε = {epsilon:g}: up to {share} truths may"
+    )
+
+
+def test_a_contradicted_weak_target_is_not_called_certified(net):
+    model = calibrate(net, make_lagged_perception(800, seed=75), 0.5, 0.05)
+    good = make_lagged_perception(800, seed=76)
+    shifted = PerceptionDataset(good.x, good.y + 1.0, good.yhat, source="shifted")  # every truth far away
+    cert = certify(model, shifted).certificate
+    s = cert.summary
+    assert cert.status is CertificateStatus.CONTRADICTED and s.strength == "weak"
+    assert (
+        s.verdict_text().startswith("CONTRADICTED: the test data violates") and "WEAK" not in s.verdict_text()
+    )
+    held = s.checks[1]
+    assert held.verdict == "CONTRADICTS the calibration" and held.level == "fail"
+    assert f"{cert.test.violations:,} of {cert.test.n:,}" in held.detail
+
+
+def test_bare_summary_says_the_held_out_test_was_not_run(files):
+    from ipcverify.io._modelio import load_model
+
+    cert = certify(load_model(files / "strong.pt")).certificate
+    s = cert.summary
+    assert cert.status is CertificateStatus.UNTESTED
+    by = {c.name: c for c in s.checks}
+    assert by["held-out test"].verdict == "not run"
+    assert "no test data given: the held-out test was not run" in by["held-out test"].detail
+    assert by["domain of validity"].verdict == "not run"
+    assert "no test data given: the held-out test was not run" in by["domain of validity"].detail
+    assert "0/0" not in json.dumps(s.to_dict()) and "0 of 0" not in json.dumps(s.to_dict())
+    assert list(s.data_sha256) == ["calibration data content"] and s.model_sha256_of == "network"
+    assert s.model_sha256 == cert.model.network_sha256
+
+
+def test_uncalibrated_summary_claims_only_the_test_bound(net):
+    test = make_lagged_perception(500, seed=77)
+    cert = certify(net, test).certificate
+    s = cert.summary
+    assert s.epsilon is None and s.strength == "none" and s.delta == cert.test.delta
+    assert s.claim.startswith("No calibration certificate") and f"{cert.test.upper_bound:.4g}" in s.claim
+    assert s.checks[0].verdict == "absent" and s.checks[0].level == "fail"
+    assert s.checks[1].verdict == "reported, not compared" and s.verdict_text().startswith("NOT_CALIBRATED: ")
+    nothing = certify(net).certificate.summary
+    assert nothing.claim.startswith("Nothing is claimed") and nothing.delta is None
+
+
+def test_theorem1_row_reads_theorem1_with_a_capital(files, net):
+    cert = certify(net, make_lagged_perception(300, seed=78)).certificate
+    row = cert.summary.checks[-1]
+    assert row.name == "Theorem 1 (paper)" and row.verdict == "not computed"
+    assert row.detail.startswith("Not computed: training data not given")
+    assert "Theorem 1 covered" in row.detail and "theorem 1" not in row.detail
+    train = make_lagged_perception(400, seed=79)
+    trained = train_ipc(train, CFG, TrainConfig.recipe("v1", epochs=1)).model
+    t1 = certify(trained, make_lagged_perception(300, seed=80), train_data=train).certificate
+    row = t1.summary.checks[-1]
+    assert t1.theorem1 is not None and t1.theorem1.sound.vacuous
+    assert row.verdict == "vacuous (proves nothing)" and f"{t1.theorem1.sound.bound:.3g} >= 1" in row.detail
+
+
+def test_per_flight_result_is_a_row_of_its_own(net):
+    model = calibrate(net, make_lagged_perception(1500, seed=81), 0.05, 0.01)
+    test = _flights(make_lagged_perception(2000, seed=82), 50)
+    cert = certify(model, test, group_column="flight").certificate
+    g, rows = cert.group_test, cert.summary.checks
+    assert [c.name for c in rows] == [
+        NAMES[0],
+        NAMES[1],
+        "per-flight test ('flight'): one random row per group",
+        "per-flight test ('flight'): any violation in a group",
+        *NAMES[2:],
+    ]
+    sample, trajectory = rows[2], rows[3]
+    assert g.compared_unit == "sample" and g.consistency.checked
+    assert sample.verdict == (
+        "consistent with the calibration" if g.consistency.consistent else "CONTRADICTS the calibration"
+    )
+    assert f"{g.sample.violations:,} of {g.sample.n:,} groups" in sample.detail
+    assert trajectory.verdict == "reported only" and trajectory.level == "info"
+    assert f"{g.trajectory.violations:,} of {g.trajectory.n:,} groups" in trajectory.detail
+    assert f"{g.trajectory.upper_bound:.4g}" in trajectory.detail
+
+
+def test_a_claim_about_flights_has_flights_as_its_unit(net):
+    model = calibrate(
+        net,
+        _flights(make_lagged_perception(1000, seed=83), 25),
+        0.2,
+        0.05,
+        group_column="flight",
+        domain_alpha=0.1,
+    )
+    test = _flights(make_lagged_perception(1000, seed=84), 25)
+    res = certify(model, test)
+    cert, s = res.certificate, res.certificate.summary
+    assert (s.unit, s.unit_column, s.unit_statistic) == ("group", "flight", "sample")
+    assert "group of 'flight'" in s.unit_text() and s.strength == "weak"
+    held = s.checks[1].detail
+    k = int(res.evidence.violated.sum())
+    assert f"all test rows: {k:,} of 1,000 outside" in held and "descriptive only" in held
+    # flights are not called samples; no internal function name reaches the user
+    assert "test samples" not in cert.test_bound_note
+    text = json.dumps(cert.to_dict())
+    assert "group_violation_counts" not in text
+
+
+def test_labels_and_units_are_checked(net):
+    test = make_lagged_perception(300, seed=85)
+    s = certify(net, test, units=" m ", labels=[" forward", "left", "up "]).certificate.summary
+    assert s.units == "m" and s.labels == ("forward", "left", "up") and s.axis_label(2) == "up [m]"
+    with pytest.raises(InvalidInputError, match=r"labels must name the 3 coordinates of y .* got 2"):
+        certify(net, test, labels=["forward", "left"])
+    with pytest.raises(InvalidInputError, match="one non-empty label each"):
+        certify(net, test, labels=["forward", "", "up"])
+    with pytest.raises(InvalidInputError, match="units of y must not be empty"):
+        certify(net, test, units="  ")
+
+
+def _labels(fig: Figure) -> list[str]:
+    """Every visible axis label of a figure (a hidden axis measures nothing and carries none)."""
+    out = []
+    for ax in fig.axes:
+        out.append(ax.get_xlabel())
+        if ax.get_yaxis().get_visible():
+            out.append(ax.get_ylabel())
+    return out
+
+
+def test_every_plot_axis_says_what_it_measures_and_in_which_units(net, monkeypatch):
+    test = make_lagged_perception(400, seed=86)
+    res = certify(calibrate(net, make_lagged_perception(800, seed=87), 0.05, 0.05), test)
+    ev, cert = res.evidence, res.certificate
+    assert _labels(plot_scores(ev, True)) == [
+        "normalised score g / s (dimensionless; > 1: truth outside its set)",
+        "test rows (count)",
+    ]
+    assert _labels(plot_coverage(cert.coverage, 0.05, 0.05)) == [
+        "bin of x_0 (units of the data)",
+        "violation rate (share of rows)",
+    ]
+    default = _labels(plot_projections(ev))
+    assert default and all(lab.endswith("(units of the data)") for lab in default)
+    # the page draws the projections with the user's labels and units on every axis
+    import ipcverify.certification._report as report
+
+    seen: list[list[str]] = []
+
+    def spy(evidence, axis_labels=()):
+        fig = plot_projections(evidence, axis_labels)
+        seen.append(_labels(fig))
+        return fig
+
+    monkeypatch.setattr(report, "plot_projections", spy)
+    named = certify(calibrate(net, make_lagged_perception(800, seed=87), 0.05, 0.05), test, units="m",
+                    labels=("forward", "left", "up"))  # fmt: skip
+    report.render_report(named)
+    assert len(seen) == 1 and len(seen[0]) == 3 * 2 * len(named.evidence.example_index)
+    assert set(seen[0]) == {"forward [m]", "left [m]", "up [m]"}
+    one_d = PerceptionDataset(np.zeros((50, 2)), np.ones((50, 1)), np.ones((50, 1)) + 0.01)
+    m1 = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=1, hidden=(4,), param="cholesky")))
+    ev1 = certify(m1, one_d).evidence
+    assert _labels(plot_projections(ev1, ("range [m]",))) == ["range [m]"] * len(ev1.example_index)

@@ -1,0 +1,134 @@
+"""Degenerate data refused, weak data warned about, correlated rows hinted at (ipcverify.data._checks)."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+from ipcverify.contract._calibrate import calibrate
+from ipcverify.contract._model import IPCModel, IPCNetwork
+from ipcverify.data._checks import (
+    check_informative,
+    group_like_columns,
+    input_ranges,
+    warn_correlated_rows,
+    warn_outside_training,
+)
+from ipcverify.data._dataset import PerceptionDataset
+from ipcverify.data._synthetic import make_lagged_perception
+from ipcverify.errors import DataError, DataWarning, Hint
+from ipcverify.network._architecture import ModelConfig
+from ipcverify.training._train import TrainConfig, train
+
+
+def _ds(x, y=None, yhat=None, **extra) -> PerceptionDataset:
+    x = np.asarray(x, dtype=float).reshape(len(x), -1)
+    y = np.arange(len(x), dtype=float)[:, None] if y is None else y
+    yhat = y + 0.5 if yhat is None else yhat
+    return PerceptionDataset(x, y, yhat, source="log.csv", extra=extra)
+
+
+def test_identical_rows_are_refused_for_training_and_calibration():
+    same = PerceptionDataset(np.ones((2855, 2)), np.ones((2855, 1)), np.ones((2855, 1)), source="log.csv")
+    for purpose in ("training", "calibration"):
+        with pytest.raises(
+            DataError, match=rf"log.csv: only 1 distinct row among 2855: .* {purpose} would count"
+        ):
+            check_informative(same, purpose)  # type: ignore[arg-type]
+
+
+def test_mostly_repeated_rows_are_refused_and_a_few_are_a_warning():
+    base = make_lagged_perception(100, seed=0)
+    half = base.subset(np.r_[np.arange(49), np.zeros(51, dtype=int)])  # 49 distinct of 100
+    with pytest.raises(DataError, match="only 49 distinct rows among 100"):
+        check_informative(half, "calibration")
+    few = base.subset(np.r_[np.arange(100), [3, 4]])
+    with pytest.warns(DataWarning, match="2 of 102 rows repeat an earlier row"):
+        check_informative(few, "training")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_informative(base, "training")  # distinct rows, no constant column: silent
+
+
+def test_constant_columns_are_all_named_refused_for_training_and_warned_for_calibration():
+    x = np.column_stack([np.full(50, 2.0), np.arange(50.0), np.full(50, -1.0)])
+    ds = _ds(x)
+    with pytest.raises(
+        DataError, match=r"columns x_0 \(every row is 2\), x_2 \(every row is -1\) are constant"
+    ):
+        check_informative(ds, "training")
+    with pytest.warns(DataWarning, match=r"calibration columns x_0 .* x_2 .* domain of validity flags"):
+        check_informative(ds, "calibration")
+
+
+def test_train_refuses_constant_data_and_stores_the_input_ranges():
+    ds = make_lagged_perception(200, seed=0)
+    flat = PerceptionDataset(ds.x * np.r_[0.0, 1, 1, 1, 1, 1], ds.y, ds.yhat, source="flat.csv")
+    with pytest.raises(DataError, match="flat.csv: column x_0 .* is constant"):
+        train(flat, train_config=TrainConfig(epochs=1))
+    model = train(ds, ModelConfig(x_dim=6, y_dim=3, hidden=(4,), members=1), TrainConfig(epochs=1)).model
+    ranges = model.metadata["training_inputs"]
+    assert ranges == input_ranges(ds) and ranges["columns"][6:] == ["yhat_0", "yhat_1", "yhat_2"]
+    assert ranges["lower"][0] == float(ds.x[:, 0].min()) and ranges["upper"][8] == float(ds.yhat[:, 2].max())
+
+
+def test_calibration_far_from_the_training_inputs_is_a_warning():
+    ds = make_lagged_perception(400, seed=0)
+    meta = {"training_inputs": input_ranges(ds)}
+    near = make_lagged_perception(400, seed=1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        share = warn_outside_training(meta, near)
+    assert share is not None and share < 0.2  # fresh draws: a few extremes beyond the training range
+    far = PerceptionDataset(near.x + np.r_[0, 0, 0, 100.0, 0, 0], near.y, near.yhat, source="far.csv")
+    with pytest.warns(
+        DataWarning, match=r"far.csv: 100 % of the calibration inputs lie outside .*\(x_3: 100 %"
+    ):
+        assert warn_outside_training(meta, far) == 1.0
+    assert warn_outside_training({}, far) is None  # a model from before the ranges were stored
+    few = make_lagged_perception(10, seed=3)  # 10 training rows, 9 inputs: any share outside is expected
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert warn_outside_training({"training_inputs": input_ranges(few)}, near) > 0.5
+
+
+def test_calibrate_warns_far_from_training_and_hints_at_runs(recwarn):
+    ds = make_lagged_perception(600, seed=0)
+    model = IPCModel(IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(4,), param="cholesky")))
+    model = IPCModel(model.network, None, {"training_inputs": input_ranges(ds)})
+    cal = make_lagged_perception(1500, seed=1)
+    runs = np.repeat(np.arange(15), 100)
+    far = PerceptionDataset(
+        cal.x - np.r_[50.0, 0, 0, 0, 0, 0], cal.y, cal.yhat, source="cal.csv", extra={"run": runs}
+    )
+    calibrate(model, far, 0.05, 0.01)
+    messages = [(w.category, str(w.message)) for w in recwarn]
+    assert any("lie outside the ranges of the training inputs" in m for c, m in messages if c is DataWarning)
+    hint = [m for c, m in messages if c is Hint]
+    assert len(hint) == 1 and "'run' column (15 groups)" in hint[0] and "--group-column run" in hint[0]
+    recwarn.clear()
+    calibrate(model, far, 0.3, 0.2, group_column="run", domain_alpha=0.1)
+    assert not [w for w in recwarn if w.category is Hint]  # grouped: no hint
+
+
+def test_group_like_columns_need_a_fitting_name_and_more_than_one_group():
+    n = 12
+    ds = _ds(
+        np.arange(n),
+        Flight_ID=np.repeat(["a", "b", "c"], 4),
+        sequence=np.full(n, "MH_04"),  # one group: nothing to be correlated with
+        run=np.arange(n),  # one row per run: not a group
+        t=np.arange(n),
+    )
+    assert group_like_columns(ds) == ["Flight_ID"]
+    two = _ds(np.arange(n), run=np.tile([0, 1], 6), flight=np.repeat(["a", "b", "c"], 4))
+    assert group_like_columns(two) == ["flight", "run"]  # the most groups first
+    with pytest.warns(Hint, match=r"--group-column flight \(or --group-column run\)"):
+        warn_correlated_rows(two, "calibrating", "to calibrate by group")
+    with pytest.warns(Hint, match=r"log.csv has a 'Flight_ID' column \(3 groups\).*certifying row by row"):
+        warn_correlated_rows(ds, "certifying", "to count per group")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        warn_correlated_rows(_ds(np.arange(n), t=np.arange(n)), "calibrating", "x")
