@@ -133,7 +133,8 @@ def measure() -> dict[str, Any]:
     """The layout's numbers (see the module docstring)."""
     graph = package_graph()
     sizes = {
-        str(p.relative_to(ROOT)): len(p.read_text(encoding="utf-8").splitlines()) for p in LIBRARY.rglob("*.py")
+        str(p.relative_to(ROOT)): len(p.read_text(encoding="utf-8").splitlines())
+        for p in LIBRARY.rglob("*.py")
     }
     packages = {}
     for entry in top_entries():
@@ -189,7 +190,9 @@ def plot(result: dict[str, Any], path: Path) -> None:
     for i, (package, text, flows) in enumerate(STAGES):
         _box(top, i, 0.2, 0.82, 0.9, f"{package}\n\n{text}", "#dce9f5")
         if i < n - 1:
-            top.annotate("", xy=(i + 0.6, 0.2), xytext=(i + 0.4, 0.2), arrowprops={"arrowstyle": "->", "lw": 1.4})
+            top.annotate(
+                "", xy=(i + 0.6, 0.2), xytext=(i + 0.4, 0.2), arrowprops={"arrowstyle": "->", "lw": 1.4}
+            )
         top.text(i + 0.5 if i < n - 1 else i, -0.45, flows, ha="center", fontsize=7.5, color="#1f4e79")
     level = result["layers"]
     imports = result["imports"]
