@@ -1,4 +1,4 @@
-"""The project's rules that tools check: ruff clean and formatted, fully typed (mypy, library and case study)."""
+"""Rules that tools check: ruff clean and formatted, fully typed (mypy, library and case study)."""
 
 from __future__ import annotations
 
