@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 
 from ipcverify.calibration._bounds import clopper_pearson_upper
-from ipcverify.certification._certify import DEFAULT_DELTA, NO_STATISTICS, CertificateStatus, certify
+from ipcverify.certification._certificate import CertificateStatus
+from ipcverify.certification._certify import certify
+from ipcverify.certification._certify_steps import DEFAULT_DELTA, NO_STATISTICS
 from ipcverify.certification._evaluation import evaluate
 from ipcverify.contract._calibrate import calibrate
 from ipcverify.contract._model import IPCModel, IPCNetwork
