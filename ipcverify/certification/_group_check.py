@@ -19,7 +19,8 @@ from ipcverify.calibration._grouped import group_violation_counts
 from ipcverify.calibration._protocol import GROUP_UNITS, Calibration, GroupUnit
 from ipcverify.certification._test_result import Consistency, GroupTest, TestResult
 from ipcverify.data._checks import warn_correlated_rows
-from ipcverify.data._dataset import PerceptionDataset, group_codes
+from ipcverify.data._dataset import PerceptionDataset
+from ipcverify.data._split import group_codes
 from ipcverify.errors import InvalidInputError
 
 __all__ = ["group_test_step"]

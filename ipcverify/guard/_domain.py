@@ -53,7 +53,7 @@ from scipy.spatial import cKDTree
 
 from ipcverify.calibration._bounds import marginal_conformal_index
 from ipcverify.calibration._grouped import risk_control_threshold
-from ipcverify.data._dataset import group_codes
+from ipcverify.data._split import group_codes
 from ipcverify.errors import InvalidInputError, SampleSizeError
 from ipcverify.guard._index import BAND, MAX_INPUTS, DomainIndex, levels
 from ipcverify.guard._kernels import domain_one, whiten_one, whiten_rows
