@@ -31,7 +31,7 @@ from ipcverify.certification._evaluation import BinCoverage, WorstBin
 from ipcverify.certification._summary import CertificateSummary
 from ipcverify.certification._test_result import Consistency, GroupTest, GroupTestResult, TestResult
 from ipcverify.certification._theorem1 import Theorem1Result
-from ipcverify.guard._domain import DomainReport
+from ipcverify.guard._domain_report import DomainReport
 
 __all__ = [
     "ASSUMPTION",

@@ -62,7 +62,7 @@ from ipcverify.contract._model import IPCModel
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.data._files import atomic_write, file_sha256, write_json
 from ipcverify.errors import InvalidInputError
-from ipcverify.guard._domain import DomainReport
+from ipcverify.guard._domain_report import DomainReport
 from ipcverify.io._modelio import load_data_for_model, load_model
 
 __all__ = ["certify", "write_certificate", "certify_files"]

@@ -12,7 +12,7 @@ from numpy.typing import NDArray
 from ipcverify.contract._model import IPCModel
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import DataError, InvalidInputError
-from ipcverify.guard._domain import DomainReport
+from ipcverify.guard._domain_report import DomainReport
 
 __all__ = ["Evaluation", "BinCoverage", "WorstBin", "evaluate", "coverage_by_bin", "worst_bin_coverage"]
 

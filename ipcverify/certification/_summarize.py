@@ -19,7 +19,7 @@ from ipcverify.certification._test_result import GroupTest, TestResult
 from ipcverify.contract._model import IPCModel
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import InvalidInputError
-from ipcverify.guard._domain import DomainReport
+from ipcverify.guard._domain_report import DomainReport
 
 __all__ = ["summarize", "output_labels", "capitalized"]
 

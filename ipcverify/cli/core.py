@@ -22,7 +22,7 @@ from ipcverify.network._architecture import DEFAULT_RECIPE, RECIPES
 
 if TYPE_CHECKING:
     from ipcverify.certification._evaluation import Evaluation
-    from ipcverify.guard._domain import DomainReport
+    from ipcverify.guard._domain_report import DomainReport
 
 __all__ = ["parse_hidden"]
 
