@@ -79,6 +79,21 @@ class ModelIdentity:
     ``training`` is how the network was trained (the model file's ``train_config``), and
     ``selection`` how the settings the recipe leaves open were chosen, if a rule chose them
     (:mod:`ipcverify.training._selection`: the paper's recipe's ``alpha``, ``lambda`` and batch size).
+
+    Attributes
+    ----------
+    path : str or None
+        The model file (None: a model in memory).
+    file_sha256 : str or None
+        SHA-256 of the model file.
+    network_sha256 : str
+        Fingerprint of the network's weights.
+    architecture : mapping
+        The network's configuration (``ModelConfig.to_dict()``).
+    n_parameters : int
+        Number of trained parameters ``p``.
+    training, selection : mapping or None
+        See above.
     """
 
     path: str | None
@@ -108,6 +123,21 @@ class DataIdentity:
 
     ``matches_model_metadata`` (training data only) says whether the content hash is the
     one recorded in the model file at training time (None: nothing recorded).
+
+    Attributes
+    ----------
+    source : str
+        Where the data came from (a path, or ``<memory>``).
+    n : int
+        Number of samples.
+    content_sha256 : str
+        SHA-256 of the arrays (:meth:`~ipcverify.data.PerceptionDataset.content_hash`).
+    file_sha256 : str or None
+        SHA-256 of the file (None: not read from a file).
+    matches_model_metadata : bool or None
+        Training data only: whether ``content_sha256`` is the hash recorded at training time.
+    is_training_data : bool
+        Whether this is the training data.
     """
 
     source: str
@@ -132,7 +162,15 @@ class DataIdentity:
 
 @dataclass(frozen=True, kw_only=True)
 class VolumeSummary:
-    """The ``volume`` block of ``certificate.json``: log-volumes of the test-set sets."""
+    """The ``volume`` block of ``certificate.json``: log-volumes of the test-set sets.
+
+    Attributes
+    ----------
+    mean_log, median_log : float
+        Mean and median log-volume of the test-set sets.
+    unit : str
+        The unit of the volumes (``"(units of y)^n"``).
+    """
 
     mean_log: float
     median_log: float
@@ -149,6 +187,46 @@ class Certificate:
 
     ``group_claim`` names the groups a claim about groups (flights, runs) counts (None: rows);
     ``summary`` is the executive summary built from the rest (:func:`ipcverify.certification.summarize`).
+
+    Attributes
+    ----------
+    status : CertificateStatus
+        The verdict.
+    statement : str
+        What is guaranteed, in plain words (:func:`~ipcverify.certification.statement`).
+    model : ModelIdentity
+        The certified model.
+    calibration : CalibrationSummary or None
+        The calibration's certificate (None: not calibrated).
+    test : TestResult or None
+        The test-set bound (None: no test data).
+    test_groups : tuple of GroupTestResult
+        The test per calibration group (empty for a single group).
+    consistency : Consistency
+        Whether the test data contradicts the calibration.
+    theorem1 : Theorem1Result or None
+        Theorem 1 of the paper (None: not computed, see ``theorem1_reason``).
+    theorem1_reason : str
+        Why Theorem 1 was not computed ("" if it was).
+    volume : VolumeSummary or None
+        Log-volumes of the test-set sets.
+    coverage : BinCoverage or None
+        Violation rate per bin of a column (``bin_column``).
+    test_data, train_data : DataIdentity or None
+        The data files used.
+    domain : DomainReport or None
+        What the domain-of-validity test found on the test data.
+    theorem1_source : str
+        Where Theorem 1's training terms came from (the training data, or the statistics stored
+        at training time).
+    worst_bin : WorstBin or None
+        Worst-bin coverage over the state columns and ``||yhat||``.
+    group_test : GroupTest or None
+        The test counted per group (flights, runs).
+    group_claim : GroupClaim or None
+        The groups a claim about groups counts (None: rows).
+    summary : CertificateSummary or None
+        The executive summary.
     """
 
     status: CertificateStatus
@@ -235,6 +313,23 @@ class CertifyEvidence:
 
     ``normalized_scores`` is ``g / s`` (a violation iff ``> 1``); ``examples`` holds a
     few test samples' centres, shapes (calibrated) and truths.
+
+    Attributes
+    ----------
+    normalized_scores, raw_scores, scales : ndarray, shape (N,)
+        ``g / s``, the raw score ``g`` and the calibration scale ``s`` of every test sample.
+    log_volumes : ndarray, shape (N,)
+        Log-volume of each calibrated set.
+    violated : ndarray of bool, shape (N,)
+        Whether each truth fell outside its set.
+    example_index : ndarray of int, shape (E,)
+        Test rows of the examples (the smallest, median and largest set, and a violated row).
+    example_centers, example_shapes : ndarray, shapes (E, n) and (E, n, n)
+        Their calibrated sets ``E(c, C)``.
+    example_truths, example_estimates : ndarray, shape (E, n)
+        Their truths ``y`` and estimates ``yhat``.
+    y_columns : tuple of str
+        The data's names of the coordinates of ``y``.
     """
 
     normalized_scores: FloatArray
@@ -252,7 +347,15 @@ class CertifyEvidence:
 
 @dataclass(frozen=True, eq=False)
 class CertifyResult:
-    """A :class:`Certificate` and the :class:`CertifyEvidence` it rests on (None without test data)."""
+    """A :class:`Certificate` and the :class:`CertifyEvidence` it rests on (None without test data).
+
+    Attributes
+    ----------
+    certificate : Certificate
+        The certificate.
+    evidence : CertifyEvidence or None
+        The per-sample arrays behind it (None without test data).
+    """
 
     certificate: Certificate
     evidence: CertifyEvidence | None

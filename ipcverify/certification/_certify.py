@@ -306,7 +306,15 @@ def _domain(
 
 
 def write_certificate(result: CertifyResult, out_dir: PathLike) -> tuple[Path, Path]:
-    """Write ``certificate.json`` and ``report.html`` into ``out_dir`` (atomically); return their paths."""
+    """Write ``certificate.json`` and ``report.html`` into ``out_dir`` (atomically); return their paths.
+
+    Parameters
+    ----------
+    result : CertifyResult
+        What :func:`certify` returned.
+    out_dir : path-like
+        The directory (created if missing).
+    """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     cert_path, report_path = out / "certificate.json", out / "report.html"
@@ -330,7 +338,21 @@ def certify_files(
     units: str | None = None,
     labels: Sequence[str] | None = None,
 ) -> CertifyResult:
-    """Load a model file and data files, :func:`certify`, and :func:`write_certificate` (the CLI's call)."""
+    """Load a model file and data files, :func:`certify`, and :func:`write_certificate` (the CLI's call).
+
+    Parameters
+    ----------
+    model_path : path-like
+        The model file.
+    test_path : path-like or None
+        The test data file (None: no test).
+    out_dir : path-like
+        Directory for ``certificate.json`` and ``report.html``.
+    train_path : path-like, optional
+        The training data file, for Theorem 1.
+    delta, bin_column, bins, group_column, lipschitz_radius, units, labels
+        As for :func:`certify`.
+    """
     model = load_model(model_path)
     test_data = None if test_path is None else load_data_for_model(test_path, model)
     train_data = None if train_path is None else load_data_for_model(train_path, model)

@@ -64,6 +64,15 @@ def check_inputs(
 ) -> float:
     """Step 1: refuse data the certificate could not rest on; return the confidence ``delta``.
 
+    Parameters
+    ----------
+    model : IPCModel
+        The model to certify.
+    test_data, train_data : PerceptionDataset or None
+        The test data and the training data (for Theorem 1).
+    delta : float or None
+        The confidence parameter; None: the calibration's, else :data:`DEFAULT_DELTA`.
+
     Raises
     ------
     InvalidInputError
@@ -102,7 +111,19 @@ def _check_test_data(model: IPCModel, test_data: PerceptionDataset) -> None:
 
 @dataclass(frozen=True, eq=False)
 class TestScores:
-    """The contract's sets on the test data and what they say about each sample."""
+    """The contract's sets on the test data and what they say about each sample.
+
+    Attributes
+    ----------
+    sets : Ellipsoid
+        The calibrated sets of the test samples.
+    raw, scales, normalized : ndarray, shape (N,)
+        The raw score ``g``, the calibration scale ``s`` and ``g / s``.
+    violated : ndarray of bool, shape (N,)
+        Whether each truth fell outside its set.
+    log_volume : ndarray, shape (N,)
+        Log-volume of each set.
+    """
 
     __test__ = False  # not a pytest test class
 
@@ -115,7 +136,15 @@ class TestScores:
 
 
 def score_test_set(model: IPCModel, test_data: PerceptionDataset) -> TestScores:
-    """Step 2: raw scores, calibration scales, calibrated sets and violations of every test sample."""
+    """Step 2: raw scores, calibration scales, calibrated sets and violations of every test sample.
+
+    Parameters
+    ----------
+    model : IPCModel
+        The model.
+    test_data : PerceptionDataset
+        The test data.
+    """
     centers, shapes = model.raw_arrays(test_data.x, test_data.yhat)
     raw = np.linalg.norm(np.einsum("bij,bj->bi", shapes, test_data.y - centers), axis=1)
     cal = model.calibration
@@ -135,7 +164,19 @@ def test_results(
     cal: Calibration | None, test_data: PerceptionDataset, violated: NDArray[np.bool_], delta: float
 ) -> tuple[TestResult, tuple[GroupTestResult, ...]]:
     """Step 3: the test bound overall (counted in the unit of the calibration's claim) and, for a
-    calibration with several groups, per group."""
+    calibration with several groups, per group.
+
+    Parameters
+    ----------
+    cal : Calibration or None
+        The model's calibration.
+    test_data : PerceptionDataset
+        The test data.
+    violated : ndarray of bool, shape (N,)
+        Whether each test truth fell outside its set.
+    delta : float
+        Confidence parameter of the bounds.
+    """
     counts = row_counts(violated) if cal is None else cal.test_counts(violated, test_data)
     test = TestResult.from_counts(counts.violations, counts.n, delta, counts.unit)
     if cal is None or len(cal.groups()) == 1:
@@ -172,6 +213,17 @@ def theorem1_step(
     stored in the model file (for every recipe). A model file without them (a default-recipe
     model written before they were stored for it) gets a reason instead: the PAC certificate
     does not depend on Theorem 1.
+
+    Parameters
+    ----------
+    model : IPCModel
+        The model.
+    train_data : PerceptionDataset or None
+        The training data.
+    delta : float
+        Confidence parameter of Theorem 1.
+    radius : float
+        Radius of the parameter ball of the sound Lipschitz bound.
     """
     if train_data is not None:
         return theorem1(model, train_data, delta, radius=radius), "", "training data"
@@ -188,7 +240,19 @@ def statement(
     status: CertificateStatus,
     group_test: GroupTest | None = None,
 ) -> str:
-    """Step 5: the certificate's statement in plain words (with the group-level test, if any)."""
+    """Step 5: the certificate's statement in plain words (with the group-level test, if any).
+
+    Parameters
+    ----------
+    cal : Calibration or None
+        The model's calibration.
+    test : TestResult or None
+        The test-set bound.
+    status : CertificateStatus
+        The verdict.
+    group_test : GroupTest, optional
+        The test counted per group.
+    """
     text = _statement(cal, test, status)
     if group_test is None:
         return text

@@ -62,6 +62,19 @@ def group_test_step(
     claim promises when flight lengths are unrelated to their violations); the trajectory
     count is then only reported (any violation in a long flight is no row-level event).
 
+    Parameters
+    ----------
+    cal : Calibration or None
+        The model's calibration.
+    test_data : PerceptionDataset
+        The test data.
+    violated : ndarray of bool, shape (N,)
+        Whether each test truth fell outside its set.
+    delta : float
+        Confidence parameter of the bounds.
+    group_column : str or None
+        The test data's group column (None: the calibration's, if any).
+
     Raises
     ------
     InvalidInputError

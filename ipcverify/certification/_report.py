@@ -302,6 +302,11 @@ def render_report(result: CertifyResult) -> str:
     The summary at the top is the certificate's own (``certificate.summary``, made by
     :func:`~ipcverify.certification.certify`); a certificate built without one gets one made now, dated now.
 
+    Parameters
+    ----------
+    result : CertifyResult
+        What :func:`~ipcverify.certification.certify` returned.
+
     Examples
     --------
     >>> from ipcverify.data._synthetic import make_lagged_perception

@@ -34,6 +34,13 @@ _LEVEL_COLORS = {"pass": "#1b7f3b", "warn": "#9a6700", "fail": "#b42318", "info"
 def banner_colors(status: CertificateStatus, summary: CertificateSummary) -> tuple[str, str]:
     """Background and text colour of the verdict banner: amber for a certified weak target.
 
+    Parameters
+    ----------
+    status : CertificateStatus
+        The verdict.
+    summary : CertificateSummary
+        The executive summary (its target strength).
+
     Examples
     --------
     >>> from ipcverify.certification._summary import Check
@@ -136,6 +143,11 @@ _SYMBOLS = (("<=", "≤"), (">=", "≥"), ("epsilon =", "ε ="), ("delta =", "δ
 
 def display_text(text: str) -> str:
     """Plain-text numbers as the page shows them: ``<=`` as ≤, ``epsilon =`` as ε =, ...
+
+    Parameters
+    ----------
+    text : str
+        Plain text.
 
     Examples
     --------

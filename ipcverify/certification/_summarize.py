@@ -29,6 +29,11 @@ _NOT_RUN = "no test data given: the held-out test was not run"
 def capitalized(text: str) -> str:
     """``text`` with its first letter upper-cased and the rest untouched (unlike ``str.capitalize``).
 
+    Parameters
+    ----------
+    text : str
+        Any text.
+
     Examples
     --------
     >>> capitalized("not computed: before Theorem 1 covered it")
@@ -209,6 +214,15 @@ def output_labels(
     model: IPCModel, test_data: PerceptionDataset | None, labels: Sequence[str] | None = None
 ) -> tuple[str, ...]:
     """One label per coordinate of ``y``: the user's, else the data's or the model's column names.
+
+    Parameters
+    ----------
+    model : IPCModel
+        The model (its column names, if the data has none).
+    test_data : PerceptionDataset or None
+        The test data (its ``y`` column names).
+    labels : sequence of str, optional
+        The user's labels.
 
     Raises
     ------

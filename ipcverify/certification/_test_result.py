@@ -105,6 +105,13 @@ class TestResult:
 class GroupTestResult:
     """The test result of one calibration group (``result`` is None if no test sample fell in it).
 
+    Attributes
+    ----------
+    label : str
+        The group's label.
+    result : TestResult or None
+        Its test result.
+
     Examples
     --------
     >>> GroupTestResult(label="x_0=1", result=None).to_dict()["n"]
@@ -127,6 +134,21 @@ class Consistency:
 
     Built by :meth:`check`: the claim is contradicted when the test set's one-sided lower
     bound exceeds the rate the calibration allows.
+
+    Attributes
+    ----------
+    checked : bool
+        Whether the comparison was made.
+    consistent : bool or None
+        Whether the test data is consistent with the claim (None: not checked).
+    allowed_rate : float or None
+        The violation rate the calibration allows.
+    test_lower_bound : float or None
+        The test set's one-sided lower bound.
+    rule : str
+        The rule applied, in words.
+    reason : str
+        Why no comparison was made.
 
     Examples
     --------
