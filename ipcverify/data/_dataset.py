@@ -318,7 +318,13 @@ class PerceptionDataset:
 
 @dataclass(frozen=True)
 class DatasetSplits:
-    """Train, calibration and test parts of a dataset (a part may be ``None`` if empty)."""
+    """Train, calibration and test parts of a dataset (a part may be ``None`` if empty).
+
+    Attributes
+    ----------
+    train, calibration, test : PerceptionDataset or None
+        The three parts.
+    """
 
     train: PerceptionDataset | None
     calibration: PerceptionDataset | None
@@ -375,7 +381,15 @@ def load_dataset(
 
 
 def save_dataset(dataset: PerceptionDataset, path: str | os.PathLike[str]) -> None:
-    """Write a dataset atomically as CSV, Parquet or NPZ (chosen by the suffix)."""
+    """Write a dataset atomically as CSV, Parquet or NPZ (chosen by the suffix).
+
+    Parameters
+    ----------
+    dataset : PerceptionDataset
+        The data.
+    path : path-like
+        A ``.csv``, ``.parquet``/``.pq`` or ``.npz`` path.
+    """
     p = Path(path)
     suffix = p.suffix.lower()
     if suffix not in SUFFIXES:
@@ -394,6 +408,19 @@ class PerceptionInputs:
 
     What ``predict`` and ``monitor`` read: a deployment log has no ``y``. Validated like
     :class:`PerceptionDataset` (finite, 2-D, equal numbers of rows).
+
+    Attributes
+    ----------
+    x : ndarray, shape (N, d)
+        States.
+    yhat : ndarray, shape (N, n)
+        Estimates.
+    source : str
+        Where the queries came from (for error messages).
+    x_columns, yhat_columns : tuple of str
+        Column names (default ``x_i``, ``yhat_i``).
+    extra : mapping of str to ndarray
+        Any other columns, one value per row.
 
     Examples
     --------
@@ -430,6 +457,13 @@ def load_inputs(
     yhat_columns: Sequence[str] | None = None,
 ) -> PerceptionInputs:
     """Load deployment queries (``x`` and ``yhat``; truth columns, if any, are kept as extras).
+
+    Parameters
+    ----------
+    path : path-like
+        A ``.csv``, ``.parquet``/``.pq`` or ``.npz`` file.
+    x_columns, yhat_columns : sequence of str, optional
+        Column names to use instead of ``x_i`` and ``yhat_i`` (tables only).
 
     Examples
     --------

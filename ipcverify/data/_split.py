@@ -93,6 +93,11 @@ def split_parts(
 def split_fractions(fractions: Sequence[float]) -> NDArray[np.float64]:
     """The shares of the train, calibration and test parts, checked: three non-negative numbers summing to 1.
 
+    Parameters
+    ----------
+    fractions : sequence of float
+        The shares.
+
     Examples
     --------
     >>> split_fractions([0.5, 0.5, 0.0]).tolist()

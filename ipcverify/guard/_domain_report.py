@@ -19,6 +19,21 @@ WELL_ABOVE_LEVEL = 1e-3
 class DomainReport:
     """The ``domain`` block of ``certificate.json``: how many queries of a batch lie outside.
 
+    Attributes
+    ----------
+    method : str
+        The test, in words.
+    alpha : float
+        Its false-alarm rate.
+    threshold : float
+        The whitened distance beyond which a query is flagged.
+    n_reference : int
+        Calibration inputs the test was fitted on.
+    n, outside : int
+        Queries checked and queries flagged.
+    violations_inside, violations_outside : int or None
+        Violations among the queries inside and outside the domain (None: no labels).
+
     Examples
     --------
     >>> r = DomainReport(method="knn", alpha=0.01, threshold=2.0, n_reference=100, n=50, outside=5)

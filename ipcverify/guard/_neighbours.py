@@ -23,6 +23,17 @@ def other_group_distances(tree: cKDTree, points: FloatArray, codes: NDArray[np.i
     growing batches until ``k`` of another group are among them, so small groups cost one
     query and a point deep inside a large group a few more.
 
+    Parameters
+    ----------
+    tree : scipy.spatial.cKDTree
+        A tree over ``points``.
+    points : ndarray, shape (N, D)
+        The tree's data.
+    codes : ndarray of int, shape (N,)
+        The group of each point.
+    k : int
+        The neighbour rank.
+
     Examples
     --------
     >>> pts = np.array([[0.0], [0.1], [1.0], [3.0]])
