@@ -229,10 +229,8 @@ def worst_bin_coverage(
 
     Parameters
     ----------
-    x : ndarray, shape (N, d)
-        States.
-    yhat : ndarray, shape (N, n)
-        Estimates.
+    x, yhat : ndarray, shapes (N, d) and (N, n)
+        States and estimates.
     violated : ndarray of bool, shape (N,)
         Whether each truth fell outside its set.
     x_columns : tuple of str

@@ -64,14 +64,8 @@ def group_test_step(
 
     Parameters
     ----------
-    cal : Calibration or None
-        The model's calibration.
-    test_data : PerceptionDataset
-        The test data.
-    violated : ndarray of bool, shape (N,)
-        Whether each test truth fell outside its set.
-    delta : float
-        Confidence parameter of the bounds.
+    cal, test_data, violated, delta
+        As for :func:`~ipcverify.certification.test_results`.
     group_column : str or None
         The test data's group column (None: the calibration's, if any).
 

@@ -335,10 +335,8 @@ def objective(
 
     Parameters
     ----------
-    g : Tensor (B,)
-        Scores ``||C (y - c)||``.
-    logdet : Tensor (B,)
-        ``log det(C^T C)`` per sample.
+    g, logdet
+        As for :func:`ipc_loss`.
     loss : {"hinge", "likelihood"}
         The objective.
     cfg : TrainConfig
