@@ -112,7 +112,7 @@ def read_times(path: str | os.PathLike[str]) -> NDArray[np.float64]:
     Parameters
     ----------
     path : path-like
-        The file.
+        A text file of times, one a line (a `#` starts a comment).
 
     Examples
     --------
