@@ -54,7 +54,6 @@ from ipcverify.certification._certify_steps import (
 )
 from ipcverify.certification._evaluation import BinCoverage, WorstBin, coverage_by_bin, worst_bin_coverage
 from ipcverify.certification._group_check import group_test_step
-from ipcverify.certification._lipschitz import DEFAULT_RADIUS
 from ipcverify.certification._report import render_report
 from ipcverify.certification._summarize import output_labels, summarize
 from ipcverify.certification._test_result import Consistency, GroupTest, GroupTestResult, TestResult
@@ -64,6 +63,7 @@ from ipcverify.data._files import atomic_write, file_sha256, write_json
 from ipcverify.errors import InvalidInputError
 from ipcverify.guard._domain_report import DomainReport
 from ipcverify.io._modelio import load_data_for_model, load_model
+from ipcverify.network._lipschitz_ball import DEFAULT_RADIUS
 
 __all__ = ["certify", "write_certificate", "certify_files"]
 
