@@ -6,7 +6,8 @@
 * no cycle between ipcverify's top-level packages either (no import runs back up a layer);
 * at most 14 top-level entries in ``ipcverify/`` (modules plus packages);
 * every package's ``__all__`` is the names of its ``if TYPE_CHECKING:`` imports, and each
-  resolves at runtime; the public API imports from ``ipcverify`` without loading torch;
+  resolves at runtime; the public API imports from ``ipcverify``, and all of it but ``train``
+  without loading torch;
 * no module imports a private name (``_x``) from another ipcverify module;
 * no ``isinstance`` on a calibration class outside :mod:`ipcverify.calibration`;
 * no ``assert`` statement in library code (a named error is raised instead);
