@@ -1,4 +1,4 @@
-"""The project's own rules that tools check: ruff clean and fully typed (mypy, library and case study)."""
+"""Rules that tools check: ruff clean and formatted, fully typed (mypy, library and case study)."""
 
 from __future__ import annotations
 
@@ -18,6 +18,14 @@ def test_ruff_is_clean():
         pytest.fail("ruff is missing: pip install -e '.[dev]'")
     res = subprocess.run(["ruff", "check", "."], cwd=ROOT, capture_output=True, text=True)
     assert res.returncode == 0, res.stdout + res.stderr
+
+
+@pytest.mark.slow
+def test_ruff_format_is_clean():
+    if shutil.which("ruff") is None:
+        pytest.fail("ruff is missing: pip install -e '.[dev]'")
+    res = subprocess.run(["ruff", "format", "--check", "."], cwd=ROOT, capture_output=True, text=True)
+    assert res.returncode == 0, "run `ruff format .`:\n" + res.stdout + res.stderr
 
 
 @pytest.mark.slow

@@ -24,26 +24,24 @@ if TYPE_CHECKING:
         CertificateStatus,
         CertifyEvidence,
         CertifyResult,
-        Consistency,
         DataIdentity,
-        GroupTest,
-        GroupTestResult,
         ModelIdentity,
-        TestResult,
         VolumeSummary,
     )
     from ipcverify.certification._certify import (
+        certify,
+        certify_files,
+        write_certificate,
+    )
+    from ipcverify.certification._certify_steps import (
         DEFAULT_DELTA,
         NO_STATISTICS,
         TestScores,
-        certify,
-        certify_files,
         check_inputs,
         score_test_set,
         statement,
         test_results,
         theorem1_step,
-        write_certificate,
     )
     from ipcverify.certification._evaluation import (
         BinCoverage,
@@ -65,9 +63,11 @@ if TYPE_CHECKING:
         theorem1_unavailable,
     )
     from ipcverify.certification._report import (
+        render_report,
+    )
+    from ipcverify.certification._report_head import (
         banner_colors,
         display_text,
-        render_report,
     )
     from ipcverify.certification._report_plots import (
         ellipse_outline,
@@ -91,6 +91,12 @@ if TYPE_CHECKING:
         target_strength,
         utc_now,
         weak_target_phrase,
+    )
+    from ipcverify.certification._test_result import (
+        Consistency,
+        GroupTest,
+        GroupTestResult,
+        TestResult,
     )
     from ipcverify.certification._theorem1 import (
         Theorem1Bound,

@@ -45,6 +45,11 @@ def _not_calibrated(name: str) -> InvalidInputError:
 class Boxes:
     """A batch of axis-aligned boxes ``[lower, upper]`` (B, n).
 
+    Parameters
+    ----------
+    lower, upper : ndarray, shape (B, n)
+        Lower and upper corners of each box.
+
     Examples
     --------
     >>> b = Boxes(np.zeros((1, 2)), np.array([[2.0, 3.0]]))
@@ -144,6 +149,11 @@ class GlobalMahalanobis:
 def fit_global_mahalanobis(train_data: PerceptionDataset) -> GlobalMahalanobis:
     """Fit the residual mean and covariance on training data (uncalibrated baseline).
 
+    Parameters
+    ----------
+    train_data : PerceptionDataset
+        Training data; its residuals ``y - yhat`` give the mean and covariance.
+
     Raises
     ------
     InvalidInputError
@@ -167,6 +177,13 @@ def fit_global_mahalanobis(train_data: PerceptionDataset) -> GlobalMahalanobis:
 @dataclass(frozen=True, kw_only=True)
 class BonferroniBox:
     """Axis-aligned box ``yhat + mean +/- h`` calibrated per axis at ``epsilon / n``.
+
+    Attributes
+    ----------
+    mean : ndarray, shape (n,)
+        Mean residual ``y - yhat`` of the training data: the boxes are centred at ``yhat + mean``.
+    thresholds : tuple of ScoreThreshold
+        Per-axis half-widths ``h``, calibrated at ``epsilon / n`` each (empty before :meth:`calibrate`).
 
     Examples
     --------
@@ -214,5 +231,11 @@ class BonferroniBox:
 
 
 def fit_bonferroni_box(train_data: PerceptionDataset) -> BonferroniBox:
-    """Fit the residual mean on training data (uncalibrated box baseline)."""
+    """Fit the residual mean on training data (uncalibrated box baseline).
+
+    Parameters
+    ----------
+    train_data : PerceptionDataset
+        Training data; its residuals ``y - yhat`` give the mean.
+    """
     return BonferroniBox(mean=_residuals(train_data).mean(axis=0))

@@ -5,9 +5,10 @@ layout of ``certificate.json`` (written with the one JSON encoder of
 :mod:`ipcverify.data._files`). :mod:`ipcverify.certification._report` renders the same records as HTML.
 
 * :class:`CertificateStatus` -- the verdict, whose text says what to do next;
-* :class:`TestResult` -- violations on fresh test data and exact binomial bounds;
-* :class:`Consistency` -- does the test data contradict the calibration's claim?
-* :class:`GroupTest` -- the test counted per group (flight, run): valid for correlated rows;
+* :class:`~ipcverify.certification._test_result.TestResult`,
+  :class:`~ipcverify.certification._test_result.Consistency`,
+  :class:`~ipcverify.certification._test_result.GroupTest` -- what the test data says
+  (:mod:`ipcverify.certification._test_result`);
 * :class:`ModelIdentity`, :class:`DataIdentity`, :class:`VolumeSummary` -- provenance and size;
 * :class:`Certificate` -- all of the above plus the calibration summary, Theorem 1, the unit of
   the claim and the executive summary (:class:`~ipcverify.certification.CertificateSummary`);
@@ -25,31 +26,16 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ipcverify._package import VERSION
-from ipcverify.calibration._bounds import (
-    clopper_pearson_interval,
-    clopper_pearson_lower,
-    clopper_pearson_upper,
-)
-from ipcverify.calibration._protocol import (
-    GROUP_UNITS,
-    AllowedRate,
-    CalibrationSummary,
-    GroupClaim,
-    GroupUnit,
-)
+from ipcverify.calibration._protocol import CalibrationSummary, GroupClaim
 from ipcverify.certification._evaluation import BinCoverage, WorstBin
 from ipcverify.certification._summary import CertificateSummary
+from ipcverify.certification._test_result import Consistency, GroupTest, GroupTestResult, TestResult
 from ipcverify.certification._theorem1 import Theorem1Result
-from ipcverify.errors import InvalidInputError
-from ipcverify.guard._domain import DomainReport
+from ipcverify.guard._domain_report import DomainReport
 
 __all__ = [
     "ASSUMPTION",
     "CertificateStatus",
-    "TestResult",
-    "GroupTestResult",
-    "Consistency",
-    "GroupTest",
     "ModelIdentity",
     "DataIdentity",
     "VolumeSummary",
@@ -87,265 +73,27 @@ class CertificateStatus(Enum):
 
 
 @dataclass(frozen=True, kw_only=True)
-class TestResult:
-    """Violations of the contract on a test set and their exact binomial bounds.
-
-    Attributes
-    ----------
-    n, violations : int
-        Test samples and samples whose truth lies outside its set.
-    delta : float
-        Confidence parameter of the bounds.
-    upper_bound : float
-        One-sided Clopper--Pearson upper bound at ``1 - delta``.
-    lower_bound : float
-        One-sided lower bound at ``1 - delta`` (used for the consistency check).
-    interval : tuple of float
-        Two-sided interval at ``1 - delta``.
-    unit : str
-        What was counted: ``"samples"``, or groups (flights, runs) for a calibration whose
-        claim is about groups (their rows are correlated, so rows are not the unit).
-
-    Examples
-    --------
-    >>> t = TestResult.from_counts(3, 1000, 0.001)
-    >>> round(t.upper_bound, 4)
-    0.013
-    """
-
-    __test__ = False  # not a pytest test class
-
-    n: int
-    violations: int
-    delta: float
-    upper_bound: float
-    lower_bound: float
-    interval: tuple[float, float]
-    unit: str = "samples"
-
-    def __post_init__(self) -> None:
-        if not (0 <= self.violations <= self.n and self.n >= 1):
-            raise InvalidInputError(f"need 0 <= violations <= n, n >= 1; got {self.violations}, {self.n}")
-        if not (self.lower_bound <= self.violations / self.n <= self.upper_bound):
-            raise InvalidInputError("test bounds must bracket the empirical rate")
-
-    @classmethod
-    def from_counts(cls, violations: int, n: int, delta: float, unit: str = "samples") -> TestResult:
-        """Compute the bounds from counts."""
-        return cls(
-            n=int(n),
-            violations=int(violations),
-            delta=float(delta),
-            upper_bound=clopper_pearson_upper(violations, n, delta),
-            lower_bound=clopper_pearson_lower(violations, n, delta),
-            interval=clopper_pearson_interval(violations, n, delta),
-            unit=unit,
-        )
-
-    @property
-    def empirical_rate(self) -> float:
-        """``violations / n``."""
-        return self.violations / self.n
-
-    def to_dict(self) -> dict[str, Any]:
-        """Plain-data form."""
-        return {
-            "n": self.n,
-            "violations": self.violations,
-            "empirical_rate": self.empirical_rate,
-            "upper_bound": self.upper_bound,
-            "lower_bound": self.lower_bound,
-            "interval": list(self.interval),
-            "delta": self.delta,
-            "unit": self.unit,
-            "bound": "one-sided Clopper-Pearson upper bound at confidence 1 - delta",
-        }
-
-
-@dataclass(frozen=True, kw_only=True)
-class GroupTestResult:
-    """The test result of one calibration group (``result`` is None if no test sample fell in it).
-
-    Examples
-    --------
-    >>> GroupTestResult(label="x_0=1", result=None).to_dict()["n"]
-    0
-    """
-
-    label: str
-    result: TestResult | None
-
-    def to_dict(self) -> dict[str, Any]:
-        """``{label, **result}``, or ``{label, n: 0, violations: 0, upper_bound: None}``."""
-        if self.result is None:
-            return {"label": self.label, "n": 0, "violations": 0, "upper_bound": None}
-        return {"label": self.label, **self.result.to_dict()}
-
-
-@dataclass(frozen=True, kw_only=True)
-class Consistency:
-    """Does the test data contradict the calibration's claim? (false-alarm probability <= 2 delta).
-
-    Built by :meth:`check`: the claim is contradicted when the test set's one-sided lower
-    bound exceeds the rate the calibration allows.
-
-    Examples
-    --------
-    >>> t = TestResult.from_counts(50, 1000, 0.001)
-    >>> Consistency.check(AllowedRate(rate=0.01, reason="pac"), t).consistent
-    False
-    """
-
-    checked: bool
-    consistent: bool | None = None
-    allowed_rate: float | None = None
-    test_lower_bound: float | None = None
-    rule: str = ""
-    reason: str = ""
-
-    @classmethod
-    def check(cls, allowed: AllowedRate | None, test: TestResult) -> Consistency:
-        """Compare the test lower bound with the allowed rate (if the calibration claims one)."""
-        if allowed is None:
-            return cls(checked=False, reason="no calibration")
-        if allowed.rate is None:
-            return cls(checked=False, reason=allowed.reason)
-        return cls(
-            checked=True,
-            consistent=bool(test.lower_bound <= allowed.rate),
-            allowed_rate=allowed.rate,
-            test_lower_bound=test.lower_bound,
-            rule=f"contradiction if the test lower bound exceeds the allowed rate ({allowed.reason})",
-        )
-
-    def to_dict(self) -> dict[str, Any]:
-        """``{checked, reason}`` or ``{checked, consistent, allowed_rate, test_lower_bound, rule}``."""
-        if not self.checked:
-            return {"checked": False, "reason": self.reason}
-        return {
-            "checked": True,
-            "consistent": self.consistent,
-            "allowed_rate": self.allowed_rate,
-            "test_lower_bound": self.test_lower_bound,
-            "rule": self.rule,
-        }
-
-
-@dataclass(frozen=True, kw_only=True)
-class GroupTest:
-    """The test counted per group (flight, run): one Bernoulli per test group, valid for correlated rows.
-
-    A row-level Clopper--Pearson bound assumes independent rows; rows of one flight are
-    correlated, so it can be far too narrow. Counting one statistic per group
-    (:func:`~ipcverify.calibration.group_violation_counts`) gives ``n_groups`` i.i.d.
-    Bernoulli draws when the test groups are i.i.d., whatever the dependence within a group
-    (``proofs/group_calibration.md`` section 6). Built by
-    :func:`ipcverify.certification._certify.group_test_step`.
-
-    Attributes
-    ----------
-    column : str
-        The test data's group column.
-    n_groups, n_rows : int
-        Test groups and test rows.
-    seed : int
-        Seeds the choice of one sample per group (``sample``).
-    trajectory : TestResult
-        Groups with any violation: bounds on the probability that a new group leaves its sets
-        somewhere.
-    sample : TestResult
-        Groups whose one randomly chosen sample violates: bounds on the expected share of a new
-        group's samples outside their sets (a random sample of a random group).
-    compared_unit : {"trajectory", "sample"} or None
-        The count checked against the calibration's allowed rate (None: not checked).
-    consistency : Consistency
-        That check (the same rule as the row-level one).
-
-    Examples
-    --------
-    >>> t = TestResult.from_counts(1, 30, 0.01, "groups of run (any violation)")
-    >>> s = TestResult.from_counts(0, 30, 0.01, "groups of run (one random sample each)")
-    >>> g = GroupTest(column="run", n_groups=30, n_rows=600, seed=0, trajectory=t, sample=s,
-    ...               compared_unit=None, consistency=Consistency(checked=False, reason="no calibration"))
-    >>> g.to_dict()["trajectory"]["violations"], round(g.to_dict()["sample"]["upper_bound"], 3)
-    (1, 0.142)
-    """
-
-    __test__ = False  # not a pytest test class
-
-    column: str
-    n_groups: int
-    n_rows: int
-    seed: int
-    trajectory: TestResult
-    sample: TestResult
-    compared_unit: GroupUnit | None
-    consistency: Consistency
-
-    def __post_init__(self) -> None:
-        if not (2 <= self.n_groups <= self.n_rows) or self.trajectory.n != self.n_groups != self.sample.n:
-            raise InvalidInputError(
-                f"a group test needs 2 <= n_groups <= n_rows and both counts over n_groups; got "
-                f"n_groups={self.n_groups}, n_rows={self.n_rows}"
-            )
-        if self.sample.violations > self.trajectory.violations:
-            raise InvalidInputError(
-                "a group whose random sample violates has a violation: sample <= trajectory"
-            )
-        if self.compared_unit is not None and self.compared_unit not in GROUP_UNITS:
-            raise InvalidInputError(
-                f"compared_unit must be one of {GROUP_UNITS} or None; got {self.compared_unit!r}"
-            )
-
-    @property
-    def compared(self) -> TestResult | None:
-        """The count checked against the calibration (None if none was)."""
-        if self.compared_unit is None:
-            return None
-        return self.trajectory if self.compared_unit == "trajectory" else self.sample
-
-    def sentence(self) -> str:
-        """What the group counts say, in one or two sentences."""
-        t, s = self.trajectory, self.sample
-        conf = f"{1 - t.delta:.6g}"
-        text = (
-            f"Counted per group of {self.column!r} ({self.n_groups} test groups, {self.n_rows} rows; "
-            "valid if the test groups are i.i.d., whatever the correlation within a group): with confidence "
-            f"{conf}, a random sample of a new group violates with probability at most {s.upper_bound:.4g} "
-            f"({s.violations} of {s.n} randomly chosen samples outside), and a new group leaves its sets "
-            f"somewhere with probability at most {t.upper_bound:.4g} ({t.violations} of {t.n} groups)."
-        )
-        c = self.consistency
-        if c.checked and not c.consistent:
-            text += (
-                f" The group-level {self.compared_unit} count CONTRADICTS the calibration: its lower bound "
-                f"{c.test_lower_bound:.4g} exceeds the allowed rate {c.allowed_rate:.4g}."
-            )
-        return text
-
-    def to_dict(self) -> dict[str, Any]:
-        """``{column, n_groups, n_rows, seed, trajectory, sample, compared_unit, consistency, statement}``."""
-        return {
-            "column": self.column,
-            "n_groups": self.n_groups,
-            "n_rows": self.n_rows,
-            "seed": self.seed,
-            "trajectory": self.trajectory.to_dict(),
-            "sample": self.sample.to_dict(),
-            "compared_unit": self.compared_unit,
-            "consistency": self.consistency.to_dict(),
-            "statement": self.sentence(),
-            "assumption": "test groups i.i.d. from deployment; rows within a group may be correlated",
-        }
-
-
-@dataclass(frozen=True, kw_only=True)
 class ModelIdentity:
     """Which model was certified: file, fingerprints, architecture, parameter count, training.
 
     ``training`` is how the network was trained (the model file's ``train_config``), and
     ``selection`` how the settings the recipe leaves open were chosen, if a rule chose them
     (:mod:`ipcverify.training._selection`: the paper's recipe's ``alpha``, ``lambda`` and batch size).
+
+    Attributes
+    ----------
+    path : str or None
+        The model file (None: a model in memory).
+    file_sha256 : str or None
+        SHA-256 of the model file.
+    network_sha256 : str
+        Fingerprint of the network's weights.
+    architecture : mapping
+        The network's configuration (``ModelConfig.to_dict()``).
+    n_parameters : int
+        Number of trained parameters ``p``.
+    training, selection : mapping or None
+        See above.
     """
 
     path: str | None
@@ -375,6 +123,21 @@ class DataIdentity:
 
     ``matches_model_metadata`` (training data only) says whether the content hash is the
     one recorded in the model file at training time (None: nothing recorded).
+
+    Attributes
+    ----------
+    source : str
+        Where the data came from (a path, or ``<memory>``).
+    n : int
+        Number of samples.
+    content_sha256 : str
+        SHA-256 of the arrays (:meth:`~ipcverify.data.PerceptionDataset.content_hash`).
+    file_sha256 : str or None
+        SHA-256 of the file (None: not read from a file).
+    matches_model_metadata : bool or None
+        Training data only: whether ``content_sha256`` is the hash recorded at training time.
+    is_training_data : bool
+        Whether this is the training data.
     """
 
     source: str
@@ -399,7 +162,15 @@ class DataIdentity:
 
 @dataclass(frozen=True, kw_only=True)
 class VolumeSummary:
-    """The ``volume`` block of ``certificate.json``: log-volumes of the test-set sets."""
+    """The ``volume`` block of ``certificate.json``: log-volumes of the test-set sets.
+
+    Attributes
+    ----------
+    mean_log, median_log : float
+        Mean and median log-volume of the test-set sets.
+    unit : str
+        The unit of the volumes (``"(units of y)^n"``).
+    """
 
     mean_log: float
     median_log: float
@@ -416,6 +187,46 @@ class Certificate:
 
     ``group_claim`` names the groups a claim about groups (flights, runs) counts (None: rows);
     ``summary`` is the executive summary built from the rest (:func:`ipcverify.certification.summarize`).
+
+    Attributes
+    ----------
+    status : CertificateStatus
+        The verdict.
+    statement : str
+        What is guaranteed, in plain words (:func:`~ipcverify.certification.statement`).
+    model : ModelIdentity
+        The certified model.
+    calibration : CalibrationSummary or None
+        The calibration's certificate (None: not calibrated).
+    test : TestResult or None
+        The test-set bound (None: no test data).
+    test_groups : tuple of GroupTestResult
+        The test per calibration group (empty for a single group).
+    consistency : Consistency
+        Whether the test data contradicts the calibration.
+    theorem1 : Theorem1Result or None
+        Theorem 1 of the paper (None: not computed, see ``theorem1_reason``).
+    theorem1_reason : str
+        Why Theorem 1 was not computed ("" if it was).
+    volume : VolumeSummary or None
+        Log-volumes of the test-set sets.
+    coverage : BinCoverage or None
+        Violation rate per bin of a column (``bin_column``).
+    test_data, train_data : DataIdentity or None
+        The data files used.
+    domain : DomainReport or None
+        What the domain-of-validity test found on the test data.
+    theorem1_source : str
+        Where Theorem 1's training terms came from (the training data, or the statistics stored
+        at training time).
+    worst_bin : WorstBin or None
+        Worst-bin coverage over the state columns and ``||yhat||``.
+    group_test : GroupTest or None
+        The test counted per group (flights, runs).
+    group_claim : GroupClaim or None
+        The groups a claim about groups counts (None: rows).
+    summary : CertificateSummary or None
+        The executive summary.
     """
 
     status: CertificateStatus
@@ -502,6 +313,23 @@ class CertifyEvidence:
 
     ``normalized_scores`` is ``g / s`` (a violation iff ``> 1``); ``examples`` holds a
     few test samples' centres, shapes (calibrated) and truths.
+
+    Attributes
+    ----------
+    normalized_scores, raw_scores, scales : ndarray, shape (N,)
+        ``g / s``, the raw score ``g`` and the calibration scale ``s`` of every test sample.
+    log_volumes : ndarray, shape (N,)
+        Log-volume of each calibrated set.
+    violated : ndarray of bool, shape (N,)
+        Whether each truth fell outside its set.
+    example_index : ndarray of int, shape (E,)
+        Test rows of the examples (the smallest, median and largest set, and a violated row).
+    example_centers, example_shapes : ndarray, shapes (E, n) and (E, n, n)
+        Their calibrated sets ``E(c, C)``.
+    example_truths, example_estimates : ndarray, shape (E, n)
+        Their truths ``y`` and estimates ``yhat``.
+    y_columns : tuple of str
+        The data's names of the coordinates of ``y``.
     """
 
     normalized_scores: FloatArray
@@ -519,7 +347,15 @@ class CertifyEvidence:
 
 @dataclass(frozen=True, eq=False)
 class CertifyResult:
-    """A :class:`Certificate` and the :class:`CertifyEvidence` it rests on (None without test data)."""
+    """A :class:`Certificate` and the :class:`CertifyEvidence` it rests on (None without test data).
+
+    Attributes
+    ----------
+    certificate : Certificate
+        The certificate.
+    evidence : CertifyEvidence or None
+        The per-sample arrays behind it (None without test data).
+    """
 
     certificate: Certificate
     evidence: CertifyEvidence | None

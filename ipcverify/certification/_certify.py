@@ -18,8 +18,9 @@
 3. **Theorem 1** of the paper, with both Lipschitz constants; computed only when the
    training data is given, reported as vacuous when it is.
 
-It is a short pipeline of named steps (:func:`check_inputs`, :func:`score_test_set`,
-:func:`test_results`, :func:`theorem1_step`, :func:`statement`, ...); the result types
+It is a short pipeline of named steps (:mod:`ipcverify.certification._certify_steps`:
+:func:`check_inputs`, :func:`score_test_set`, :func:`test_results`, :func:`theorem1_step`,
+:func:`statement`, ...); the result types
 live in :mod:`ipcverify.certification._certificate`. :func:`write_certificate` writes ``certificate.json``
 (atomically) and the self-contained ``report.html`` (:mod:`ipcverify.certification._report`).
 """
@@ -34,229 +35,43 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from ipcverify.calibration._protocol import Calibration, row_counts
 from ipcverify.certification._certificate import (
     Certificate,
-    CertificateStatus,
     CertifyEvidence,
     CertifyResult,
-    Consistency,
     DataIdentity,
-    GroupTest,
-    GroupTestResult,
     ModelIdentity,
-    TestResult,
     VolumeSummary,
+)
+from ipcverify.certification._certify_steps import (
+    TestScores,
+    certificate_status,
+    check_inputs,
+    score_test_set,
+    statement,
+    test_results,
+    theorem1_step,
 )
 from ipcverify.certification._evaluation import BinCoverage, WorstBin, coverage_by_bin, worst_bin_coverage
 from ipcverify.certification._group_check import group_test_step
-from ipcverify.certification._lipschitz import DEFAULT_RADIUS
 from ipcverify.certification._report import render_report
 from ipcverify.certification._summarize import output_labels, summarize
-from ipcverify.certification._theorem1 import Theorem1Result, TrainingStatistics, theorem1
+from ipcverify.certification._test_result import Consistency, GroupTest, GroupTestResult, TestResult
 from ipcverify.contract._model import IPCModel
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.data._files import atomic_write, file_sha256, write_json
 from ipcverify.errors import InvalidInputError
-from ipcverify.guard._domain import DomainReport
+from ipcverify.guard._domain_report import DomainReport
 from ipcverify.io._modelio import load_data_for_model, load_model
-from ipcverify.sets._shapes import Ellipsoid
+from ipcverify.network._lipschitz_ball import DEFAULT_RADIUS
 
-__all__ = [
-    "DEFAULT_DELTA",
-    "NO_STATISTICS",
-    "TestScores",
-    "certify",
-    "check_inputs",
-    "score_test_set",
-    "test_results",
-    "theorem1_step",
-    "statement",
-    "write_certificate",
-    "certify_files",
-]
+__all__ = ["certify", "write_certificate", "certify_files"]
 
 FloatArray = NDArray[np.float64]
 PathLike = str | os.PathLike[str]
 
-#: Confidence parameter of the test-set bound when the model carries no calibration.
-DEFAULT_DELTA = 0.001
 #: Number of example ellipsoids kept for the report's projections.
 N_EXAMPLES = 4
-#: Why Theorem 1 is not computed for a model file without training statistics and no training data.
-NO_STATISTICS = (
-    "not computed: training data not given, and the model records no training statistics (a model "
-    "not built by ipcverify.training.train, or a default-recipe model file written before Theorem 1 "
-    "covered the default recipe); pass the training data (--train-data), or retrain the model"
-)
-
-
-def _check_dims(model: IPCModel, data: PerceptionDataset, role: str) -> None:
-    cfg = model.config
-    if (data.x_dim, data.y_dim) != (cfg.x_dim, cfg.y_dim):
-        raise InvalidInputError(
-            f"{data.source}: {role} data has x_dim={data.x_dim}, y_dim={data.y_dim} but the model expects "
-            f"x_dim={cfg.x_dim}, y_dim={cfg.y_dim}"
-        )
-
-
-def check_inputs(
-    model: IPCModel,
-    test_data: PerceptionDataset | None,
-    train_data: PerceptionDataset | None,
-    delta: float | None,
-) -> float:
-    """Step 1: refuse data the certificate could not rest on; return the confidence ``delta``.
-
-    Raises
-    ------
-    InvalidInputError
-        If dimensions disagree, the test data is the calibration or training data, the
-        calibration belongs to a different network, or ``delta`` is not in ``(0, 1)``.
-    """
-    if train_data is not None:
-        _check_dims(model, train_data, "training")
-    cal = model.calibration
-    if cal is not None and cal.network_hash != model.weights.fingerprint():
-        raise InvalidInputError(
-            "the model's calibration was computed for a different network (fingerprint mismatch); "
-            "recalibrate this network"
-        )
-    if test_data is not None:
-        _check_test_data(model, test_data)
-    if delta is None:
-        delta = cal.delta if cal is not None else DEFAULT_DELTA
-    if not (isinstance(delta, (int, float)) and 0 < delta < 1):
-        raise InvalidInputError(f"delta must lie strictly between 0 and 1; got {delta!r}")
-    return float(delta)
-
-
-def _check_test_data(model: IPCModel, test_data: PerceptionDataset) -> None:
-    _check_dims(model, test_data, "test")
-    cal = model.calibration
-    test_hash = test_data.content_hash()
-    if cal is not None:
-        if cal.data_hash == test_hash:
-            raise InvalidInputError(
-                f"{test_data.source}: the test data is the calibration data; certify on fresh samples"
-            )
-    if test_hash == model.metadata.get("train_data_hash"):
-        raise InvalidInputError(f"{test_data.source}: the test data is the training data; use fresh samples")
-
-
-@dataclass(frozen=True, eq=False)
-class TestScores:
-    """The contract's sets on the test data and what they say about each sample."""
-
-    __test__ = False  # not a pytest test class
-
-    sets: Ellipsoid
-    raw: FloatArray
-    scales: FloatArray
-    normalized: FloatArray
-    violated: NDArray[np.bool_]
-    log_volume: FloatArray
-
-
-def score_test_set(model: IPCModel, test_data: PerceptionDataset) -> TestScores:
-    """Step 2: raw scores, calibration scales, calibrated sets and violations of every test sample."""
-    centers, shapes = model.raw_arrays(test_data.x, test_data.yhat)
-    raw = np.linalg.norm(np.einsum("bij,bj->bi", shapes, test_data.y - centers), axis=1)
-    cal = model.calibration
-    scales = np.ones(len(raw)) if cal is None else np.asarray(cal.scale_for(test_data.x, test_data.yhat))
-    sets = model.predict(test_data.x, test_data.yhat)
-    return TestScores(
-        sets=sets,
-        raw=raw,
-        scales=scales,
-        normalized=sets.g(test_data.y),
-        violated=~sets.contains(test_data.y),
-        log_volume=sets.log_volume(),
-    )
-
-
-def test_results(
-    cal: Calibration | None, test_data: PerceptionDataset, violated: NDArray[np.bool_], delta: float
-) -> tuple[TestResult, tuple[GroupTestResult, ...]]:
-    """Step 3: the test bound overall (counted in the unit of the calibration's claim) and, for a
-    calibration with several groups, per group."""
-    counts = row_counts(violated) if cal is None else cal.test_counts(violated, test_data)
-    test = TestResult.from_counts(counts.violations, counts.n, delta, counts.unit)
-    if cal is None or len(cal.groups()) == 1:
-        return test, ()
-    gi = cal.group_index(test_data.x, test_data.yhat)
-    groups = []
-    for j, g in enumerate(cal.groups()):
-        m = gi == j
-        res = TestResult.from_counts(int(violated[m].sum()), int(m.sum()), delta) if m.any() else None
-        groups.append(GroupTestResult(label=g.label, result=res))
-    return test, tuple(groups)
-
-
-def _status(cal: Calibration | None, checks: tuple[Consistency, ...], tested: bool) -> CertificateStatus:
-    """No calibration / untested; CONTRADICTED if any check fails; UNCHECKED if none was possible."""
-    if cal is None:
-        return CertificateStatus.NOT_CALIBRATED
-    if not tested:
-        return CertificateStatus.UNTESTED
-    done = [c for c in checks if c.checked]
-    if not done:
-        return CertificateStatus.UNCHECKED
-    return CertificateStatus.CERTIFIED if all(c.consistent for c in done) else CertificateStatus.CONTRADICTED
-
-
-def theorem1_step(
-    model: IPCModel, train_data: PerceptionDataset | None, delta: float, radius: float
-) -> tuple[Theorem1Result | None, str, str]:
-    """Step 4: Theorem 1 and where its training terms came from, or the reason it was not computed.
-
-    From the training data if given, else from the statistics :func:`ipcverify.training.train`
-    stored in the model file (for every recipe). A model file without them (a default-recipe
-    model written before they were stored for it) gets a reason instead: the PAC certificate
-    does not depend on Theorem 1.
-    """
-    if train_data is not None:
-        return theorem1(model, train_data, delta, radius=radius), "", "training data"
-    stored = model.metadata.get("training_statistics")
-    if stored is None:
-        return None, NO_STATISTICS, ""
-    stats = TrainingStatistics.from_dict(stored)
-    return theorem1(model, stats, delta, radius=radius), "", "statistics stored at training time"
-
-
-def statement(
-    cal: Calibration | None,
-    test: TestResult | None,
-    status: CertificateStatus,
-    group_test: GroupTest | None = None,
-) -> str:
-    """Step 5: the certificate's statement in plain words (with the group-level test, if any)."""
-    text = _statement(cal, test, status)
-    if group_test is None:
-        return text
-    if test is not None and test.unit == "samples":
-        text += " The row-level bound assumes independent rows; rows of one group are correlated."
-    return text + " " + group_test.sentence()
-
-
-def _statement(cal: Calibration | None, test: TestResult | None, status: CertificateStatus) -> str:
-    if test is None:
-        if cal is None:
-            return "No calibration certificate and no test data: nothing is guaranteed about this model."
-        return cal.guarantee() + " No test data was given: nothing here checks the calibration independently."
-    test_sentence = (
-        f"Independently, the ground truth fell outside its set for {test.violations} of {test.n} fresh "
-        f"test {test.unit}, so with "
-        f"confidence {1 - test.delta:.6g} the violation rate of this contract is at most "
-        f"{test.upper_bound:.4g} (Clopper-Pearson; valid if the test {test.unit} are i.i.d. from "
-        "deployment and unused in training and calibration)."
-    )
-    if cal is None:
-        return "No calibration certificate: the model was not calibrated. " + test_sentence
-    text = cal.guarantee() + " " + test_sentence
-    if status is CertificateStatus.CONTRADICTED:
-        text = "WARNING: the test data contradicts the calibration. " + text
-    return text
 
 
 def _identity(data: PerceptionDataset, path: PathLike | None, model: IPCModel | None = None) -> DataIdentity:
@@ -405,7 +220,7 @@ def certify(
         else Consistency.check(None if cal is None else cal.allowed_violation_rate(), test)
     )
     checks = (consistency,) if group_test is None else (consistency, group_test.consistency)
-    status = _status(cal, checks, tested is not None)
+    status = certificate_status(cal, checks, tested is not None)
     t1, t1_reason, t1_source = theorem1_step(model, train_data, delta, lipschitz_radius)
     cert = Certificate(
         status=status,
@@ -491,7 +306,15 @@ def _domain(
 
 
 def write_certificate(result: CertifyResult, out_dir: PathLike) -> tuple[Path, Path]:
-    """Write ``certificate.json`` and ``report.html`` into ``out_dir`` (atomically); return their paths."""
+    """Write ``certificate.json`` and ``report.html`` into ``out_dir`` (atomically); return their paths.
+
+    Parameters
+    ----------
+    result : CertifyResult
+        What :func:`certify` returned.
+    out_dir : path-like
+        The directory (created if missing).
+    """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     cert_path, report_path = out / "certificate.json", out / "report.html"
@@ -515,7 +338,21 @@ def certify_files(
     units: str | None = None,
     labels: Sequence[str] | None = None,
 ) -> CertifyResult:
-    """Load a model file and data files, :func:`certify`, and :func:`write_certificate` (the CLI's call)."""
+    """Load a model file and data files, :func:`certify`, and :func:`write_certificate` (the CLI's call).
+
+    Parameters
+    ----------
+    model_path : path-like
+        The model file.
+    test_path : path-like or None
+        The test data file (None: no test).
+    out_dir : path-like
+        Directory for ``certificate.json`` and ``report.html``.
+    train_path : path-like, optional
+        The training data file, for Theorem 1.
+    delta, bin_column, bins, group_column, lipschitz_radius, units, labels
+        As for :func:`certify`.
+    """
     model = load_model(model_path)
     test_data = None if test_path is None else load_data_for_model(test_path, model)
     train_data = None if train_path is None else load_data_for_model(train_path, model)

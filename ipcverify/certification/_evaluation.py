@@ -12,7 +12,7 @@ from numpy.typing import NDArray
 from ipcverify.contract._model import IPCModel
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import DataError, InvalidInputError
-from ipcverify.guard._domain import DomainReport
+from ipcverify.guard._domain_report import DomainReport
 
 __all__ = ["Evaluation", "BinCoverage", "WorstBin", "evaluate", "coverage_by_bin", "worst_bin_coverage"]
 
@@ -25,6 +25,17 @@ class BinCoverage:
 
     A numeric column is cut at ``edges`` (quantile bins, or one bin per value when it has few);
     a text column (flight or run names) has one bin per value, named in ``labels``.
+
+    Attributes
+    ----------
+    column : str
+        The column binned.
+    edges : tuple of float
+        The bin edges of a numeric column (empty for a text column).
+    counts, violations : tuple of int
+        Samples and violations per bin.
+    labels : tuple of str
+        The name of each bin.
     """
 
     column: str
@@ -119,6 +130,17 @@ def coverage_by_bin(
 ) -> BinCoverage:
     """Violation counts per quantile bin of ``values`` (per value if few distinct, or if text).
 
+    Parameters
+    ----------
+    values : ndarray, shape (N,)
+        The column's value for each sample.
+    violated : ndarray of bool, shape (N,)
+        Whether each sample's truth fell outside its set.
+    column : str
+        The column's name.
+    bins : int
+        Number of quantile bins.
+
     Raises
     ------
     InvalidInputError
@@ -205,6 +227,17 @@ def worst_bin_coverage(
 ) -> WorstBin:
     """Worst-bin coverage over ``bins`` quantile bins of every state column and of ``||yhat||``.
 
+    Parameters
+    ----------
+    x, yhat : ndarray, shapes (N, d) and (N, n)
+        States and estimates.
+    violated : ndarray of bool, shape (N,)
+        Whether each truth fell outside its set.
+    x_columns : tuple of str
+        Names of the state columns.
+    bins : int
+        Number of quantile bins per column.
+
     Examples
     --------
     >>> rng = np.random.default_rng(0)
@@ -239,6 +272,17 @@ def evaluate(
 
     Uses the model's calibrated sets if it carries a calibration, and counts the samples outside
     its domain of validity (with the violations inside and outside) if it carries a domain test.
+
+    Parameters
+    ----------
+    model : IPCModel
+        The model.
+    data : PerceptionDataset
+        The data.
+    bin_column : str, optional
+        A column to report the violation rate per bin of (:func:`coverage_by_bin`).
+    bins : int
+        Number of bins.
 
     Examples
     --------

@@ -17,9 +17,10 @@ from numpy.typing import NDArray
 
 from ipcverify.calibration._grouped import group_violation_counts
 from ipcverify.calibration._protocol import GROUP_UNITS, Calibration, GroupUnit
-from ipcverify.certification._certificate import Consistency, GroupTest, TestResult
+from ipcverify.certification._test_result import Consistency, GroupTest, TestResult
 from ipcverify.data._checks import warn_correlated_rows
-from ipcverify.data._dataset import PerceptionDataset, group_codes
+from ipcverify.data._dataset import PerceptionDataset
+from ipcverify.data._split import group_codes
 from ipcverify.errors import InvalidInputError
 
 __all__ = ["group_test_step"]
@@ -60,6 +61,13 @@ def group_test_step(
     row-level one ``sample`` (a random sample of a random group, which is what a row-level
     claim promises when flight lengths are unrelated to their violations); the trajectory
     count is then only reported (any violation in a long flight is no row-level event).
+
+    Parameters
+    ----------
+    cal, test_data, violated, delta
+        As for :func:`~ipcverify.certification.test_results`.
+    group_column : str or None
+        The test data's group column (None: the calibration's, if any).
 
     Raises
     ------

@@ -82,6 +82,11 @@ def theorem1_unavailable(model: IPCModel) -> str | None:
     (``proofs/lipschitz.md``) and the default low-rank ensemble
     (``proofs/lipschitz_lowrank.md``). Only a network of another class is refused.
 
+    Parameters
+    ----------
+    model : IPCModel
+        The model.
+
     Examples
     --------
     >>> from ipcverify.network._modules import build_network
@@ -113,7 +118,19 @@ def _require_supported(network: Any) -> Network:
 
 @dataclass(frozen=True)
 class LipschitzEstimate:
-    """A **lower estimate** of ``L_g``: the largest per-sample gradient norm at ``theta_hat``."""
+    """A **lower estimate** of ``L_g``: the largest per-sample gradient norm at ``theta_hat``.
+
+    Attributes
+    ----------
+    value : float
+        The estimate.
+    n_samples : int
+        Samples it was computed on.
+    argmax : int
+        The sample with the largest gradient norm.
+    kind : str
+        What the value is, in words (an empirical lower estimate, not a bound).
+    """
 
     value: float
     n_samples: int
@@ -201,6 +218,17 @@ def empirical_lipschitz(
 
     Computed in float32 by default (the network's own precision; relative error ~1e-6,
     immaterial for an estimate); pass ``dtype=torch.float64`` for more digits.
+
+    Parameters
+    ----------
+    model : IPCModel
+        The trained model.
+    data : PerceptionDataset
+        The samples (the training data for Theorem 1).
+    chunk_size : int
+        Samples per batch of per-sample gradients.
+    dtype : torch.dtype
+        Precision of the computation.
 
     Examples
     --------

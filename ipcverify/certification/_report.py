@@ -9,7 +9,7 @@ from the network), so it can be archived, printed and opened offline. From the t
 * the executive summary (:class:`~ipcverify.certification.CertificateSummary`): the claim in one
   sentence, epsilon, delta and the unit of the claim, the units and labels of ``y``, one row
   per check with its verdict, the date (UTC), the ipcverify version and the SHA-256 of the
-  model and the data;
+  model and the data (the banner and the summary: :mod:`ipcverify.certification._report_head`);
 * the calibration, the domain of validity, the test set (with the per-flight table and the
   plots of :mod:`ipcverify.certification._report_plots`), Theorem 1, and the identity of every file, with
   lines for a reviewer's signature.
@@ -19,19 +19,13 @@ from __future__ import annotations
 
 import base64
 import html
-import math
 from typing import Any
 
 from matplotlib.figure import Figure
 
 from ipcverify.calibration._protocol import CalibrationSummary
-from ipcverify.certification._certificate import (
-    Certificate,
-    CertificateStatus,
-    CertifyEvidence,
-    CertifyResult,
-    Consistency,
-)
+from ipcverify.certification._certificate import Certificate, CertifyEvidence, CertifyResult
+from ipcverify.certification._report_head import html_table, html_value, page_header
 from ipcverify.certification._report_plots import (
     ellipse_outline,
     figure_to_png,
@@ -40,7 +34,8 @@ from ipcverify.certification._report_plots import (
     plot_scores,
 )
 from ipcverify.certification._summarize import capitalized, summarize
-from ipcverify.certification._summary import WEAK_EPSILON, CertificateSummary
+from ipcverify.certification._summary import CertificateSummary
+from ipcverify.certification._test_result import Consistency
 
 __all__ = [
     "figure_to_png",
@@ -48,38 +43,8 @@ __all__ = [
     "plot_scores",
     "plot_coverage",
     "plot_projections",
-    "banner_colors",
-    "display_text",
     "render_report",
 ]
-
-#: Banner background and text colour per status (a certified weak target: :data:`_WEAK`).
-_COLORS = {
-    CertificateStatus.CERTIFIED: ("#1b7f3b", "#ffffff"),
-    CertificateStatus.UNTESTED: ("#1b5e7f", "#ffffff"),
-    CertificateStatus.UNCHECKED: ("#1b5e7f", "#ffffff"),
-    CertificateStatus.NOT_CALIBRATED: ("#9a6700", "#ffffff"),
-    CertificateStatus.CONTRADICTED: ("#b42318", "#ffffff"),
-}
-_WEAK = ("#f5b400", "#1f2328")
-_LEVEL_COLORS = {"pass": "#1b7f3b", "warn": "#9a6700", "fail": "#b42318", "info": "#57606a"}
-
-
-def banner_colors(status: CertificateStatus, summary: CertificateSummary) -> tuple[str, str]:
-    """Background and text colour of the verdict banner: amber for a certified weak target.
-
-    Examples
-    --------
-    >>> from ipcverify.certification._summary import Check
-    >>> s = CertificateSummary(status="CERTIFIED", status_detail="", claim="", epsilon=0.5,
-    ...     certified_epsilon=0.45, delta=0.1, unit="row", checks=(), date_utc="2025-01-31T12:00:00Z",
-    ...     ipcverify_version="0", model_sha256="0" * 64, model_sha256_of="network", labels=("y_0",))
-    >>> banner_colors(CertificateStatus.CERTIFIED, s)
-    ('#f5b400', '#1f2328')
-    """
-    if summary.certified and summary.strength == "weak":
-        return _WEAK
-    return _COLORS[status]
 
 
 def _img(fig: Figure, alt: str) -> str:
@@ -87,161 +52,9 @@ def _img(fig: Figure, alt: str) -> str:
     return f'<img alt="{html.escape(alt)}" src="data:image/png;base64,{data}">'
 
 
-def _fmt(v: Any) -> str:
-    if v is None:
-        return "&mdash;"
-    if isinstance(v, bool):
-        return "yes" if v else "no"
-    if isinstance(v, int):
-        return f"{v:,}"
-    if isinstance(v, float):
-        if not math.isfinite(v):
-            return html.escape(str(v))
-        return f"{v:.4g}"
-    return html.escape(str(v))
-
-
-def _table(rows: list[tuple[str, Any]]) -> str:
-    body = "".join(f"<tr><th>{html.escape(k)}</th><td>{_fmt(v)}</td></tr>" for k, v in rows)
-    return f"<table>{body}</table>"
-
-
-_CSS = """
-body{font-family:-apple-system,"Segoe UI",Helvetica,Arial,sans-serif;max-width:980px;margin:1.2em auto;
-padding:0 1em;color:#1f2328;line-height:1.45}
-h1{font-size:1.5em;margin:0 0 .3em}h2{font-size:1.2em;border-bottom:1px solid #d0d7de;padding-bottom:.2em;
-margin-top:1.6em}
-.status{padding:.55em .8em;border-radius:6px;font-weight:600;margin:.4em 0}
-.statement{font-size:1.04em;background:#f6f8fa;border-left:4px solid #4c72b0;padding:.6em 1em;margin:.8em 0}
-table{border-collapse:collapse;margin:.5em 0}
-th,td{border:1px solid #d0d7de;padding:.25em .6em;text-align:left;font-size:.92em;vertical-align:top}
-th{background:#f6f8fa;font-weight:600}
-.vacuous{color:#b42318;font-weight:600}.ok{color:#1b7f3b;font-weight:600}
-.verdict{font-weight:600;white-space:nowrap}.hash{font-family:monospace;font-size:.85em;word-break:break-all}
-img{max-width:100%;display:block;margin:.6em 0}.small{font-size:.85em;color:#57606a}
-code{background:#f6f8fa;padding:0 .25em;border-radius:3px}
-.sign td{height:2.2em;min-width:14em}
-"""
-
-
 def _unit_words(unit: str) -> str:
     """How the page names a counted unit: ``samples`` (rows of the data) are rows."""
     return "rows" if unit == "samples" else unit
-
-
-def _target_table(s: CertificateSummary) -> str:
-    rows: list[tuple[str, str]] = []
-    if s.epsilon is None:
-        rows.append(("target violation rate &epsilon;", "none: the model is not calibrated"))
-    else:
-        strength = (
-            f"<b>weak target</b> (&epsilon; &ge; {WEAK_EPSILON:g})"
-            if s.strength == "weak"
-            else f"strong target (&epsilon; &lt; {WEAK_EPSILON:g})"
-        )
-        rows.append(
-            (
-                "target violation rate &epsilon;",
-                f"{s.epsilon:g}: {strength}; certified rate {_fmt(s.certified_epsilon)}",
-            )
-        )
-    delta = (
-        "&mdash;"
-        if s.delta is None
-        else f"{s.delta:g} (the claim holds with probability &ge; {1 - s.delta:.6g})"
-    )
-    rows += [
-        ("confidence parameter &delta;", delta),
-        ("unit of the claim", html.escape(s.unit_text())),
-        (
-            "perceived quantity y",
-            f"{html.escape(', '.join(s.labels))}, in {html.escape(s.units_text)}",
-        ),
-    ]
-    return "<table>" + "".join(f"<tr><th>{k}</th><td>{v}</td></tr>" for k, v in rows) + "</table>"
-
-
-_SYMBOLS = (("<=", "≤"), (">=", "≥"), ("epsilon =", "ε ="), ("delta =", "δ ="), ("alpha =", "α ="))
-
-
-def display_text(text: str) -> str:
-    """Plain-text numbers as the page shows them: ``<=`` as ≤, ``epsilon =`` as ε =, ...
-
-    Examples
-    --------
-    >>> display_text("lower bound 0.2 <= allowed 0.3 (target epsilon = 0.5)")
-    'lower bound 0.2 ≤ allowed 0.3 (target ε = 0.5)'
-    """
-    for plain, symbol in _SYMBOLS:
-        text = text.replace(f" {plain} ", f" {symbol} ").replace(f"({plain} ", f"({symbol} ")
-    return text
-
-
-def _checks_table(s: CertificateSummary) -> str:
-    rows = "".join(
-        f'<tr class="check-{c.level}"><td>{html.escape(capitalized(c.name))}</td>'
-        f'<td class="verdict" style="color:{_LEVEL_COLORS[c.level]}">{html.escape(c.verdict)}</td>'
-        f"<td>{html.escape(display_text(c.detail))}</td></tr>"
-        for c in s.checks
-    )
-    return f'<table class="checks"><tr><th>check</th><th>verdict</th><th>the numbers</th></tr>{rows}</table>'
-
-
-def _record_table(s: CertificateSummary) -> str:
-    rows = [
-        ("date (UTC, ISO 8601)", html.escape(s.date_utc)),
-        ("ipcverify version", html.escape(s.ipcverify_version)),
-        (f"{s.model_sha256_of} SHA-256", f'<span class="hash">{s.model_sha256}</span>'),
-    ]
-    rows += [
-        (f"{k} SHA-256", f'<span class="hash">{html.escape(v)}</span>') for k, v in s.data_sha256.items()
-    ]
-    if not s.data_sha256:
-        rows.append(("data SHA-256", "no data given"))
-    return (
-        '<table class="record">' + "".join(f"<tr><th>{k}</th><td>{v}</td></tr>" for k, v in rows) + "</table>"
-    )
-
-
-def _assumption(s: CertificateSummary) -> str:
-    if s.unit == "group":
-        units = (
-            f"the calibration groups of <code>{html.escape(str(s.unit_column))}</code> (flights, runs), the "
-            "test groups and the groups met in deployment are exchangeable (rows within a group may be "
-            "correlated)"
-        )
-    else:
-        units = (
-            "the calibration rows, the test rows and the rows met in deployment are exchangeable (for "
-            "example, drawn i.i.d. from the same distribution)"
-        )
-    return (
-        f'<p class="small">Assumption behind every statement on this page: {units}, and none of them was '
-        "used for training. Nothing here holds under distribution shift; the domain-of-validity test flags "
-        "queries unlike the calibration data.</p>"
-    )
-
-
-def _header(cert: Certificate, s: CertificateSummary) -> list[str]:
-    """The banner and the executive summary: what a reviewer reads (and signs) first."""
-    bg, fg = banner_colors(cert.status, s)
-    parts = [
-        "<!DOCTYPE html>",
-        '<html lang="en"><head><meta charset="utf-8">',
-        "<title>ipcverify certificate</title>",
-        f"<style>{_CSS}</style></head><body>",
-        "<h1>Inverse perception contract: certificate</h1>",
-        f'<p class="status" id="verdict" style="background:{bg};color:{fg}">'
-        f"{html.escape(s.verdict_text('ε'))}</p>",
-        '<section id="summary"><h2>Summary</h2>',
-        f'<p class="statement"><b>What is guaranteed.</b> {html.escape(s.claim)}</p>',
-        _target_table(s),
-        _checks_table(s),
-    ]
-    if cert.test_bound_note:
-        parts.append(f"<p>{html.escape(cert.test_bound_note)}</p>")
-    parts += [_assumption(s), _record_table(s), "</section>"]
-    return parts
 
 
 def _calibration_section(cal: CalibrationSummary | None) -> list[str]:
@@ -263,11 +76,11 @@ def _calibration_section(cal: CalibrationSummary | None) -> list[str]:
     ]
     if len(cal.groups) == 1:
         rows += [("order statistic k", cal.groups[0].k), ("scale factor s", cal.groups[0].scale)]
-    parts.append(_table(rows))
+    parts.append(html_table(rows))
     if len(cal.groups) > 1:
         grows = "".join(
-            f"<tr><td>{html.escape(g.label)}</td><td>{_fmt(g.n)}</td><td>{_fmt(g.k)}</td>"
-            f"<td>{_fmt(g.scale)}</td></tr>"
+            f"<tr><td>{html.escape(g.label)}</td><td>{html_value(g.n)}</td><td>{html_value(g.k)}</td>"
+            f"<td>{html_value(g.scale)}</td></tr>"
             for g in cal.groups
         )
         parts.append(f"<table><tr><th>group</th><th>n</th><th>k</th><th>scale</th></tr>{grows}</table>")
@@ -294,7 +107,7 @@ def _domain_section(cert: Certificate) -> list[str]:
         rows.append(("test queries", "none: no test data given, so the held-out test was not run"))
     else:
         rows += [("test queries checked", d.n), ("test queries outside", d.outside)]
-    parts.append(_table(rows))
+    parts.append(html_table(rows))
     return parts
 
 
@@ -322,7 +135,7 @@ def _test_section(cert: Certificate, ev: CertifyEvidence | None, s: CertificateS
         (f"mean log-volume of the sets ({volume})", cert.volume.mean_log),
         (f"median log-volume ({volume})", cert.volume.median_log),
     ]
-    parts.append(_table(rows))
+    parts.append(html_table(rows))
     if cert.consistency.checked:
         parts.append(_consistency_line("Consistency check: test", cert.consistency))
     parts += _group_test_part(cert)
@@ -339,7 +152,8 @@ def _test_section(cert: Certificate, ev: CertifyEvidence | None, s: CertificateS
     if cert.worst_bin is not None:
         w = cert.worst_bin
         wrows = "".join(
-            f"<tr><td>{html.escape(c)}</td><td>{_fmt(cov)}</td><td>[{lo:.4g}, {hi:.4g}]</td><td>{n}</td></tr>"
+            f"<tr><td>{html.escape(c)}</td><td>{html_value(cov)}</td>"
+            f"<td>[{lo:.4g}, {hi:.4g}]</td><td>{n}</td></tr>"
             for c, (cov, lo, hi, n) in w.by_column.items()
         )
         parts.append(
@@ -387,8 +201,8 @@ def _group_test_part(cert: Certificate) -> list[str]:
     ):
         mark = "compared with the calibration" if g.compared_unit == unit else "reported"
         rows += (
-            f"<tr><td>{html.escape(label)}</td><td>{_fmt(res.violations)} / {_fmt(res.n)}</td>"
-            f"<td>{_fmt(res.empirical_rate)}</td><td>{_fmt(res.upper_bound)}</td>"
+            f"<tr><td>{html.escape(label)}</td><td>{html_value(res.violations)} / {html_value(res.n)}</td>"
+            f"<td>{html_value(res.empirical_rate)}</td><td>{html_value(res.upper_bound)}</td>"
             f"<td>[{res.interval[0]:.4g}, {res.interval[1]:.4g}]</td><td>{mark}</td></tr>"
         )
     conf = f"{1 - g.trajectory.delta:.6g}"
@@ -473,7 +287,7 @@ def _identity_section(cert: Certificate) -> list[str]:
         rows.append(("training data SHA-256 (content)", cert.train_data.content_sha256))
     return [
         "<h2>Identity</h2>",
-        _table(rows),
+        html_table(rows),
         "<p class='small'>Generated by ipcverify. The machine-readable record is "
         "<code>certificate.json</code> beside this file.</p>",
         "<h2>Review</h2>",
@@ -487,6 +301,11 @@ def render_report(result: CertifyResult) -> str:
 
     The summary at the top is the certificate's own (``certificate.summary``, made by
     :func:`~ipcverify.certification.certify`); a certificate built without one gets one made now, dated now.
+
+    Parameters
+    ----------
+    result : CertifyResult
+        What :func:`~ipcverify.certification.certify` returned.
 
     Examples
     --------
@@ -502,7 +321,7 @@ def render_report(result: CertifyResult) -> str:
     """
     cert = result.certificate
     summary = cert.summary if cert.summary is not None else summarize(cert)
-    parts = _header(cert, summary)
+    parts = page_header(cert, summary)
     parts += _calibration_section(cert.calibration)
     parts += _domain_section(cert)
     parts += _test_section(cert, result.evidence, summary)

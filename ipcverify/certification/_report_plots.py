@@ -31,6 +31,13 @@ __all__ = ["figure_to_png", "ellipse_outline", "plot_scores", "plot_coverage", "
 def figure_to_png(fig: Figure, dpi: int = 100) -> bytes:
     """Render a figure with the Agg canvas to PNG bytes.
 
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure.
+    dpi : int
+        Resolution.
+
     Examples
     --------
     >>> fig = Figure(figsize=(2, 1)); _ = fig.add_subplot().plot([0, 1])
@@ -44,7 +51,15 @@ def figure_to_png(fig: Figure, dpi: int = 100) -> bytes:
 
 
 def plot_scores(evidence: CertifyEvidence, calibrated: bool) -> Figure:
-    """Histogram of the test scores ``g / s`` with the set boundary (1) marked."""
+    """Histogram of the test scores ``g / s`` with the set boundary (1) marked.
+
+    Parameters
+    ----------
+    evidence : CertifyEvidence
+        The test scores.
+    calibrated : bool
+        Whether the model is calibrated: the boundary is then ``g / s = 1``, else ``g = 1``.
+    """
     s = evidence.normalized_scores
     fig = Figure(figsize=(7.0, 3.2))
     ax = fig.add_subplot()
@@ -69,7 +84,17 @@ def plot_scores(evidence: CertifyEvidence, calibrated: bool) -> Figure:
 
 
 def plot_coverage(coverage: BinCoverage, delta: float, epsilon: float | None) -> Figure:
-    """Violation rate per bin of a column, with two-sided Clopper--Pearson intervals at ``delta`` per bin."""
+    """Violation rate per bin of a column, with two-sided Clopper--Pearson intervals at ``delta`` per bin.
+
+    Parameters
+    ----------
+    coverage : BinCoverage
+        Violations per bin.
+    delta : float
+        Confidence parameter of the intervals.
+    epsilon : float or None
+        The calibration's target, drawn as a line (None: no line).
+    """
     fig = Figure(figsize=(7.0, 3.2))
     ax = fig.add_subplot()
     counts = np.asarray(coverage.counts)
@@ -112,7 +137,17 @@ def plot_coverage(coverage: BinCoverage, delta: float, epsilon: float | None) ->
 
 
 def ellipse_outline(center: np.ndarray, shape: np.ndarray, i: int, j: int) -> np.ndarray:
-    """Boundary of the projection of E(c, C) on coordinates (i, j), as (2, 200) points."""
+    """Boundary of the projection of E(c, C) on coordinates (i, j), as (2, 200) points.
+
+    Parameters
+    ----------
+    center : ndarray, shape (n,)
+        The centre ``c``.
+    shape : ndarray, shape (n, n)
+        The shape matrix ``C``.
+    i, j : int
+        The coordinates to project on.
+    """
     cinv = np.linalg.inv(shape)
     P = cinv @ cinv.T
     sub = P[np.ix_([i, j], [i, j])]
@@ -126,6 +161,13 @@ def plot_projections(evidence: CertifyEvidence, axis_labels: Sequence[str] = ())
 
     ``axis_labels`` names every coordinate of ``y`` with its unit (``"forward [m]"``); default:
     the data's column names in "units of the data".
+
+    Parameters
+    ----------
+    evidence : CertifyEvidence
+        The examples.
+    axis_labels : sequence of str
+        See above.
     """
     k = len(evidence.example_index)
     n = evidence.example_centers.shape[1]

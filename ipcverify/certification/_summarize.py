@@ -13,12 +13,13 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from ipcverify._package import VERSION
-from ipcverify.certification._certificate import Certificate, CertificateStatus, GroupTest, TestResult
+from ipcverify.certification._certificate import Certificate, CertificateStatus
 from ipcverify.certification._summary import CertificateSummary, Check, CheckLevel, target_strength, utc_now
+from ipcverify.certification._test_result import GroupTest, TestResult
 from ipcverify.contract._model import IPCModel
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import InvalidInputError
-from ipcverify.guard._domain import DomainReport
+from ipcverify.guard._domain_report import DomainReport
 
 __all__ = ["summarize", "output_labels", "capitalized"]
 
@@ -27,6 +28,11 @@ _NOT_RUN = "no test data given: the held-out test was not run"
 
 def capitalized(text: str) -> str:
     """``text`` with its first letter upper-cased and the rest untouched (unlike ``str.capitalize``).
+
+    Parameters
+    ----------
+    text : str
+        Any text.
 
     Examples
     --------
@@ -208,6 +214,15 @@ def output_labels(
     model: IPCModel, test_data: PerceptionDataset | None, labels: Sequence[str] | None = None
 ) -> tuple[str, ...]:
     """One label per coordinate of ``y``: the user's, else the data's or the model's column names.
+
+    Parameters
+    ----------
+    model : IPCModel
+        The model (its column names, if the data has none).
+    test_data : PerceptionDataset or None
+        The test data (its ``y`` column names).
+    labels : sequence of str, optional
+        The user's labels.
 
     Raises
     ------

@@ -47,6 +47,11 @@ _DATE_FORMAT = "%Y-%m-%dT%H:%M:%SZ"
 def target_strength(epsilon: float | None) -> Strength:
     """``"none"`` without a calibration target, ``"weak"`` if ``epsilon >= WEAK_EPSILON``, else ``"strong"``.
 
+    Parameters
+    ----------
+    epsilon : float or None
+        The calibration's target violation rate.
+
     Examples
     --------
     >>> target_strength(0.01), target_strength(0.1), target_strength(0.5), target_strength(None)
@@ -62,6 +67,15 @@ def weak_target_phrase(epsilon: float, unit_statistic: str | None = None, symbol
 
     ``unit_statistic="trajectory"`` (a claim about whole groups) speaks of groups leaving their
     sets instead of truths.
+
+    Parameters
+    ----------
+    epsilon : float
+        The target violation rate.
+    unit_statistic : str, optional
+        The statistic of a claim about groups (``"trajectory"``, ``"sample"``).
+    symbol : str
+        How to write epsilon.
 
     Examples
     --------

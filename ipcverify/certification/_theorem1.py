@@ -140,6 +140,13 @@ class TrainingStatistics:
 def truncated_hinge_mean(scores: ArrayLike, alpha: float) -> float:
     """``(1/N) sum min(1, max(0, (g_i - 1) / alpha + 1))``, the empirical term of Theorem 1.
 
+    Parameters
+    ----------
+    scores : array_like, shape (N,)
+        The scores ``g_i``.
+    alpha : float
+        The hinge width.
+
     Examples
     --------
     >>> round(truncated_hinge_mean([0.5, 0.95, 2.0], alpha=0.1), 12)  # (0 + 0.5 + 1) / 3
@@ -158,6 +165,13 @@ def n_needed(empirical: float, complexity_coefficient: float, confidence_coeffic
 
     ``a`` is the complexity coefficient ``(12 / alpha) L_g sqrt(p)``, ``b`` the
     confidence coefficient ``sqrt(ln(2 / delta) / 2)``.
+
+    Parameters
+    ----------
+    empirical : float
+        The empirical term.
+    complexity_coefficient, confidence_coefficient : float
+        ``a`` and ``b``.
 
     Examples
     --------
@@ -231,6 +245,19 @@ def theorem1_terms(
     valid: bool,
 ) -> Theorem1Bound:
     """Evaluate the right-hand side of Theorem 1 for given ingredients.
+
+    Parameters
+    ----------
+    empirical : float
+        The empirical truncated hinge mean.
+    lipschitz : float
+        The Lipschitz constant ``L_g``.
+    n_parameters, n_train : int
+        ``p`` and ``N``.
+    alpha, delta : float
+        The hinge width and the confidence parameter.
+    valid : bool
+        Whether ``lipschitz`` is a sound upper bound (else the bound proves nothing).
 
     Examples
     --------

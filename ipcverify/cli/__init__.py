@@ -17,5 +17,11 @@ __all__ = ["app", "main"]
 
 
 def main(argv: list[str] | None = None) -> None:
-    """Run the CLI; user errors exit with status 2 and a single line on stderr."""
+    """Run the CLI; user errors exit with status 2 and a single line on stderr.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        The arguments (default: ``sys.argv[1:]``).
+    """
     run_group(app, argv, "ipcverify")

@@ -19,6 +19,7 @@ from __future__ import annotations
 import sys
 import traceback
 import warnings
+from pathlib import Path
 from typing import Any, NoReturn, TextIO
 
 import click
@@ -26,7 +27,17 @@ from rich.console import Console
 
 from ipcverify.errors import Hint, InvalidInputError
 
-__all__ = ["app", "console", "err_console", "run_group", "EXIT_VERDICT", "EXIT_USER", "EXIT_INTERNAL"]
+__all__ = [
+    "app",
+    "choice_option",
+    "out_dir_option",
+    "console",
+    "err_console",
+    "run_group",
+    "EXIT_VERDICT",
+    "EXIT_USER",
+    "EXIT_INTERNAL",
+]
 
 #: A verdict against the model (CONTRADICTED, ALARM, a failed re-check).
 EXIT_VERDICT = 1
@@ -54,6 +65,35 @@ def app() -> None:
 
 console = Console()
 err_console = Console(stderr=True)
+
+
+def choice_option(*param_decls: str, choices: list[str], default: str, help: str) -> Any:
+    """A ``click.option`` taking one of ``choices``, with its default shown in ``--help``.
+
+    Parameters
+    ----------
+    *param_decls : str
+        The option's names (``"--mode"``), as for ``click.option``.
+    choices : list of str
+        The values accepted.
+    default : str
+        The value when the option is not given.
+    help : str
+        The option's help text.
+
+    Examples
+    --------
+    >>> @click.command()
+    ... @choice_option("--mode", choices=["a", "b"], default="a", help="The mode.")
+    ... def cmd(mode: str) -> None:
+    ...     click.echo(mode)
+    >>> from click.testing import CliRunner
+    >>> CliRunner().invoke(cmd, ["--mode", "b"]).output.strip()
+    'b'
+    """
+    return click.option(
+        *param_decls, type=click.Choice(choices), default=default, show_default=True, help=help
+    )
 
 
 def _set_debug(ctx: click.Context, param: click.Parameter, value: bool) -> None:
@@ -151,3 +191,22 @@ def _fail(message: str, code: int, exc: BaseException) -> NoReturn:
         traceback.print_exception(exc, file=sys.stderr)
     err_console.print(f"error: {_one_line(message)}", markup=False, highlight=False, soft_wrap=True)
     sys.exit(code)
+
+
+def out_dir_option(default: str, help: str) -> Any:
+    """The ``--out`` option of a command that writes a directory of results.
+
+    Parameters
+    ----------
+    default : str
+        The directory when ``--out`` is not given (shown in ``--help``).
+    help : str
+        The option's help text.
+    """
+    return click.option(
+        "--out",
+        type=click.Path(file_okay=False, path_type=Path),
+        default=Path(default),
+        show_default=True,
+        help=help,
+    )

@@ -13,7 +13,7 @@ from pathlib import Path
 import click
 from rich.table import Table
 
-from ipcverify.cli.app import app, console, err_console
+from ipcverify.cli.app import app, choice_option, console, err_console, out_dir_option
 from ipcverify.errors import InvalidInputError
 from ipcverify.network._lipschitz_ball import DEFAULT_RADIUS
 
@@ -30,11 +30,10 @@ _DOMAIN_ALPHA = 0.01
 @click.argument("data", type=_EXISTING)
 @click.option("--epsilon", type=float, required=True, help="Target violation probability, e.g. 0.01.")
 @click.option("--delta", type=float, required=True, help="Confidence parameter, e.g. 0.001.")
-@click.option(
+@choice_option(
     "--mode",
-    type=click.Choice(["pac", "marginal"]),
+    choices=["pac", "marginal"],
     default="pac",
-    show_default=True,
     help="pac: holds w.p. 1-delta over the calibration draw; marginal: on average (split conformal).",
 )
 @click.option(
@@ -48,11 +47,10 @@ _DOMAIN_ALPHA = 0.01
     default=None,
     help="The exchangeable unit (flights, runs): calibrate with whole groups of this column as samples.",
 )
-@click.option(
+@choice_option(
     "--guarantee",
-    type=click.Choice(["sample", "trajectory"]),
+    choices=["sample", "trajectory"],
     default="sample",
-    show_default=True,
     help="With --group-column: bound a new group's expected share of violations, or its chance of any.",
 )
 @click.option(
@@ -146,13 +144,7 @@ def calibrate_cmd(
     help="Fresh test data (not used so far). Without it: what the model file alone certifies.",
 )
 @click.option("--train-data", type=_EXISTING, default=None, help="The training data (for Theorem 1).")
-@click.option(
-    "--out",
-    type=click.Path(file_okay=False, path_type=Path),
-    default=Path("certificate"),
-    show_default=True,
-    help="Directory for certificate.json and report.html.",
-)
+@out_dir_option("certificate", help="Directory for certificate.json and report.html.")
 @click.option("--delta", type=float, default=None, help="Confidence (default: the calibration's; 0.001).")
 @click.option("--bin-column", default=None, help="Column for conditional coverage (default: first x column).")
 @click.option("--bins", default=10, show_default=True, type=int)

@@ -16,13 +16,13 @@ import click
 import numpy as np
 from rich.table import Table
 
-from ipcverify.cli.app import EXIT_VERDICT, app, console, err_console
+from ipcverify.cli.app import EXIT_VERDICT, app, choice_option, console, err_console, out_dir_option
 from ipcverify.errors import InvalidInputError
 from ipcverify.network._architecture import DEFAULT_RECIPE, RECIPES
 
 if TYPE_CHECKING:
     from ipcverify.certification._evaluation import Evaluation
-    from ipcverify.guard._domain import DomainReport
+    from ipcverify.guard._domain_report import DomainReport
 
 __all__ = ["parse_hidden"]
 
@@ -97,11 +97,10 @@ def _given(**values: object) -> dict[str, object]:
 @app.command("train")
 @click.argument("data", type=_EXISTING)
 @click.option("--out", type=click.Path(dir_okay=False, path_type=Path), required=True, help="Model file.")
-@click.option(
+@choice_option(
     "--recipe",
-    type=click.Choice(list(RECIPES)),
+    choices=list(RECIPES),
     default=DEFAULT_RECIPE,
-    show_default=True,
     help="Architecture and training settings by name: tight (ensemble of low-rank heads, likelihood), "
     "v1 (ipcverify's earlier default), paper (the paper's head and loss). The options below override it.",
 )
@@ -297,13 +296,7 @@ def predict_cmd(model: Path, data: Path, out: Path) -> None:
 @app.command("monitor")
 @click.argument("model", type=_EXISTING)
 @click.argument("log", type=_EXISTING)
-@click.option(
-    "--out",
-    type=click.Path(file_okay=False, path_type=Path),
-    default=Path("monitor"),
-    show_default=True,
-    help="Directory for monitor.json and monitor.png.",
-)
+@out_dir_option("monitor", help="Directory for monitor.json and monitor.png.")
 @click.option(
     "--delta", type=float, default=None, help="False-alarm bound (default: the calibration's delta)."
 )
@@ -346,13 +339,7 @@ def monitor_cmd(model: Path, log: Path, out: Path, delta: float | None, group_co
 
 
 @app.command("demo")
-@click.option(
-    "--out",
-    type=click.Path(file_okay=False, path_type=Path),
-    default=Path("ipcverify-demo"),
-    show_default=True,
-    help="Directory for the example data and model.",
-)
+@out_dir_option("ipcverify-demo", help="Directory for the example data and model.")
 @click.option("--n", "n_samples", default=5000, show_default=True, type=int, help="Training samples.")
 @click.option("--seed", default=0, show_default=True, type=int)
 def demo_cmd(out: Path, n_samples: int, seed: int) -> None:

@@ -11,7 +11,7 @@ from pathlib import Path
 import click
 import numpy as np
 
-from ipcverify.cli.app import app, console, err_console
+from ipcverify.cli.app import app, choice_option, console, err_console
 from ipcverify.errors import InvalidInputError
 
 __all__: list[str] = []
@@ -37,11 +37,10 @@ TORCH_TOLERANCE = 1e-4
     help="Export a model with a domain-of-validity test without it (ONNX cannot reproduce the test "
     "exactly): check each query with `ipcverify predict` or IPCQuery before trusting its set.",
 )
-@click.option(
+@choice_option(
     "--dtype",
-    type=click.Choice(["float64", "float32"]),
+    choices=["float64", "float32"],
     default="float64",
-    show_default=True,
     help="float64 reproduces the calibrated sets to ~1e-15; float32 is smaller and faster for big batches.",
 )
 def export_cmd(model: Path, onnx_path: Path, dtype: str, no_domain: bool) -> None:

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
-from ipcverify.cli.app import app, console
+from ipcverify.cli.app import app, choice_option, console
 from ipcverify.errors import InvalidInputError
 
 if TYPE_CHECKING:
@@ -161,11 +161,10 @@ def topics_cmd(path: Path, typestore: str | None) -> None:
 @click.option("--child-frame", default=None, help="The body's frame on a /tf topic.")
 @click.option("--truth-child-frame", default=None, help="--child-frame for the truth topic only.")
 @click.option("--estimate-child-frame", default=None, help="--child-frame for the estimate topic only.")
-@click.option(
+@choice_option(
     "--stamp",
-    type=click.Choice(["header", "receive"]),
+    choices=["header", "receive"],
     default="header",
-    show_default=True,
     help="Time messages by their header stamps or by the recorder's receive times.",
 )
 @click.option(

@@ -53,6 +53,11 @@ def __getattr__(name: str) -> Any:
 def engine_for(network: Network | NetworkWeights) -> InferenceEngine | LowRankEngine:
     """The float64 engine of record for a network or its weights.
 
+    Parameters
+    ----------
+    network : Network or NetworkWeights
+        The network, or its weights.
+
     Examples
     --------
     >>> from ipcverify.network._weights import state_layout
@@ -261,6 +266,11 @@ def network_fingerprint(network: Network | NetworkWeights) -> str:
 
     Every member of an ensemble is in the state dict, so every member is hashed. A network and
     its :class:`~ipcverify.network.NetworkWeights` have the same fingerprint.
+
+    Parameters
+    ----------
+    network : Network or NetworkWeights
+        The network, or its weights.
 
     Examples
     --------

@@ -63,6 +63,9 @@ class Predictions:
         Whether the model's calibration was applied.
     domain : DomainReport or None
         How many queries the domain test flags (None without a domain model).
+    distances : callable or None
+        Computes the queries' distances to the calibration inputs on demand (:attr:`distance`;
+        None without a domain model).
     """
 
     centers: FloatArray
@@ -103,6 +106,15 @@ def predict_sets(model: IPCModel, inputs: PerceptionInputs, chunk: int | None = 
     themselves are computed only when ``Predictions.distance`` is read. NumPy's BLAS runs on one
     thread meanwhile (:func:`ipcverify.guard.one_blas_thread`): every product here is a
     block sized to the cache, which a second thread only slows down.
+
+    Parameters
+    ----------
+    model : IPCModel
+        The model.
+    inputs : PerceptionInputs
+        The queries.
+    chunk : int, optional
+        Rows per batch.
 
     Raises
     ------
@@ -152,7 +164,15 @@ def _distances(domain: DomainModel, inputs: PerceptionInputs) -> FloatArray:
 
 
 def write_predictions(predictions: Predictions, path: str | os.PathLike[str]) -> None:
-    """Write ``center``, ``shape``, ``in_domain``, ``domain_distance`` and ``singular`` to an NPZ (atomic)."""
+    """Write ``center``, ``shape``, ``in_domain``, ``domain_distance`` and ``singular`` to an NPZ (atomic).
+
+    Parameters
+    ----------
+    predictions : Predictions
+        What :func:`predict_sets` returned.
+    path : path-like
+        The NPZ file.
+    """
     p = predictions
     atomic_write(
         path,
@@ -291,6 +311,17 @@ def monitor_log(
     that column (it must be the calibration's), or, for a row-level calibration, monitors one
     observation per group of it (the share of its rows outside), which stays valid when the rows
     of a group are correlated but the groups are independent.
+
+    Parameters
+    ----------
+    model : IPCModel
+        A calibrated model.
+    data : PerceptionDataset
+        The labelled log, in time order.
+    delta : float, optional
+        The monitor's false-alarm probability (default: the calibration's delta).
+    group_column : str, optional
+        See above.
 
     Raises
     ------

@@ -26,7 +26,6 @@ if TYPE_CHECKING:
         DatasetSplits,
         PerceptionDataset,
         PerceptionInputs,
-        group_codes,
         load_dataset,
         load_inputs,
         save_dataset,
@@ -38,6 +37,11 @@ if TYPE_CHECKING:
         json_data,
         json_float,
         write_json,
+    )
+    from ipcverify.data._split import (
+        group_codes,
+        split_fractions,
+        split_parts,
     )
     from ipcverify.data._synthetic import (
         FRAME_TIME,
@@ -80,6 +84,8 @@ __all__ = [
     "read_blocks",
     "refuse_unknown_columns",
     "save_dataset",
+    "split_fractions",
+    "split_parts",
     "warn_correlated_rows",
     "warn_outside_training",
     "write_json",

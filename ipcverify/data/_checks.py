@@ -63,6 +63,13 @@ def check_informative(data: PerceptionDataset, purpose: Purpose) -> None:
       it, and extrapolates on any other value); a warning for calibration (the domain of validity
       then flags every query with another value).
 
+    Parameters
+    ----------
+    data : PerceptionDataset
+        The data.
+    purpose : {"training", "calibration"}
+        What the data is for (a constant column is refused for training only).
+
     Raises
     ------
     DataError
@@ -119,6 +126,11 @@ def check_informative(data: PerceptionDataset, purpose: Purpose) -> None:
 def input_ranges(data: PerceptionDataset) -> dict[str, Any]:
     """The ranges of the inputs ``(x, yhat)`` and their number, stored in the model at training.
 
+    Parameters
+    ----------
+    data : PerceptionDataset
+        The training data.
+
     Examples
     --------
     >>> d = PerceptionDataset(np.array([[0.0], [2.0]]), np.zeros((2, 1)), np.array([[1.0], [-1.0]]))
@@ -147,6 +159,13 @@ def warn_outside_training(metadata: Mapping[str, Any], data: PerceptionDataset) 
 
     Returns the share of rows with some input outside the training range (None if the model
     stores no ranges: models trained before ipcverify stored them).
+
+    Parameters
+    ----------
+    metadata : mapping
+        The model's metadata (its training input ranges, from :func:`input_ranges`).
+    data : PerceptionDataset
+        The calibration data.
 
     Examples
     --------
@@ -196,6 +215,11 @@ def warn_outside_training(metadata: Mapping[str, Any], data: PerceptionDataset) 
 def group_like_columns(data: PerceptionDataset) -> list[str]:
     """Extra columns that look like a group of correlated rows: named like ``run`` or ``flight_id``,
     with at least 2 groups and fewer groups than rows; the one with the most groups first.
+
+    Parameters
+    ----------
+    data : PerceptionDataset
+        The data.
 
     Examples
     --------

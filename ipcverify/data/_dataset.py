@@ -12,7 +12,6 @@ calibration).
 from __future__ import annotations
 
 import hashlib
-import math
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -21,9 +20,10 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 
 from ipcverify.data._files import atomic_write
+from ipcverify.data._split import group_codes, split_fractions, split_parts
 from ipcverify.data._tables import SUFFIXES, data_file, frame_blocks, read_blocks
 from ipcverify.errors import DataError
 
@@ -34,7 +34,7 @@ __all__ = [
     "load_dataset",
     "load_inputs",
     "save_dataset",
-    "group_codes",
+    "group_codes",  # defined in ipcverify.data._split; still importable from here
 ]
 
 FloatArray = NDArray[np.float64]
@@ -291,41 +291,10 @@ class PerceptionDataset:
         >>> sorted(len(np.unique(p.column("run"))) for p in (parts.train, parts.calibration, parts.test))
         [1, 1, 1]
         """
-        fr = np.asarray(fractions, dtype=float)
-        if fr.shape != (3,) or (fr < 0).any() or not np.isclose(fr.sum(), 1.0):
-            raise DataError(
-                f"split fractions must be three non-negative numbers summing to 1; got {list(fractions)}"
-            )
-        if group_column is None:
-            n = len(self)
-            perm = np.random.default_rng(seed).permutation(n)
-            counts = _part_sizes(fr, n)
-            parts = np.split(perm, np.cumsum(counts)[:2])
-        else:
-            codes, labels = group_codes(
-                self.column(group_column), f"{self.source}: group column {group_column!r}"
-            )
-            G = len(labels)
-            counts = _part_sizes(fr, G)
-            empty = [
-                name
-                for name, f, c in zip(("train", "calibration", "test"), fr, counts, strict=True)
-                if f > 0 and c == 0
-            ]
-            if empty:
-                need = max(math.ceil(1 / f) for f in fr if f > 0)
-                parts_text = " and ".join(empty) + (" parts" if len(empty) > 1 else " part")
-                raise DataError(
-                    f"{self.source}: group column {group_column!r} has {G} group(s), too few for split "
-                    f"fractions {list(fractions)}: the {parts_text} would get no group; "
-                    f"use about {need} or more groups, or change the fractions"
-                )
-            group_perm = np.random.default_rng(seed).permutation(G)
-            part_of_group = np.empty(G, dtype=np.intp)
-            for j, ids in enumerate(np.split(group_perm, np.cumsum(counts)[:2])):
-                part_of_group[ids] = j
-            part = part_of_group[codes]
-            parts = [np.flatnonzero(part == j) for j in range(3)]
+        split_fractions(fractions)  # first, as before: bad fractions are reported before a bad column
+        column = None if group_column is None else self.column(group_column)
+        what = f"{self.source}: group column {group_column!r}"
+        parts = split_parts(len(self), fractions, seed, column, what)
         return DatasetSplits(
             *(
                 self.subset(np.sort(p), label) if len(p) else None
@@ -349,62 +318,17 @@ class PerceptionDataset:
 
 @dataclass(frozen=True)
 class DatasetSplits:
-    """Train, calibration and test parts of a dataset (a part may be ``None`` if empty)."""
+    """Train, calibration and test parts of a dataset (a part may be ``None`` if empty).
+
+    Attributes
+    ----------
+    train, calibration, test : PerceptionDataset or None
+        The three parts.
+    """
 
     train: PerceptionDataset | None
     calibration: PerceptionDataset | None
     test: PerceptionDataset | None
-
-
-def _part_sizes(fractions: NDArray[np.float64], n: int) -> list[int]:
-    """Sizes of the train, calibration and test parts of ``n`` items (rounded; test takes the rest)."""
-    n_train = int(round(fractions[0] * n))
-    n_cal = min(int(round(fractions[1] * n)), n - n_train)
-    return [n_train, n_cal, n - n_train - n_cal]
-
-
-def group_codes(labels: ArrayLike, what: str = "group column") -> tuple[NDArray[np.intp], NDArray[Any]]:
-    """Integer codes ``0 .. G - 1`` of group labels, in the order of the sorted distinct labels.
-
-    Parameters
-    ----------
-    labels : array_like, shape (N,)
-        One label per sample (numbers or strings; mixed types are compared as strings).
-    what : str
-        How to name the labels in error messages.
-
-    Returns
-    -------
-    codes : ndarray of int, shape (N,)
-        The group of every sample.
-    distinct : ndarray, shape (G,)
-        The distinct labels, sorted; ``distinct[codes]`` gives back the labels.
-
-    Raises
-    ------
-    DataError
-        If there are no labels, they are not one-dimensional, or one is missing (NaN/None).
-
-    Examples
-    --------
-    >>> codes, distinct = group_codes(["b", "a", "b", "c"])
-    >>> codes.tolist(), distinct.tolist()
-    ([1, 0, 1, 2], ['a', 'b', 'c'])
-    """
-    arr = np.asarray(labels)
-    if arr.ndim != 1 or arr.size == 0:
-        raise DataError(
-            f"{what}: need one group label per sample (a non-empty 1-D array); got shape {arr.shape}"
-        )
-    missing = pd.isna(arr)
-    if missing.any():
-        r = int(np.flatnonzero(missing)[0])
-        raise DataError(f"{what}: row {r} has no group label (it is empty); every sample needs its group")
-    try:
-        distinct, codes = np.unique(arr, return_inverse=True)
-    except TypeError:  # mixed types in an object array: compare as text
-        distinct, codes = np.unique(arr.astype(str), return_inverse=True)
-    return codes.astype(np.intp).ravel(), distinct
 
 
 def load_dataset(
@@ -457,7 +381,15 @@ def load_dataset(
 
 
 def save_dataset(dataset: PerceptionDataset, path: str | os.PathLike[str]) -> None:
-    """Write a dataset atomically as CSV, Parquet or NPZ (chosen by the suffix)."""
+    """Write a dataset atomically as CSV, Parquet or NPZ (chosen by the suffix).
+
+    Parameters
+    ----------
+    dataset : PerceptionDataset
+        The data.
+    path : path-like
+        A ``.csv``, ``.parquet``/``.pq`` or ``.npz`` path.
+    """
     p = Path(path)
     suffix = p.suffix.lower()
     if suffix not in SUFFIXES:
@@ -476,6 +408,19 @@ class PerceptionInputs:
 
     What ``predict`` and ``monitor`` read: a deployment log has no ``y``. Validated like
     :class:`PerceptionDataset` (finite, 2-D, equal numbers of rows).
+
+    Attributes
+    ----------
+    x : ndarray, shape (N, d)
+        States.
+    yhat : ndarray, shape (N, n)
+        Estimates.
+    source : str
+        Where the queries came from (for error messages).
+    x_columns, yhat_columns : tuple of str
+        Column names (default ``x_i``, ``yhat_i``).
+    extra : mapping of str to ndarray
+        Any other columns, one value per row.
 
     Examples
     --------
@@ -512,6 +457,13 @@ def load_inputs(
     yhat_columns: Sequence[str] | None = None,
 ) -> PerceptionInputs:
     """Load deployment queries (``x`` and ``yhat``; truth columns, if any, are kept as extras).
+
+    Parameters
+    ----------
+    path : path-like
+        A ``.csv``, ``.parquet``/``.pq`` or ``.npz`` file.
+    x_columns, yhat_columns : sequence of str, optional
+        Column names to use instead of ``x_i`` and ``yhat_i`` (tables only).
 
     Examples
     --------

@@ -54,6 +54,15 @@ def atomic_write(path: str | os.PathLike[str], write: Callable[[IO[Any]], Any], 
     the permissions an ordinary ``open(path, "w")`` would give (``0o666`` minus the
     umask), not the private ``0o600`` of the temporary file.
 
+    Parameters
+    ----------
+    path : path-like
+        The file.
+    write : callable
+        Writes the content to the open temporary file it is given.
+    mode : str
+        Mode of the temporary file (``"wb"`` or ``"w"``).
+
     Examples
     --------
     >>> import os, tempfile
@@ -81,6 +90,11 @@ def atomic_write(path: str | os.PathLike[str], write: Callable[[IO[Any]], Any], 
 def file_sha256(path: str | os.PathLike[str]) -> str:
     """SHA-256 hex digest of a file's bytes.
 
+    Parameters
+    ----------
+    path : path-like
+        The file.
+
     Examples
     --------
     >>> import os, tempfile
@@ -106,6 +120,11 @@ def _float(v: float) -> float | str | None:
 
 def json_data(obj: Any) -> Any:
     """Plain JSON data for ``obj`` under the module's one rule (see the module docstring).
+
+    Parameters
+    ----------
+    obj : object
+        Numbers, NumPy scalars and arrays, strings, mappings and sequences of them.
 
     Examples
     --------
@@ -143,6 +162,11 @@ def json_data(obj: Any) -> Any:
 def json_float(value: Any) -> float:
     """Read back a float written by :func:`json_data` (``"inf"``, ``"-inf"``, ``null`` -> NaN).
 
+    Parameters
+    ----------
+    value : float, str or None
+        A value :func:`json_data` wrote for a float.
+
     Examples
     --------
     >>> json_float("-inf")
@@ -158,12 +182,29 @@ def json_float(value: Any) -> float:
 
 
 def dumps_json(obj: Any, indent: int | None = None) -> str:
-    """``json.dumps`` of :func:`json_data` (never writes the non-standard ``Infinity`` / ``NaN``)."""
+    """``json.dumps`` of :func:`json_data` (never writes the non-standard ``Infinity`` / ``NaN``).
+
+    Parameters
+    ----------
+    obj : object
+        Anything :func:`json_data` takes.
+    indent : int, optional
+        As for ``json.dumps``.
+    """
     return json.dumps(json_data(obj), indent=indent, allow_nan=False)
 
 
 def write_json(path: str | os.PathLike[str], obj: Any, indent: int | None = 2) -> None:
     """Write ``obj`` as JSON (one rule for non-finite floats), atomically, ending in a newline.
+
+    Parameters
+    ----------
+    path : path-like
+        The file.
+    obj : object
+        Anything :func:`json_data` takes.
+    indent : int, optional
+        As for ``json.dumps``.
 
     Examples
     --------

@@ -39,6 +39,13 @@ SUFFIXES = (".csv", ".parquet", ".pq", ".npz")
 def numbered_columns(prefix: str, columns: Sequence[str]) -> list[str]:
     """The columns ``prefix_0, prefix_1, ...`` in order; refuses a gap in the numbering.
 
+    Parameters
+    ----------
+    prefix : str
+        The prefix (``"x"``, ``"y"``, ``"yhat"``).
+    columns : sequence of str
+        The table's columns.
+
     Examples
     --------
     >>> numbered_columns("x", ["y_0", "x_1", "x_0", "t"])
@@ -89,7 +96,13 @@ def _read_table(path: Path) -> pd.DataFrame:
 
 
 def data_file(path: str | os.PathLike[str]) -> Path:
-    """``path`` as a Path, if it exists and has a known data-file suffix."""
+    """``path`` as a Path, if it exists and has a known data-file suffix.
+
+    Parameters
+    ----------
+    path : path-like
+        The data file.
+    """
     p = Path(path)
     if not p.exists():
         raise FileNotFoundError(2, "No such file", str(p))
@@ -118,7 +131,15 @@ def _read_npz(p: Path, kinds: Sequence[str]) -> dict[str, NDArray[Any]]:
 def read_blocks(
     p: Path, names: Mapping[str, Sequence[str] | None]
 ) -> tuple[dict[str, NDArray[Any]], dict[str, tuple[str, ...]], dict[str, NDArray[Any]]]:
-    """The numeric blocks of the kinds in ``names`` (x, y, yhat ...), their columns, and the rest."""
+    """The numeric blocks of the kinds in ``names`` (x, y, yhat ...), their columns, and the rest.
+
+    Parameters
+    ----------
+    p : Path
+        The data file.
+    names : mapping of str to sequence of str or None
+        For each kind, its column names (None: the numbered defaults).
+    """
     kinds = list(names)
     if p.suffix.lower() == ".npz":
         if any(names.values()):
@@ -134,6 +155,15 @@ def frame_blocks(
     df: pd.DataFrame, names: Mapping[str, Sequence[str] | None], source: str = "<frame>"
 ) -> tuple[dict[str, NDArray[Any]], dict[str, tuple[str, ...]], dict[str, NDArray[Any]]]:
     """The numeric blocks of a table already in memory, their columns, and the other columns.
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        The table.
+    names : mapping of str to sequence of str or None
+        For each kind (``"x"``, ``"y"``, ``"yhat"``), its column names (None: the numbered defaults).
+    source : str
+        The table's name in error messages.
 
     Examples
     --------
@@ -183,6 +213,15 @@ def refuse_unknown_columns(source: str, extra: Mapping[str, Any], known: Mapping
 
     A file with more state columns than the model was trained on would otherwise be read
     silently without them.
+
+    Parameters
+    ----------
+    source : str
+        The table's name in error messages.
+    extra : mapping
+        The table's extra columns.
+    known : mapping of str to sequence of str
+        The model's column names per kind.
 
     Raises
     ------

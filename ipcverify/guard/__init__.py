@@ -15,8 +15,14 @@ if TYPE_CHECKING:
         DEFAULT_K,
         MAX_REFERENCE,
         DomainModel,
+    )
+    from ipcverify.guard._domain_report import (
         DomainReport,
-        other_group_distances,
+    )
+    from ipcverify.guard._eprocess import (
+        ADAPTIVE_MEMORIES,
+        MAX_BET_FRACTION,
+        BettingEProcess,
     )
     from ipcverify.guard._index import (
         BAND,
@@ -35,15 +41,15 @@ if TYPE_CHECKING:
         whiten_rows,
     )
     from ipcverify.guard._monitor import (
-        ADAPTIVE_MEMORIES,
         ALARM_MARGIN,
-        MAX_BET_FRACTION,
-        BettingEProcess,
         MonitorConfig,
         MonitorResult,
         MonitorState,
         ViolationMonitor,
         plot_monitor,
+    )
+    from ipcverify.guard._neighbours import (
+        other_group_distances,
     )
 
 __all__ = [

@@ -24,7 +24,9 @@ except for a share ``alpha``.
 A flagged query is *outside the domain of validity*: the calibration certificate promises
 nothing for it. The test says nothing, either way, about queries it does not flag -- no
 finite sample can certify that the world did not change; the online monitor
-(:mod:`ipcverify.guard._monitor`) watches for that.
+(:mod:`ipcverify.guard._monitor`) watches for that. :class:`DomainReport`
+(:mod:`ipcverify.guard._domain_report`) counts the queries of a batch outside the domain;
+:func:`~ipcverify.guard._neighbours.other_group_distances` gives the leave-one-group-out scores.
 
 Examples
 --------
@@ -48,23 +50,23 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import stats
 from scipy.spatial import cKDTree
 
 from ipcverify.calibration._bounds import marginal_conformal_index
 from ipcverify.calibration._grouped import risk_control_threshold
-from ipcverify.data._dataset import group_codes
+from ipcverify.data._split import group_codes
 from ipcverify.errors import InvalidInputError, SampleSizeError
+from ipcverify.guard._domain_report import DomainReport
 from ipcverify.guard._index import BAND, MAX_INPUTS, DomainIndex, levels
 from ipcverify.guard._kernels import domain_one, whiten_one, whiten_rows
+from ipcverify.guard._neighbours import other_group_distances
 
 __all__ = [
     "DEFAULT_ALPHA",
     "DEFAULT_K",
     "MAX_REFERENCE",
     "DomainModel",
-    "DomainReport",
-    "other_group_distances",
+    "DomainReport",  # defined in ipcverify.guard._domain_report; still importable from here
 ]
 
 FloatArray = NDArray[np.float64]
@@ -78,8 +80,6 @@ DEFAULT_K = 1
 MAX_REFERENCE = 10_000
 #: Eigenvalues of the whitening covariance below this share of the largest are raised to it.
 EIGEN_FLOOR = 1e-6
-#: Level of the one-sided binomial test behind "far more queries outside than false alarms explain".
-WELL_ABOVE_LEVEL = 1e-3
 METHOD = "conformal k-nearest-neighbour distance on whitened (x, yhat), leave-one-out threshold"
 GROUP_METHOD = (
     "conformal k-nearest-neighbour distance on whitened (x, yhat), leave-one-group-out threshold "
@@ -99,37 +99,6 @@ def _stack(x: ArrayLike, yhat: ArrayLike) -> FloatArray:
             f"domain test: x and yhat must be (B, d) and (B, n) with the same B; got {xa.shape}, {ya.shape}"
         )
     return np.concatenate([xa, ya], axis=1)
-
-
-def other_group_distances(tree: cKDTree, points: FloatArray, codes: NDArray[np.intp], k: int) -> FloatArray:
-    """Distance from each of the tree's points to its ``k``-th nearest point of another group.
-
-    ``points`` are the tree's data and ``codes`` their groups. Neighbours are fetched in
-    growing batches until ``k`` of another group are among them, so small groups cost one
-    query and a point deep inside a large group a few more.
-
-    Examples
-    --------
-    >>> pts = np.array([[0.0], [0.1], [1.0], [3.0]])
-    >>> other_group_distances(cKDTree(pts), pts, np.array([0, 0, 1, 1]), 1).tolist()
-    [1.0, 0.9, 0.9, 2.9]
-    """
-    n = len(points)
-    out = np.full(n, np.inf)
-    todo = np.arange(n)
-    m = min(n, k + 1 + int(np.bincount(codes).min()))
-    while todo.size:
-        dist, idx = tree.query(points[todo], k=m)
-        dist, idx = dist.reshape(len(todo), m), idx.reshape(len(todo), m)
-        other = codes[idx] != codes[todo][:, None]
-        found = np.cumsum(other, axis=1) >= k
-        done = found.any(axis=1)
-        first = np.argmax(found, axis=1)
-        out[todo[done]] = dist[done, first[done]]
-        if m == n:  # fewer than k points of other groups: no finite distance
-            break
-        todo, m = todo[~done], min(n, 2 * m)
-    return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -512,88 +481,3 @@ class DomainModel:
             method=str(data.get("method", METHOD)),
             n_groups=None if data.get("n_groups") is None else int(data["n_groups"]),
         )
-
-
-@dataclass(frozen=True, kw_only=True)
-class DomainReport:
-    """The ``domain`` block of ``certificate.json``: how many queries of a batch lie outside.
-
-    Examples
-    --------
-    >>> r = DomainReport(method="knn", alpha=0.01, threshold=2.0, n_reference=100, n=50, outside=5)
-    >>> r.outside_fraction, r.well_above_alpha
-    (0.1, True)
-    """
-
-    method: str
-    alpha: float
-    threshold: float
-    n_reference: int
-    n: int
-    outside: int
-    violations_inside: int | None = None
-    violations_outside: int | None = None
-
-    def __post_init__(self) -> None:
-        if not (0 <= self.outside <= self.n):
-            raise InvalidInputError(f"need 0 <= outside <= n; got {self.outside}, {self.n}")
-
-    def sentence(self) -> str:
-        """What the domain test found and what the certificate does (not) promise, in words."""
-        if self.n == 0:
-            return (
-                f"The domain of validity is the region within distance {self.threshold:.3g} (whitened) of "
-                f"the {self.n_reference} calibration inputs; queries beyond it are flagged, and "
-                f"in-distribution queries are flagged at a rate of at most {self.alpha:g}."
-            )
-        text = (
-            f"{self.outside} of {self.n} queries ({100 * self.outside_fraction:.2f} %) lie outside the "
-            f"domain of validity (in-distribution queries are flagged at most {100 * self.alpha:g} % of "
-            "the time)"
-        )
-        if self.outside == 0:
-            return text + "."
-        text += (
-            "; the certificate promises nothing for them: they are unlike every calibration sample, so "
-            "the exchangeability it rests on fails there"
-        )
-        if self.violations_outside is not None and self.violations_inside is not None:
-            inside = self.n - self.outside
-            rate_in = self.violations_inside / inside if inside else float("nan")
-            text += (
-                f" (violations: {self.violations_outside} of {self.outside} outside, "
-                f"{self.violations_inside} of {inside} inside"
-                + (f", {100 * rate_in:.2f} %" if inside else "")
-                + ")"
-            )
-        if self.well_above_alpha:
-            text += ". That is far more than false alarms explain: the deployment data have shifted"
-        return text + "."
-
-    @property
-    def outside_fraction(self) -> float:
-        """Share of the queries outside the domain (0 for an empty batch)."""
-        return self.outside / self.n if self.n else 0.0
-
-    @property
-    def well_above_alpha(self) -> bool:
-        """The outside share is above what false alarms explain (one-sided binomial test at 0.001)."""
-        if self.n == 0 or self.outside == 0:
-            return False
-        return bool(stats.binom.sf(self.outside - 1, self.n, self.alpha) < WELL_ABOVE_LEVEL)
-
-    def to_dict(self) -> dict[str, Any]:
-        """Plain-data form (the keys of ``certificate.json["domain"]``)."""
-        return {
-            "method": self.method,
-            "alpha": self.alpha,
-            "threshold": self.threshold,
-            "n_reference": self.n_reference,
-            "n": self.n,
-            "outside": self.outside,
-            "outside_fraction": self.outside_fraction,
-            "well_above_alpha": self.well_above_alpha,
-            "violations_inside": self.violations_inside,
-            "violations_outside": self.violations_outside,
-            "statement": self.sentence(),
-        }

@@ -106,6 +106,11 @@ def one_blas_thread() -> contextlib.AbstractContextManager[Any]:
 def levels(threshold: float) -> tuple[float, float]:
     """``(t (1 - BAND))^2`` and ``(t (1 + BAND))^2``: the squared levels the fast tiers decide at.
 
+    Parameters
+    ----------
+    threshold : float
+        The threshold ``t``.
+
     Examples
     --------
     >>> lo, hi = levels(2.0)

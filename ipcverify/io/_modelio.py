@@ -97,6 +97,13 @@ def _plain(obj: Any) -> Any:
 def save_model(model: IPCModel, path: str | os.PathLike[str]) -> None:
     """Write ``model`` atomically to ``path`` in the safe model-file format.
 
+    Parameters
+    ----------
+    model : IPCModel
+        The model (with its calibration and domain test, if any).
+    path : path-like
+        The file to write (replaced atomically if it exists).
+
     Examples
     --------
     >>> import tempfile, os, numpy as np
@@ -136,6 +143,11 @@ def load_model(path: str | os.PathLike[str]) -> IPCModel:
 
     torch is not imported (unless the file uses a part of torch's format the torch-free reader
     does not know): the model predicts, calibrates and is monitored with NumPy alone.
+
+    Parameters
+    ----------
+    path : path-like
+        The model file (written by :func:`save_model`).
 
     Raises
     ------
@@ -250,6 +262,13 @@ def load_data_for_model(path: str | os.PathLike[str], model: IPCModel) -> Percep
     (NPZ files have none); a table with extra ``x_i``-like columns is refused rather than
     read without them (:func:`~ipcverify.data._dataset.refuse_unknown_columns`).
 
+    Parameters
+    ----------
+    path : path-like
+        A CSV, Parquet or NPZ file of ``x``, ``y`` and ``yhat``.
+    model : IPCModel
+        The model whose column names are used.
+
     Examples
     --------
     >>> import tempfile, os
@@ -272,6 +291,13 @@ def load_data_for_model(path: str | os.PathLike[str], model: IPCModel) -> Percep
 
 def load_inputs_for_model(path: str | os.PathLike[str], model: IPCModel) -> PerceptionInputs:
     """Load deployment queries (``x``, ``yhat``; no truth needed) with the model's column names.
+
+    Parameters
+    ----------
+    path : path-like
+        A CSV, Parquet or NPZ file of ``x`` and ``yhat``.
+    model : IPCModel
+        The model whose column names are used.
 
     Examples
     --------

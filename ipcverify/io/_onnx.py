@@ -273,6 +273,13 @@ def _paper_head_nodes(eng: InferenceEngine, z: str, node: Any, const: Any, scale
 def check_domain_export(model: IPCModel, without_domain: bool) -> None:
     """Refuse to export a model's sets without its domain test unless asked to (``--no-domain``).
 
+    Parameters
+    ----------
+    model : IPCModel
+        The model to export.
+    without_domain : bool
+        Whether the user asked to export without the domain test.
+
     Examples
     --------
     >>> from ipcverify.contract._model import IPCModel
@@ -297,6 +304,17 @@ def export_onnx(
 ) -> ExportInfo:
     """Write ``model`` as an ONNX file (atomically); see the module docstring.
 
+    Parameters
+    ----------
+    model : IPCModel
+        The model.
+    path : path-like
+        The ONNX file to write.
+    dtype : {"float64", "float32"}
+        Precision of the exported graph.
+    without_domain : bool
+        Export the sets without the domain test (refused otherwise for a model that has one).
+
     Raises
     ------
     InvalidInputError
@@ -320,7 +338,15 @@ def export_onnx(
 
 
 def onnx_session(path: str | os.PathLike[str], threads: int = 1) -> Any:
-    """An ONNX Runtime CPU session for an exported file (``threads`` intra-op threads)."""
+    """An ONNX Runtime CPU session for an exported file (``threads`` intra-op threads).
+
+    Parameters
+    ----------
+    path : path-like
+        The ONNX file.
+    threads : int
+        Intra-op threads of the session.
+    """
     ort = _require("onnxruntime")
     opts = ort.SessionOptions()
     opts.intra_op_num_threads = int(threads)
@@ -335,6 +361,15 @@ class OnnxCheck:
     ``vs_engine_*`` compare with the float64 engine (the sets of ``model.predict``);
     ``vs_torch_*`` with the float32 torch network (scaled by the calibration).
     Relative to the largest entry of the compared array.
+
+    Attributes
+    ----------
+    samples : int
+        Number of queries compared.
+    vs_engine_center, vs_engine_shape : float
+        Largest relative difference of the centres and of the shape matrices against the engine.
+    vs_torch_center, vs_torch_shape : float
+        The same against the torch network.
     """
 
     samples: int
@@ -355,6 +390,17 @@ def _rel(a: FloatArray, b: FloatArray) -> float:
 
 def check_onnx(model: IPCModel, path: str | os.PathLike[str], x: FloatArray, yhat: FloatArray) -> OnnxCheck:
     """Run the export in ONNX Runtime on ``(x, yhat)`` and compare with the torch network and the engine.
+
+    Parameters
+    ----------
+    model : IPCModel
+        The exported model.
+    path : path-like
+        The ONNX file.
+    x : ndarray, shape (B, d)
+        States to compare on.
+    yhat : ndarray, shape (B, n)
+        Estimates to compare on.
 
     Examples
     --------

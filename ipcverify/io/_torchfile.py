@@ -162,6 +162,11 @@ class _Unpickler(pickle.Unpickler):
 def read_torch_file(file: str | os.PathLike[str] | IO[bytes]) -> Any:
     """The object a ``torch.save`` archive holds, with NumPy arrays in place of tensors.
 
+    Parameters
+    ----------
+    file : path-like or binary file object
+        The archive.
+
     Raises
     ------
     DamagedArchiveError

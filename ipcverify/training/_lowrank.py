@@ -45,6 +45,17 @@ def member_losses(
     ``M = chol(Sigma)`` (the Gaussian negative log-likelihood in standardised units).
     ``"hinge"``: the paper's ``l(g - 1) + lam * (-log det(L^T L))``. The two differ from the
     objectives of :mod:`ipcverify.training._objectives` in original units only by constants.
+
+    Parameters
+    ----------
+    net : LowRankEnsemble
+        The ensemble.
+    z, t : Tensor (K, B, ·)
+        Standardised inputs and targets, a batch per member.
+    loss : {"likelihood", "hinge"}
+        The objective.
+    cfg : TrainConfig
+        Its settings.
     """
     offset, log_diag, factor = net.heads(z)
     chol, info = torch.linalg.cholesky_ex(member_covariances(log_diag, factor))
@@ -80,6 +91,17 @@ def train_lowrank(
     Returns the trained network (eval mode) and one record per epoch: ``epoch``,
     ``train_loss`` and ``val_loss`` (means over the members still training),
     ``active_members``.
+
+    Parameters
+    ----------
+    train_data : PerceptionDataset
+        The training data.
+    mc : ModelConfig
+        The ensemble's configuration.
+    tc : TrainConfig
+        The training settings.
+    progress : bool
+        Show a progress bar.
 
     Examples
     --------

@@ -236,6 +236,13 @@ class TrainConfig:
 def step_factor(step: int, total_steps: int, schedule: str) -> float:
     """Multiplier of the learning rate at optimiser step ``step`` of ``total_steps``.
 
+    Parameters
+    ----------
+    step, total_steps : int
+        The optimiser step and the number of steps.
+    schedule : {"constant", "cosine"}
+        The schedule.
+
     Examples
     --------
     >>> [round(step_factor(k, 4, "cosine"), 3) for k in range(5)]
@@ -249,7 +256,15 @@ def step_factor(step: int, total_steps: int, schedule: str) -> float:
 
 
 def hinge(t: torch.Tensor, alpha: float) -> torch.Tensor:
-    """The paper's hinge ``l(t) = max(0, t / alpha + 1)``."""
+    """The paper's hinge ``l(t) = max(0, t / alpha + 1)``.
+
+    Parameters
+    ----------
+    t : Tensor
+        The argument.
+    alpha : float
+        The hinge width.
+    """
     return torch.clamp(t / alpha + 1.0, min=0.0)
 
 
@@ -264,6 +279,10 @@ def ipc_loss(
         Scores ``||C (y - c)||``.
     logdet : Tensor (B,)
         ``log det(C^T C)`` per sample.
+    alpha : float
+        The hinge width.
+    lam : float
+        The weight of the volume term.
 
     Returns
     -------
@@ -312,7 +331,17 @@ def likelihood_loss(g: torch.Tensor, logdet: torch.Tensor) -> tuple[torch.Tensor
 def objective(
     g: torch.Tensor, logdet: torch.Tensor, loss: str, cfg: TrainConfig
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """The objective ``loss`` (``"hinge"`` or ``"likelihood"``) with the settings of ``cfg``."""
+    """The objective ``loss`` (``"hinge"`` or ``"likelihood"``) with the settings of ``cfg``.
+
+    Parameters
+    ----------
+    g, logdet
+        As for :func:`ipc_loss`.
+    loss : {"hinge", "likelihood"}
+        The objective.
+    cfg : TrainConfig
+        Its settings (``alpha``, ``lam``).
+    """
     if loss == "likelihood":
         return likelihood_loss(g, logdet)
     return ipc_loss(g, logdet, cfg.alpha, cfg.lam)
@@ -320,7 +349,15 @@ def objective(
 
 @contextmanager
 def epoch_bar(epochs: int, enabled: bool) -> Iterator[tuple[Progress, TaskID]]:
-    """A rich progress bar over the epochs (``bar.update(task, advance=1, loss=...)``), silent if disabled."""
+    """A rich progress bar over the epochs (``bar.update(task, advance=1, loss=...)``), silent if disabled.
+
+    Parameters
+    ----------
+    epochs : int
+        Number of epochs.
+    enabled : bool
+        Show the bar.
+    """
     bar = Progress(
         TextColumn("training"),
         BarColumn(),

@@ -139,7 +139,19 @@ class HingeSelection:
 
 @dataclass(frozen=True, kw_only=True)
 class Candidate:
-    """One candidate of the grid, measured on the held-out training rows."""
+    """One candidate of the grid, measured on the held-out training rows.
+
+    Attributes
+    ----------
+    alpha, lam : float
+        The hinge width and the weight of the volume term.
+    batch_size : int
+        The batch size.
+    val_n, val_misses : int
+        Held-out rows (or groups) and how many fell outside their sets.
+    val_log_volume : float
+        Mean log-volume of the held-out sets.
+    """
 
     alpha: float
     lam: float
@@ -174,7 +186,21 @@ class Candidate:
 
 @dataclass(frozen=True, kw_only=True)
 class SelectionRecord:
-    """What :class:`HingeSelection` found: every candidate, the chosen one, whether the target was met."""
+    """What :class:`HingeSelection` found: every candidate, the chosen one, whether the target was met.
+
+    Attributes
+    ----------
+    rule : HingeSelection
+        The rule.
+    candidates : tuple of Candidate
+        Every candidate measured.
+    chosen : Candidate
+        The one chosen.
+    target_met : bool
+        Whether a candidate met the rule's target.
+    seconds : float
+        Wall time of the selection.
+    """
 
     rule: HingeSelection
     candidates: tuple[Candidate, ...]

@@ -61,7 +61,15 @@ _SELECTED_RECIPES = ("paper",)
 
 @dataclass(frozen=True)
 class TrainResult:
-    """A trained model and the per-epoch history (``loss``, ``hinge``, ``logdet``, ...)."""
+    """A trained model and the per-epoch history (``loss``, ``hinge``, ``logdet``, ...).
+
+    Attributes
+    ----------
+    model : IPCModel
+        The trained (uncalibrated) model.
+    history : list of dict
+        One record per epoch.
+    """
 
     model: IPCModel
     history: list[dict[str, float]]
@@ -235,6 +243,19 @@ def select_hinge(
     (seeded by ``train_config.seed``; whole groups with ``rule.group_column``), each candidate
     of the grid is trained on the rest
     with ``train_config``'s other settings, and the rule picks one.
+
+    Parameters
+    ----------
+    train_data : PerceptionDataset
+        The training data.
+    model_config : ModelConfig
+        The network to train.
+    train_config : TrainConfig
+        The training settings the candidates vary.
+    rule : HingeSelection
+        The grid and the rule.
+    progress : bool
+        Show a progress bar.
 
     Returns
     -------

@@ -75,6 +75,15 @@ def fit_alignment(
 ) -> Alignment:
     """The alignment of ``estimate`` positions (N, 3) onto ``truth`` positions (N, 3).
 
+    Parameters
+    ----------
+    estimate, truth : array_like, shape (N, 3)
+        Positions at the same times.
+    kind : {"se3", "sim3"}
+        A rigid motion, or a rigid motion and a scale.
+    runs : tuple of str
+        The runs the positions come from (recorded in the alignment).
+
     Raises
     ------
     DataError

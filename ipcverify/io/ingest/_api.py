@@ -31,6 +31,13 @@ PathLike = str | os.PathLike[str]
 def run_names(paths: Sequence[PathLike], names: Sequence[str] | None) -> list[str]:
     """The run names: ``names`` if given (one per path), else each file's stem (a directory's name).
 
+    Parameters
+    ----------
+    paths : sequence of path-like
+        The input files or directories.
+    names : sequence of str or None
+        The names given.
+
     Examples
     --------
     >>> run_names(["a/run1.bag", "b/run2.txt.gz", "c/bag3.mcap"], None)
@@ -160,7 +167,7 @@ def ingest_bags(
     truth_topic, estimate_topic : str
         The pose topics (PoseStamped, PoseWithCovarianceStamped, TransformStamped, Odometry,
         or ``/tf`` with a child frame).
-    child_frame : str, optional
+    child_frame, truth_child_frame, estimate_child_frame : str, optional
         The body's frame on a ``/tf`` topic; ``truth_child_frame`` and
         ``estimate_child_frame`` override it for one side.
     stamp : {"header", "receive"}

@@ -46,7 +46,19 @@ Stamp = Literal["header", "receive"]
 
 @dataclass(frozen=True)
 class TopicInfo:
-    """One topic of a bag: its type, message count and the receive-time span (seconds)."""
+    """One topic of a bag: its type, message count and the receive-time span (seconds).
+
+    Attributes
+    ----------
+    topic : str
+        The topic's name.
+    msgtype : str
+        Its message type.
+    count : int
+        Its number of messages.
+    start, end : float
+        The first and last receive time (seconds).
+    """
 
     topic: str
     msgtype: str
@@ -62,7 +74,15 @@ class TopicInfo:
 
 @dataclass(frozen=True, kw_only=True)
 class PoseRequest:
-    """A pose topic to read, and for a ``/tf`` topic the body's frame."""
+    """A pose topic to read, and for a ``/tf`` topic the body's frame.
+
+    Attributes
+    ----------
+    topic : str
+        The topic.
+    child_frame : str or None
+        The body's frame on a ``/tf`` topic (None for a pose topic).
+    """
 
     topic: str
     child_frame: str | None = None
@@ -70,7 +90,19 @@ class PoseRequest:
 
 @dataclass(frozen=True, eq=False)
 class StateSeries:
-    """Numbers read from a state topic: stamps (s, increasing), values (M, k), their field names."""
+    """Numbers read from a state topic: stamps (s, increasing), values (M, k), their field names.
+
+    Attributes
+    ----------
+    t : ndarray, shape (M,)
+        Stamps (seconds, increasing).
+    values : ndarray, shape (M, k)
+        The numbers read, one column per field.
+    fields : tuple of str
+        The field paths read.
+    topic : str
+        The topic.
+    """
 
     t: NDArray[np.float64]
     values: NDArray[np.float64]
@@ -80,7 +112,17 @@ class StateSeries:
 
 @dataclass(frozen=True, eq=False)
 class BagContents:
-    """What :func:`read_bag` read: a trajectory per requested name, the repeated stamps dropped, the state."""
+    """What :func:`read_bag` read: a trajectory per requested name, the repeated stamps dropped, the state.
+
+    Attributes
+    ----------
+    poses : mapping of str to Trajectory
+        A trajectory per requested name (``"truth"``, ``"estimate"``).
+    repeated_stamps : mapping of str to int
+        Per name, how many poses with a repeated stamp were dropped.
+    state : StateSeries or None
+        The state topic's numbers (None: no state topic asked for).
+    """
 
     poses: Mapping[str, Trajectory]
     repeated_stamps: Mapping[str, int]
@@ -151,6 +193,13 @@ def _infos(reader: Any, spans: bool) -> list[TopicInfo]:
 
 def list_topics(path: str | os.PathLike[str], typestore: str | None = None) -> list[TopicInfo]:
     """Every topic of a bag with its type, message count and time span (receive times, seconds).
+
+    Parameters
+    ----------
+    path : path-like
+        A ROS 1 bag, a ROS 2 bag directory or an MCAP file.
+    typestore : str, optional
+        The message-type store to decode with (default: from the bag).
 
     Raises
     ------

@@ -46,7 +46,15 @@ _LAYOUT = {
 
 @dataclass(frozen=True, eq=False)
 class FileTrajectory:
-    """A trajectory read from a file, and how many repeated stamps were dropped."""
+    """A trajectory read from a file, and how many repeated stamps were dropped.
+
+    Attributes
+    ----------
+    trajectory : Trajectory
+        The poses.
+    repeated_stamps : int
+        Poses with a repeated stamp dropped.
+    """
 
     trajectory: Trajectory
     repeated_stamps: int
@@ -100,6 +108,11 @@ def _rows(
 
 def read_times(path: str | os.PathLike[str]) -> NDArray[np.float64]:
     """Times (seconds) from a file with one number a line, as KITTI's ``times.txt``.
+
+    Parameters
+    ----------
+    path : path-like
+        A text file of times, one a line (a `#` starts a comment).
 
     Examples
     --------

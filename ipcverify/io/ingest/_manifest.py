@@ -27,6 +27,13 @@ TABLE_SUFFIXES = (".csv", ".parquet", ".pq")
 def input_record(path: str | os.PathLike[str], role: str) -> dict[str, Any]:
     """Path, role, size and SHA-256 of an input file, or of every file in an input directory.
 
+    Parameters
+    ----------
+    path : path-like
+        The input file or directory.
+    role : str
+        What it is (``"truth"``, ``"estimate"``, ``"bag"``, ...).
+
     Examples
     --------
     >>> import os, tempfile
@@ -52,6 +59,11 @@ def input_record(path: str | os.PathLike[str], role: str) -> dict[str, Any]:
 
 def manifest_path(out: str | os.PathLike[str]) -> Path:
     """Where the manifest of the table ``out`` goes: ``log.csv`` -> ``log.manifest.json``.
+
+    Parameters
+    ----------
+    out : path-like
+        The table written.
 
     Examples
     --------

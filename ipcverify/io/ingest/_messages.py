@@ -66,6 +66,15 @@ POSE_TYPES = (*_READERS, TF_TYPE)
 def check_pose_type(topic: str, msgtype: str, child_frame: str | None) -> None:
     """Refuse a topic whose type holds no pose, or a ``/tf`` topic without a child frame.
 
+    Parameters
+    ----------
+    topic : str
+        The topic's name.
+    msgtype : str
+        Its message type.
+    child_frame : str or None
+        The body's frame (needed for a ``/tf`` topic).
+
     Examples
     --------
     >>> check_pose_type("/odom", "nav_msgs/msg/Odometry", None)
@@ -85,7 +94,17 @@ def check_pose_type(topic: str, msgtype: str, child_frame: str | None) -> None:
 
 
 def pose_rows(message: Any, msgtype: str, child_frame: str | None) -> list[PoseRow]:
-    """The pose records in one message (several for a ``/tf`` message, maybe none)."""
+    """The pose records in one message (several for a ``/tf`` message, maybe none).
+
+    Parameters
+    ----------
+    message : object
+        The decoded message.
+    msgtype : str
+        Its type.
+    child_frame : str or None
+        The body's frame on a ``/tf`` topic.
+    """
     if msgtype == TF_TYPE:
         want = (child_frame or "").lstrip("/")
         return [_transform(tr) for tr in message.transforms if tr.child_frame_id.lstrip("/") == want]
@@ -97,6 +116,11 @@ _STEP = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)(?:\[(\d+)\])?$")
 
 def field_reader(path: str) -> Callable[[Any], float]:
     """A function reading the number at ``path`` (e.g. ``twist.twist.linear.x`` or ``covariance[0]``).
+
+    Parameters
+    ----------
+    path : str
+        Attribute names separated by dots, the last one optionally indexed.
 
     Raises
     ------

@@ -49,7 +49,17 @@ def _body_displacement(at0: PosesAt, at1: PosesAt) -> NDArray[np.float64]:
 def quantity_pair(
     quantity: Quantity, truth0: PosesAt, truth1: PosesAt, est0: PosesAt, est1: PosesAt
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """``(y, yhat)`` of the quantity at every sample (see the module docstring)."""
+    """``(y, yhat)`` of the quantity at every sample (see the module docstring).
+
+    Parameters
+    ----------
+    quantity : {"displacement", "position", "pose"}
+        The quantity.
+    truth0, truth1 : PosesAt
+        Truth poses at the samples' starts ``t0`` and ends ``t1``.
+    est0, est1 : PosesAt
+        Estimated poses at the same times.
+    """
     if quantity == "displacement":
         return _body_displacement(truth0, truth1), _body_displacement(est0, est1)
     if quantity == "position":
@@ -61,7 +71,15 @@ def quantity_pair(
 
 
 def state_features(est0: PosesAt, est1: PosesAt, horizon: float) -> NDArray[np.float64]:
-    """The five state columns (see the module docstring) at every sample."""
+    """The five state columns (see the module docstring) at every sample.
+
+    Parameters
+    ----------
+    est0, est1 : PosesAt
+        Estimated poses at the samples' starts ``t0`` and ends ``t1``.
+    horizon : float
+        ``H = t1 - t0`` (seconds).
+    """
     disp = _body_displacement(est0, est1)
     speed = np.linalg.norm(disp, axis=1) / horizon
     rate = (est0.rotation.inv() * est1.rotation).magnitude().reshape(-1) / horizon

@@ -108,7 +108,17 @@ class IngestOptions:
 
 @dataclass(frozen=True, eq=False)
 class RunData:
-    """One run: its name, truth and estimate trajectories, and optionally a state series."""
+    """One run: its name, truth and estimate trajectories, and optionally a state series.
+
+    Attributes
+    ----------
+    name : str
+        The run's name.
+    truth, estimate : Trajectory
+        The truth and estimate trajectories.
+    state : StateSeries or None
+        Numbers read from a state topic (None: none).
+    """
 
     name: str
     truth: Trajectory

@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 
 from ipcverify.calibration._bounds import clopper_pearson_upper
-from ipcverify.certification._certify import DEFAULT_DELTA, NO_STATISTICS, CertificateStatus, certify
+from ipcverify.certification._certificate import CertificateStatus
+from ipcverify.certification._certify import certify
+from ipcverify.certification._certify_steps import DEFAULT_DELTA, NO_STATISTICS
 from ipcverify.certification._evaluation import evaluate
 from ipcverify.contract._calibrate import calibrate
 from ipcverify.contract._model import IPCModel, IPCNetwork
@@ -182,42 +184,17 @@ def test_cli_uncalibrated_and_contradicted(setup, run_cli, tmp_path):
 
 def test_cli_errors(setup, run_cli, tmp_path):
     d = setup["dir"]
-    res = run_cli(
-        "calibrate",
-        d / "cal.pt",
-        d / "cal.csv",
-        "--epsilon",
-        "0.05",
-        "--delta",
-        "0.01",
-        "--out",
-        tmp_path / "x.pt",
-    )
+
+    def calibrate(model, data, epsilon, delta):
+        out = tmp_path / "x.pt"
+        return run_cli("calibrate", d / model, d / data, "--epsilon", epsilon, "--delta", delta, "--out", out)
+
+    res = calibrate("cal.pt", "cal.csv", "0.05", "0.01")
     assert res.code == 2 and "already calibrated" in res.stderr and "--recalibrate" in res.stderr
     assert len(res.stderr.strip().splitlines()) == 1
-    res = run_cli(
-        "calibrate",
-        d / "model.pt",
-        d / "cal.csv",
-        "--epsilon",
-        "0.001",
-        "--delta",
-        "0.001",
-        "--out",
-        tmp_path / "x.pt",
-    )
+    res = calibrate("model.pt", "cal.csv", "0.001", "0.001")
     assert res.code == 2 and "at least 6905 are needed" in res.stderr
-    res = run_cli(
-        "calibrate",
-        d / "model.pt",
-        d / "train.csv",
-        "--epsilon",
-        "0.05",
-        "--delta",
-        "0.01",
-        "--out",
-        tmp_path / "x.pt",
-    )
+    res = calibrate("model.pt", "train.csv", "0.05", "0.01")
     assert res.code == 2 and "training data" in res.stderr
     res = run_cli("certify", d / "cal.pt", "--data", d / "cal.csv", "--out", tmp_path / "y")
     assert res.code == 2 and "the test data is the calibration data" in res.stderr

@@ -21,7 +21,7 @@ from PIL import Image
 
 import ipcverify
 from ipcverify.certification._certify import certify, write_certificate
-from ipcverify.certification._report import display_text
+from ipcverify.certification._report_head import display_text
 from ipcverify.contract._calibrate import calibrate
 from ipcverify.contract._model import IPCModel, IPCNetwork
 from ipcverify.data._synthetic import make_lagged_perception

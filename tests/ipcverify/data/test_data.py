@@ -64,58 +64,31 @@ def _write(tmp_path, name, text):
     return p
 
 
-def test_missing_column_named(tmp_path):
-    p = _write(tmp_path, "m.csv", "x_0,y_0,y_1,yhat_0\n1,2,3,4\n")
-    with pytest.raises(DataError, match=r"m\.csv: y has 2 columns but yhat has 1"):
-        load_dataset(p)
+#: (file name, content, column names passed, the error): each refusal names the file, the row
+#: and the column at fault.
+BAD_FILES = [
+    pytest.param("m.csv", "x_0,y_0,y_1,yhat_0\n1,2,3,4\n", {}, r"m\.csv: y has 2 columns but yhat has 1",
+                 id="missing-column-named"),
+    pytest.param("n.csv", "x_0,y_0\n1,2\n", {}, r"n\.csv: no yhat columns \(expected yhat_0",
+                 id="no-yhat-columns"),
+    pytest.param("g.csv", "x_0,x_2,y_0,yhat_0\n1,2,3,4\n", {}, r"missing x_1", id="gap-in-numbering"),
+    pytest.param("e.csv", "x_0,y_0,yhat_0\n1,2,3\n", {"x_columns": ["speed"]}, r"missing column\(s\) speed",
+                 id="explicit-missing-column"),
+    pytest.param("f.csv", "x_0,y_0,yhat_0\n1,2,3\n1,nan,3\n", {},
+                 r"f\.csv: row 1, column 'y_0': non-finite value", id="non-finite"),
+    pytest.param("t.csv", "x_0,y_0,yhat_0\n1,2,3\n1,2,abc\n", {},
+                 r"t\.csv: row 1, column 'yhat_0': not a number \('abc'\)", id="non-numeric"),
+    pytest.param("empty.csv", "", {}, r"empty\.csv: the file is empty", id="empty-file"),
+    pytest.param("h.csv", "x_0,y_0,yhat_0\n", {}, r"h\.csv: the file has a header but no samples",
+                 id="header-only"),
+    pytest.param("d.json", "{}", {}, r"unknown data format '\.json'", id="unknown-suffix"),
+]  # fmt: skip
 
 
-def test_no_yhat_columns(tmp_path):
-    p = _write(tmp_path, "n.csv", "x_0,y_0\n1,2\n")
-    with pytest.raises(DataError, match=r"n\.csv: no yhat columns \(expected yhat_0"):
-        load_dataset(p)
-
-
-def test_gap_in_numbering(tmp_path):
-    p = _write(tmp_path, "g.csv", "x_0,x_2,y_0,yhat_0\n1,2,3,4\n")
-    with pytest.raises(DataError, match=r"missing x_1"):
-        load_dataset(p)
-
-
-def test_explicit_missing_column(tmp_path):
-    p = _write(tmp_path, "e.csv", "x_0,y_0,yhat_0\n1,2,3\n")
-    with pytest.raises(DataError, match=r"missing column\(s\) speed"):
-        load_dataset(p, x_columns=["speed"])
-
-
-def test_non_finite_names_row_and_column(tmp_path):
-    p = _write(tmp_path, "f.csv", "x_0,y_0,yhat_0\n1,2,3\n1,nan,3\n")
-    with pytest.raises(DataError, match=r"f\.csv: row 1, column 'y_0': non-finite value"):
-        load_dataset(p)
-
-
-def test_non_numeric_names_row_and_column(tmp_path):
-    p = _write(tmp_path, "t.csv", "x_0,y_0,yhat_0\n1,2,3\n1,2,abc\n")
-    with pytest.raises(DataError, match=r"t\.csv: row 1, column 'yhat_0': not a number \('abc'\)"):
-        load_dataset(p)
-
-
-def test_empty_file(tmp_path):
-    p = _write(tmp_path, "empty.csv", "")
-    with pytest.raises(DataError, match=r"empty\.csv: the file is empty"):
-        load_dataset(p)
-
-
-def test_header_only(tmp_path):
-    p = _write(tmp_path, "h.csv", "x_0,y_0,yhat_0\n")
-    with pytest.raises(DataError, match=r"h\.csv: the file has a header but no samples"):
-        load_dataset(p)
-
-
-def test_unknown_suffix(tmp_path):
-    p = _write(tmp_path, "d.json", "{}")
-    with pytest.raises(DataError, match=r"unknown data format '\.json'"):
-        load_dataset(p)
+@pytest.mark.parametrize(("name", "text", "columns", "match"), BAD_FILES)
+def test_a_bad_file_is_refused_with_what_is_wrong(tmp_path, name, text, columns, match):
+    with pytest.raises(DataError, match=match):
+        load_dataset(_write(tmp_path, name, text), **columns)
 
 
 def test_missing_file(tmp_path):

@@ -12,7 +12,8 @@ from ipcverify.data._synthetic import make_lagged_perception
 from ipcverify.decision._landing import Verdict
 from ipcverify.decision._query import IPCQuery
 from ipcverify.errors import InvalidInputError, SampleSizeError, SetError
-from ipcverify.guard._domain import DomainModel, DomainReport
+from ipcverify.guard._domain import DomainModel
+from ipcverify.guard._domain_report import DomainReport
 from ipcverify.io._modelio import load_model, save_model
 from ipcverify.network._architecture import ModelConfig
 from ipcverify.sets._shapes import Box

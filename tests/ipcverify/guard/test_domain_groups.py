@@ -21,7 +21,8 @@ from ipcverify.contract._calibrate import calibrate
 from ipcverify.contract._model import IPCModel, IPCNetwork
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import InvalidInputError, SampleSizeError
-from ipcverify.guard._domain import DomainModel, other_group_distances
+from ipcverify.guard._domain import DomainModel
+from ipcverify.guard._neighbours import other_group_distances
 from ipcverify.io._modelio import load_model, save_model
 from ipcverify.network._architecture import ModelConfig
 

@@ -23,10 +23,9 @@ from scipy import stats
 
 from ipcverify.certification._report import figure_to_png
 from ipcverify.errors import InvalidInputError
+from ipcverify.guard._eprocess import MAX_BET_FRACTION, BettingEProcess
 from ipcverify.guard._monitor import (
     ALARM_MARGIN,
-    MAX_BET_FRACTION,
-    BettingEProcess,
     MonitorState,
     ViolationMonitor,
     plot_monitor,

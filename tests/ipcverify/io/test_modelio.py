@@ -29,20 +29,10 @@ def test_save_load_gives_identical_outputs(tmp_path):
     assert back.config == model.config
 
 
-class _Payload:
-    """Unpickling this object would create a marker file: proof that code ran."""
-
-    def __init__(self, marker: str) -> None:
-        self.marker = marker
-
-    def __reduce__(self):
-        return (open, (self.marker, "w"))
-
-
-def test_malicious_model_file_is_refused_and_never_runs(tmp_path):
+def test_malicious_model_file_is_refused_and_never_runs(tmp_path, runs_code):
     marker = tmp_path / "PWNED"
     p = tmp_path / "evil.pt"
-    torch.save({"format": "ipcverify-model", "format_version": 1, "x": _Payload(str(marker))}, p)
+    torch.save({"format": "ipcverify-model", "format_version": 1, "x": runs_code(str(marker))}, p)
     # sanity: the payload does run when loaded unsafely
     torch.load(p, weights_only=False)
     assert marker.exists()
@@ -76,25 +66,29 @@ def test_future_version(tmp_path):
         load_model(p)
 
 
-def test_damaged_state_dict(tmp_path):
+def _drop_a_weight(state):
+    del state["body.0.weight"]
+
+
+def _nan_bias(state):
+    state["body.0.bias"][0] = float("nan")
+
+
+@pytest.mark.parametrize(
+    ("damage", "match"),
+    [
+        pytest.param(_drop_a_weight, "damaged model file", id="missing-weight"),
+        pytest.param(_nan_bias, r"parameter 'body\.0\.bias' holds non-finite values", id="non-finite-weight"),
+    ],
+)
+def test_a_damaged_state_dict_is_refused(tmp_path, damage, match):
     m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(4,), param="cholesky")))
     p = tmp_path / "m.pt"
     save_model(m, p)
     payload = torch.load(p, weights_only=True)
-    del payload["state_dict"]["body.0.weight"]
+    damage(payload["state_dict"])
     torch.save(payload, p)
-    with pytest.raises(ModelFileError, match="damaged model file"):
-        load_model(p)
-
-
-def test_non_finite_weights(tmp_path):
-    m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(4,), param="cholesky")))
-    p = tmp_path / "m.pt"
-    save_model(m, p)
-    payload = torch.load(p, weights_only=True)
-    payload["state_dict"]["body.0.bias"][0] = float("nan")
-    torch.save(payload, p)
-    with pytest.raises(ModelFileError, match=r"parameter 'body\.0\.bias' holds non-finite values"):
+    with pytest.raises(ModelFileError, match=match):
         load_model(p)
 
 

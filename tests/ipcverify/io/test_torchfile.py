@@ -99,17 +99,9 @@ def test_big_endian_archives_are_read_in_their_byte_order(tmp_path):
     np.testing.assert_array_equal(read_torch_file(plain)["v"], values.numpy())
 
 
-class _RunsCode:
-    def __init__(self, marker: str) -> None:
-        self.marker = marker
-
-    def __reduce__(self):
-        return (open, (self.marker, "w"))
-
-
-def test_a_pickle_that_would_run_code_is_refused_and_never_runs(tmp_path):
+def test_a_pickle_that_would_run_code_is_refused_and_never_runs(tmp_path, runs_code):
     marker = tmp_path / "RAN"
-    p = _saved({"x": torch.zeros(2), "evil": _RunsCode(str(marker))}, tmp_path / "evil.pt")
+    p = _saved({"x": torch.zeros(2), "evil": runs_code(str(marker))}, tmp_path / "evil.pt")
     with pytest.raises(UnsafeContentError, match=r"io\.open"):  # what pickle names builtins.open
         read_torch_file(p)
     assert not marker.exists()

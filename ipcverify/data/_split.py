@@ -1,0 +1,162 @@
+"""How a dataset is split: of samples, or of whole groups (flights, runs) given by a label column.
+
+:func:`split_parts` gives the row indices of the train, calibration and test parts that
+:meth:`~ipcverify.data.PerceptionDataset.split` returns; :func:`group_codes` numbers the
+groups of a label column (also for calibration, the group test and the domain test).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from numpy.typing import ArrayLike, NDArray
+
+from ipcverify.errors import DataError
+
+__all__ = ["group_codes", "split_fractions", "split_parts"]
+
+
+def split_parts(
+    n: int,
+    fractions: Sequence[float],
+    seed: int,
+    groups: ArrayLike | None = None,
+    what: str = "group column",
+) -> list[NDArray[np.intp]]:
+    """Row indices of the train, calibration and test parts of ``n`` samples (a seeded random split).
+
+    Parameters
+    ----------
+    n : int
+        Number of samples.
+    fractions : three floats summing to 1
+        Shares of the parts (of groups, with ``groups``); a share may be 0.
+    seed : int
+        The same seed always gives the same split.
+    groups : array_like, shape (n,), optional
+        A group label per sample: whole groups go to the parts, none is split.
+    what : str
+        How to name the group column in error messages.
+
+    Returns
+    -------
+    list of three ndarray of int
+        The (unsorted) row indices of each part.
+
+    Raises
+    ------
+    DataError
+        If the fractions are bad, or there are too few groups for every part with a positive share.
+
+    Examples
+    --------
+    >>> [len(p) for p in split_parts(10, (0.6, 0.2, 0.2), seed=0)]
+    [6, 2, 2]
+    >>> [sorted(p.tolist()) for p in split_parts(4, (0.5, 0.5, 0.0), 1, groups=["a", "a", "b", "b"])]
+    [[0, 1], [2, 3], []]
+    """
+    fr = split_fractions(fractions)
+    if groups is None:
+        perm = np.random.default_rng(seed).permutation(n)
+        counts = _part_sizes(fr, n)
+        parts = np.split(perm, np.cumsum(counts)[:2])
+    else:
+        codes, labels = group_codes(groups, what)
+        G = len(labels)
+        counts = _part_sizes(fr, G)
+        empty = [
+            name
+            for name, f, c in zip(("train", "calibration", "test"), fr, counts, strict=True)
+            if f > 0 and c == 0
+        ]
+        if empty:
+            need = max(math.ceil(1 / f) for f in fr if f > 0)
+            parts_text = " and ".join(empty) + (" parts" if len(empty) > 1 else " part")
+            raise DataError(
+                f"{what} has {G} group(s), too few for split "
+                f"fractions {list(fractions)}: the {parts_text} would get no group; "
+                f"use about {need} or more groups, or change the fractions"
+            )
+        group_perm = np.random.default_rng(seed).permutation(G)
+        part_of_group = np.empty(G, dtype=np.intp)
+        for j, ids in enumerate(np.split(group_perm, np.cumsum(counts)[:2])):
+            part_of_group[ids] = j
+        part = part_of_group[codes]
+        parts = [np.flatnonzero(part == j) for j in range(3)]
+    return parts
+
+
+def split_fractions(fractions: Sequence[float]) -> NDArray[np.float64]:
+    """The shares of the train, calibration and test parts, checked: three non-negative numbers summing to 1.
+
+    Parameters
+    ----------
+    fractions : sequence of float
+        The shares.
+
+    Examples
+    --------
+    >>> split_fractions([0.5, 0.5, 0.0]).tolist()
+    [0.5, 0.5, 0.0]
+    """
+    fr = np.asarray(fractions, dtype=float)
+    if fr.shape != (3,) or (fr < 0).any() or not np.isclose(fr.sum(), 1.0):
+        raise DataError(
+            f"split fractions must be three non-negative numbers summing to 1; got {list(fractions)}"
+        )
+    return fr
+
+
+def _part_sizes(fractions: NDArray[np.float64], n: int) -> list[int]:
+    """Sizes of the train, calibration and test parts of ``n`` items (rounded; test takes the rest)."""
+    n_train = int(round(fractions[0] * n))
+    n_cal = min(int(round(fractions[1] * n)), n - n_train)
+    return [n_train, n_cal, n - n_train - n_cal]
+
+
+def group_codes(labels: ArrayLike, what: str = "group column") -> tuple[NDArray[np.intp], NDArray[Any]]:
+    """Integer codes ``0 .. G - 1`` of group labels, in the order of the sorted distinct labels.
+
+    Parameters
+    ----------
+    labels : array_like, shape (N,)
+        One label per sample (numbers or strings; mixed types are compared as strings).
+    what : str
+        How to name the labels in error messages.
+
+    Returns
+    -------
+    codes : ndarray of int, shape (N,)
+        The group of every sample.
+    distinct : ndarray, shape (G,)
+        The distinct labels, sorted; ``distinct[codes]`` gives back the labels.
+
+    Raises
+    ------
+    DataError
+        If there are no labels, they are not one-dimensional, or one is missing (NaN/None).
+
+    Examples
+    --------
+    >>> codes, distinct = group_codes(["b", "a", "b", "c"])
+    >>> codes.tolist(), distinct.tolist()
+    ([1, 0, 1, 2], ['a', 'b', 'c'])
+    """
+    arr = np.asarray(labels)
+    if arr.ndim != 1 or arr.size == 0:
+        raise DataError(
+            f"{what}: need one group label per sample (a non-empty 1-D array); got shape {arr.shape}"
+        )
+    missing = pd.isna(arr)
+    if missing.any():
+        r = int(np.flatnonzero(missing)[0])
+        raise DataError(f"{what}: row {r} has no group label (it is empty); every sample needs its group")
+    try:
+        distinct, codes = np.unique(arr, return_inverse=True)
+    except TypeError:  # mixed types in an object array: compare as text
+        distinct, codes = np.unique(arr.astype(str), return_inverse=True)
+    return codes.astype(np.intp).ravel(), distinct

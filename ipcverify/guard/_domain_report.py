@@ -1,0 +1,115 @@
+"""What the domain test found on a batch of queries: the ``domain`` block of ``certificate.json``."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from scipy import stats
+
+from ipcverify.errors import InvalidInputError
+
+__all__ = ["WELL_ABOVE_LEVEL", "DomainReport"]
+
+#: Level of the one-sided binomial test behind "far more queries outside than false alarms explain".
+WELL_ABOVE_LEVEL = 1e-3
+
+
+@dataclass(frozen=True, kw_only=True)
+class DomainReport:
+    """The ``domain`` block of ``certificate.json``: how many queries of a batch lie outside.
+
+    Attributes
+    ----------
+    method : str
+        The test, in words.
+    alpha : float
+        Its false-alarm rate.
+    threshold : float
+        The whitened distance beyond which a query is flagged.
+    n_reference : int
+        Calibration inputs the test was fitted on.
+    n, outside : int
+        Queries checked and queries flagged.
+    violations_inside, violations_outside : int or None
+        Violations among the queries inside and outside the domain (None: no labels).
+
+    Examples
+    --------
+    >>> r = DomainReport(method="knn", alpha=0.01, threshold=2.0, n_reference=100, n=50, outside=5)
+    >>> r.outside_fraction, r.well_above_alpha
+    (0.1, True)
+    """
+
+    method: str
+    alpha: float
+    threshold: float
+    n_reference: int
+    n: int
+    outside: int
+    violations_inside: int | None = None
+    violations_outside: int | None = None
+
+    def __post_init__(self) -> None:
+        if not (0 <= self.outside <= self.n):
+            raise InvalidInputError(f"need 0 <= outside <= n; got {self.outside}, {self.n}")
+
+    def sentence(self) -> str:
+        """What the domain test found and what the certificate does (not) promise, in words."""
+        if self.n == 0:
+            return (
+                f"The domain of validity is the region within distance {self.threshold:.3g} (whitened) of "
+                f"the {self.n_reference} calibration inputs; queries beyond it are flagged, and "
+                f"in-distribution queries are flagged at a rate of at most {self.alpha:g}."
+            )
+        text = (
+            f"{self.outside} of {self.n} queries ({100 * self.outside_fraction:.2f} %) lie outside the "
+            f"domain of validity (in-distribution queries are flagged at most {100 * self.alpha:g} % of "
+            "the time)"
+        )
+        if self.outside == 0:
+            return text + "."
+        text += (
+            "; the certificate promises nothing for them: they are unlike every calibration sample, so "
+            "the exchangeability it rests on fails there"
+        )
+        if self.violations_outside is not None and self.violations_inside is not None:
+            inside = self.n - self.outside
+            rate_in = self.violations_inside / inside if inside else float("nan")
+            text += (
+                f" (violations: {self.violations_outside} of {self.outside} outside, "
+                f"{self.violations_inside} of {inside} inside"
+                + (f", {100 * rate_in:.2f} %" if inside else "")
+                + ")"
+            )
+        if self.well_above_alpha:
+            text += ". That is far more than false alarms explain: the deployment data have shifted"
+        return text + "."
+
+    @property
+    def outside_fraction(self) -> float:
+        """Share of the queries outside the domain (0 for an empty batch)."""
+        return self.outside / self.n if self.n else 0.0
+
+    @property
+    def well_above_alpha(self) -> bool:
+        """The outside share is above what false alarms explain (one-sided binomial test at 0.001)."""
+        if self.n == 0 or self.outside == 0:
+            return False
+        return bool(stats.binom.sf(self.outside - 1, self.n, self.alpha) < WELL_ABOVE_LEVEL)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-data form (the keys of ``certificate.json["domain"]``)."""
+        return {
+            "method": self.method,
+            "alpha": self.alpha,
+            "threshold": self.threshold,
+            "n_reference": self.n_reference,
+            "n": self.n,
+            "outside": self.outside,
+            "outside_fraction": self.outside_fraction,
+            "well_above_alpha": self.well_above_alpha,
+            "violations_inside": self.violations_inside,
+            "violations_outside": self.violations_outside,
+            "statement": self.sentence(),
+        }

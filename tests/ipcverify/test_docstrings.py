@@ -1,0 +1,362 @@
+"""Every parameter of a public function or class of ipcverify is documented in its docstring.
+
+Public means a name in the ``__all__`` of ``ipcverify`` or of one of its packages. A function's
+parameters must each have an entry in the numpydoc ``Parameters`` section of its docstring; a
+class's ``__init__`` parameters (a dataclass's fields) must each have one under ``Parameters``
+or ``Attributes`` of the class docstring (or ``Parameters`` of ``__init__``). An entry may name
+several parameters (``x, yhat : array_like``); ``*args`` and ``**kwargs`` are documented as
+``*args`` / ``**kwargs`` (the stars optional). ``self`` and ``cls`` need no entry.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+import importlib
+import inspect
+import re
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+
+#: Undocumented parameters in the packages other helpers rewrite in the same step of issue 28
+#: (calibration/, decision/, network/, sets/ and contract/_calibrate.py), left alone here so that
+#: the merges stay clean: ``"package.name": {"parameter", ...}``. TO EMPTY after merging, by
+#: documenting them; test_the_allow_list_names_only_real_gaps fails once an entry is documented.
+ALLOWED_UNDOCUMENTED: dict[str, set[str]] = {
+    # ipcverify.calibration
+    "ipcverify.calibration.GroupInfo": {"k", "label", "n", "scale"},
+    "ipcverify.calibration.GroupScale": {"label", "lower", "threshold", "upper", "value"},
+    "ipcverify.calibration.GroupViolations": {"n_groups", "unit", "violations"},
+    "ipcverify.calibration.GroupedCalibration": {"scale"},
+    "ipcverify.calibration.TestCounts": {"n", "unit", "violations"},
+    "ipcverify.calibration.calibration_from_dict": {"data"},
+    "ipcverify.calibration.calibration_index": {"delta", "epsilon", "mode", "n"},
+    "ipcverify.calibration.check_eps_delta": {"delta", "epsilon"},
+    "ipcverify.calibration.check_mode": {"mode"},
+    "ipcverify.calibration.clopper_pearson_interval": {"delta", "k", "n"},
+    "ipcverify.calibration.clopper_pearson_lower": {"delta", "k", "n"},
+    "ipcverify.calibration.group_violation_counts": {"groups", "seed", "unit", "violated"},
+    "ipcverify.calibration.guarantee_sentence": {"t", "who"},
+    "ipcverify.calibration.marginal_conformal_index": {"epsilon", "n"},
+    "ipcverify.calibration.min_calibration_size": {"delta", "epsilon", "mode"},
+    "ipcverify.calibration.pac_epsilon": {"delta", "k", "n"},
+    "ipcverify.calibration.risk_control_threshold": {"epsilon", "groups", "scores"},
+    "ipcverify.calibration.row_counts": {"violated"},
+    "ipcverify.calibration.smallest_epsilon": {"delta", "mode", "n"},
+    # ipcverify.decision
+    "ipcverify.decision.bound_target": {"lower", "upper"},
+    "ipcverify.decision.check_landing": {"decision"},
+    "ipcverify.decision.finish": {"cz", "gl2", "gu2", "shape", "tier"},
+    "ipcverify.decision.float_tier": {
+        "a",
+        "b",
+        "c",
+        "cx",
+        "cy",
+        "cz",
+        "d",
+        "e",
+        "f",
+        "g",
+        "gl0",
+        "gl1",
+        "gu0",
+        "gu1",
+        "h",
+        "i",
+        "scale",
+        "top",
+    },
+    "ipcverify.decision.landing_accept_float": {"ellipsoids", "target"},
+    "ipcverify.decision.landing_by_bound_compiled": {"center", "lower", "shape", "upper"},
+    "ipcverify.decision.landing_slack": {"centers", "half_widths", "target"},
+    "ipcverify.decision.turnoff_point": {"ellipsoid"},
+    # ipcverify.decision.containment
+    "ipcverify.decision.containment.ExactEllipsoid": {"C", "_ci", "c"},
+    "ipcverify.decision.containment.Face": {"a", "b", "index", "slack", "z", "zz"},
+    "ipcverify.decision.containment.Verification": {"claimed", "reason", "status"},
+    "ipcverify.decision.containment.certificate_from_dict": {"data"},
+    "ipcverify.decision.containment.check_faces": {"ex", "outer"},
+    "ipcverify.decision.containment.check_lmi": {"lam", "q1", "q2", "tau"},
+    "ipcverify.decision.containment.check_method": {"method", "outer"},
+    "ipcverify.decision.containment.contained_float": {"inner", "outer"},
+    "ipcverify.decision.containment.default_method": {"outer"},
+    "ipcverify.decision.containment.exact_faces": {"ex", "outer"},
+    "ipcverify.decision.containment.face_centre": {"j", "system"},
+    "ipcverify.decision.containment.face_witness": {"ex", "face", "outer"},
+    "ipcverify.decision.containment.integer_definiteness": {"m"},
+    "ipcverify.decision.containment.is_outside": {"outer", "y"},
+    "ipcverify.decision.containment.json_field": {"d", "key", "where"},
+    "ipcverify.decision.containment.json_number": {"v", "where"},
+    "ipcverify.decision.containment.normalised": {"inner", "outer"},
+    "ipcverify.decision.containment.parse_method": {"v", "where"},
+    "ipcverify.decision.containment.problem_from_dict": {"d"},
+    "ipcverify.decision.containment.prove_batch": {"inner", "method", "outer"},
+    "ipcverify.decision.containment.prove_sdp": {"exact", "inner", "outer"},
+    "ipcverify.decision.containment.prove_socp": {"exact", "inner", "outer"},
+    "ipcverify.decision.containment.sdp_problem": {"n"},
+    "ipcverify.decision.containment.set_to_dict": {"s"},
+    "ipcverify.decision.containment.socp_problem": {"m", "n"},
+    "ipcverify.decision.containment.solve_face_sdp": {"inner", "outer"},
+    "ipcverify.decision.containment.support_slack": {"inner", "outer"},
+    "ipcverify.decision.containment.trust_region_maximiser": {"d", "d_mat"},
+    "ipcverify.decision.containment.verify": {"certificate"},
+    "ipcverify.decision.containment.witness_from_direction": {"boundary", "ex", "outer", "u"},
+    # ipcverify.network
+    "ipcverify.network.CheckedEllipsoid": {"centers", "shapes"},
+    "ipcverify.network.DataBox": {"x_hi", "x_lo", "y_hi", "y_lo", "yhat_hi", "yhat_lo"},
+    "ipcverify.network.IPCNetwork": {"config"},
+    "ipcverify.network.InferenceEngine": {
+        "biases",
+        "config",
+        "diag_pos",
+        "in_mean",
+        "in_scale",
+        "inv_sigma",
+        "sigma",
+        "tril_cols",
+        "tril_rows",
+        "weights",
+        "y_mean",
+    },
+    "ipcverify.network.LipschitzBound": {"box", "kind"},
+    "ipcverify.network.LowRankEngine": {
+        "biases",
+        "config",
+        "first_bias",
+        "first_weight",
+        "in_mean",
+        "in_scale",
+        "inv_sigma",
+        "lin_bias",
+        "lin_weight",
+        "sigma",
+        "weights",
+    },
+    "ipcverify.network.StackedLinear": {"d_in", "d_out", "members"},
+    "ipcverify.network.StackedMLP": {"activation", "d_in", "d_out", "hidden", "members"},
+    "ipcverify.network.activate": {"activation", "h"},
+    "ipcverify.network.build_network": {"config"},
+    "ipcverify.network.check_radius": {"radius"},
+    "ipcverify.network.checked_ellipsoid": {"centers", "shapes"},
+    "ipcverify.network.cholesky_lower": {"S"},
+    "ipcverify.network.chunk_rows": {"width"},
+    "ipcverify.network.clamped_exp2": {"clamp", "log_diag"},
+    "ipcverify.network.compiled": {"function"},
+    "ipcverify.network.ensemble_scores": {"network", "x", "y", "yhat"},
+    "ipcverify.network.fit_linear_stage": {"linear", "r", "ridge", "z"},
+    "ipcverify.network.float64_array": {"t"},
+    "ipcverify.network.hidden_norm_bounds": {"input_bound", "layers", "radius"},
+    "ipcverify.network.jacobian_bound": {"hidden", "layers", "radius"},
+    "ipcverify.network.lower_inverse": {"L"},
+    "ipcverify.network.lowrank_nodes": {"const", "dtype", "eng", "node", "scale", "z"},
+    "ipcverify.network.member_covariances": {"factor", "log_diag"},
+    "ipcverify.network.moment_match": {"covariances", "offsets"},
+    "ipcverify.network.operator_norm": {"w"},
+    "ipcverify.network.score_gradient_bound": {"members", "mu", "score"},
+    "ipcverify.network.sound_lipschitz_lowrank": {"box", "network", "radius"},
+    "ipcverify.network.state_layout": {"config"},
+    "ipcverify.network.svd_rcond": {"shapes"},
+    # ipcverify.sets
+    "ipcverify.sets.decode_exact": {"value"},
+    "ipcverify.sets.dyadic": {"values"},
+    "ipcverify.sets.encode_exact": {"q"},
+    "ipcverify.sets.exact_matrix": {"values"},
+    "ipcverify.sets.exact_vector": {"values"},
+    "ipcverify.sets.float_down": {"q"},
+    "ipcverify.sets.float_up": {"q"},
+    "ipcverify.sets.inverse": {"m"},
+    "ipcverify.sets.is_positive_definite": {"m"},
+    "ipcverify.sets.is_positive_semidefinite": {"m"},
+    "ipcverify.sets.matmul": {"a", "b"},
+    "ipcverify.sets.matvec": {"m", "v"},
+    "ipcverify.sets.single_ellipsoid": {"e", "what"},
+    "ipcverify.sets.sqnorm": {"v"},
+    "ipcverify.sets.sqrt_lower": {"bits", "q"},
+    "ipcverify.sets.sqrt_upper": {"bits", "q"},
+    "ipcverify.sets.unit_ball_log_volume": {"n"},
+}
+
+_ENTRY = re.compile(r"^(?P<names>\*{0,2}[A-Za-z_][\w]*(?:\s*,\s*\*{0,2}[A-Za-z_][\w]*)*)\s*(?::.*)?$")
+
+
+def section_names(doc: str | None, section: str) -> set[str]:
+    """The parameter names listed in one numpydoc section (``Parameters``, ``Attributes``, ...).
+
+    Entries are the lines at the section's own indentation; the text under an entry is
+    indented deeper. The section ends at the next underlined heading or at the end.
+    """
+    if not doc:
+        return set()
+    lines = inspect.cleandoc(doc).splitlines()
+    names: set[str] = set()
+    i = 0
+    while i < len(lines) - 1:
+        if lines[i].strip() == section and set(lines[i + 1].strip()) == {"-"}:
+            base = len(lines[i]) - len(lines[i].lstrip())
+            j = i + 2
+            while j < len(lines):
+                line = lines[j]
+                if j + 1 < len(lines) and line.strip() and set(lines[j + 1].strip()) == {"-"}:
+                    break  # the next section
+                indent = len(line) - len(line.lstrip())
+                if line.strip() and indent == base and (m := _ENTRY.match(line.strip())):
+                    names |= {n.strip().lstrip("*") for n in m.group("names").split(",")}
+                j += 1
+            i = j
+        else:
+            i += 1
+    return names
+
+
+def _parameters(obj: Callable[..., Any]) -> list[str]:
+    try:
+        signature = inspect.signature(obj)
+    except (TypeError, ValueError):  # a builtin without a signature
+        return []
+    return [p for p in signature.parameters if p not in {"self", "cls"}]
+
+
+def _own_init(cls: type) -> Callable[..., Any] | None:
+    """The class's ``__init__`` if ipcverify wrote it (or a dataclass generated it), else None."""
+    for klass in cls.__mro__:
+        if "__init__" in vars(klass):
+            init = vars(klass)["__init__"]
+            module = getattr(klass, "__module__", "") or ""
+            return init if module.startswith("ipcverify") else None
+    return None
+
+
+def undocumented(obj: Any) -> set[str]:
+    """The parameters of a public function or class that its docstring does not document."""
+    if inspect.isclass(obj):
+        if issubclass(obj, (enum.Enum, BaseException)) or getattr(obj, "_is_protocol", False):
+            return set()
+        init = _own_init(obj)
+        if init is None:
+            return set()
+        documented = section_names(obj.__doc__, "Parameters") | section_names(obj.__doc__, "Attributes")
+        documented |= section_names(init.__doc__, "Parameters")
+        params = _parameters(init)
+        if dataclasses.is_dataclass(obj):
+            params = [f.name for f in dataclasses.fields(obj) if f.init]
+        return set(params) - documented
+    if inspect.isfunction(obj) or inspect.ismethod(obj) or inspect.isbuiltin(obj):
+        return set(_parameters(obj)) - section_names(obj.__doc__, "Parameters")
+    return set()  # a constant
+
+
+def _packages() -> Iterator[str]:
+    yield "ipcverify"
+    for init in sorted((ROOT / "ipcverify").rglob("__init__.py")):
+        yield ".".join(init.parent.relative_to(ROOT).parts)
+
+
+def _public() -> list[tuple[str, str]]:
+    seen: set[tuple[str, str]] = set()
+    out = []
+    for package in _packages():
+        module = importlib.import_module(package)
+        for name in getattr(module, "__all__", []):
+            obj = getattr(module, name)
+            key = (getattr(obj, "__module__", package), getattr(obj, "__qualname__", name))
+            if key not in seen and (inspect.isclass(obj) or callable(obj)):
+                seen.add(key)
+                out.append((package, name))
+    return out
+
+
+PUBLIC = _public()
+
+
+def test_the_section_reader_reads_numpydoc_entries():
+    doc = """Summary.
+
+    Parameters
+    ----------
+    x, yhat : array_like
+        The queries; a line that looks like an entry but is indented deeper:
+        z : not a parameter
+    *args
+        Positional.
+    **kwargs : dict
+        Keywords.
+    seed : int, default 0
+
+    Returns
+    -------
+    out : float
+    """
+    assert section_names(doc, "Parameters") == {"x", "yhat", "args", "kwargs", "seed"}
+    assert section_names(doc, "Attributes") == set()
+    assert section_names(None, "Parameters") == set()
+
+
+def test_the_check_catches_an_undocumented_parameter():
+    def documented(a: int, *rest: int, b: int = 0, **options: int) -> int:
+        """Add.
+
+        Parameters
+        ----------
+        a, b : int
+            Terms.
+        *rest, **options
+            More.
+        """
+        return a + b
+
+    def missing(a: int, b: int) -> int:
+        """Add.
+
+        Parameters
+        ----------
+        a : int
+            A term.
+        """
+        return a + b
+
+    @dataclasses.dataclass(frozen=True)
+    class Record:
+        """A record.
+
+        Attributes
+        ----------
+        n : int
+            A count.
+        """
+
+        n: int
+        label: str
+
+    Record.__module__ = "ipcverify.fake"  # as if ipcverify had written it
+    assert undocumented(documented) == set()
+    assert undocumented(missing) == {"b"}
+    assert undocumented(Record) == {"label"}
+
+
+def test_public_names_are_found():
+    names = {name for _, name in PUBLIC}
+    assert {"train", "calibrate", "certify", "IPCQuery", "PerceptionDataset", "DomainModel"} <= names
+
+
+@pytest.mark.parametrize(("package", "name"), PUBLIC, ids=[f"{p}.{n}" for p, n in PUBLIC])
+def test_every_parameter_of_a_public_name_is_documented(package, name):
+    obj = getattr(importlib.import_module(package), name)
+    missing = undocumented(obj) - ALLOWED_UNDOCUMENTED.get(f"{package}.{name}", set())
+    assert not missing, f"{package}.{name}: document {sorted(missing)} under Parameters"
+
+
+def test_the_allow_list_names_only_real_gaps():
+    """An allowed gap that is documented (or a name that is gone) must leave the allow-list."""
+    stale = {}
+    for key, params in ALLOWED_UNDOCUMENTED.items():
+        package, _, name = key.rpartition(".")
+        obj = getattr(importlib.import_module(package), name, None)
+        if obj is None or not params <= undocumented(obj):
+            stale[key] = params if obj is None else params - undocumented(obj)
+    assert not stale, f"remove from ALLOWED_UNDOCUMENTED: {stale}"
