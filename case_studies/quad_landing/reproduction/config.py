@@ -43,7 +43,7 @@ from case_studies.quad_landing.settings import (
     merge_sections,
     read_toml,
 )
-from case_studies.quad_landing.sim.framebuffer import MAX_BUFFER_SIZE
+from case_studies.quad_landing.sim.camera import BufferSize, check_buffer_size
 from ipcverify.errors import InvalidInputError
 from ipcverify.network import RECIPES
 from ipcverify.training import HingeSelection
@@ -294,28 +294,23 @@ class Sizes(TomlSection):
     n_calibration: int
     n_test: int
     n_pilot: int
-    buffers: tuple[int, ...]
+    buffers: tuple[BufferSize, ...]
     paper_runs: int
     mc_runs: int
-    extra_landing_buffer: int
+    extra_landing_buffer: BufferSize
     extra_landing_runs: int
 
     def __post_init__(self) -> None:
         for name in ("n_train", "n_calibration", "n_test", "n_pilot", "paper_runs", "mc_runs"):
             check_positive(f"sizes.{name}", getattr(self, name), integer=True)
         check_positive("sizes.extra_landing_runs", self.extra_landing_runs, integer=True, allow_zero=True)
-        e = self.extra_landing_buffer
-        if isinstance(e, bool) or not isinstance(e, int) or not 1 <= e <= MAX_BUFFER_SIZE:
-            raise ConfigError(
-                f"sizes.extra_landing_buffer must be an integer in [1, {MAX_BUFFER_SIZE}], got {e!r}"
-            )
-        b = tuple(self.buffers)
-        if (
-            not b
-            or any(isinstance(k, bool) or not isinstance(k, int) or not 0 <= k <= MAX_BUFFER_SIZE for k in b)
-            or len(set(b)) != len(b)
-        ):
-            raise ConfigError(f"sizes.buffers must be distinct integers in [0, {MAX_BUFFER_SIZE}], got {b!r}")
+        extra = check_buffer_size(
+            self.extra_landing_buffer, name="sizes.extra_landing_buffer", lowest=1, error=ConfigError
+        )
+        object.__setattr__(self, "extra_landing_buffer", extra)
+        b = tuple(check_buffer_size(k, name="each of sizes.buffers", error=ConfigError) for k in self.buffers)
+        if not b or len(set(b)) != len(b):
+            raise ConfigError(f"sizes.buffers must be distinct buffer sizes, at least one, got {self.buffers!r}")
         if 1 not in b:
             raise ConfigError("sizes.buffers must include 1, the buffer size the Table I IPC is learned at")
         object.__setattr__(self, "buffers", tuple(sorted(b)))

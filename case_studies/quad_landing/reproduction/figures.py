@@ -40,7 +40,7 @@ from case_studies.quad_landing.landing.runs import LandingRun, Outcome
 from case_studies.quad_landing.landing.state_machine import LandingParams
 from case_studies.quad_landing.reproduction.table1 import PAPER_TABLE1, Table1
 from case_studies.quad_landing.reproduction.variants import SOURCE_LABELS, VariantStudy, VariantTable
-from case_studies.quad_landing.sim.timing import SOURCES
+from case_studies.quad_landing.sim.camera import SOURCES
 
 __all__ = [
     "figure_png",

@@ -65,6 +65,13 @@ from case_studies.quad_landing.reproduction.contracts import (
     contract_claims,
     hover_half_widths,
 )
+from case_studies.quad_landing.reproduction.experiments import (
+    PAPER_LANDING,
+    ContractResults,
+    ControlExperiment,
+    IpcSummary,
+    LandingExperiment,
+)
 from case_studies.quad_landing.reproduction.figures import draw_figures, figure_png
 from case_studies.quad_landing.reproduction.learn import (
     cached_ipc,
@@ -74,14 +81,7 @@ from case_studies.quad_landing.reproduction.learn import (
 )
 from case_studies.quad_landing.reproduction.paper_ipc import cached_paper_ipc
 from case_studies.quad_landing.reproduction.report_page import render_report
-from case_studies.quad_landing.reproduction.results import (
-    PAPER_LANDING,
-    ContractResults,
-    ControlExperiment,
-    IpcSummary,
-    LandingExperiment,
-    ReproductionSummary,
-)
+from case_studies.quad_landing.reproduction.results import ReproductionSummary
 from case_studies.quad_landing.reproduction.table1 import Table1, table1
 from case_studies.quad_landing.reproduction.timing_stats import camera_timing_summary, table1_protocol
 from case_studies.quad_landing.reproduction.variants import (

@@ -19,7 +19,7 @@ def test_claims_and_summary_records_from_real_runs(baseline_runs, make_ipc):
     """The typed results of the reproduction on a few real runs: claims, and summary.json's layout."""
     from case_studies.quad_landing.reproduction.campaign import summarize
     from case_studies.quad_landing.reproduction.claims import evaluate_claims
-    from case_studies.quad_landing.reproduction.results import ContractResults, LandingExperiment
+    from case_studies.quad_landing.reproduction.experiments import ContractResults, LandingExperiment
     from ipcverify.data._dataset import PerceptionDataset
 
     runs = tuple(baseline_runs)

@@ -7,7 +7,7 @@ flight the buffer is full of the start state's frame. ``k = 0`` is an ideal came
 current state's frame), used as a no-lag reference whatever the model.
 
 This is the model the case study started with; the camera-timing model
-(:class:`.camera_stage.TimedCamera`) replaced it as the default.
+(:class:`.timed.TimedCamera`) replaced it as the default.
 
 Examples
 --------
@@ -28,32 +28,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from case_studies.quad_landing.perception.aruco import ArucoPerception
-from case_studies.quad_landing.sim.camera import Camera
+from case_studies.quad_landing.sim.camera.buffer import check_buffer_size
+from case_studies.quad_landing.sim.camera.measurement import Measurement, pair
+from case_studies.quad_landing.sim.camera.pinhole import Camera
+from case_studies.quad_landing.sim.camera.render import Renderer
 from case_studies.quad_landing.sim.history import StateHistory
 from case_studies.quad_landing.sim.marker import Pad
-from case_studies.quad_landing.sim.measurement import Measurement, pair
-from case_studies.quad_landing.sim.render import Renderer
 from ipcverify.errors import InvalidInputError
 
-__all__ = ["FrameLagCamera", "MAX_BUFFER_SIZE", "check_buffer_size", "noise_key"]
-
-#: Largest buffer size accepted (frames).
-MAX_BUFFER_SIZE = 30
-
-
-def check_buffer_size(size: int) -> int:
-    """``size`` as a buffer size: a whole number of frames in ``[0, MAX_BUFFER_SIZE]``.
-
-    Examples
-    --------
-    >>> check_buffer_size(3)
-    3
-    """
-    if isinstance(size, bool) or int(size) != size or not 0 <= size <= MAX_BUFFER_SIZE:
-        raise InvalidInputError(
-            f"buffer size must be an integer in [0, {MAX_BUFFER_SIZE}] frames, got {size}"
-        )
-    return int(size)
+__all__ = ["FrameLagCamera", "noise_key"]
 
 
 def noise_key(seed: int, frame: int) -> int:

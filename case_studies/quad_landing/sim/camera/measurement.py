@@ -4,7 +4,7 @@ A :class:`CameraStage` turns the flight's state history into measurements: which
 the application reads at a given instant, how it looks, what the detector makes of it,
 and which state it is paired with. Two stages exist: the previous fixed lag of ``k``
 frames (:class:`.framebuffer.FrameLagCamera`) and the camera-timing model
-(:class:`.camera_stage.TimedCamera`); :func:`.camera_stage.make_camera_stage` picks one
+(:class:`.timed.TimedCamera`); :func:`.stage.build_camera_stage` picks one
 from the configuration. Both build their result with :func:`pair`.
 
 Examples
@@ -25,14 +25,15 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from case_studies.quad_landing.sim.camera import Camera
-from case_studies.quad_landing.sim.features import camera_frame_state
+from case_studies.quad_landing.sim.camera.features import camera_frame_state
+from case_studies.quad_landing.sim.camera.pinhole import Camera
 from case_studies.quad_landing.sim.frames import Pose
 from case_studies.quad_landing.sim.marker import Pad
 
 if TYPE_CHECKING:
+    from case_studies.quad_landing.perception.aruco import ArucoPerception
+    from case_studies.quad_landing.sim.camera.render import Renderer
     from case_studies.quad_landing.sim.history import StateHistory
-    from case_studies.quad_landing.sim.render import Renderer
 
 __all__ = ["Measurement", "CameraStage", "pair"]
 
@@ -94,7 +95,21 @@ class Measurement:
 
 
 class CameraStage(Protocol):
-    """What a :class:`~.flight.Flight` (or a replay of a recorded flight) asks of its camera."""
+    """What a flight (or a replay of a recorded flight) asks of its camera.
+
+    Attributes
+    ----------
+    camera : Camera
+        The camera the stage images with.
+    renderer : Renderer
+        Its renderer (sensor noise switched by the noise source).
+    perception : ArucoPerception
+        The detector every image read goes through.
+    """
+
+    camera: Camera
+    renderer: Renderer
+    perception: ArucoPerception
 
     @property
     def buffer_size(self) -> int:
