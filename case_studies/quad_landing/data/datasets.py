@@ -55,7 +55,12 @@ from case_studies.quad_landing.data.columns import X_COLUMNS, Y_COLUMNS, YHAT_CO
 from case_studies.quad_landing.data.pilot import PilotParams, record_pilot
 from case_studies.quad_landing.data.recording import FlightRecording, PathRecord, measure_recording
 from case_studies.quad_landing.settings import TomlSection
-from case_studies.quad_landing.sim.camera import BufferSize, Measurement, build_camera_stage, check_buffer_size
+from case_studies.quad_landing.sim.camera import (
+    BufferSize,
+    Measurement,
+    build_camera_stage,
+    check_buffer_size,
+)
 from case_studies.quad_landing.sim.config import SimConfig, load_config
 from case_studies.quad_landing.sim.flight import Flight
 from ipcverify.data import PerceptionDataset, atomic_write

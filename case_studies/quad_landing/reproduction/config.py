@@ -310,7 +310,9 @@ class Sizes(TomlSection):
         object.__setattr__(self, "extra_landing_buffer", extra)
         b = tuple(check_buffer_size(k, name="each of sizes.buffers", error=ConfigError) for k in self.buffers)
         if not b or len(set(b)) != len(b):
-            raise ConfigError(f"sizes.buffers must be distinct buffer sizes, at least one, got {self.buffers!r}")
+            raise ConfigError(
+                f"sizes.buffers must be distinct buffer sizes (one or more); got {self.buffers!r}"
+            )
         if 1 not in b:
             raise ConfigError("sizes.buffers must include 1, the buffer size the Table I IPC is learned at")
         object.__setattr__(self, "buffers", tuple(sorted(b)))

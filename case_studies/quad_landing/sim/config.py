@@ -26,7 +26,13 @@ from case_studies.quad_landing.settings import (
     merge_sections,
     read_toml,
 )
-from case_studies.quad_landing.sim.camera import BufferSize, CameraParams, check_buffer_size, CameraTimingParams, RenderParams
+from case_studies.quad_landing.sim.camera import (
+    BufferSize,
+    CameraParams,
+    CameraTimingParams,
+    RenderParams,
+    check_buffer_size,
+)
 from case_studies.quad_landing.sim.dynamics import QuadParams
 from case_studies.quad_landing.sim.lqr import LqrParams, SettleParams
 from case_studies.quad_landing.sim.marker import Pad

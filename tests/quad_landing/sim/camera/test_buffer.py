@@ -24,7 +24,8 @@ def test_whole_numbers_in_range_pass_as_ints(good):
 
 @pytest.mark.parametrize("bad", BAD)
 def test_anything_else_is_refused_with_the_range(bad):
-    with pytest.raises(InvalidInputError, match=rf"buffer size must be an integer in \[0, {MAX_BUFFER_SIZE}\]"):
+    in_range = rf"buffer size must be an integer in \[0, {MAX_BUFFER_SIZE}\]"
+    with pytest.raises(InvalidInputError, match=in_range):
         check_buffer_size(bad)
 
 
