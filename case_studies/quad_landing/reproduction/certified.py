@@ -59,7 +59,9 @@ from ipcverify.errors import InvalidInputError
 __all__ = [
     "ASSUMPTION_A",
     "CertifiedBound",
+    "ClosedLoopViolations",
     "EmpiricalVsCertified",
+    "ViolationRate",
     "certified_bound",
     "closed_loop_violations",
     "coverage_check",
@@ -233,42 +235,95 @@ def certified_bound(
     )
 
 
-def _rate(k: int, n: int, delta: float, epsilon: float | None = None) -> dict[str, Any]:
-    out: dict[str, Any] = {"n": n, "violations": k}
-    if n:
-        out.update(
-            rate=k / n,
-            interval=list(clopper_pearson_interval(k, n, delta)),
-            upper=clopper_pearson_upper(k, n, delta),
-        )
-        if epsilon is not None:
-            out["contradicts_epsilon"] = bool(clopper_pearson_lower(k, n, delta) > epsilon)
-    return out
+@dataclass(frozen=True)
+class ViolationRate:
+    """How many of ``n`` queries had the truth outside the set, with a Clopper--Pearson interval.
+
+    ``rate``, ``interval`` and ``upper`` are None when ``n`` is 0; ``contradicts_epsilon`` is
+    None when no ``epsilon`` was tested (dependent queries: descriptive only).
+    """
+
+    n: int
+    violations: int
+    rate: float | None = None
+    interval: tuple[float, float] | None = None
+    upper: float | None = None
+    contradicts_epsilon: bool | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """As in ``summary.json``: only ``n`` and ``violations`` when there were no queries."""
+        out: dict[str, Any] = {"n": self.n, "violations": self.violations}
+        if self.n:
+            interval = None if self.interval is None else list(self.interval)
+            out.update(rate=self.rate, interval=interval, upper=self.upper)
+            if self.contradicts_epsilon is not None:
+                out["contradicts_epsilon"] = self.contradicts_epsilon
+        return out
 
 
-def closed_loop_violations(runs: Sequence[LandingRun], epsilon: float, delta: float = 0.05) -> dict[str, Any]:
+def _rate(k: int, n: int, delta: float, epsilon: float | None = None) -> ViolationRate:
+    if not n:
+        return ViolationRate(n=n, violations=k)
+    contradicts = None if epsilon is None else bool(clopper_pearson_lower(k, n, delta) > epsilon)
+    return ViolationRate(
+        n=n,
+        violations=k,
+        rate=k / n,
+        interval=clopper_pearson_interval(k, n, delta),
+        upper=clopper_pearson_upper(k, n, delta),
+        contradicts_epsilon=contradicts,
+    )
+
+
+@dataclass(frozen=True)
+class ClosedLoopViolations:
     """How often the closed loop's own queries had the truth outside the contract's set.
 
     ``first`` (one per run, independent across runs), ``accepted`` (the query each landed or
-    settle-aborted run accepted; what an unsafe landing needs), ``all`` (dependent within a
-    run; descriptive). ``contradicts_epsilon`` is True when the one-sided Clopper--Pearson
-    lower bound (confidence ``1 - delta``) exceeds ``epsilon``.
+    settle-aborted run accepted; what an unsafe landing needs), ``every`` (all queries with a
+    detection, dependent within a run; descriptive; ``"all"`` in ``summary.json``).
+    """
+
+    first: ViolationRate
+    accepted: ViolationRate
+    every: ViolationRate
+    confidence: float
+    epsilon: float
+
+    def to_dict(self) -> dict[str, Any]:
+        """``summary.json``'s ``landing.closed_loop``."""
+        return {
+            "first": self.first.to_dict(),
+            "accepted": self.accepted.to_dict(),
+            "all": self.every.to_dict(),
+            "confidence": self.confidence,
+            "epsilon": self.epsilon,
+        }
+
+
+def closed_loop_violations(
+    runs: Sequence[LandingRun], epsilon: float, delta: float = 0.05
+) -> ClosedLoopViolations:
+    """How often the closed loop's own queries had the truth outside the contract's set.
+
+    ``contradicts_epsilon`` of ``first`` and ``accepted`` is True when the one-sided
+    Clopper--Pearson lower bound (confidence ``1 - delta``) exceeds ``epsilon``.
 
     Examples
     --------
-    >>> closed_loop_violations([], 0.01)["first"]["n"]
+    >>> closed_loop_violations([], 0.01).first.n
     0
     """
     first = [r.queries[0].truth_inside for r in runs if r.queries and r.queries[0].detected]
     accepted = [q.truth_inside for r in runs for q in r.queries if q.accepted]
     every = [q.truth_inside for r in runs for q in r.queries if q.detected]
-    return {
-        "first": _rate(sum(1 for t in first if not t), len(first), delta, epsilon),
-        "accepted": _rate(sum(1 for t in accepted if not t), len(accepted), delta, epsilon),
-        "all": _rate(sum(1 for t in every if not t), len(every), delta),
-        "confidence": 1 - delta,
-        "epsilon": epsilon,
-    }
+    return ClosedLoopViolations(
+        first=_rate(sum(1 for t in first if not t), len(first), delta, epsilon),
+        accepted=_rate(sum(1 for t in accepted if not t), len(accepted), delta, epsilon),
+        every=_rate(sum(1 for t in every if not t), len(every), delta),
+        confidence=1 - delta,
+        epsilon=epsilon,
+    )
 
 
 def coverage_check(

@@ -24,7 +24,14 @@ import numpy as np
 
 from case_studies.quad_landing.landing.runs import LandingRun
 from case_studies.quad_landing.reproduction.campaign import CampaignSummary
-from case_studies.quad_landing.reproduction.certified import CertifiedBound, EmpiricalVsCertified
+from case_studies.quad_landing.reproduction.certified import (
+    CertifiedBound,
+    ClosedLoopViolations,
+    EmpiricalVsCertified,
+)
+from case_studies.quad_landing.reproduction.learn import FlightLevelCheck
+from case_studies.quad_landing.reproduction.run import CertificateRecord
+from ipcverify.calibration import CalibrationSummary
 from ipcverify.errors import InvalidInputError
 
 __all__ = [
@@ -43,26 +50,26 @@ PAPER_LANDING = {"runs": 10, "ipc_safe": 10, "baseline_unsafe": 9}
 class IpcSummary:
     """One learned IPC: buffer size, calibration, test certificate, size and flight-level check.
 
-    ``calibration`` and ``certificate`` are the library's plain data
-    (:func:`~.learn.calibration_summary`, :func:`ipcverify.certification.certify`);
-    ``flight_level`` is :func:`~.learn.flight_level_check` (the same network calibrated with
-    the calibration flights as the exchangeable units).
+    ``calibration`` is the library's :class:`~ipcverify.calibration.CalibrationSummary`,
+    ``certificate`` the test certificate (:func:`~.run.certify_ipc`), ``flight_level``
+    :func:`~.learn.flight_level_check` (the same network calibrated with the calibration
+    flights as the exchangeable units).
     """
 
     buffer_size: int
-    calibration: Mapping[str, Any]
-    certificate: Mapping[str, Any]
+    calibration: CalibrationSummary
+    certificate: CertificateRecord
     n_parameters: int
-    flight_level: Mapping[str, Any] | None = None
+    flight_level: FlightLevelCheck | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """``summary.json``'s ``ipc.k<buffer size>``."""
         return {
             "buffer_size": self.buffer_size,
-            "calibration": dict(self.calibration),
-            "certificate": dict(self.certificate),
+            "calibration": self.calibration.to_dict(),
+            "certificate": self.certificate.to_dict(),
             "n_parameters": self.n_parameters,
-            "flight_level": None if self.flight_level is None else dict(self.flight_level),
+            "flight_level": None if self.flight_level is None else self.flight_level.to_dict(),
         }
 
 
@@ -123,9 +130,9 @@ class ContractResults:
 class LandingExperiment:
     """The landing at the landing buffer size: both contracts on the same scenarios.
 
-    ``closed_loop`` and ``coverage`` are the plain data of
-    :func:`~.certified.closed_loop_violations` and :func:`~.certified.coverage_check`
-    (without the raw distances).
+    ``closed_loop`` is :func:`~.certified.closed_loop_violations`; ``coverage`` the plain data
+    of :func:`~.certified.coverage_check` (without the raw distances; JSON-bound, kept as the
+    mapping it writes to ``summary.json``).
     """
 
     buffer_size: int
@@ -133,7 +140,7 @@ class LandingExperiment:
     max_measurements: int
     ipc: ContractResults
     baseline: ContractResults
-    closed_loop: Mapping[str, Any]
+    closed_loop: ClosedLoopViolations
     coverage: Mapping[str, Any]
 
     def __post_init__(self) -> None:
@@ -154,7 +161,7 @@ class LandingExperiment:
             "max_measurements": self.max_measurements,
             "ipc": self.ipc.to_dict(),
             "baseline": self.baseline.to_dict(),
-            "closed_loop": dict(self.closed_loop),
+            "closed_loop": self.closed_loop.to_dict(),
             "coverage": dict(self.coverage),
         }
 

@@ -29,7 +29,9 @@ from case_studies.quad_landing.reproduction.experiments import (
     IpcSummary,
     LandingExperiment,
 )
+from case_studies.quad_landing.reproduction.run import MachineInfo
 from case_studies.quad_landing.reproduction.table1 import PAPER_TABLE1, Table1
+from case_studies.quad_landing.reproduction.timing_stats import CameraTimingSummary, Table1Protocol
 from case_studies.quad_landing.reproduction.variants import VariantStudy
 
 __all__ = [
@@ -67,16 +69,20 @@ class ReproductionSummary:
         The extra landing experiment (buffer size 3, IPC learned there), None if skipped.
     ablation : VariantStudy
         Table I of every camera variant (error sources alone and removed).
-    camera_timing, table1_protocol : mapping
-        The timing parameters, image ages and errors per buffer size; how Table I was tested.
+    camera_timing : CameraTimingSummary
+        The timing parameters, image ages and errors per buffer size.
+    table1_protocol : Table1Protocol
+        How Table I was tested.
     claims : mapping of str to Claim
         The acceptance claims of ``default_calibrated`` (:func:`~.claims.evaluate_claims`).
     contracts : mapping of str to ContractSummary
         The three contracts side by side, ``paper_raw``, ``paper_calibrated`` and
         ``default_calibrated`` (:mod:`.contracts`): each with Table I, its landings and the
         paper's claims.
-    machine, jobs, backend
-        Where and how it ran.
+    machine : MachineInfo
+        Where it ran.
+    jobs, backend
+        How it ran: worker processes and the campaigns' joblib backend.
     stage_seconds, runtime_seconds, cpu_seconds
         How long it took: per stage and in total (wall clock), and the CPU time of this process
         and its worker processes (what the run costs whatever else the machine is doing).
@@ -91,10 +97,10 @@ class ReproductionSummary:
     landing_buffer1: ControlExperiment | None
     landing_buffer3: LandingExperiment | None
     ablation: VariantStudy
-    camera_timing: Mapping[str, Any]
-    table1_protocol: Mapping[str, Any]
+    camera_timing: CameraTimingSummary
+    table1_protocol: Table1Protocol
     claims: Mapping[str, Claim]
-    machine: Mapping[str, Any]
+    machine: MachineInfo
     jobs: int
     backend: str
     stage_seconds: Mapping[str, float]
@@ -118,9 +124,9 @@ class ReproductionSummary:
             "landing_buffer1": None if self.landing_buffer1 is None else self.landing_buffer1.to_dict(),
             "landing_buffer3": None if self.landing_buffer3 is None else self.landing_buffer3.to_dict(),
             "ablation": self.ablation.to_dict(),
-            "camera_timing": dict(self.camera_timing),
-            "table1_protocol": dict(self.table1_protocol),
-            "machine": dict(self.machine),
+            "camera_timing": self.camera_timing.to_dict(),
+            "table1_protocol": self.table1_protocol.to_dict(),
+            "machine": self.machine.to_dict(),
             "jobs": self.jobs,
             "backend": self.backend,
             "claims": {name: claim.to_dict() for name, claim in self.claims.items()},

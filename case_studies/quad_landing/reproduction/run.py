@@ -17,7 +17,7 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import torch
 from rich.console import Console
@@ -30,6 +30,9 @@ from ipcverify.contract import IPCModel
 from ipcverify.data import PerceptionDataset
 from ipcverify.errors import InvalidInputError
 
+if TYPE_CHECKING:
+    from ipcverify.certification import GroupTest, TestResult
+
 __all__ = [
     "SEEDS",
     "REPORT_DELTA",
@@ -37,7 +40,9 @@ __all__ = [
     "Stages",
     "Run",
     "start_run",
+    "CertificateRecord",
     "certify_ipc",
+    "MachineInfo",
     "machine_info",
     "cpu_seconds",
 ]
@@ -111,17 +116,51 @@ class Run:
         return sorted({1, self.landing_buffer} | extra)
 
 
-def machine_info(load_start: tuple[float, float, float]) -> dict[str, Any]:
-    """Where it ran, and how busy the machine was (other work slows every stage down)."""
-    return {
-        "cpu_count": os.cpu_count(),
-        "cores_available": default_jobs(),
-        "platform": platform.platform(),
-        "python": platform.python_version(),
-        "torch": torch.__version__,
-        "load_average_start": list(load_start),
-        "load_average_end": list(os.getloadavg()),
-    }
+@dataclass(frozen=True)
+class MachineInfo:
+    """Where a reproduction ran, and how busy the machine was (other work slows every stage down).
+
+    ``summary.json``'s ``machine`` is :meth:`to_dict`.
+    """
+
+    cpu_count: int | None
+    cores_available: int
+    platform: str
+    python: str
+    torch: str
+    load_average_start: tuple[float, float, float]
+    load_average_end: tuple[float, float, float]
+
+    def to_dict(self) -> dict[str, Any]:
+        """``summary.json``'s ``machine``."""
+        return {
+            "cpu_count": self.cpu_count,
+            "cores_available": self.cores_available,
+            "platform": self.platform,
+            "python": self.python,
+            "torch": self.torch,
+            "load_average_start": list(self.load_average_start),
+            "load_average_end": list(self.load_average_end),
+        }
+
+
+def machine_info(load_start: tuple[float, float, float]) -> MachineInfo:
+    """This machine now, with the load average at the start of the run.
+
+    Examples
+    --------
+    >>> machine_info((0.0, 0.0, 0.0)).to_dict()["load_average_start"]
+    [0.0, 0.0, 0.0]
+    """
+    return MachineInfo(
+        cpu_count=os.cpu_count(),
+        cores_available=default_jobs(),
+        platform=platform.platform(),
+        python=platform.python_version(),
+        torch=torch.__version__,
+        load_average_start=load_start,
+        load_average_end=os.getloadavg(),
+    )
 
 
 def cpu_seconds() -> float:
@@ -150,17 +189,46 @@ def start_run(
     return Run(cfg, sim, out_dir, n_jobs, backend, stages)
 
 
-def certify_ipc(model: IPCModel, test: PerceptionDataset, out_dir: Path) -> dict[str, Any]:
+@dataclass(frozen=True)
+class CertificateRecord:
+    """A learned IPC's test certificate as the reproduction reports it, and where its files are.
+
+    ``test`` and ``group_test`` are the library's results
+    (:class:`ipcverify.certification.TestResult`, :class:`ipcverify.certification.GroupTest`).
+    """
+
+    status: str
+    statement: str
+    test: TestResult | None
+    group_test: GroupTest | None
+    files: str
+
+    def to_dict(self) -> dict[str, Any]:
+        """``summary.json``'s ``certificate`` of an IPC or a contract."""
+        return {
+            "status": self.status,
+            "statement": self.statement,
+            "test": None if self.test is None else self.test.to_dict(),
+            "group_test": None if self.group_test is None else self.group_test.to_dict(),
+            "files": self.files,
+        }
+
+
+def certify_ipc(model: IPCModel, test: PerceptionDataset, out_dir: Path) -> CertificateRecord:
+    """Certify ``model`` on its held-out ``test`` set (also per flight).
+
+    The certificate's files are written to ``out_dir``.
+    """
     from ipcverify.certification import certify, write_certificate
 
     # the test samples come from a few dozen flights: also count violations per flight
     result = certify(model, test, group_column="flight")
     write_certificate(result, out_dir)
     cert = result.certificate
-    return {
-        "status": cert.status.name,
-        "statement": cert.statement,
-        "test": None if cert.test is None else cert.test.to_dict(),
-        "group_test": None if cert.group_test is None else cert.group_test.to_dict(),
-        "files": str(out_dir),
-    }
+    return CertificateRecord(
+        status=cert.status.name,
+        statement=cert.statement,
+        test=cert.test,
+        group_test=cert.group_test,
+        files=str(out_dir),
+    )
