@@ -29,7 +29,7 @@ from numpy.typing import NDArray
 
 from case_studies.quad_landing.perception.aruco import ArucoPerception
 from case_studies.quad_landing.sim.camera.buffer import check_buffer_size
-from case_studies.quad_landing.sim.camera.measurement import Measurement, pair
+from case_studies.quad_landing.sim.camera.measurement import Measurement, StageParts, pair
 from case_studies.quad_landing.sim.camera.pinhole import Camera
 from case_studies.quad_landing.sim.camera.render import Renderer
 from case_studies.quad_landing.sim.history import StateHistory
@@ -50,7 +50,7 @@ def noise_key(seed: int, frame: int) -> int:
     return (int(seed) * 7919 + int(frame)) % (2**31)
 
 
-class FrameLagCamera:
+class FrameLagCamera(StageParts):
     """The ``k``-frame lag (see the module docstring).
 
     Parameters
@@ -72,10 +72,7 @@ class FrameLagCamera:
         ground_z: float,
     ) -> None:
         self._k = check_buffer_size(buffer_size)
-        self.camera, self.renderer, self.perception, self.ground_z = camera, renderer, perception, ground_z
-        self._history: StateHistory | None = None
-        self._pad: Pad | None = None
-        self._seed = 0
+        super().__init__(camera, renderer, perception, ground_z)
         self._cache: tuple[int, float, Measurement, NDArray[np.uint8]] | None = None
 
     @property

@@ -35,7 +35,7 @@ if TYPE_CHECKING:
     from case_studies.quad_landing.sim.camera.render import Renderer
     from case_studies.quad_landing.sim.history import StateHistory
 
-__all__ = ["Measurement", "CameraStage", "pair"]
+__all__ = ["Measurement", "CameraStage", "StageParts", "pair"]
 
 FloatArray = NDArray[np.float64]
 
@@ -127,6 +127,30 @@ class CameraStage(Protocol):
     def image(self) -> NDArray[np.uint8]:
         """The image of the last measurement."""
         ...
+
+
+class StageParts:
+    """What both camera stages hold: the camera, renderer and detector, and the flight being measured.
+
+    :class:`.framebuffer.FrameLagCamera` and :class:`.timed.TimedCamera` derive from it; a
+    flight's history, pad and sensor seed are set by their ``begin``.
+
+    Parameters
+    ----------
+    camera, renderer, perception
+        The simulator's camera, renderer (its noise already switched by the noise source)
+        and detector.
+    ground_z : float
+        Floor height in W (m).
+    """
+
+    def __init__(
+        self, camera: Camera, renderer: Renderer, perception: ArucoPerception, ground_z: float
+    ) -> None:
+        self.camera, self.renderer, self.perception, self.ground_z = camera, renderer, perception, ground_z
+        self._history: StateHistory | None = None
+        self._pad: Pad | None = None
+        self._seed = 0
 
 
 def pair(

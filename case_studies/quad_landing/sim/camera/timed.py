@@ -40,7 +40,7 @@ from case_studies.quad_landing.sim.camera.buffer import check_buffer_size
 from case_studies.quad_landing.sim.camera.driver_queue import DriverQueue, FlightTiming, ReaderIteration
 from case_studies.quad_landing.sim.camera.exposure import render_exposed
 from case_studies.quad_landing.sim.camera.framebuffer import noise_key
-from case_studies.quad_landing.sim.camera.measurement import Measurement, pair
+from case_studies.quad_landing.sim.camera.measurement import Measurement, StageParts, pair
 from case_studies.quad_landing.sim.camera.pinhole import Camera
 from case_studies.quad_landing.sim.camera.render import Renderer
 from case_studies.quad_landing.sim.camera.timing import CameraTimingParams
@@ -100,7 +100,7 @@ def flight_timing(
     )
 
 
-class TimedCamera:
+class TimedCamera(StageParts):
     """The camera-timing model's stage (see the module docstring).
 
     Parameters
@@ -129,10 +129,7 @@ class TimedCamera:
         if b < 1:
             raise InvalidInputError("the timed camera needs a buffer size >= 1 (0 is the ideal camera)")
         self.params, self._b = params, b
-        self.camera, self.renderer, self.perception, self.ground_z = camera, renderer, perception, ground_z
-        self._history: StateHistory | None = None
-        self._pad: Pad | None = None
-        self._seed = 0
+        super().__init__(camera, renderer, perception, ground_z)
         self._queue: DriverQueue | None = None
         self._cache: (
             tuple[int, Measurement, NDArray[np.uint8] | None, Callable[[], NDArray[np.uint8]]] | None
