@@ -57,10 +57,8 @@ class FrameLagCamera(StageParts):
     ----------
     buffer_size : int
         ``k``, frames of lag (0: no lag).
-    camera, renderer, perception
-        The simulator's camera, renderer and detector.
-    ground_z : float
-        Floor height in W (m).
+    camera, renderer, perception, ground_z
+        As for :class:`.measurement.StageParts`.
     """
 
     def __init__(

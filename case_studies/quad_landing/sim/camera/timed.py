@@ -109,11 +109,8 @@ class TimedCamera(StageParts):
         ``[camera_timing]``.
     buffer_size : int
         V4L2 buffers (the paper's buffer size), at least 1.
-    camera, renderer, perception
-        The simulator's camera, renderer (its noise already switched by the noise source)
-        and detector.
-    ground_z : float
-        Floor height in W (m).
+    camera, renderer, perception, ground_z
+        As for :class:`.measurement.StageParts`.
     """
 
     def __init__(
