@@ -19,7 +19,7 @@ Assumption A is an idealisation: the closed loop chooses where to measure, so it
 queries are not literally draws from the calibration distribution. Two checks quantify
 the gap:
 
-* :func:`coverage_check` — nearest-neighbour distances of the closed-loop queries to the
+* :func:`.coverage.coverage_check` — nearest-neighbour distances of the closed-loop queries to the
   calibration set, in the network's standardised input space, against the distances of
   held-out test samples (drawn like the calibration data) to the same set; a closed-loop
   exceedance rate of the test's ``q``-quantile significantly above ``1 - q`` flags a
@@ -52,8 +52,6 @@ from ipcverify.calibration import (
     clopper_pearson_lower,
     clopper_pearson_upper,
 )
-from ipcverify.contract import IPCModel
-from ipcverify.data import PerceptionDataset
 from ipcverify.errors import InvalidInputError
 
 __all__ = [
@@ -64,7 +62,6 @@ __all__ = [
     "ViolationRate",
     "certified_bound",
     "closed_loop_violations",
-    "coverage_check",
     "hoeffding_upper",
     "unsafe_vs_certified",
 ]
@@ -324,110 +321,6 @@ def closed_loop_violations(
         confidence=1 - delta,
         epsilon=epsilon,
     )
-
-
-def coverage_check(
-    model: IPCModel,
-    calibration_data: PerceptionDataset,
-    test_data: PerceptionDataset,
-    runs: Sequence[LandingRun],
-    *,
-    delta: float = 0.05,
-) -> dict[str, Any]:
-    """Do the closed loop's queries look like the calibration data? The model's own domain test.
-
-    The same machinery every deployment path uses (:class:`ipcverify.guard.DomainModel`,
-    fitted by :func:`ipcverify.contract.calibrate` on the calibration inputs): a query is
-    outside the domain of validity when its whitened distance to the calibration inputs
-    exceeds the test's threshold; an exchangeable query is flagged with probability at most
-    ``alpha`` (``proofs/domain.md``).
-
-    Parameters
-    ----------
-    model : IPCModel
-        The IPC used in the runs, with its domain model.
-    calibration_data : PerceptionDataset
-        The data the calibration was computed on (for the per-feature range figures).
-    test_data : PerceptionDataset
-        Held-out samples drawn like the calibration data: their flag rate checks the test.
-    runs : sequence of LandingRun
-        Runs flown with the model; every query with a detection is checked.
-    delta : float
-        Confidence parameter of the intervals and of the flag.
-
-    Returns
-    -------
-    dict
-        ``threshold``, ``null_rate`` (= ``alpha``), the held-out ``test`` flag rate, per group
-        (``all``, ``first``, ``later`` queries) the number of queries, the ones outside the domain
-        and their rate with a Clopper--Pearson interval, ``shift_detected`` (the one-sided lower
-        bound of some group's rate exceeds ``alpha``), and per-feature range figures.
-    """
-    domain = model.domain
-    if domain is None:
-        raise InvalidInputError("the model has no domain-of-validity test; recalibrate it with calibrate()")
-    test_d = domain.distance(test_data.x, test_data.yhat)
-    out: dict[str, Any] = {
-        "method": domain.method,
-        "quantile": 1.0 - domain.alpha,
-        "threshold": domain.threshold,
-        "test": {
-            "n": int(test_d.size),
-            "median_distance": float(np.median(test_d)),
-            "outside": int((test_d > domain.threshold).sum()),
-        },
-        "null_rate": domain.alpha,
-        "confidence": 1 - delta,
-    }
-    qs = [(i, q) for r in runs for i, q in enumerate(r.queries) if q.detected and q.x_c is not None]
-    if not qs:
-        out.update(shift_detected=None, groups={})
-        return out
-    x = np.array([q.x_c for _, q in qs])
-    yh = np.array([q.yhat_c for _, q in qs])
-    d = domain.distance(x, yh)
-    first = np.array([i == 0 for i, _ in qs])
-    groups: dict[str, Any] = {}
-    for name, mask in (("all", np.ones(len(qs), bool)), ("first", first), ("later", ~first)):
-        n = int(mask.sum())
-        if not n:
-            continue
-        k = int((d[mask] > domain.threshold).sum())
-        groups[name] = {
-            "n": n,
-            "exceed": k,
-            "rate": k / n,
-            "interval": list(clopper_pearson_interval(k, n, delta)),
-            "lower": clopper_pearson_lower(k, n, delta),
-            "median_distance": float(np.median(d[mask])),
-        }
-    out.update(
-        groups=groups,
-        shift_detected=bool(any(g["lower"] > domain.alpha for g in groups.values())),
-        distances={"queries": d.tolist(), "test": np.sort(test_d).tolist()},
-        feature_range=_feature_ranges(calibration_data, test_data, x, yh),
-    )
-    return out
-
-
-def _feature_ranges(
-    calibration_data: PerceptionDataset, test_data: PerceptionDataset, x: FloatArray, yh: FloatArray
-) -> dict[str, Any]:
-    """Per-feature 0.5-99.5 % ranges: informational only (a query can be inside every range and far
-    from all data, or outside one range and still near the data); the domain test decides."""
-    cal = np.concatenate([calibration_data.x, calibration_data.yhat], axis=1)
-    lo, hi = np.quantile(cal, 0.005, axis=0), np.quantile(cal, 0.995, axis=0)
-    names = [*calibration_data.x_columns, *calibration_data.yhat_columns]
-    q = np.concatenate([x, yh], axis=1)
-    t = np.concatenate([test_data.x, test_data.yhat], axis=1)
-    return {
-        "range": "0.5-99.5 % of the calibration data, per feature (informational; the domain test decides)",
-        "queries_outside_any": float(np.mean(np.any((q < lo) | (q > hi), axis=1))),
-        "test_outside_any": float(np.mean(np.any((t < lo) | (t > hi), axis=1))),
-        "queries_outside_by_feature": {
-            n: float(np.mean((q[:, i] < lo[i]) | (q[:, i] > hi[i]))) for i, n in enumerate(names)
-        },
-    }
 
 
 def unsafe_vs_certified(

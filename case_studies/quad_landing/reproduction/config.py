@@ -99,7 +99,7 @@ class IpcParams(TomlSection):
         flags queries beyond this quantile of the calibration inputs' nearest-neighbour
         distances: its false-alarm rate is ``1 - coverage_quantile`` (fitted by flight when
         there are enough flights: :func:`~.learn.domain_groups`). The closed loop's
-        shift check (:func:`case_studies.quad_landing.reproduction.certified.coverage_check`)
+        shift check (:func:`case_studies.quad_landing.reproduction.coverage.coverage_check`)
         uses the same test.
 
     Examples

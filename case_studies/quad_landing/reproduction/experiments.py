@@ -16,7 +16,6 @@ The claims (:mod:`.claims`) are read from them, and the reproduction's summary
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -29,6 +28,7 @@ from case_studies.quad_landing.reproduction.certified import (
     ClosedLoopViolations,
     EmpiricalVsCertified,
 )
+from case_studies.quad_landing.reproduction.coverage import CoverageCheck
 from case_studies.quad_landing.reproduction.learn import FlightLevelCheck
 from case_studies.quad_landing.reproduction.run import CertificateRecord
 from ipcverify.calibration import CalibrationSummary
@@ -130,9 +130,8 @@ class ContractResults:
 class LandingExperiment:
     """The landing at the landing buffer size: both contracts on the same scenarios.
 
-    ``closed_loop`` is :func:`~.certified.closed_loop_violations`; ``coverage`` the plain data
-    of :func:`~.certified.coverage_check` (without the raw distances; JSON-bound, kept as the
-    mapping it writes to ``summary.json``).
+    ``closed_loop`` is :func:`~.certified.closed_loop_violations`, ``coverage``
+    :func:`~.coverage.coverage_check` (``summary.json`` leaves its raw distances out).
     """
 
     buffer_size: int
@@ -141,7 +140,7 @@ class LandingExperiment:
     ipc: ContractResults
     baseline: ContractResults
     closed_loop: ClosedLoopViolations
-    coverage: Mapping[str, Any]
+    coverage: CoverageCheck
 
     def __post_init__(self) -> None:
         if self.ipc.certified is None:
@@ -150,8 +149,7 @@ class LandingExperiment:
     @property
     def shift_detected(self) -> bool | None:
         """Whether the coverage check flagged a shift (None without closed-loop queries)."""
-        flag = self.coverage.get("shift_detected")
-        return None if flag is None else bool(flag)
+        return self.coverage.shift_detected
 
     def to_dict(self) -> dict[str, Any]:
         """``summary.json``'s ``landing``."""
@@ -162,7 +160,7 @@ class LandingExperiment:
             "ipc": self.ipc.to_dict(),
             "baseline": self.baseline.to_dict(),
             "closed_loop": self.closed_loop.to_dict(),
-            "coverage": dict(self.coverage),
+            "coverage": self.coverage.to_dict(distances=False),
         }
 
 

@@ -20,7 +20,6 @@ from case_studies.quad_landing.reproduction.campaign import run_campaign, summar
 from case_studies.quad_landing.reproduction.certified import (
     certified_bound,
     closed_loop_violations,
-    coverage_check,
     unsafe_vs_certified,
 )
 from case_studies.quad_landing.reproduction.contracts import (
@@ -29,6 +28,7 @@ from case_studies.quad_landing.reproduction.contracts import (
     contract_claims,
     hover_half_widths,
 )
+from case_studies.quad_landing.reproduction.coverage import CoverageCheck, coverage_check
 from case_studies.quad_landing.reproduction.experiments import ContractResults, LandingExperiment
 from case_studies.quad_landing.reproduction.learn import calibration_summary, certified_epsilon
 from case_studies.quad_landing.reproduction.paper_ipc import cached_paper_ipc
@@ -96,11 +96,11 @@ def fly_campaigns(run: Run, model: IPCModel, k: int, mc_runs: int) -> Flights:
 
 def judge_landing(
     run: Run, model: IPCModel, data: dict[str, PerceptionDataset], flights: Flights
-) -> tuple[LandingExperiment, dict[str, Any]]:
+) -> tuple[LandingExperiment, CoverageCheck]:
     """Step 5: both contracts' landings with the certified bound beside the IPC's.
 
-    Returns the landing experiment and the full coverage check (with the distances the
-    coverage figure draws).
+    Returns the landing experiment and its coverage check (whose distances the coverage
+    figure draws).
     """
     k, delta = flights.buffer_size, REPORT_DELTA
     with run.stages.stage(f"certified bound and coverage (buffer {k})", 1):
@@ -132,7 +132,7 @@ def judge_landing(
         ipc=ipc,
         baseline=baseline,
         closed_loop=loop,
-        coverage={key: v for key, v in coverage.items() if key != "distances"},
+        coverage=coverage,
     )
     return landing, coverage
 
