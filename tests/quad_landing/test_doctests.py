@@ -22,7 +22,7 @@ MODULES = [
     "landing.contracts", "landing.runs", "landing.scenario", "landing.state_machine",
     "reproduction.campaign", "reproduction.certified", "reproduction.claims", "reproduction.collection",
     "reproduction.config", "reproduction.coverage", "reproduction.figures", "reproduction.learn",
-    "reproduction.markdown",
+    "reproduction.markdown", "reproduction.record",
     "reproduction.report_page", "reproduction.run",
     "reproduction.sensitivity", "reproduction.table1", "reproduction.timing_stats", "reproduction.variants",
 ]  # fmt: skip

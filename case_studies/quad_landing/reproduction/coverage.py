@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from case_studies.quad_landing.landing.runs import LandingRun
+from case_studies.quad_landing.reproduction.record import Record
 from ipcverify.calibration import clopper_pearson_interval, clopper_pearson_lower
 from ipcverify.contract import IPCModel
 from ipcverify.data import PerceptionDataset
@@ -35,20 +36,16 @@ FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True)
-class HeldOutFlags:
+class HeldOutFlags(Record):
     """The domain test on held-out samples drawn like the calibration data: how many it flags."""
 
     n: int
     median_distance: float
     outside: int
 
-    def to_dict(self) -> dict[str, Any]:
-        """As in ``summary.json``."""
-        return {"n": self.n, "median_distance": self.median_distance, "outside": self.outside}
-
 
 @dataclass(frozen=True, kw_only=True)
-class CoverageGroup:
+class CoverageGroup(Record):
     """One group of closed-loop queries: ``exceed`` of ``n`` outside the domain, with the rate's interval."""
 
     n: int
@@ -57,17 +54,6 @@ class CoverageGroup:
     interval: tuple[float, float]
     lower: float
     median_distance: float
-
-    def to_dict(self) -> dict[str, Any]:
-        """As in ``summary.json``."""
-        return {
-            "n": self.n,
-            "exceed": self.exceed,
-            "rate": self.rate,
-            "interval": list(self.interval),
-            "lower": self.lower,
-            "median_distance": self.median_distance,
-        }
 
 
 @dataclass(frozen=True, kw_only=True)

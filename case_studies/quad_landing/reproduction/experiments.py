@@ -30,6 +30,7 @@ from case_studies.quad_landing.reproduction.certified import (
 )
 from case_studies.quad_landing.reproduction.coverage import CoverageCheck
 from case_studies.quad_landing.reproduction.learn import FlightLevelCheck
+from case_studies.quad_landing.reproduction.record import Record
 from case_studies.quad_landing.reproduction.run import CertificateRecord
 from ipcverify.calibration import CalibrationSummary
 from ipcverify.errors import InvalidInputError
@@ -47,7 +48,7 @@ PAPER_LANDING = {"runs": 10, "ipc_safe": 10, "baseline_unsafe": 9}
 
 
 @dataclass(frozen=True, kw_only=True)
-class IpcSummary:
+class IpcSummary(Record):
     """One learned IPC: buffer size, calibration, test certificate, size and flight-level check.
 
     ``calibration`` is the library's :class:`~ipcverify.calibration.CalibrationSummary`,
@@ -61,16 +62,6 @@ class IpcSummary:
     certificate: CertificateRecord
     n_parameters: int
     flight_level: FlightLevelCheck | None = None
-
-    def to_dict(self) -> dict[str, Any]:
-        """``summary.json``'s ``ipc.k<buffer size>``."""
-        return {
-            "buffer_size": self.buffer_size,
-            "calibration": self.calibration.to_dict(),
-            "certificate": self.certificate.to_dict(),
-            "n_parameters": self.n_parameters,
-            "flight_level": None if self.flight_level is None else self.flight_level.to_dict(),
-        }
 
 
 def _run_row(run: LandingRun) -> dict[str, Any]:
@@ -165,17 +156,9 @@ class LandingExperiment:
 
 
 @dataclass(frozen=True, kw_only=True)
-class ControlExperiment:
+class ControlExperiment(Record):
     """The Monte Carlo counts of the landing at ``buffer_size`` (1), IPC and baseline."""
 
     buffer_size: int
     ipc: CampaignSummary
     baseline: CampaignSummary
-
-    def to_dict(self) -> dict[str, Any]:
-        """``summary.json``'s ``landing_buffer1``."""
-        return {
-            "buffer_size": self.buffer_size,
-            "ipc": self.ipc.to_dict(),
-            "baseline": self.baseline.to_dict(),
-        }

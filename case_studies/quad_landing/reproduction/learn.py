@@ -43,6 +43,7 @@ import pandas as pd
 import torch
 
 from case_studies.quad_landing.reproduction.config import IpcParams
+from case_studies.quad_landing.reproduction.record import Record
 from ipcverify.calibration import CalibrationSummary
 from ipcverify.contract import IPCModel, calibrate
 from ipcverify.data import PerceptionDataset, atomic_write
@@ -160,7 +161,7 @@ def calibration_summary(model: IPCModel) -> CalibrationSummary:
 
 
 @dataclass(frozen=True, kw_only=True)
-class FlightLevelCheck:
+class FlightLevelCheck(Record):
     """The network calibrated with its flights as the exchangeable units, beside the row-level scale.
 
     What :func:`flight_level_check` finds; ``summary.json``'s ``ipc.k<buffer>.flight_level`` is
@@ -177,10 +178,6 @@ class FlightLevelCheck:
     flight_scale: float | None = None
     flight_guarantee: str | None = None
     flight_mean_violation_fraction: Any = None
-
-    def to_dict(self) -> dict[str, Any]:
-        """The check as plain data (``summary.json``'s layout)."""
-        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
 
 
 def flight_level_check(

@@ -17,7 +17,7 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import torch
 from rich.console import Console
@@ -25,6 +25,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 
 from case_studies.quad_landing.reproduction.campaign import default_jobs
 from case_studies.quad_landing.reproduction.config import ReproduceConfig
+from case_studies.quad_landing.reproduction.record import Record
 from case_studies.quad_landing.sim.config import SimConfig
 from ipcverify.contract import IPCModel
 from ipcverify.data import PerceptionDataset
@@ -117,7 +118,7 @@ class Run:
 
 
 @dataclass(frozen=True)
-class MachineInfo:
+class MachineInfo(Record):
     """Where a reproduction ran, and how busy the machine was (other work slows every stage down).
 
     ``summary.json``'s ``machine`` is :meth:`to_dict`.
@@ -130,18 +131,6 @@ class MachineInfo:
     torch: str
     load_average_start: tuple[float, float, float]
     load_average_end: tuple[float, float, float]
-
-    def to_dict(self) -> dict[str, Any]:
-        """``summary.json``'s ``machine``."""
-        return {
-            "cpu_count": self.cpu_count,
-            "cores_available": self.cores_available,
-            "platform": self.platform,
-            "python": self.python,
-            "torch": self.torch,
-            "load_average_start": list(self.load_average_start),
-            "load_average_end": list(self.load_average_end),
-        }
 
 
 def machine_info(load_start: tuple[float, float, float]) -> MachineInfo:
@@ -190,7 +179,7 @@ def start_run(
 
 
 @dataclass(frozen=True)
-class CertificateRecord:
+class CertificateRecord(Record):
     """A learned IPC's test certificate as the reproduction reports it, and where its files are.
 
     ``test`` and ``group_test`` are the library's results
@@ -202,16 +191,6 @@ class CertificateRecord:
     test: TestResult | None
     group_test: GroupTest | None
     files: str
-
-    def to_dict(self) -> dict[str, Any]:
-        """``summary.json``'s ``certificate`` of an IPC or a contract."""
-        return {
-            "status": self.status,
-            "statement": self.statement,
-            "test": None if self.test is None else self.test.to_dict(),
-            "group_test": None if self.group_test is None else self.group_test.to_dict(),
-            "files": self.files,
-        }
 
 
 def certify_ipc(model: IPCModel, test: PerceptionDataset, out_dir: Path) -> CertificateRecord:

@@ -22,7 +22,6 @@ Examples
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -31,6 +30,7 @@ import numpy as np
 import pandas as pd
 
 from case_studies.quad_landing.reproduction.config import ReproduceConfig
+from case_studies.quad_landing.reproduction.record import Record
 from case_studies.quad_landing.sim.config import SimConfig
 
 __all__ = [
@@ -44,20 +44,8 @@ __all__ = [
 ]
 
 
-class _Record:
-    """A frozen record whose ``to_dict`` is its fields in order, records among them as dicts."""
-
-    def to_dict(self) -> dict[str, Any]:
-        """The fields in order (``summary.json``'s layout)."""
-        return {
-            f.name: (v.to_dict() if isinstance(v, _Record) else v)
-            for f in dataclasses.fields(self)  # type: ignore[arg-type]
-            for v in (getattr(self, f.name),)
-        }
-
-
 @dataclass(frozen=True)
-class Quantiles(_Record):
+class Quantiles(Record):
     """5 %, 50 % and 95 % quantiles and the mean of a sample."""
 
     p05: float
@@ -67,7 +55,7 @@ class Quantiles(_Record):
 
 
 @dataclass(frozen=True)
-class ImageStats(_Record):
+class ImageStats(Record):
     """Age (ms) and ``|yhat_C - y_C|`` (mm) of a dataset's ``n`` images."""
 
     n: int
@@ -76,7 +64,7 @@ class ImageStats(_Record):
 
 
 @dataclass(frozen=True)
-class CameraTimingSummary(_Record):
+class CameraTimingSummary(Record):
     """``summary.json``'s ``camera_timing`` (see the module docstring); ``parameters`` is the TOML table."""
 
     parameters: Mapping[str, Any]
@@ -85,15 +73,9 @@ class CameraTimingSummary(_Record):
     per_buffer: Mapping[str, ImageStats]
     training: ImageStats
 
-    def to_dict(self) -> dict[str, Any]:
-        """As in ``summary.json``."""
-        out = super().to_dict()
-        out["per_buffer"] = {b: stats.to_dict() for b, stats in self.per_buffer.items()}
-        return out
-
 
 @dataclass(frozen=True)
-class Table1Protocol(_Record):
+class Table1Protocol(Record):
     """``summary.json``'s ``table1_protocol``: how Table I was tested, and the flights' speeds (m/s).
 
     ``pilot`` is ``[pilot]`` as its TOML table; ``speed_m_s`` the median, 90th percentile and
