@@ -18,8 +18,8 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from case_studies.quad_landing.settings import DEFAULTS_PATH, REPRODUCE_PATH, read_toml
+from case_studies.quad_landing.sim.camera import MAX_BUFFER_SIZE
 from case_studies.quad_landing.sim.config import SimConfig, load_config
-from case_studies.quad_landing.sim.framebuffer import MAX_BUFFER_SIZE
 from ipcverify.cli.app import run_group
 from ipcverify.data import json_data
 from ipcverify.errors import InvalidInputError
@@ -148,7 +148,7 @@ def pictures_command(out: str, seed: int, config_path: str | None) -> None:
 @_config_option
 def bias_command(poses: int, seed: int, config_path: str | None) -> None:
     """Measure the range bias and speed of each ArUco corner refinement (no lag)."""
-    from case_studies.quad_landing.perception.bias import refinement_bias
+    from case_studies.quad_landing.studies.bias import refinement_bias
 
     df = refinement_bias(poses=poses, seed=seed, config=_config(config_path))
     click.echo(df.to_string(index=False, float_format=lambda v: f"{v:.3f}"))
@@ -163,7 +163,7 @@ def reader_timing_command(n_frames: int, threads: int) -> None:
     """Time the default ArUco pipeline per frame here: the [camera_timing] numbers it gives."""
     import numpy as np
 
-    from case_studies.quad_landing.perception.reader_time import measure_reader_time, path_frames
+    from case_studies.quad_landing.studies.reader_time import measure_reader_time, path_frames
 
     res = measure_reader_time(path_frames(n_frames), threads=threads)
     lines = [

@@ -10,16 +10,20 @@ import pytest
 #: Every module of the case study with examples, by subpackage.
 MODULES = [
     "settings",
-    "sim.camera", "sim.camera_stage", "sim.config", "sim.driver_queue", "sim.dynamics", "sim.exposure",
-    "sim.features", "sim.flight", "sim.framebuffer", "sim.frames", "sim.history", "sim.legs", "sim.lqr",
-    "sim.marker", "sim.measurement", "sim.render", "sim.timing",
-    "perception.aruco", "perception.bias", "perception.reader_time",
-    "data.approach", "data.collect", "data.columns", "data.datasets", "data.paths", "data.pilot",
+    "sim.camera.buffer", "sim.camera.driver_queue", "sim.camera.exposure", "sim.camera.features",
+    "sim.camera.framebuffer", "sim.camera.measurement", "sim.camera.pinhole", "sim.camera.render",
+    "sim.camera.stage", "sim.camera.timed", "sim.camera.timing",
+    "sim.config", "sim.dynamics", "sim.flight", "sim.frames", "sim.history", "sim.legs", "sim.lqr",
+    "sim.marker", "sim.paths",
+    "perception.aruco", "perception.marker",
+    "studies.bias", "studies.reader_time",
+    "data.approach", "data.collect", "data.columns", "data.datasets", "data.pilot",
     "data.recording",
     "landing.contracts", "landing.runs", "landing.scenario", "landing.state_machine",
     "reproduction.campaign", "reproduction.certified", "reproduction.claims", "reproduction.collection",
-    "reproduction.config", "reproduction.figures", "reproduction.learn", "reproduction.markdown",
-    "reproduction.report_page",
+    "reproduction.config", "reproduction.coverage", "reproduction.figures", "reproduction.learn",
+    "reproduction.markdown", "reproduction.record",
+    "reproduction.report_page", "reproduction.run",
     "reproduction.sensitivity", "reproduction.table1", "reproduction.timing_stats", "reproduction.variants",
 ]  # fmt: skip
 

@@ -26,16 +26,16 @@ import numpy as np
 import pandas as pd
 
 from case_studies.quad_landing.data.columns import FLOAT_COLUMNS
-from case_studies.quad_landing.data.paths import TEMPLATES, ExplorationPath, fit_to_view, make_path
 from case_studies.quad_landing.data.recording import (
     FlightRecording,
     PathRecord,
     measure_recording,
     recording_of,
 )
+from case_studies.quad_landing.sim.camera import check_buffer_size
 from case_studies.quad_landing.sim.config import SimConfig, load_config
 from case_studies.quad_landing.sim.flight import Flight
-from case_studies.quad_landing.sim.framebuffer import check_buffer_size
+from case_studies.quad_landing.sim.paths import TEMPLATES, ExplorationPath, fit_to_view, make_path
 from ipcverify.data import atomic_write
 from ipcverify.errors import InvalidInputError
 

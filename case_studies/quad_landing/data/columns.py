@@ -3,7 +3,7 @@
 Columns (float64 unless noted), in order (:data:`DATASET_COLUMNS`):
 
 * ``x_0 .. x_11`` — state in the camera frame ``x_C``
-  (:mod:`case_studies.quad_landing.sim.features`; meanings in :data:`X_DESCRIPTIONS`);
+  (:mod:`case_studies.quad_landing.sim.camera.features`; meanings in :data:`X_DESCRIPTIONS`);
 * ``y_0 .. y_2`` — true pad centre in the camera frame ``y_C`` (m);
 * ``yhat_0 .. yhat_2`` — perceived pad centre ``yhat_C`` from the lagged image (m);
 * ``xw_0 .. xw_11`` — world-frame state ``[p, v, roll, pitch, yaw, omega]``;

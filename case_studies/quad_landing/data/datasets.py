@@ -55,11 +55,14 @@ from case_studies.quad_landing.data.columns import X_COLUMNS, Y_COLUMNS, YHAT_CO
 from case_studies.quad_landing.data.pilot import PilotParams, record_pilot
 from case_studies.quad_landing.data.recording import FlightRecording, PathRecord, measure_recording
 from case_studies.quad_landing.settings import TomlSection
-from case_studies.quad_landing.sim.camera_stage import build_camera_stage
+from case_studies.quad_landing.sim.camera import (
+    BufferSize,
+    Measurement,
+    build_camera_stage,
+    check_buffer_size,
+)
 from case_studies.quad_landing.sim.config import SimConfig, load_config
 from case_studies.quad_landing.sim.flight import Flight
-from case_studies.quad_landing.sim.framebuffer import check_buffer_size
-from case_studies.quad_landing.sim.measurement import Measurement
 from ipcverify.data import PerceptionDataset, atomic_write
 from ipcverify.errors import InvalidInputError
 
@@ -115,9 +118,12 @@ class DatasetSpec:
 
     name: str
     config: SimConfig
-    buffer_size: int
+    buffer_size: BufferSize
     n: int
     path: Path | None = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "buffer_size", check_buffer_size(self.buffer_size))
 
 
 #: The sections a camera variant may change; the others decide the flights themselves.
@@ -298,7 +304,7 @@ def collect_mixed(
         :data:`.columns.DATASET_COLUMNS` plus ``source``.
     """
     cfg = load_config() if config is None else config
-    spec = DatasetSpec("data", cfg, check_buffer_size(buffer_size), int(n))
+    spec = DatasetSpec("data", cfg, buffer_size, int(n))
     return collect_mixed_many([spec], seed=seed, approach=approach, config=cfg, progress=progress)["data"]
 
 
@@ -442,5 +448,5 @@ def cached_mixed(
     cached : bool
         True if the file was reused.
     """
-    spec = DatasetSpec("data", config, check_buffer_size(buffer_size), int(n), Path(path))
+    spec = DatasetSpec("data", config, buffer_size, int(n), Path(path))
     return cached_many([spec], seed=seed, params=approach, config=config, progress=progress)["data"]

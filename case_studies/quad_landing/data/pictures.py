@@ -14,9 +14,9 @@ from matplotlib import colormaps
 from matplotlib.figure import Figure
 
 from case_studies.quad_landing.data.collect import collect, pad_outline_world, path_rng, start_state
-from case_studies.quad_landing.data.paths import TEMPLATES, fit_to_view, make_path
 from case_studies.quad_landing.sim.config import SimConfig, load_config
 from case_studies.quad_landing.sim.flight import Flight
+from case_studies.quad_landing.sim.paths import TEMPLATES, fit_to_view, make_path
 from ipcverify.errors import InvalidInputError
 
 __all__ = ["camera_frame_picture", "paths_picture", "lag_error_picture", "write_pictures"]

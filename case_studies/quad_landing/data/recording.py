@@ -14,7 +14,7 @@ stage reads only the state history up to each instant and its own seeded draws.
 Examples
 --------
 >>> from case_studies.quad_landing import Flight, hover_state
->>> from case_studies.quad_landing.sim.camera_stage import build_camera_stage
+>>> from case_studies.quad_landing.sim.camera import build_camera_stage
 >>> flight = Flight(buffer_size=1, seed=0)
 >>> flight.reset(hover_state((0.0, 0.0, 1.3)))
 >>> times = [flight.time for _ in range(12) if flight.step() is None]
@@ -33,10 +33,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from case_studies.quad_landing.data.columns import FLOAT_COLUMNS, measurement_row
+from case_studies.quad_landing.sim.camera import CameraStage, Measurement
 from case_studies.quad_landing.sim.flight import Flight
 from case_studies.quad_landing.sim.history import StateHistory
 from case_studies.quad_landing.sim.marker import Pad
-from case_studies.quad_landing.sim.measurement import CameraStage, Measurement
 
 __all__ = ["FlightRecording", "PathRecord", "recording_of", "measure_recording"]
 
@@ -132,7 +132,7 @@ def measure_recording(
     recording : FlightRecording
         The flight.
     stage : CameraStage
-        The camera to measure with (:func:`~case_studies.quad_landing.sim.camera_stage.build_camera_stage`).
+        The camera to measure with (:func:`~case_studies.quad_landing.sim.camera.build_camera_stage`).
     limit : int, optional
         Stop after this many detections.
     keep : callable, optional

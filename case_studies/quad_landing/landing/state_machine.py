@@ -60,9 +60,9 @@ from case_studies.quad_landing.landing.contracts import Contract
 from case_studies.quad_landing.landing.runs import INTO_PAD_REASON, LandingRun, Outcome, QueryRecord
 from case_studies.quad_landing.landing.scenario import Scenario, camera_offset_z
 from case_studies.quad_landing.settings import REPRODUCE_PATH, ConfigError, TomlSection, check_positive
+from case_studies.quad_landing.sim.camera import BufferSize, check_buffer_size
 from case_studies.quad_landing.sim.config import SimConfig
 from case_studies.quad_landing.sim.flight import Flight, Measurement
-from case_studies.quad_landing.sim.framebuffer import MAX_BUFFER_SIZE
 from case_studies.quad_landing.sim.legs import clamp_to_workspace, fly_leg
 from case_studies.quad_landing.sim.lqr import SettleParams
 from ipcverify.decision import QueryDecision, check_landing
@@ -122,7 +122,7 @@ class LandingParams(TomlSection):
 
     target_lower: tuple[float, float, float]
     target_upper: tuple[float, float, float]
-    buffer_size: int
+    buffer_size: BufferSize
     tracking_tolerance: float
     max_measurements: int
     measure_height: float
@@ -147,9 +147,8 @@ class LandingParams(TomlSection):
             )
         object.__setattr__(self, "target_lower", lo)
         object.__setattr__(self, "target_upper", up)
-        b = self.buffer_size
-        if isinstance(b, bool) or not isinstance(b, int) or not 0 <= b <= MAX_BUFFER_SIZE:
-            raise ConfigError(f"landing.buffer_size must be an integer in [0, {MAX_BUFFER_SIZE}], got {b!r}")
+        size = check_buffer_size(self.buffer_size, name="landing.buffer_size", error=ConfigError)
+        object.__setattr__(self, "buffer_size", size)
         half = min(up[i] - lo[i] for i in range(3)) / 2.0
         if not 0.0 < self.tracking_tolerance < half:
             raise ConfigError(

@@ -19,17 +19,17 @@ bias`` measures all this (numbers in docs/case_study.md).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Protocol
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from case_studies.quad_landing.perception.marker import MarkerParams, aruco_dictionary
 from case_studies.quad_landing.settings import DEFAULTS_PATH, TomlSection
-from case_studies.quad_landing.sim.camera import Camera
-from case_studies.quad_landing.sim.marker import MarkerParams, aruco_dictionary
 from ipcverify.errors import InvalidInputError
 
-__all__ = ["DetectorParams", "ArucoPerception", "REFINEMENTS"]
+__all__ = ["DetectorParams", "ArucoPerception", "Intrinsics", "REFINEMENTS"]
 
 FloatArray = NDArray[np.float64]
 
@@ -95,14 +95,27 @@ class DetectorParams(TomlSection):
             raise InvalidInputError(f"detector.min_marker_perimeter_rate must be in (0, 4), got {rate}")
 
 
+class Intrinsics(Protocol):
+    """What the detector needs of a camera: its intrinsic matrix ``K`` (3 x 3, no distortion).
+
+    The simulator's :class:`~case_studies.quad_landing.sim.camera.Camera` is one; the
+    detector does not depend on the simulator.
+    """
+
+    @property
+    def K(self) -> FloatArray:
+        """The intrinsic matrix, shape (3, 3)."""
+        ...
+
+
 @dataclass(eq=False)
 class ArucoPerception:
     """The perception module: image in, pad position in the camera frame out.
 
     Parameters
     ----------
-    camera : Camera
-        Intrinsics used by ``solvePnP`` (no distortion).
+    camera : Intrinsics
+        The camera whose intrinsics ``solvePnP`` uses (no distortion).
     marker : MarkerParams
         Which marker to look for and its size.
     params : DetectorParams
@@ -110,6 +123,7 @@ class ArucoPerception:
 
     Examples
     --------
+    >>> from case_studies.quad_landing.sim.camera import Camera
     >>> from case_studies.quad_landing.sim.config import load_config
     >>> cfg = load_config()
     >>> perception = ArucoPerception(Camera(cfg.camera), cfg.marker, cfg.detector)
@@ -117,7 +131,7 @@ class ArucoPerception:
     True
     """
 
-    camera: Camera
+    camera: Intrinsics
     marker: MarkerParams
     params: DetectorParams
     _detector: cv2.aruco.ArucoDetector = field(init=False, repr=False)

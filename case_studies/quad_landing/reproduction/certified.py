@@ -19,7 +19,7 @@ Assumption A is an idealisation: the closed loop chooses where to measure, so it
 queries are not literally draws from the calibration distribution. Two checks quantify
 the gap:
 
-* :func:`coverage_check` — nearest-neighbour distances of the closed-loop queries to the
+* :func:`.coverage.coverage_check` — nearest-neighbour distances of the closed-loop queries to the
   calibration set, in the network's standardised input space, against the distances of
   held-out test samples (drawn like the calibration data) to the same set; a closed-loop
   exceedance rate of the test's ``q``-quantile significantly above ``1 - q`` flags a
@@ -52,17 +52,16 @@ from ipcverify.calibration import (
     clopper_pearson_lower,
     clopper_pearson_upper,
 )
-from ipcverify.contract import IPCModel
-from ipcverify.data import PerceptionDataset
 from ipcverify.errors import InvalidInputError
 
 __all__ = [
     "ASSUMPTION_A",
     "CertifiedBound",
+    "ClosedLoopViolations",
     "EmpiricalVsCertified",
+    "ViolationRate",
     "certified_bound",
     "closed_loop_violations",
-    "coverage_check",
     "hoeffding_upper",
     "unsafe_vs_certified",
 ]
@@ -233,146 +232,95 @@ def certified_bound(
     )
 
 
-def _rate(k: int, n: int, delta: float, epsilon: float | None = None) -> dict[str, Any]:
-    out: dict[str, Any] = {"n": n, "violations": k}
-    if n:
-        out.update(
-            rate=k / n,
-            interval=list(clopper_pearson_interval(k, n, delta)),
-            upper=clopper_pearson_upper(k, n, delta),
-        )
-        if epsilon is not None:
-            out["contradicts_epsilon"] = bool(clopper_pearson_lower(k, n, delta) > epsilon)
-    return out
+@dataclass(frozen=True)
+class ViolationRate:
+    """How many of ``n`` queries had the truth outside the set, with a Clopper--Pearson interval.
+
+    ``rate``, ``interval`` and ``upper`` are None when ``n`` is 0; ``contradicts_epsilon`` is
+    None when no ``epsilon`` was tested (dependent queries: descriptive only).
+    """
+
+    n: int
+    violations: int
+    rate: float | None = None
+    interval: tuple[float, float] | None = None
+    upper: float | None = None
+    contradicts_epsilon: bool | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """As in ``summary.json``: only ``n`` and ``violations`` when there were no queries."""
+        out: dict[str, Any] = {"n": self.n, "violations": self.violations}
+        if self.n:
+            interval = None if self.interval is None else list(self.interval)
+            out.update(rate=self.rate, interval=interval, upper=self.upper)
+            if self.contradicts_epsilon is not None:
+                out["contradicts_epsilon"] = self.contradicts_epsilon
+        return out
 
 
-def closed_loop_violations(runs: Sequence[LandingRun], epsilon: float, delta: float = 0.05) -> dict[str, Any]:
+def _rate(k: int, n: int, delta: float, epsilon: float | None = None) -> ViolationRate:
+    if not n:
+        return ViolationRate(n=n, violations=k)
+    contradicts = None if epsilon is None else bool(clopper_pearson_lower(k, n, delta) > epsilon)
+    return ViolationRate(
+        n=n,
+        violations=k,
+        rate=k / n,
+        interval=clopper_pearson_interval(k, n, delta),
+        upper=clopper_pearson_upper(k, n, delta),
+        contradicts_epsilon=contradicts,
+    )
+
+
+@dataclass(frozen=True)
+class ClosedLoopViolations:
     """How often the closed loop's own queries had the truth outside the contract's set.
 
     ``first`` (one per run, independent across runs), ``accepted`` (the query each landed or
-    settle-aborted run accepted; what an unsafe landing needs), ``all`` (dependent within a
-    run; descriptive). ``contradicts_epsilon`` is True when the one-sided Clopper--Pearson
-    lower bound (confidence ``1 - delta``) exceeds ``epsilon``.
+    settle-aborted run accepted; what an unsafe landing needs), ``every`` (all queries with a
+    detection, dependent within a run; descriptive; ``"all"`` in ``summary.json``).
+    """
+
+    first: ViolationRate
+    accepted: ViolationRate
+    every: ViolationRate
+    confidence: float
+    epsilon: float
+
+    def to_dict(self) -> dict[str, Any]:
+        """``summary.json``'s ``landing.closed_loop``."""
+        return {
+            "first": self.first.to_dict(),
+            "accepted": self.accepted.to_dict(),
+            "all": self.every.to_dict(),
+            "confidence": self.confidence,
+            "epsilon": self.epsilon,
+        }
+
+
+def closed_loop_violations(
+    runs: Sequence[LandingRun], epsilon: float, delta: float = 0.05
+) -> ClosedLoopViolations:
+    """How often the closed loop's own queries had the truth outside the contract's set.
+
+    ``contradicts_epsilon`` of ``first`` and ``accepted`` is True when the one-sided
+    Clopper--Pearson lower bound (confidence ``1 - delta``) exceeds ``epsilon``.
 
     Examples
     --------
-    >>> closed_loop_violations([], 0.01)["first"]["n"]
+    >>> closed_loop_violations([], 0.01).first.n
     0
     """
     first = [r.queries[0].truth_inside for r in runs if r.queries and r.queries[0].detected]
     accepted = [q.truth_inside for r in runs for q in r.queries if q.accepted]
     every = [q.truth_inside for r in runs for q in r.queries if q.detected]
-    return {
-        "first": _rate(sum(1 for t in first if not t), len(first), delta, epsilon),
-        "accepted": _rate(sum(1 for t in accepted if not t), len(accepted), delta, epsilon),
-        "all": _rate(sum(1 for t in every if not t), len(every), delta),
-        "confidence": 1 - delta,
-        "epsilon": epsilon,
-    }
-
-
-def coverage_check(
-    model: IPCModel,
-    calibration_data: PerceptionDataset,
-    test_data: PerceptionDataset,
-    runs: Sequence[LandingRun],
-    *,
-    delta: float = 0.05,
-) -> dict[str, Any]:
-    """Do the closed loop's queries look like the calibration data? The model's own domain test.
-
-    The same machinery every deployment path uses (:class:`ipcverify.guard.DomainModel`,
-    fitted by :func:`ipcverify.contract.calibrate` on the calibration inputs): a query is
-    outside the domain of validity when its whitened distance to the calibration inputs
-    exceeds the test's threshold; an exchangeable query is flagged with probability at most
-    ``alpha`` (``proofs/domain.md``).
-
-    Parameters
-    ----------
-    model : IPCModel
-        The IPC used in the runs, with its domain model.
-    calibration_data : PerceptionDataset
-        The data the calibration was computed on (for the per-feature range figures).
-    test_data : PerceptionDataset
-        Held-out samples drawn like the calibration data: their flag rate checks the test.
-    runs : sequence of LandingRun
-        Runs flown with the model; every query with a detection is checked.
-    delta : float
-        Confidence parameter of the intervals and of the flag.
-
-    Returns
-    -------
-    dict
-        ``threshold``, ``null_rate`` (= ``alpha``), the held-out ``test`` flag rate, per group
-        (``all``, ``first``, ``later`` queries) the number of queries, the ones outside the domain
-        and their rate with a Clopper--Pearson interval, ``shift_detected`` (the one-sided lower
-        bound of some group's rate exceeds ``alpha``), and per-feature range figures.
-    """
-    domain = model.domain
-    if domain is None:
-        raise InvalidInputError("the model has no domain-of-validity test; recalibrate it with calibrate()")
-    test_d = domain.distance(test_data.x, test_data.yhat)
-    out: dict[str, Any] = {
-        "method": domain.method,
-        "quantile": 1.0 - domain.alpha,
-        "threshold": domain.threshold,
-        "test": {
-            "n": int(test_d.size),
-            "median_distance": float(np.median(test_d)),
-            "outside": int((test_d > domain.threshold).sum()),
-        },
-        "null_rate": domain.alpha,
-        "confidence": 1 - delta,
-    }
-    qs = [(i, q) for r in runs for i, q in enumerate(r.queries) if q.detected and q.x_c is not None]
-    if not qs:
-        out.update(shift_detected=None, groups={})
-        return out
-    x = np.array([q.x_c for _, q in qs])
-    yh = np.array([q.yhat_c for _, q in qs])
-    d = domain.distance(x, yh)
-    first = np.array([i == 0 for i, _ in qs])
-    groups: dict[str, Any] = {}
-    for name, mask in (("all", np.ones(len(qs), bool)), ("first", first), ("later", ~first)):
-        n = int(mask.sum())
-        if not n:
-            continue
-        k = int((d[mask] > domain.threshold).sum())
-        groups[name] = {
-            "n": n,
-            "exceed": k,
-            "rate": k / n,
-            "interval": list(clopper_pearson_interval(k, n, delta)),
-            "lower": clopper_pearson_lower(k, n, delta),
-            "median_distance": float(np.median(d[mask])),
-        }
-    out.update(
-        groups=groups,
-        shift_detected=bool(any(g["lower"] > domain.alpha for g in groups.values())),
-        distances={"queries": d.tolist(), "test": np.sort(test_d).tolist()},
-        feature_range=_feature_ranges(calibration_data, test_data, x, yh),
+    return ClosedLoopViolations(
+        first=_rate(sum(1 for t in first if not t), len(first), delta, epsilon),
+        accepted=_rate(sum(1 for t in accepted if not t), len(accepted), delta, epsilon),
+        every=_rate(sum(1 for t in every if not t), len(every), delta),
+        confidence=1 - delta,
+        epsilon=epsilon,
     )
-    return out
-
-
-def _feature_ranges(
-    calibration_data: PerceptionDataset, test_data: PerceptionDataset, x: FloatArray, yh: FloatArray
-) -> dict[str, Any]:
-    """Per-feature 0.5-99.5 % ranges: informational only (a query can be inside every range and far
-    from all data, or outside one range and still near the data); the domain test decides."""
-    cal = np.concatenate([calibration_data.x, calibration_data.yhat], axis=1)
-    lo, hi = np.quantile(cal, 0.005, axis=0), np.quantile(cal, 0.995, axis=0)
-    names = [*calibration_data.x_columns, *calibration_data.yhat_columns]
-    q = np.concatenate([x, yh], axis=1)
-    t = np.concatenate([test_data.x, test_data.yhat], axis=1)
-    return {
-        "range": "0.5-99.5 % of the calibration data, per feature (informational; the domain test decides)",
-        "queries_outside_any": float(np.mean(np.any((q < lo) | (q > hi), axis=1))),
-        "test_outside_any": float(np.mean(np.any((t < lo) | (t > hi), axis=1))),
-        "queries_outside_by_feature": {
-            n: float(np.mean((q[:, i] < lo[i]) | (q[:, i] > hi[i]))) for i, n in enumerate(names)
-        },
-    }
 
 
 def unsafe_vs_certified(

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 from case_studies.quad_landing.reproduction.table1 import Table1
 
 if TYPE_CHECKING:
-    from case_studies.quad_landing.reproduction.results import LandingExperiment
+    from case_studies.quad_landing.reproduction.experiments import LandingExperiment
 
 __all__ = ["Claim", "evaluate_claims", "table1_claims"]
 

@@ -43,7 +43,7 @@ from case_studies.quad_landing.settings import (
     merge_sections,
     read_toml,
 )
-from case_studies.quad_landing.sim.framebuffer import MAX_BUFFER_SIZE
+from case_studies.quad_landing.sim.camera import BufferSize, check_buffer_size
 from ipcverify.errors import InvalidInputError
 from ipcverify.network import RECIPES
 from ipcverify.training import HingeSelection
@@ -99,7 +99,7 @@ class IpcParams(TomlSection):
         flags queries beyond this quantile of the calibration inputs' nearest-neighbour
         distances: its false-alarm rate is ``1 - coverage_quantile`` (fitted by flight when
         there are enough flights: :func:`~.learn.domain_groups`). The closed loop's
-        shift check (:func:`case_studies.quad_landing.reproduction.certified.coverage_check`)
+        shift check (:func:`case_studies.quad_landing.reproduction.coverage.coverage_check`)
         uses the same test.
 
     Examples
@@ -294,28 +294,25 @@ class Sizes(TomlSection):
     n_calibration: int
     n_test: int
     n_pilot: int
-    buffers: tuple[int, ...]
+    buffers: tuple[BufferSize, ...]
     paper_runs: int
     mc_runs: int
-    extra_landing_buffer: int
+    extra_landing_buffer: BufferSize
     extra_landing_runs: int
 
     def __post_init__(self) -> None:
         for name in ("n_train", "n_calibration", "n_test", "n_pilot", "paper_runs", "mc_runs"):
             check_positive(f"sizes.{name}", getattr(self, name), integer=True)
         check_positive("sizes.extra_landing_runs", self.extra_landing_runs, integer=True, allow_zero=True)
-        e = self.extra_landing_buffer
-        if isinstance(e, bool) or not isinstance(e, int) or not 1 <= e <= MAX_BUFFER_SIZE:
+        extra = check_buffer_size(
+            self.extra_landing_buffer, name="sizes.extra_landing_buffer", lowest=1, error=ConfigError
+        )
+        object.__setattr__(self, "extra_landing_buffer", extra)
+        b = tuple(check_buffer_size(k, name="each of sizes.buffers", error=ConfigError) for k in self.buffers)
+        if not b or len(set(b)) != len(b):
             raise ConfigError(
-                f"sizes.extra_landing_buffer must be an integer in [1, {MAX_BUFFER_SIZE}], got {e!r}"
+                f"sizes.buffers must be distinct buffer sizes (one or more); got {self.buffers!r}"
             )
-        b = tuple(self.buffers)
-        if (
-            not b
-            or any(isinstance(k, bool) or not isinstance(k, int) or not 0 <= k <= MAX_BUFFER_SIZE for k in b)
-            or len(set(b)) != len(b)
-        ):
-            raise ConfigError(f"sizes.buffers must be distinct integers in [0, {MAX_BUFFER_SIZE}], got {b!r}")
         if 1 not in b:
             raise ConfigError("sizes.buffers must include 1, the buffer size the Table I IPC is learned at")
         object.__setattr__(self, "buffers", tuple(sorted(b)))

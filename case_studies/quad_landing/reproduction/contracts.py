@@ -31,7 +31,9 @@ from case_studies.quad_landing.landing.runs import LandingRun
 from case_studies.quad_landing.reproduction.campaign import CampaignSummary
 from case_studies.quad_landing.reproduction.certified import CertifiedBound, EmpiricalVsCertified
 from case_studies.quad_landing.reproduction.claims import Claim, table1_claims
+from case_studies.quad_landing.reproduction.run import CertificateRecord
 from case_studies.quad_landing.reproduction.table1 import Table1
+from ipcverify.calibration import CalibrationSummary
 from ipcverify.errors import InvalidInputError
 from ipcverify.sets import Box
 
@@ -184,10 +186,10 @@ class ContractSummary:
         The certified bound on unsafe landings beside the empirical rate (calibrated only).
     selection : mapping or None
         How the paper's unstated settings were chosen (:mod:`ipcverify.training._selection`).
-    calibration : mapping or None
+    calibration : CalibrationSummary or None
         The calibration summary (calibrated only).
-    certificate : mapping or None
-        ``ipcverify.certification._certify`` on the held-out test set (calibrated only).
+    certificate : CertificateRecord or None
+        :func:`~.run.certify_ipc` on the held-out test set (calibrated only).
     claims : mapping of str to Claim
         :func:`contract_claims`.
     not_flown : str or None
@@ -203,8 +205,8 @@ class ContractSummary:
     certified: CertifiedBound | None = None
     empirical_vs_certified: EmpiricalVsCertified | None = None
     selection: Mapping[str, Any] | None = None
-    calibration: Mapping[str, Any] | None = None
-    certificate: Mapping[str, Any] | None = None
+    calibration: CalibrationSummary | None = None
+    certificate: CertificateRecord | None = None
     claims: Mapping[str, Claim] = field(default_factory=dict)
     not_flown: str | None = None
 
@@ -238,8 +240,8 @@ class ContractSummary:
                 None if self.empirical_vs_certified is None else self.empirical_vs_certified.to_dict()
             ),
             "selection": None if self.selection is None else dict(self.selection),
-            "calibration": None if self.calibration is None else dict(self.calibration),
-            "certificate": None if self.certificate is None else dict(self.certificate),
+            "calibration": None if self.calibration is None else self.calibration.to_dict(),
+            "certificate": None if self.certificate is None else self.certificate.to_dict(),
             "claims": {k: c.to_dict() for k, c in self.claims.items()},
         }
 

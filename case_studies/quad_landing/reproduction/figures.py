@@ -38,9 +38,10 @@ from matplotlib.patches import Rectangle
 
 from case_studies.quad_landing.landing.runs import LandingRun, Outcome
 from case_studies.quad_landing.landing.state_machine import LandingParams
+from case_studies.quad_landing.reproduction.coverage import CoverageCheck
 from case_studies.quad_landing.reproduction.table1 import PAPER_TABLE1, Table1
 from case_studies.quad_landing.reproduction.variants import SOURCE_LABELS, VariantStudy, VariantTable
-from case_studies.quad_landing.sim.timing import SOURCES
+from case_studies.quad_landing.sim.camera import SOURCES
 
 __all__ = [
     "figure_png",
@@ -306,11 +307,11 @@ def plot_trajectories(ipc: Sequence[LandingRun], baseline: Sequence[LandingRun],
     return fig
 
 
-def plot_coverage(coverage: Mapping[str, Any]) -> Figure:
+def plot_coverage(coverage: CoverageCheck) -> Figure:
     """Histogram of the domain test's distances: held-out test data vs closed-loop queries."""
     fig = Figure(figsize=(6.4, 3.8))
     ax = fig.subplots()
-    dist = coverage.get("distances")
+    dist = coverage.distances
     if dist:
         test, q = np.asarray(dist["test"]), np.asarray(dist["queries"])
         top = float(max(test.max(initial=0), q.max(initial=0)))
@@ -324,7 +325,7 @@ def plot_coverage(coverage: Mapping[str, Any]) -> Figure:
         )
         ax.hist(q, bins=bins, density=True, alpha=0.5, label="closed-loop IPC queries")
         ax.axvline(
-            coverage["threshold"],
+            coverage.threshold,
             color="black",
             ls="--",
             lw=1,
@@ -410,7 +411,7 @@ def draw_figures(
     paper_baseline: Sequence[LandingRun],
     mc_ipc: Sequence[LandingRun],
     mc_baseline: Sequence[LandingRun],
-    coverage: Mapping[str, Any],
+    coverage: CoverageCheck,
     frames: Mapping[str, pd.DataFrame],
     buffers: Sequence[int],
     period_ms: float = 1e3 / 60.0,

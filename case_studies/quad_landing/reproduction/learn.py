@@ -21,12 +21,21 @@ Examples
 >>> model = learn_ipc(tr, cal, IpcParams.defaults(epochs=2, epsilon=0.05, delta=0.01))
 >>> model.calibration.mode, model.calibration.n
 ('pac', 700)
+
+The same network calibrated with the calibration flights, not rows, as the exchangeable units
+(:func:`flight_level_check`):
+
+>>> check = flight_level_check(model, cal, 0.25)
+>>> check.n_flights == len(set(cal.extra["flight"])), check.row_scale > 0
+(True, True)
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import warnings
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -34,6 +43,8 @@ import pandas as pd
 import torch
 
 from case_studies.quad_landing.reproduction.config import IpcParams
+from case_studies.quad_landing.reproduction.record import Record
+from ipcverify.calibration import CalibrationSummary
 from ipcverify.contract import IPCModel, calibrate
 from ipcverify.data import PerceptionDataset, atomic_write
 from ipcverify.errors import Hint, ModelFileError, SampleSizeError
@@ -49,6 +60,7 @@ __all__ = [
     "domain_groups",
     "row_level_calibration",
     "flight_level_check",
+    "FlightLevelCheck",
 ]
 
 
@@ -143,14 +155,34 @@ def certified_epsilon(model: IPCModel) -> float:
     return float(model.require_calibration().summary().certified_epsilon)
 
 
-def calibration_summary(model: IPCModel) -> dict[str, Any]:
-    """The calibration of a model as plain data, with its certified epsilon and guarantee."""
-    return model.require_calibration().summary().to_dict()
+def calibration_summary(model: IPCModel) -> CalibrationSummary:
+    """The calibration of a model, with its certified epsilon and guarantee (``to_dict`` for JSON)."""
+    return model.require_calibration().summary()
+
+
+@dataclass(frozen=True, kw_only=True)
+class FlightLevelCheck(Record):
+    """The network calibrated with its flights as the exchangeable units, beside the row-level scale.
+
+    What :func:`flight_level_check` finds; ``summary.json``'s ``ipc.k<buffer>.flight_level`` is
+    :meth:`to_dict`. The ``flight_*`` values are None when there are too few flights for
+    ``epsilon``.
+    """
+
+    n_flights: int
+    n_rows: int
+    epsilon: float
+    row_scale: float
+    row_guarantee: str
+    row_scale_mean_violation_fraction: float
+    flight_scale: float | None = None
+    flight_guarantee: str | None = None
+    flight_mean_violation_fraction: Any = None
 
 
 def flight_level_check(
     model: IPCModel, calibration_data: PerceptionDataset, epsilon: float
-) -> dict[str, Any]:
+) -> FlightLevelCheck:
     """Calibrate the same network with its flights, not its rows, as the exchangeable units.
 
     The reproduction's calibration treats the 10 Hz samples as exchangeable rows, but the
@@ -167,42 +199,33 @@ def flight_level_check(
 
     Examples
     --------
-    >>> from case_studies.quad_landing.data.datasets import as_dataset, collect_mixed
-    >>> from case_studies.quad_landing.data.approach import ApproachParams
-    >>> from case_studies.quad_landing.reproduction.config import IpcParams
-    >>> ap = ApproachParams.defaults(hover_points=1)
-    >>> tr = as_dataset(collect_mixed(300, buffer_size=1, seed=0, approach=ap))
-    >>> cal = as_dataset(collect_mixed(700, buffer_size=1, seed=1, approach=ap))
-    >>> model = learn_ipc(tr, cal, IpcParams.defaults(epochs=2, epsilon=0.05, delta=0.01))
-    >>> check = flight_level_check(model, cal, 0.25)
-    >>> check["n_flights"] == len(set(cal.extra["flight"])), check["row_scale"] > 0
-    (True, True)
+    The module's example (it needs a learned model and its calibration data) runs it:
+    ``flight_level_check(model, cal, 0.25).n_flights`` is the number of calibration flights.
     """
     row = model.require_calibration().summary()
     row_scale = float(row.groups[0].scale)
     flights = calibration_data.extra["flight"]
-    out: dict[str, Any] = {
-        "n_flights": len(set(flights.tolist())),
-        "n_rows": len(calibration_data),
-        "epsilon": float(epsilon),
-        "row_scale": row_scale,
-        "row_guarantee": row.guarantee,
-        "row_scale_mean_violation_fraction": _mean_flight_violations(model, calibration_data, row_scale),
-        "flight_scale": None,
-        "flight_guarantee": None,
-        "flight_mean_violation_fraction": None,
-    }
+    check = FlightLevelCheck(
+        n_flights=len(set(flights.tolist())),
+        n_rows=len(calibration_data),
+        epsilon=float(epsilon),
+        row_scale=row_scale,
+        row_guarantee=row.guarantee,
+        row_scale_mean_violation_fraction=_mean_flight_violations(model, calibration_data, row_scale),
+    )
     try:
         by_flight = calibrate(model, calibration_data, epsilon, row.delta, mode="marginal",
                               group_column="flight", guarantee="sample", recalibrate=True,
                               domain_alpha=None)  # fmt: skip
     except SampleSizeError:
-        return out
+        return check
     summary = by_flight.require_calibration().summary()
-    out["flight_scale"] = float(summary.groups[0].scale)
-    out["flight_guarantee"] = summary.guarantee
-    out["flight_mean_violation_fraction"] = summary.details.get("risk")
-    return out
+    return dataclasses.replace(
+        check,
+        flight_scale=float(summary.groups[0].scale),
+        flight_guarantee=summary.guarantee,
+        flight_mean_violation_fraction=summary.details.get("risk"),
+    )
 
 
 def _mean_flight_violations(model: IPCModel, data: PerceptionDataset, scale: float) -> float:

@@ -6,15 +6,10 @@ written by :func:`ipcverify.data.write_json` (the one JSON encoder: ``inf`` as `
 NaN as ``null``). The layout of ``summary.json`` is a published format: keys are added,
 never renamed or removed.
 
-* :class:`IpcSummary` — one learned IPC: its calibration and its test certificate.
-* :class:`ContractResults` — one contract's landings: the Monte Carlo campaign and the
-  paper-style runs (:class:`~.campaign.CampaignSummary` each, and the runs), with the
-  certified bound for the IPC (:class:`~.certified.CertifiedBound`).
-* :class:`LandingExperiment` — both contracts at one buffer size, the closed loop's own
-  violations and the coverage check: ``landing`` is the paper's buffer size 1,
-  ``landing_buffer3`` the extra experiment at buffer size 3 (None when skipped).
-* :class:`ControlExperiment` — ``landing_buffer1``: the Monte Carlo counts at buffer size 1
-  (since the landing runs at buffer size 1, the same runs as ``landing``).
+The landing experiments' records (:class:`~.experiments.IpcSummary`,
+:class:`~.experiments.ContractResults`, :class:`~.experiments.LandingExperiment`,
+:class:`~.experiments.ControlExperiment`) are in :mod:`.experiments`.
+
 * :class:`ReproductionSummary` — all of it, Table I (:class:`~.table1.Table1`), the ablation
   (:class:`~.variants.VariantStudy`), the camera timing and the claims (:class:`~.claims.Claim`).
 """
@@ -25,171 +20,29 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
-
-from case_studies.quad_landing.landing.runs import LandingRun
-from case_studies.quad_landing.reproduction.campaign import CampaignSummary
-from case_studies.quad_landing.reproduction.certified import CertifiedBound, EmpiricalVsCertified
 from case_studies.quad_landing.reproduction.claims import Claim
 from case_studies.quad_landing.reproduction.config import ReproduceConfig
 from case_studies.quad_landing.reproduction.contracts import ContractSummary
+from case_studies.quad_landing.reproduction.experiments import (
+    PAPER_LANDING,
+    ControlExperiment,
+    IpcSummary,
+    LandingExperiment,
+)
+from case_studies.quad_landing.reproduction.run import MachineInfo
 from case_studies.quad_landing.reproduction.table1 import PAPER_TABLE1, Table1
+from case_studies.quad_landing.reproduction.timing_stats import CameraTimingSummary, Table1Protocol
 from case_studies.quad_landing.reproduction.variants import VariantStudy
-from ipcverify.errors import InvalidInputError
 
 __all__ = [
-    "PAPER_LANDING",
     "SUMMARY_FORMAT",
     "SUMMARY_VERSION",
-    "IpcSummary",
-    "ContractResults",
-    "LandingExperiment",
-    "ControlExperiment",
     "ReproductionSummary",
 ]
 
-#: The paper's landing experiment: 10 pads; the IPC landed safely in all, the baseline failed 9.
-PAPER_LANDING = {"runs": 10, "ipc_safe": 10, "baseline_unsafe": 9}
 #: ``summary.json``'s ``format`` and ``version``.
 SUMMARY_FORMAT = "quad-landing-reproduction"
 SUMMARY_VERSION = 1
-
-
-@dataclass(frozen=True, kw_only=True)
-class IpcSummary:
-    """One learned IPC: buffer size, calibration, test certificate, size and flight-level check.
-
-    ``calibration`` and ``certificate`` are the library's plain data
-    (:func:`~.learn.calibration_summary`, :func:`ipcverify.certification.certify`);
-    ``flight_level`` is :func:`~.learn.flight_level_check` (the same network calibrated with
-    the calibration flights as the exchangeable units).
-    """
-
-    buffer_size: int
-    calibration: Mapping[str, Any]
-    certificate: Mapping[str, Any]
-    n_parameters: int
-    flight_level: Mapping[str, Any] | None = None
-
-    def to_dict(self) -> dict[str, Any]:
-        """``summary.json``'s ``ipc.k<buffer size>``."""
-        return {
-            "buffer_size": self.buffer_size,
-            "calibration": dict(self.calibration),
-            "certificate": dict(self.certificate),
-            "n_parameters": self.n_parameters,
-            "flight_level": None if self.flight_level is None else dict(self.flight_level),
-        }
-
-
-def _run_row(run: LandingRun) -> dict[str, Any]:
-    """One Monte Carlo run in ``runs_detail`` (the trajectory and queries left out)."""
-    return {
-        "index": run.scenario.index,
-        "outcome": run.outcome.value,
-        "n_queries": run.n_queries,
-        "offset": None if run.offset is None else np.asarray(run.offset).tolist(),
-        "reason": run.reason,
-    }
-
-
-@dataclass(frozen=True, kw_only=True)
-class ContractResults:
-    """One contract's landings at the landing buffer size.
-
-    Attributes
-    ----------
-    monte_carlo : CampaignSummary
-        The Monte Carlo campaign, flown as ``runs``.
-    paper : CampaignSummary
-        The paper-style runs, flown as ``paper_runs``.
-    certified, empirical_vs_certified : optional
-        The certified bound on the unsafe rate and the campaign beside it (the IPC only).
-    """
-
-    monte_carlo: CampaignSummary
-    runs: tuple[LandingRun, ...]
-    paper: CampaignSummary
-    paper_runs: tuple[LandingRun, ...]
-    certified: CertifiedBound | None = None
-    empirical_vs_certified: EmpiricalVsCertified | None = None
-
-    def __post_init__(self) -> None:
-        if (self.monte_carlo.runs, self.paper.runs) != (len(self.runs), len(self.paper_runs)):
-            raise InvalidInputError("a contract's summaries must count the runs they come with")
-        if (self.certified is None) != (self.empirical_vs_certified is None):
-            raise InvalidInputError("give the certified bound and the empirical comparison together")
-
-    def to_dict(self) -> dict[str, Any]:
-        """``summary.json``'s ``landing.ipc`` / ``landing.baseline``."""
-        out: dict[str, Any] = self.monte_carlo.to_dict()
-        out["paper_runs"] = {
-            **self.paper.to_dict(),
-            "runs_detail": [r.to_dict(trajectory=True) for r in self.paper_runs],
-        }
-        out["runs_detail"] = [_run_row(r) for r in self.runs]
-        if self.certified is not None and self.empirical_vs_certified is not None:
-            out["certified_unsafe_bound"] = self.certified.union_bound
-            out["certified"] = self.certified.to_dict()
-            out["empirical_vs_certified"] = self.empirical_vs_certified.to_dict()
-        return out
-
-
-@dataclass(frozen=True, kw_only=True)
-class LandingExperiment:
-    """The landing at the landing buffer size: both contracts on the same scenarios.
-
-    ``closed_loop`` and ``coverage`` are the plain data of
-    :func:`~.certified.closed_loop_violations` and :func:`~.certified.coverage_check`
-    (without the raw distances).
-    """
-
-    buffer_size: int
-    tracking_tolerance: float
-    max_measurements: int
-    ipc: ContractResults
-    baseline: ContractResults
-    closed_loop: Mapping[str, Any]
-    coverage: Mapping[str, Any]
-
-    def __post_init__(self) -> None:
-        if self.ipc.certified is None:
-            raise InvalidInputError("the IPC's landing results need its certified bound")
-
-    @property
-    def shift_detected(self) -> bool | None:
-        """Whether the coverage check flagged a shift (None without closed-loop queries)."""
-        flag = self.coverage.get("shift_detected")
-        return None if flag is None else bool(flag)
-
-    def to_dict(self) -> dict[str, Any]:
-        """``summary.json``'s ``landing``."""
-        return {
-            "buffer_size": self.buffer_size,
-            "tracking_tolerance": self.tracking_tolerance,
-            "max_measurements": self.max_measurements,
-            "ipc": self.ipc.to_dict(),
-            "baseline": self.baseline.to_dict(),
-            "closed_loop": dict(self.closed_loop),
-            "coverage": dict(self.coverage),
-        }
-
-
-@dataclass(frozen=True, kw_only=True)
-class ControlExperiment:
-    """The Monte Carlo counts of the landing at ``buffer_size`` (1), IPC and baseline."""
-
-    buffer_size: int
-    ipc: CampaignSummary
-    baseline: CampaignSummary
-
-    def to_dict(self) -> dict[str, Any]:
-        """``summary.json``'s ``landing_buffer1``."""
-        return {
-            "buffer_size": self.buffer_size,
-            "ipc": self.ipc.to_dict(),
-            "baseline": self.baseline.to_dict(),
-        }
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -216,16 +69,20 @@ class ReproductionSummary:
         The extra landing experiment (buffer size 3, IPC learned there), None if skipped.
     ablation : VariantStudy
         Table I of every camera variant (error sources alone and removed).
-    camera_timing, table1_protocol : mapping
-        The timing parameters, image ages and errors per buffer size; how Table I was tested.
+    camera_timing : CameraTimingSummary
+        The timing parameters, image ages and errors per buffer size.
+    table1_protocol : Table1Protocol
+        How Table I was tested.
     claims : mapping of str to Claim
         The acceptance claims of ``default_calibrated`` (:func:`~.claims.evaluate_claims`).
     contracts : mapping of str to ContractSummary
         The three contracts side by side, ``paper_raw``, ``paper_calibrated`` and
         ``default_calibrated`` (:mod:`.contracts`): each with Table I, its landings and the
         paper's claims.
-    machine, jobs, backend
-        Where and how it ran.
+    machine : MachineInfo
+        Where it ran.
+    jobs, backend
+        How it ran: worker processes and the campaigns' joblib backend.
     stage_seconds, runtime_seconds, cpu_seconds
         How long it took: per stage and in total (wall clock), and the CPU time of this process
         and its worker processes (what the run costs whatever else the machine is doing).
@@ -240,10 +97,10 @@ class ReproductionSummary:
     landing_buffer1: ControlExperiment | None
     landing_buffer3: LandingExperiment | None
     ablation: VariantStudy
-    camera_timing: Mapping[str, Any]
-    table1_protocol: Mapping[str, Any]
+    camera_timing: CameraTimingSummary
+    table1_protocol: Table1Protocol
     claims: Mapping[str, Claim]
-    machine: Mapping[str, Any]
+    machine: MachineInfo
     jobs: int
     backend: str
     stage_seconds: Mapping[str, float]
@@ -267,9 +124,9 @@ class ReproductionSummary:
             "landing_buffer1": None if self.landing_buffer1 is None else self.landing_buffer1.to_dict(),
             "landing_buffer3": None if self.landing_buffer3 is None else self.landing_buffer3.to_dict(),
             "ablation": self.ablation.to_dict(),
-            "camera_timing": dict(self.camera_timing),
-            "table1_protocol": dict(self.table1_protocol),
-            "machine": dict(self.machine),
+            "camera_timing": self.camera_timing.to_dict(),
+            "table1_protocol": self.table1_protocol.to_dict(),
+            "machine": self.machine.to_dict(),
             "jobs": self.jobs,
             "backend": self.backend,
             "claims": {name: claim.to_dict() for name, claim in self.claims.items()},

@@ -39,8 +39,8 @@ from case_studies.quad_landing.reproduction.collection import DatasetPlan, spec_
 from case_studies.quad_landing.reproduction.config import AblationSizes, IpcParams
 from case_studies.quad_landing.reproduction.learn import cached_ipc, certified_epsilon
 from case_studies.quad_landing.reproduction.table1 import Table1, table1
+from case_studies.quad_landing.sim.camera import SOURCES
 from case_studies.quad_landing.sim.config import SimConfig
-from case_studies.quad_landing.sim.timing import SOURCES
 from ipcverify.data import PerceptionDataset
 
 __all__ = [

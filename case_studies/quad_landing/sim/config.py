@@ -16,8 +16,8 @@ from typing import Any
 
 import numpy as np
 
-from case_studies.quad_landing.data.paths import PathParams
 from case_studies.quad_landing.perception.aruco import DetectorParams
+from case_studies.quad_landing.perception.marker import MarkerParams
 from case_studies.quad_landing.settings import (
     DEFAULTS_PATH,
     ConfigError,
@@ -26,12 +26,17 @@ from case_studies.quad_landing.settings import (
     merge_sections,
     read_toml,
 )
-from case_studies.quad_landing.sim.camera import CameraParams
+from case_studies.quad_landing.sim.camera import (
+    BufferSize,
+    CameraParams,
+    CameraTimingParams,
+    RenderParams,
+    check_buffer_size,
+)
 from case_studies.quad_landing.sim.dynamics import QuadParams
 from case_studies.quad_landing.sim.lqr import LqrParams, SettleParams
-from case_studies.quad_landing.sim.marker import MarkerParams, Pad
-from case_studies.quad_landing.sim.render import RenderParams
-from case_studies.quad_landing.sim.timing import CameraTimingParams
+from case_studies.quad_landing.sim.marker import Pad
+from case_studies.quad_landing.sim.paths import PathParams
 
 __all__ = ["SimParams", "CollectParams", "SimConfig", "load_config", "SIM_SECTIONS"]
 
@@ -105,12 +110,14 @@ class CollectParams(TomlSection):
     toml_section = "collect"
 
     n: int
-    buffer_size: int
+    buffer_size: BufferSize
     sample_every: int
     warmup_time: float
 
     def __post_init__(self) -> None:
-        for name, lo in (("n", 1), ("buffer_size", 0), ("sample_every", 1)):
+        size = check_buffer_size(self.buffer_size, name="collect.buffer_size", error=ConfigError)
+        object.__setattr__(self, "buffer_size", size)
+        for name, lo in (("n", 1), ("sample_every", 1)):
             value = getattr(self, name)
             if isinstance(value, bool) or int(value) != value or value < lo:
                 raise ConfigError(f"collect.{name} must be an integer >= {lo}, got {value!r}")

@@ -5,7 +5,7 @@
 the simulator's clock; each frame runs ``physics_rate / fps`` RK4 steps of the CasADi
 model with the LQR evaluated at every step and appends the state to the flight's
 :class:`.history.StateHistory`. A :meth:`Flight.measure` asks the camera stage
-(:func:`.camera_stage.make_camera_stage`, chosen by ``[camera_timing]``) for the image the
+(:func:`.camera.build_camera_stage`, chosen by ``[camera_timing]``) for the image the
 application has now — with the timing model, the frame the reader loop last processed,
 exposed on the camera's own clock — and the motion-capture state paired with it.
 
@@ -32,18 +32,15 @@ import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from case_studies.quad_landing.data.paths import ExplorationPath
 from case_studies.quad_landing.perception.aruco import ArucoPerception
-from case_studies.quad_landing.sim.camera import Camera
-from case_studies.quad_landing.sim.camera_stage import make_camera_stage
+from case_studies.quad_landing.sim.camera import Camera, Measurement, Renderer, build_camera_stage
 from case_studies.quad_landing.sim.config import SimConfig, load_config
 from case_studies.quad_landing.sim.dynamics import rk4_step
 from case_studies.quad_landing.sim.frames import Pose, wrap_angle
 from case_studies.quad_landing.sim.history import StateHistory
 from case_studies.quad_landing.sim.lqr import HoverLqr, Reference, SettleParams
 from case_studies.quad_landing.sim.marker import Pad
-from case_studies.quad_landing.sim.measurement import Measurement
-from case_studies.quad_landing.sim.render import Renderer
+from case_studies.quad_landing.sim.paths import ExplorationPath
 from ipcverify.errors import InvalidInputError
 
 __all__ = ["Flight", "Measurement", "FlyResult", "LandingResult"]  # Measurement: from .measurement
@@ -115,13 +112,10 @@ class Flight:
 
     def __init__(self, config: SimConfig | None = None, *, buffer_size: int, seed: int = 0) -> None:
         self.config = load_config() if config is None else config
-        self.camera = Camera(self.config.camera)
-        self.renderer = Renderer(self.camera, self.config.marker, self.config.sensor_render)
-        self.perception = ArucoPerception(self.camera, self.config.marker, self.config.detector)
-        self.camera_stage = make_camera_stage(
-            self.config.camera_timing, buffer_size, self.camera, self.renderer, self.perception,
-            self.config.sim.ground_z,
-        )  # fmt: skip
+        self.camera_stage = build_camera_stage(self.config, buffer_size)
+        self.camera: Camera = self.camera_stage.camera
+        self.renderer: Renderer = self.camera_stage.renderer
+        self.perception: ArucoPerception = self.camera_stage.perception
         self.history = StateHistory()
         self.controller = HoverLqr.design(self.config.quad, self.config.lqr)
         self.dt = 1.0 / self.config.sim.physics_rate
@@ -281,7 +275,7 @@ class Flight:
 
         Examples
         --------
-        >>> from case_studies.quad_landing.data.paths import ExplorationPath
+        >>> from case_studies.quad_landing.sim.paths import ExplorationPath
         >>> from case_studies.quad_landing.sim.dynamics import hover_state
         >>> path = ExplorationPath(name="still", center=(0, 0, 1.5), amplitude=(0, 0, 0),
         ...                        omega=(1, 1, 1), phase=(0, 0, 0), duration=0.5)

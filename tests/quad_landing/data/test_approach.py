@@ -13,7 +13,7 @@ from case_studies.quad_landing.data.approach import (
     record_approach,
 )
 from case_studies.quad_landing.data.recording import measure_recording
-from case_studies.quad_landing.sim.camera_stage import build_camera_stage
+from case_studies.quad_landing.sim.camera import build_camera_stage
 from ipcverify.errors import InvalidInputError
 
 

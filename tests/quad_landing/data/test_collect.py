@@ -12,7 +12,7 @@ from case_studies.quad_landing import load_config
 from case_studies.quad_landing.data.collect import collect, write_dataset
 from case_studies.quad_landing.data.columns import DATASET_COLUMNS, X_COLUMNS
 from case_studies.quad_landing.sim.camera import Camera
-from case_studies.quad_landing.sim.features import camera_frame_state
+from case_studies.quad_landing.sim.camera.features import camera_frame_state
 from ipcverify.errors import InvalidInputError
 
 CFG = load_config()

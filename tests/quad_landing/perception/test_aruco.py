@@ -7,8 +7,8 @@ import pytest
 
 from case_studies.quad_landing import Flight, hover_state, load_config
 from case_studies.quad_landing.perception.aruco import ArucoPerception, DetectorParams
-from case_studies.quad_landing.sim.marker import MarkerParams
-from case_studies.quad_landing.sim.render import RenderParams
+from case_studies.quad_landing.perception.marker import MarkerParams
+from case_studies.quad_landing.sim.camera import RenderParams
 from ipcverify.errors import InvalidInputError
 
 CFG = load_config()

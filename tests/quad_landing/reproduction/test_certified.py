@@ -46,9 +46,10 @@ def test_hoeffding_upper_covers_the_mean():
 def test_closed_loop_violations_and_empirical_vs_certified(baseline_runs):
     loop = closed_loop_violations(baseline_runs, 0.002)
     k = sum(1 for r in baseline_runs if r.queries[0].truth_inside is False)
-    assert loop["first"]["n"] == len(baseline_runs) and loop["first"]["violations"] == k
+    assert loop.first.n == len(baseline_runs) and loop.first.violations == k
     if k:
-        assert loop["first"]["contradicts_epsilon"]  # a 0.1 mm ball misses almost always
+        assert loop.first.contradicts_epsilon  # a 0.1 mm ball misses almost always
+    assert loop.every.contradicts_epsilon is None and loop.to_dict()["all"] == loop.every.to_dict()
     b = certified_bound(0.002, 0.001, max_queries=1, queries_per_run=[1] * len(baseline_runs))
     ev = unsafe_vs_certified(baseline_runs, b)
     n_unsafe = sum(r.outcome is Outcome.UNSAFE for r in baseline_runs)

@@ -19,7 +19,8 @@ def test_claims_and_summary_records_from_real_runs(baseline_runs, make_ipc):
     """The typed results of the reproduction on a few real runs: claims, and summary.json's layout."""
     from case_studies.quad_landing.reproduction.campaign import summarize
     from case_studies.quad_landing.reproduction.claims import evaluate_claims
-    from case_studies.quad_landing.reproduction.results import ContractResults, LandingExperiment
+    from case_studies.quad_landing.reproduction.coverage import CoverageCheck, HeldOutFlags
+    from case_studies.quad_landing.reproduction.experiments import ContractResults, LandingExperiment
     from ipcverify.data._dataset import PerceptionDataset
 
     runs = tuple(baseline_runs)
@@ -37,7 +38,16 @@ def test_claims_and_summary_records_from_real_runs(baseline_runs, make_ipc):
         ipc=ContractResults(**side, certified=bound, empirical_vs_certified=unsafe_vs_certified(runs, bound)),
         baseline=ContractResults(**side),
         closed_loop=closed_loop_violations(runs, 0.002),
-        coverage={"shift_detected": False},
+        coverage=CoverageCheck(
+            method="knn",
+            quantile=0.99,
+            threshold=1.0,
+            test=HeldOutFlags(5, 0.5, 0),
+            null_rate=0.01,
+            confidence=0.95,
+            groups={},
+            shift_detected=False,
+        ),
     )
     x = np.zeros((20, 12))
     x[:, 2] = 1.0
@@ -52,5 +62,7 @@ def test_claims_and_summary_records_from_real_runs(baseline_runs, make_ipc):
     assert d["ipc"]["certified_unsafe_bound"] == bound.union_bound and "certified" not in d["baseline"]
     assert len(d["ipc"]["runs_detail"]) == len(runs) and len(d["ipc"]["paper_runs"]["runs_detail"]) == 3
     assert d["ipc"]["unsafe"] == n_unsafe and landing.shift_detected is False
+    assert list(d["coverage"]) == ["method", "quantile", "threshold", "test", "null_rate", "confidence",
+                                   "shift_detected", "groups"]  # fmt: skip
     with pytest.raises(InvalidInputError, match="count the runs"):
         ContractResults(**{**side, "runs": runs[:2]})

@@ -8,8 +8,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from case_studies.quad_landing import Flight, hover_state, load_config
-from case_studies.quad_landing.sim.camera import Camera, CameraParams
-from case_studies.quad_landing.sim.features import camera_frame_state, camera_velocity_world
+from case_studies.quad_landing.sim.camera.features import camera_frame_state, camera_velocity_world
+from case_studies.quad_landing.sim.camera.pinhole import Camera, CameraParams
 from case_studies.quad_landing.sim.frames import (
     Pose,
     euler_to_matrix,

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from case_studies.quad_landing import Flight, Reference, hover_state, load_config
-from case_studies.quad_landing.data.paths import ExplorationPath
 from case_studies.quad_landing.sim.dynamics import linearize_hover
 from case_studies.quad_landing.sim.lqr import HoverLqr, LqrParams
+from case_studies.quad_landing.sim.paths import ExplorationPath
 from ipcverify.errors import InvalidInputError
 
 CFG = load_config()

@@ -33,9 +33,9 @@ from functools import lru_cache
 import numpy as np
 from numpy.typing import NDArray
 
+from case_studies.quad_landing.sim.camera.render import Renderer
 from case_studies.quad_landing.sim.frames import Pose
 from case_studies.quad_landing.sim.marker import Pad
-from case_studies.quad_landing.sim.render import Renderer
 
 __all__ = ["row_weights", "subframe_count", "render_exposed"]
 

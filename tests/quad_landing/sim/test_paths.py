@@ -9,7 +9,8 @@ from hypothesis import strategies as st
 
 from case_studies.quad_landing import load_config
 from case_studies.quad_landing.data.collect import pad_outline_world
-from case_studies.quad_landing.data.paths import (
+from case_studies.quad_landing.sim.camera import Camera
+from case_studies.quad_landing.sim.paths import (
     TEMPLATES,
     ExplorationPath,
     PathParams,
@@ -17,7 +18,6 @@ from case_studies.quad_landing.data.paths import (
     make_path,
     pad_in_view_along,
 )
-from case_studies.quad_landing.sim.camera import Camera
 from ipcverify.errors import InvalidInputError
 
 CFG = load_config()

@@ -13,7 +13,7 @@ processing times and delivery jitter from its seed, on separate random streams: 
 with the same seed share them whatever the buffer size, and switching an error source off
 leaves the draws of the others unchanged.
 
-:func:`make_camera_stage` picks this stage or the previous fixed lag
+:func:`.stage.build_camera_stage` picks this stage or the previous fixed lag
 (:class:`.framebuffer.FrameLagCamera`, also used for buffer size 0, the ideal camera).
 
 Examples
@@ -36,23 +36,21 @@ import numpy as np
 from numpy.typing import NDArray
 
 from case_studies.quad_landing.perception.aruco import ArucoPerception
-from case_studies.quad_landing.sim.camera import Camera
-from case_studies.quad_landing.sim.config import SimConfig
-from case_studies.quad_landing.sim.driver_queue import DriverQueue, FlightTiming, ReaderIteration
-from case_studies.quad_landing.sim.exposure import render_exposed
-from case_studies.quad_landing.sim.framebuffer import FrameLagCamera, check_buffer_size, noise_key
+from case_studies.quad_landing.sim.camera.buffer import check_buffer_size
+from case_studies.quad_landing.sim.camera.driver_queue import DriverQueue, FlightTiming, ReaderIteration
+from case_studies.quad_landing.sim.camera.exposure import render_exposed
+from case_studies.quad_landing.sim.camera.framebuffer import noise_key
+from case_studies.quad_landing.sim.camera.measurement import Measurement, StageParts, pair
+from case_studies.quad_landing.sim.camera.pinhole import Camera
+from case_studies.quad_landing.sim.camera.render import Renderer
+from case_studies.quad_landing.sim.camera.timing import CameraTimingParams
 from case_studies.quad_landing.sim.frames import Pose
 from case_studies.quad_landing.sim.history import StateHistory
 from case_studies.quad_landing.sim.marker import Pad
-from case_studies.quad_landing.sim.measurement import CameraStage, Measurement, pair
-from case_studies.quad_landing.sim.render import Renderer
-from case_studies.quad_landing.sim.timing import CameraTimingParams
 from ipcverify.errors import InvalidInputError
 
 __all__ = [
     "TimedCamera",
-    "make_camera_stage",
-    "build_camera_stage",
     "flight_timing",
     "STREAMS",
     "OUT_OF_VIEW_PX",
@@ -102,7 +100,7 @@ def flight_timing(
     )
 
 
-class TimedCamera:
+class TimedCamera(StageParts):
     """The camera-timing model's stage (see the module docstring).
 
     Parameters
@@ -111,11 +109,8 @@ class TimedCamera:
         ``[camera_timing]``.
     buffer_size : int
         V4L2 buffers (the paper's buffer size), at least 1.
-    camera, renderer, perception
-        The simulator's camera, renderer (its noise already switched by the noise source)
-        and detector.
-    ground_z : float
-        Floor height in W (m).
+    camera, renderer, perception, ground_z
+        As for :class:`.measurement.StageParts`.
     """
 
     def __init__(
@@ -131,10 +126,7 @@ class TimedCamera:
         if b < 1:
             raise InvalidInputError("the timed camera needs a buffer size >= 1 (0 is the ideal camera)")
         self.params, self._b = params, b
-        self.camera, self.renderer, self.perception, self.ground_z = camera, renderer, perception, ground_z
-        self._history: StateHistory | None = None
-        self._pad: Pad | None = None
-        self._seed = 0
+        super().__init__(camera, renderer, perception, ground_z)
         self._queue: DriverQueue | None = None
         self._cache: (
             tuple[int, Measurement, NDArray[np.uint8] | None, Callable[[], NDArray[np.uint8]]] | None
@@ -223,45 +215,3 @@ class TimedCamera:
             image = draw()
             self._cache = (index, m, image, draw)
         return image
-
-
-def make_camera_stage(
-    params: CameraTimingParams,
-    buffer_size: int,
-    camera: Camera,
-    renderer: Renderer,
-    perception: ArucoPerception,
-    ground_z: float,
-) -> CameraStage:
-    """The timed camera (``model = "queue"``) or the fixed ``k``-frame lag (``"frames"``, or ``k = 0``).
-
-    Examples
-    --------
-    >>> from case_studies.quad_landing import Flight
-    >>> type(Flight(buffer_size=2).camera_stage).__name__, type(Flight(buffer_size=0).camera_stage).__name__
-    ('TimedCamera', 'FrameLagCamera')
-    """
-    b = check_buffer_size(buffer_size)
-    if params.model == "frames" or b == 0:
-        return FrameLagCamera(b, camera, renderer, perception, ground_z)
-    return TimedCamera(params, b, camera, renderer, perception, ground_z)
-
-
-def build_camera_stage(config: SimConfig, buffer_size: int) -> CameraStage:
-    """A camera stage with its own camera, renderer (noise as the noise source says) and detector.
-
-    What a replay of a recorded flight measures with (:mod:`case_studies.quad_landing.data.recording`);
-    a :class:`~.flight.Flight` builds the same from its configuration.
-
-    Examples
-    --------
-    >>> from case_studies.quad_landing.sim.config import load_config
-    >>> build_camera_stage(load_config(), 3).buffer_size
-    3
-    """
-    camera = Camera(config.camera)
-    renderer = Renderer(camera, config.marker, config.sensor_render)
-    perception = ArucoPerception(camera, config.marker, config.detector)
-    return make_camera_stage(
-        config.camera_timing, buffer_size, camera, renderer, perception, config.sim.ground_z
-    )

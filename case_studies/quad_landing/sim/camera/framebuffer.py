@@ -7,7 +7,7 @@ flight the buffer is full of the start state's frame. ``k = 0`` is an ideal came
 current state's frame), used as a no-lag reference whatever the model.
 
 This is the model the case study started with; the camera-timing model
-(:class:`.camera_stage.TimedCamera`) replaced it as the default.
+(:class:`.timed.TimedCamera`) replaced it as the default.
 
 Examples
 --------
@@ -28,32 +28,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from case_studies.quad_landing.perception.aruco import ArucoPerception
-from case_studies.quad_landing.sim.camera import Camera
+from case_studies.quad_landing.sim.camera.buffer import check_buffer_size
+from case_studies.quad_landing.sim.camera.measurement import Measurement, StageParts, pair
+from case_studies.quad_landing.sim.camera.pinhole import Camera
+from case_studies.quad_landing.sim.camera.render import Renderer
 from case_studies.quad_landing.sim.history import StateHistory
 from case_studies.quad_landing.sim.marker import Pad
-from case_studies.quad_landing.sim.measurement import Measurement, pair
-from case_studies.quad_landing.sim.render import Renderer
 from ipcverify.errors import InvalidInputError
 
-__all__ = ["FrameLagCamera", "MAX_BUFFER_SIZE", "check_buffer_size", "noise_key"]
-
-#: Largest buffer size accepted (frames).
-MAX_BUFFER_SIZE = 30
-
-
-def check_buffer_size(size: int) -> int:
-    """``size`` as a buffer size: a whole number of frames in ``[0, MAX_BUFFER_SIZE]``.
-
-    Examples
-    --------
-    >>> check_buffer_size(3)
-    3
-    """
-    if isinstance(size, bool) or int(size) != size or not 0 <= size <= MAX_BUFFER_SIZE:
-        raise InvalidInputError(
-            f"buffer size must be an integer in [0, {MAX_BUFFER_SIZE}] frames, got {size}"
-        )
-    return int(size)
+__all__ = ["FrameLagCamera", "noise_key"]
 
 
 def noise_key(seed: int, frame: int) -> int:
@@ -67,17 +50,15 @@ def noise_key(seed: int, frame: int) -> int:
     return (int(seed) * 7919 + int(frame)) % (2**31)
 
 
-class FrameLagCamera:
+class FrameLagCamera(StageParts):
     """The ``k``-frame lag (see the module docstring).
 
     Parameters
     ----------
     buffer_size : int
         ``k``, frames of lag (0: no lag).
-    camera, renderer, perception
-        The simulator's camera, renderer and detector.
-    ground_z : float
-        Floor height in W (m).
+    camera, renderer, perception, ground_z
+        As for :class:`.measurement.StageParts`.
     """
 
     def __init__(
@@ -89,10 +70,7 @@ class FrameLagCamera:
         ground_z: float,
     ) -> None:
         self._k = check_buffer_size(buffer_size)
-        self.camera, self.renderer, self.perception, self.ground_z = camera, renderer, perception, ground_z
-        self._history: StateHistory | None = None
-        self._pad: Pad | None = None
-        self._seed = 0
+        super().__init__(camera, renderer, perception, ground_z)
         self._cache: tuple[int, float, Measurement, NDArray[np.uint8]] | None = None
 
     @property

@@ -13,7 +13,7 @@ A camera frame is drawn in three steps:
 The steps are public (:meth:`Renderer.draw_floor`, :meth:`Renderer.draw_pad`,
 :meth:`Renderer.sensor_effects`) so that an exposure can be composed from several
 geometry-only sub-renders before the sensor effects are applied once
-(:mod:`case_studies.quad_landing.sim.exposure`).
+(:mod:`case_studies.quad_landing.sim.camera.exposure`).
 
 The pad texture is kept as a pyramid of exact powers of two per cell; the level drawn
 is the largest not bigger than the projected pad, so bilinear sampling only magnifies
@@ -33,10 +33,11 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from case_studies.quad_landing.perception.marker import MARKER_CELLS, MarkerParams, aruco_dictionary
 from case_studies.quad_landing.settings import DEFAULTS_PATH, TomlSection
-from case_studies.quad_landing.sim.camera import Camera
+from case_studies.quad_landing.sim.camera.pinhole import Camera
 from case_studies.quad_landing.sim.frames import Pose
-from case_studies.quad_landing.sim.marker import MARKER_CELLS, MarkerParams, Pad, aruco_dictionary
+from case_studies.quad_landing.sim.marker import Pad
 from ipcverify.errors import InvalidInputError
 
 __all__ = ["RenderParams", "Renderer", "FLOORS"]

@@ -84,7 +84,7 @@ class CameraTimingParams(TomlSection):
         What the driver does with a finished frame when no buffer is free.
     detector_ms : tuple of float
         Quantiles (equally spaced, 0 % to 100 %) of the ArUco + pose time per frame measured
-        on this machine (:mod:`case_studies.quad_landing.perception.reader_time`).
+        on this machine (:mod:`case_studies.quad_landing.studies.reader_time`).
     convert_ms : float
         YUYV -> BGR -> grey per frame, measured on this machine.
     cpu_scale : float

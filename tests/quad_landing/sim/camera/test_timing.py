@@ -10,10 +10,10 @@ import pytest
 
 from case_studies.quad_landing import Flight, hover_state
 from case_studies.quad_landing.settings import DEFAULTS_PATH, ConfigError, read_toml
-from case_studies.quad_landing.sim.camera_stage import TimedCamera, flight_timing
+from case_studies.quad_landing.sim.camera.timed import TimedCamera, flight_timing
+from case_studies.quad_landing.sim.camera.timing import SOURCES, CameraTimingParams
 from case_studies.quad_landing.sim.config import load_config
 from case_studies.quad_landing.sim.history import StateHistory
-from case_studies.quad_landing.sim.timing import SOURCES, CameraTimingParams
 from ipcverify.calibration._bounds import clopper_pearson_interval
 
 

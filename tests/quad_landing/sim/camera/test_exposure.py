@@ -12,12 +12,12 @@ import numpy as np
 import pytest
 
 from case_studies.quad_landing.perception.aruco import ArucoPerception
-from case_studies.quad_landing.sim.camera import Camera
+from case_studies.quad_landing.sim.camera.exposure import render_exposed, row_weights, subframe_count
+from case_studies.quad_landing.sim.camera.pinhole import Camera
+from case_studies.quad_landing.sim.camera.render import Renderer
 from case_studies.quad_landing.sim.config import load_config
-from case_studies.quad_landing.sim.exposure import render_exposed, row_weights, subframe_count
 from case_studies.quad_landing.sim.frames import Pose
 from case_studies.quad_landing.sim.marker import Pad
-from case_studies.quad_landing.sim.render import Renderer
 
 H = 1.0  # camera height (m)
 V = 1.0  # camera speed along world x = image u (m/s)

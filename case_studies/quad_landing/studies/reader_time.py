@@ -1,6 +1,6 @@
 """How long the vehicle's reader loop needs per frame: the ArUco time measured here, to scale to a Pi 3.
 
-The camera-timing model (:mod:`case_studies.quad_landing.sim.timing`) drains the V4L2
+The camera-timing model (:mod:`case_studies.quad_landing.sim.camera.timing`) drains the V4L2
 queue with a reader whose per-frame time is drawn from a *measured* distribution, scaled
 to the paper's Raspberry Pi 3. This module measures it on this machine:
 
@@ -40,9 +40,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from case_studies.quad_landing.data.collect import pad_outline_world, path_rng, start_state
-from case_studies.quad_landing.data.paths import TEMPLATES, fit_to_view, make_path
 from case_studies.quad_landing.sim.config import SimConfig, load_config
 from case_studies.quad_landing.sim.flight import Flight
+from case_studies.quad_landing.sim.paths import TEMPLATES, fit_to_view, make_path
 
 __all__ = ["ReaderTiming", "measure_reader_time", "quantiles_ms", "path_frames"]
 

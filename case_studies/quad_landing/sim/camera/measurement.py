@@ -4,7 +4,7 @@ A :class:`CameraStage` turns the flight's state history into measurements: which
 the application reads at a given instant, how it looks, what the detector makes of it,
 and which state it is paired with. Two stages exist: the previous fixed lag of ``k``
 frames (:class:`.framebuffer.FrameLagCamera`) and the camera-timing model
-(:class:`.camera_stage.TimedCamera`); :func:`.camera_stage.make_camera_stage` picks one
+(:class:`.timed.TimedCamera`); :func:`.stage.build_camera_stage` picks one
 from the configuration. Both build their result with :func:`pair`.
 
 Examples
@@ -25,16 +25,17 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from case_studies.quad_landing.sim.camera import Camera
-from case_studies.quad_landing.sim.features import camera_frame_state
+from case_studies.quad_landing.sim.camera.features import camera_frame_state
+from case_studies.quad_landing.sim.camera.pinhole import Camera
 from case_studies.quad_landing.sim.frames import Pose
 from case_studies.quad_landing.sim.marker import Pad
 
 if TYPE_CHECKING:
+    from case_studies.quad_landing.perception.aruco import ArucoPerception
+    from case_studies.quad_landing.sim.camera.render import Renderer
     from case_studies.quad_landing.sim.history import StateHistory
-    from case_studies.quad_landing.sim.render import Renderer
 
-__all__ = ["Measurement", "CameraStage", "pair"]
+__all__ = ["Measurement", "CameraStage", "StageParts", "pair"]
 
 FloatArray = NDArray[np.float64]
 
@@ -94,7 +95,21 @@ class Measurement:
 
 
 class CameraStage(Protocol):
-    """What a :class:`~.flight.Flight` (or a replay of a recorded flight) asks of its camera."""
+    """What a flight (or a replay of a recorded flight) asks of its camera.
+
+    Attributes
+    ----------
+    camera : Camera
+        The camera the stage images with.
+    renderer : Renderer
+        Its renderer (sensor noise switched by the noise source).
+    perception : ArucoPerception
+        The detector every image read goes through.
+    """
+
+    camera: Camera
+    renderer: Renderer
+    perception: ArucoPerception
 
     @property
     def buffer_size(self) -> int:
@@ -112,6 +127,30 @@ class CameraStage(Protocol):
     def image(self) -> NDArray[np.uint8]:
         """The image of the last measurement."""
         ...
+
+
+class StageParts:
+    """What both camera stages hold: the camera, renderer and detector, and the flight being measured.
+
+    :class:`.framebuffer.FrameLagCamera` and :class:`.timed.TimedCamera` derive from it; a
+    flight's history, pad and sensor seed are set by their ``begin``.
+
+    Parameters
+    ----------
+    camera, renderer, perception
+        The simulator's camera, renderer (its noise already switched by the noise source)
+        and detector.
+    ground_z : float
+        Floor height in W (m).
+    """
+
+    def __init__(
+        self, camera: Camera, renderer: Renderer, perception: ArucoPerception, ground_z: float
+    ) -> None:
+        self.camera, self.renderer, self.perception, self.ground_z = camera, renderer, perception, ground_z
+        self._history: StateHistory | None = None
+        self._pad: Pad | None = None
+        self._seed = 0
 
 
 def pair(

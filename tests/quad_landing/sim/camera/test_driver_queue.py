@@ -18,8 +18,8 @@ import math
 import numpy as np
 import pytest
 
-from case_studies.quad_landing.sim.driver_queue import DriverQueue, FlightTiming
-from case_studies.quad_landing.sim.timing import POLICIES
+from case_studies.quad_landing.sim.camera.driver_queue import DriverQueue, FlightTiming
+from case_studies.quad_landing.sim.camera.timing import POLICIES
 from ipcverify.errors import InvalidInputError
 
 T = 1.0 / 60.0

@@ -50,7 +50,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from case_studies.quad_landing.sim.timing import POLICIES
+from case_studies.quad_landing.sim.camera.timing import POLICIES
 from ipcverify.errors import InvalidInputError
 
 __all__ = ["FlightTiming", "ReaderIteration", "DriverQueue"]
