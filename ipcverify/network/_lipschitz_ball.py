@@ -1,6 +1,6 @@
 """What both sound Lipschitz bounds share: the box of ``X``, the parameter ball, an MLP's norm bounds in it.
 
-The sound bounds on ``L_g`` (:mod:`ipcverify.certification._lipschitz` for the paper's heads,
+The sound bounds on ``L_g`` (:mod:`ipcverify.network._lipschitz_mlp` for the paper's heads,
 :mod:`ipcverify.network._lipschitz_lowrank` for the default ensemble) hold for every parameter vector
 ``theta`` in the Euclidean ball ``B(theta_hat, r)`` and every ``X = (x, y, yhat)`` in a
 :class:`DataBox`. Both propagate the same layer-by-layer bounds through an MLP

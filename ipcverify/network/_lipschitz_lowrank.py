@@ -22,8 +22,9 @@ data (buffers), so ``t`` does not depend on ``theta``.
   outputs by ``sqrt(1/(K mu) + g^2 max(1, 1/(K mu)))``. Derivation:
   ``proofs/lipschitz_lowrank.md``.
 
-:mod:`ipcverify.certification._lipschitz` calls these for an ensemble; use its ``sound_lipschitz`` and
-``empirical_lipschitz``, which take any model.
+:class:`~ipcverify.network.LowRankEngine` answers with these (its ``gradient_norms`` and
+``sound_lipschitz``, :class:`ipcverify.network.Engine`); use
+:func:`ipcverify.certification.sound_lipschitz` and ``empirical_lipschitz``, which take any model.
 """
 
 from __future__ import annotations

@@ -17,6 +17,7 @@ export's graph follows them, so all agree to rounding.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -38,7 +39,10 @@ from ipcverify.network._kernels import (
 from ipcverify.network._weights import NetworkWeights
 
 if TYPE_CHECKING:
+    from ipcverify.network._interface import ConstFn, NodeFn
+    from ipcverify.network._lipschitz_ball import DataBox, LipschitzBound
     from ipcverify.network._lowrank import LowRankEnsemble
+    from ipcverify.network._modules import Network
 
 __all__ = ["LowRankEngine", "cholesky_lower", "lower_inverse"]
 
@@ -104,7 +108,8 @@ class LowRankEngine:
     """Float64 forward pass of a :class:`~ipcverify.network.LowRankEnsemble` (all members at once).
 
     Build it with :meth:`from_weights` (or :meth:`from_network`); :meth:`batch` for (B, ·)
-    arrays, :meth:`single` for one query. The weights are stored so that every member's outputs come out as
+    arrays, :meth:`single` for one query (it satisfies :class:`ipcverify.network.Engine`). The
+    weights are stored so that every member's outputs come out as
     ``[U | h]``: ``U = [V | o]`` (n x (n + 1), row-major) and the log-diagonal ``h``; the
     moment-matched covariance is then ``mean_k U_k' U_k'^T + diag(mean_k exp(2 h_k))`` with
     ``U_k'`` the member's ``U`` with its centre offset replaced by the deviation from the
@@ -368,6 +373,41 @@ class LowRankEngine:
         z = np.array(self.in_mean, dtype=np.float64).reshape(-1)
         self.single(z[:d], z[d:])
 
+    def float64_layers(self, z: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """The network's layers alone on standardised rows ``z`` (:meth:`layers`)."""
+        return self.layers(z)
+
+    def onnx_nodes(
+        self, z: str, node: NodeFn, const: ConstFn, scale: float | None, dtype: type[np.floating[Any]]
+    ) -> None:
+        """The ONNX nodes from the standardised inputs to the outputs (:func:`lowrank_nodes`)."""
+        from ipcverify.network._onnx_lowrank import lowrank_nodes
+
+        lowrank_nodes(self, z, node, const, scale, dtype)
+
+    def gradient_norms(
+        self,
+        network: Network,
+        x: FloatArray,
+        y: FloatArray,
+        yhat: FloatArray,
+        params: Mapping[str, Any] | None,
+        chunk_size: int,
+        dtype: Any,
+    ) -> FloatArray:
+        """Per-sample ``||grad_theta g||`` (:func:`ipcverify.network.ensemble_gradient_norms`)."""
+        from ipcverify.network._lipschitz_lowrank import ensemble_gradient_norms
+
+        return ensemble_gradient_norms(
+            _ensemble(network), x, y, yhat, params, chunk_size=chunk_size, dtype=dtype
+        )
+
+    def sound_lipschitz(self, network: Network, box: DataBox, radius: float) -> LipschitzBound:
+        """The bound of ``proofs/lipschitz_lowrank.md`` (:func:`sound_lipschitz_lowrank`)."""
+        from ipcverify.network._lipschitz_lowrank import sound_lipschitz_lowrank
+
+        return sound_lipschitz_lowrank(_ensemble(network), box, radius)
+
     def _check_one(self, z: FloatArray) -> None:
         """The compiled kernel reads without bounds checks: one query's input row is checked here."""
         d, n = self.config.x_dim, self.config.y_dim
@@ -376,3 +416,15 @@ class LowRankEngine:
                 f"one query's input row concat(x, yhat) needs shape ({d + n},) (x of length {d}, "
                 f"yhat of length {n}); got shape {z.shape}"
             )
+
+
+def _ensemble(network: Network) -> LowRankEnsemble:
+    """``network`` as the low-rank ensemble (what this engine evaluates), or an error."""
+    from ipcverify.network._lowrank import LowRankEnsemble
+
+    if not isinstance(network, LowRankEnsemble):
+        raise InvalidInputError(
+            "the low-rank engine evaluates LowRankEnsemble (the default network); got a "
+            f"{type(network).__name__}"
+        )
+    return network
