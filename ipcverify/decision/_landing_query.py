@@ -11,18 +11,6 @@ proven** (Proposition 1, ``proofs/proposition1.md``): in float64 with a rigorous
 A query the domain test flags is answered OUTSIDE_DOMAIN, never accepted.
 :meth:`LandingQuery.decide_float` is the float rule alone: fast in every case, **not a proof**.
 
-Examples
---------
->>> import numpy as np
->>> from ipcverify.network._architecture import ModelConfig
->>> from ipcverify.contract._model import IPCModel
->>> from ipcverify.network._modules import IPCNetwork
->>> G = Box([-0.05, -0.05, 0.0], [0.05, 0.05, 0.05])
->>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(8,), param="cholesky")))
->>> q = LandingQuery(IPCQuery(m), G)
->>> d = q.decide(np.zeros(2), np.zeros(3))
->>> d.accept, d.proven      # an untrained network's sets are far too large to land on
-(False, False)
 """
 
 from __future__ import annotations
@@ -65,14 +53,13 @@ class LandingQuery:
 
     Examples
     --------
-    >>> import numpy as np
     >>> from ipcverify.network._architecture import ModelConfig
-    >>> from ipcverify.contract._model import IPCModel
-    >>> from ipcverify.network._modules import IPCNetwork
-    >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(8,), param="cholesky")))
-    >>> q = LandingQuery(IPCQuery(m), Box([-1.0, -1.0, 0.0], [1.0, 1.0, 1.0]))
-    >>> q.decide([0.0, 1.0], [0.1, 0.2, 0.3]).verdict.name
-    'REJECT'
+    >>> from ipcverify.network._modules import build_network
+    >>> untrained = IPCModel(build_network(ModelConfig.recipe("v1", x_dim=2, y_dim=3, hidden=(8,))))
+    >>> q = LandingQuery(IPCQuery(untrained), Box([-0.05, -0.05, 0.0], [0.05, 0.05, 0.05]))
+    >>> d = q.decide([0.0, 1.0], [0.1, 0.2, 0.3])
+    >>> d.verdict.name, d.accept, d.proven   # its sets are far too large to land on
+    ('REJECT', False, False)
     """
 
     query: IPCQuery

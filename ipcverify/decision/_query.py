@@ -21,9 +21,6 @@ arrays; :meth:`IPCQuery.values` the same as Python floats (what a decision rule 
 
 Examples
 --------
->>> import numpy as np
->>> from ipcverify.network._architecture import ModelConfig
->>> from ipcverify.contract._model import IPCModel
 >>> from ipcverify.network._modules import IPCNetwork
 >>> q = IPCQuery(IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=2, hidden=(8,), param="cholesky"))))
 >>> s = q.evaluate(np.zeros(2), np.zeros(2))
@@ -43,6 +40,7 @@ from ipcverify.calibration._protocol import Calibration
 from ipcverify.contract._model import IPCModel
 from ipcverify.errors import InvalidInputError
 from ipcverify.guard._domain import DomainModel
+from ipcverify.network._architecture import ModelConfig
 from ipcverify.network._interface import Engine
 
 __all__ = ["IPCQuery", "QuerySet"]
@@ -75,11 +73,8 @@ class IPCQuery:
 
     Examples
     --------
-    >>> import numpy as np
-    >>> from ipcverify.network._architecture import ModelConfig
-    >>> from ipcverify.contract._model import IPCModel
-    >>> from ipcverify.network._modules import IPCNetwork
-    >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(8,), param="cholesky")))
+    >>> from ipcverify.network._modules import build_network
+    >>> m = IPCModel(build_network(ModelConfig(x_dim=2, y_dim=3, hidden=(8,), members=2)))
     >>> c, C = IPCQuery(m).ellipsoid([0.0, 1.0], [0.1, 0.2, 0.3])
     >>> bool(np.allclose(C, m.predict([0.0, 1.0], [0.1, 0.2, 0.3]).shapes[0]))
     True
@@ -103,7 +98,8 @@ class IPCQuery:
         groups = None if cal is None else cal.groups()
         # one calibrated group: a constant scale, looked up once instead of per query
         scale = float(groups[0].scale) if groups is not None and len(groups) == 1 else None
-        d, n = self.model.config.x_dim, self.model.config.y_dim
+        cfg: ModelConfig = self.model.config
+        d, n = cfg.x_dim, cfg.y_dim
         derived = {
             "_engine": self.model.engine,
             "_domain": self.model.domain,
@@ -195,7 +191,6 @@ class IPCQuery:
 
         Examples
         --------
-        >>> from ipcverify.network._architecture import ModelConfig
         >>> from ipcverify.network._modules import build_network
         >>> q = IPCQuery(IPCModel(build_network(ModelConfig(x_dim=1, y_dim=2, hidden=(4,)))))
         >>> s = q.evaluate([0.5], [0.0, 1.0])

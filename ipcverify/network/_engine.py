@@ -11,7 +11,6 @@ single queries of a control loop.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -20,12 +19,11 @@ from numpy.typing import NDArray
 
 from ipcverify.errors import InvalidInputError
 from ipcverify.network._architecture import LOGDIAG_CLAMP, ModelConfig
+from ipcverify.network._kind import KindModules
 from ipcverify.network._weights import NetworkWeights
 
 if TYPE_CHECKING:
-    from ipcverify.network._interface import ConstFn, NodeFn
-    from ipcverify.network._lipschitz_ball import DataBox, LipschitzBound
-    from ipcverify.network._modules import IPCNetwork, Network
+    from ipcverify.network._modules import IPCNetwork
 
 __all__ = ["CACHE_BYTES", "CHUNK", "InferenceEngine", "activate", "chunk_rows", "float64_array"]
 
@@ -90,7 +88,7 @@ def activate(h: FloatArray, activation: str) -> FloatArray:
 
 
 @dataclass(frozen=True, eq=False)
-class InferenceEngine:
+class InferenceEngine(KindModules):
     """Float64 forward pass of an :class:`~ipcverify.network.IPCNetwork`.
 
     Build it with :meth:`from_weights` (or :meth:`from_network`); call :meth:`batch` for (B, ·) arrays,
@@ -108,6 +106,10 @@ class InferenceEngine:
     >>> c.shape, C.shape
     ((4, 3), (4, 3, 3))
     """
+
+    ONNX = ("ipcverify.network._onnx_mlp", "mlp_nodes")
+    GRADIENTS = ("ipcverify.network._lipschitz_mlp", "mlp_gradient_norms")
+    BOUND = ("ipcverify.network._lipschitz_mlp", "sound_lipschitz_mlp")
 
     config: ModelConfig
     weights: tuple[FloatArray, ...]
@@ -281,43 +283,3 @@ class InferenceEngine:
     def float64_layers(self, z: FloatArray) -> FloatArray:
         """The MLP alone on standardised rows ``z`` (:meth:`mlp`)."""
         return self.mlp(z)
-
-    def onnx_nodes(
-        self, z: str, node: NodeFn, const: ConstFn, scale: float | None, dtype: type[np.floating[Any]]
-    ) -> None:
-        """The ONNX nodes from the standardised inputs to the outputs (:func:`mlp_nodes`)."""
-        from ipcverify.network._onnx_mlp import mlp_nodes
-
-        mlp_nodes(self, z, node, const, scale)
-
-    def gradient_norms(
-        self,
-        network: Network,
-        x: FloatArray,
-        y: FloatArray,
-        yhat: FloatArray,
-        params: Mapping[str, Any] | None,
-        chunk_size: int,
-        dtype: Any,
-    ) -> FloatArray:
-        """Per-sample ``||grad_theta g||`` (:func:`ipcverify.network.mlp_gradient_norms`)."""
-        from ipcverify.network._lipschitz_mlp import mlp_gradient_norms
-
-        return mlp_gradient_norms(_mlp(network), x, y, yhat, params, chunk_size, dtype)
-
-    def sound_lipschitz(self, network: Network, box: DataBox, radius: float) -> LipschitzBound:
-        """The sound bound of ``proofs/lipschitz.md`` (:func:`ipcverify.network.sound_lipschitz_mlp`)."""
-        from ipcverify.network._lipschitz_mlp import sound_lipschitz_mlp
-
-        return sound_lipschitz_mlp(_mlp(network), box, radius)
-
-
-def _mlp(network: Network) -> IPCNetwork:
-    """``network`` as the paper's heads (what this engine evaluates), or an error."""
-    from ipcverify.network._modules import IPCNetwork
-
-    if not isinstance(network, IPCNetwork):
-        raise InvalidInputError(
-            f"the dense engine evaluates IPCNetwork (the paper's heads); got a {type(network).__name__}"
-        )
-    return network

@@ -49,6 +49,7 @@ from ipcverify.network._lipschitz_ball import (
     hidden_norm_bounds,
     jacobian_bound,
     operator_norm,
+    require_kind,
 )
 from ipcverify.network._lowrank import LowRankEnsemble, StackedLinear, member_covariances, moment_match
 
@@ -141,6 +142,7 @@ def ensemble_gradient_norms(
     >>> ensemble_gradient_norms(net, np.ones((3, 2)), np.ones((3, 2)), np.zeros((3, 2))).shape
     (3,)
     """
+    require_kind(network, LowRankEnsemble)
     if chunk_size < 1:
         raise InvalidInputError(f"chunk_size must be a positive number of samples; got {chunk_size!r}")
     net = _working_copy(network, params, dtype)
@@ -243,6 +245,7 @@ def sound_lipschitz_lowrank(network: LowRankEnsemble, box: DataBox, radius: floa
     >>> bool(bound.value >= ensemble_gradient_norms(net, ds.x, ds.y, ds.yhat).max())
     True
     """
+    require_kind(network, LowRankEnsemble)
     r = check_radius(radius)
     cfg = network.config
     box.check_dims(cfg.x_dim, cfg.y_dim)

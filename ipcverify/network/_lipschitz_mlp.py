@@ -39,6 +39,7 @@ from ipcverify.network._lipschitz_ball import (
     hidden_norm_bounds,
     jacobian_bound,
     operator_norm,
+    require_kind,
 )
 from ipcverify.network._modules import IPCNetwork
 
@@ -82,6 +83,7 @@ def mlp_gradient_norms(
     >>> mlp_gradient_norms(net, np.ones((3, 2)), np.ones((3, 2)), np.zeros((3, 2))).shape
     (3,)
     """
+    require_kind(network, IPCNetwork)
     net = copy.deepcopy(network).to(dtype).eval()
     if params is None:
         own = {k: v.detach() for k, v in net.named_parameters()}
@@ -128,6 +130,7 @@ def sound_lipschitz_mlp(net: IPCNetwork, box: DataBox, radius: float) -> Lipschi
     >>> bool(bound.value >= mlp_gradient_norms(net, ds.x, ds.y, ds.yhat).max())
     True
     """
+    require_kind(net, IPCNetwork)
     cfg = net.config
     box.check_dims(cfg.x_dim, cfg.y_dim)
     n = cfg.y_dim

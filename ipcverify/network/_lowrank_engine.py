@@ -17,7 +17,6 @@ export's graph follows them, so all agree to rounding.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -36,13 +35,11 @@ from ipcverify.network._kernels import (
     lowrank_sets,
     standardise,
 )
+from ipcverify.network._kind import KindModules
 from ipcverify.network._weights import NetworkWeights
 
 if TYPE_CHECKING:
-    from ipcverify.network._interface import ConstFn, NodeFn
-    from ipcverify.network._lipschitz_ball import DataBox, LipschitzBound
     from ipcverify.network._lowrank import LowRankEnsemble
-    from ipcverify.network._modules import Network
 
 __all__ = ["LowRankEngine", "cholesky_lower", "lower_inverse"]
 
@@ -104,7 +101,7 @@ def _u_layout(n: int) -> NDArray[np.intp]:
 
 
 @dataclass(frozen=True, eq=False)
-class LowRankEngine:
+class LowRankEngine(KindModules):
     """Float64 forward pass of a :class:`~ipcverify.network.LowRankEnsemble` (all members at once).
 
     Build it with :meth:`from_weights` (or :meth:`from_network`); :meth:`batch` for (B, ·)
@@ -123,6 +120,10 @@ class LowRankEngine:
     >>> c.shape, C.shape
     ((4, 3), (4, 3, 3))
     """
+
+    ONNX = ("ipcverify.network._onnx_lowrank", "lowrank_nodes")
+    GRADIENTS = ("ipcverify.network._lipschitz_lowrank", "ensemble_gradient_norms")
+    BOUND = ("ipcverify.network._lipschitz_lowrank", "sound_lipschitz_lowrank")
 
     config: ModelConfig
     #: first layer, then the skip paths in the layout of U: (K, d + n, h1 + n (n + 1)) and (K, 1, ·)
@@ -377,37 +378,6 @@ class LowRankEngine:
         """The network's layers alone on standardised rows ``z`` (:meth:`layers`)."""
         return self.layers(z)
 
-    def onnx_nodes(
-        self, z: str, node: NodeFn, const: ConstFn, scale: float | None, dtype: type[np.floating[Any]]
-    ) -> None:
-        """The ONNX nodes from the standardised inputs to the outputs (:func:`lowrank_nodes`)."""
-        from ipcverify.network._onnx_lowrank import lowrank_nodes
-
-        lowrank_nodes(self, z, node, const, scale, dtype)
-
-    def gradient_norms(
-        self,
-        network: Network,
-        x: FloatArray,
-        y: FloatArray,
-        yhat: FloatArray,
-        params: Mapping[str, Any] | None,
-        chunk_size: int,
-        dtype: Any,
-    ) -> FloatArray:
-        """Per-sample ``||grad_theta g||`` (:func:`ipcverify.network.ensemble_gradient_norms`)."""
-        from ipcverify.network._lipschitz_lowrank import ensemble_gradient_norms
-
-        return ensemble_gradient_norms(
-            _ensemble(network), x, y, yhat, params, chunk_size=chunk_size, dtype=dtype
-        )
-
-    def sound_lipschitz(self, network: Network, box: DataBox, radius: float) -> LipschitzBound:
-        """The bound of ``proofs/lipschitz_lowrank.md`` (:func:`sound_lipschitz_lowrank`)."""
-        from ipcverify.network._lipschitz_lowrank import sound_lipschitz_lowrank
-
-        return sound_lipschitz_lowrank(_ensemble(network), box, radius)
-
     def _check_one(self, z: FloatArray) -> None:
         """The compiled kernel reads without bounds checks: one query's input row is checked here."""
         d, n = self.config.x_dim, self.config.y_dim
@@ -416,15 +386,3 @@ class LowRankEngine:
                 f"one query's input row concat(x, yhat) needs shape ({d + n},) (x of length {d}, "
                 f"yhat of length {n}); got shape {z.shape}"
             )
-
-
-def _ensemble(network: Network) -> LowRankEnsemble:
-    """``network`` as the low-rank ensemble (what this engine evaluates), or an error."""
-    from ipcverify.network._lowrank import LowRankEnsemble
-
-    if not isinstance(network, LowRankEnsemble):
-        raise InvalidInputError(
-            "the low-rank engine evaluates LowRankEnsemble (the default network); got a "
-            f"{type(network).__name__}"
-        )
-    return network

@@ -63,10 +63,13 @@ def scaled_shape_nodes(
         node("Div", [raw, const("scale", scale)], "shape")
 
 
-def mlp_nodes(eng: InferenceEngine, z: str, node: NodeFn, const: ConstFn, scale: float | None) -> None:
+def mlp_nodes(
+    eng: InferenceEngine, z: str, node: NodeFn, const: ConstFn, scale: float | None, dtype: object = None
+) -> None:
     """Add the nodes from the standardised inputs ``z`` (B, d + n) to the outputs ``center`` and ``shape``.
 
-    ``yhat`` must be a graph input; ``scale`` (the calibration's, or None) divides the shape.
+    ``yhat`` must be a graph input; ``scale`` (the calibration's, or None) divides the shape;
+    ``dtype`` (the graph's float type) is not needed: every constant takes the graph's.
     """
     cfg = eng.config
     n = cfg.y_dim
