@@ -16,6 +16,7 @@ ONNX Runtime limited to **one thread**:
   inside one ``torch.inference_mode()`` block entered outside the timing loop (the
   cheapest torch call there is; no normalisation, no set, no decision).
 * ``ellipsoid`` -- :meth:`ipcverify.decision.IPCQuery.ellipsoid`: (x, yhat) -> calibrated (c, C).
+  The decisions below are :class:`ipcverify.decision.LandingQuery` over that query.
 * ``decide_float`` -- query -> ellipsoid -> domain test -> float landing decision (not a proof).
 * ``decide`` -- query -> ellipsoid -> domain test -> landing decision of record (float64 with a
   rigorous rounding bound, exact arithmetic inside the band: every answer proven), over the
@@ -67,8 +68,7 @@ from benchmarks.common import spread, time_calls
 from case_studies.quad_landing.landing.state_machine import LandingParams
 from ipcverify.contract import IPCModel, predict_sets
 from ipcverify.data import PerceptionDataset, PerceptionInputs
-from ipcverify.decision import IPCQuery, landing_by_bound
-from ipcverify.network import CHUNK, LowRankEngine
+from ipcverify.decision import IPCQuery, LandingQuery, landing_by_bound
 
 __all__ = [
     "BATCH_SIZES",
@@ -126,7 +126,9 @@ def _onnx_sessions(model: IPCModel, folder: Path) -> dict[str, Any]:
     return out
 
 
-def _fast_path_shares(q: IPCQuery, xs: np.ndarray, ys: np.ndarray, in_domain: np.ndarray) -> dict[str, Any]:
+def _fast_path_shares(
+    q: LandingQuery, xs: np.ndarray, ys: np.ndarray, in_domain: np.ndarray
+) -> dict[str, Any]:
     """How the landing decisions of these queries' sets are reached (every query, and in the domain)."""
     lower, upper = q.target.lower.tolist(), q.target.upper.tolist()
     tiers = []
@@ -166,7 +168,7 @@ def single_query(
 
     ``full=False`` times only the bare forward, ``decide`` and ``decide_without_domain_test``.
     """
-    q = IPCQuery(model, LandingParams.defaults().target)
+    q = LandingQuery(IPCQuery(model), LandingParams.defaults().target)
     body = model.network.body
     eng = model.engine
     xs, ys = np.ascontiguousarray(queries.x), np.ascontiguousarray(queries.yhat)
@@ -203,7 +205,7 @@ def single_query(
         if full:
             paths["decide_shuffled"] = cycler(lambda j: q.decide(xs[j], ys[j]), shuffled)
         if model.domain is not None:
-            bare_q = IPCQuery(model.with_calibration(model.calibration, None), q.target)
+            bare_q = LandingQuery(IPCQuery(model.with_calibration(model.calibration, None)), q.target)
             paths["decide_without_domain_test"] = cycler(lambda j: bare_q.decide(xs[j], ys[j]), np.arange(m))
         for name, idx in groups.items() if full else ():
             if len(idx):
@@ -281,8 +283,7 @@ def batch_throughput(
     # the network's layers alone in float64 (the engine's products, chunked as the engine
     # chunks; no standardisation, heads, moments or Cholesky): a ceiling for any evaluation
     # of the same network whose sets are float64
-    layers = eng.layers if isinstance(eng, LowRankEngine) else eng.mlp
-    chunk = eng.chunk if isinstance(eng, LowRankEngine) else CHUNK
+    layers, chunk = eng.float64_layers, eng.chunk
     domain = model.domain
     bare_model = model.with_calibration(model.calibration, None)
     if domain is not None:

@@ -4,7 +4,7 @@ The containment problems of Proposition 1 as the quadrotor poses them. Three mix
 the case study (exploration paths and approach flights, :func:`collect_mixed`, camera buffer 1,
 different seeds: different flights) train and calibrate an IPC with the reproduction's recipe
 (:func:`learn_ipc`, fewer epochs) and supply the queries. Every query goes through the landing's
-own path (:meth:`IPCQuery.decide` with the measurement's camera pose ``T_WC``, as
+own path (:meth:`LandingQuery.decide` with the measurement's camera pose ``T_WC``, as
 :class:`case_studies.quad_landing.landing.contracts.LearnedContract` does): the calibrated set in
 the camera frame, moved to the world frame, decided against ``G_tau`` (the paper's ``G`` shrunk
 by the tracking tolerance, :func:`decision_target`). The file keeps the world-frame sets
@@ -33,7 +33,7 @@ from case_studies.quad_landing.sim.camera import Camera
 from case_studies.quad_landing.sim.config import load_config
 from case_studies.quad_landing.sim.frames import transform_ellipsoid
 from ipcverify.data import atomic_write
-from ipcverify.decision import IPCQuery
+from ipcverify.decision import IPCQuery, LandingQuery
 
 OUT = Path(__file__).resolve().parents[1] / "tests" / "data" / "landing_sets.npz"
 N_QUERIES = 10_000
@@ -55,7 +55,7 @@ def main() -> None:
     print(f"trained and calibrated in {time.perf_counter() - t0:.0f} s")
     landing = LandingParams.defaults()
     target = decision_target(landing.tracking_tolerance, landing.target)
-    query = IPCQuery(model, target)
+    query = LandingQuery(IPCQuery(model), target)
     camera = Camera(config.camera)
     q = frames["queries"]
     x, yhat = q[list(X_COLUMNS)].to_numpy(float), q[list(YHAT_COLUMNS)].to_numpy(float)

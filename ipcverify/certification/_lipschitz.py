@@ -14,46 +14,38 @@ Theorem 1 of the paper needs ``L_g``. Two numbers are computed, and labelled:
   layer and multiplies the result by ``1 + FLOAT_MARGIN`` to cover rounding in
   the float64 arithmetic.
 
-Both take either network kind. For the paper's heads (``"cholesky"``, ``"full"``: one MLP)
-they are computed here (derivation: ``proofs/lipschitz.md``); for the default low-rank
-ensemble by :mod:`ipcverify.network._lipschitz_lowrank` (derivation: ``proofs/lipschitz_lowrank.md``).
-Only the network's trainable parameters count as ``theta``; the normalisation buffers (and
-the ensemble's linear centre stage) are fixed statistics of the training data. The box, the
-bound's record and the MLP's layer-by-layer bounds are shared
+Both take either network kind: the model's engine (:class:`ipcverify.network.Engine`) computes
+them for its kind -- for the paper's heads (``"cholesky"``, ``"full"``: one MLP)
+:mod:`ipcverify.network._lipschitz_mlp` (derivation: ``proofs/lipschitz.md``), for the default
+low-rank ensemble :mod:`ipcverify.network._lipschitz_lowrank` (derivation:
+``proofs/lipschitz_lowrank.md``). Only the network's trainable parameters count as ``theta``;
+the normalisation buffers (and the ensemble's linear centre stage) are fixed statistics of the
+training data. The box and the bound's record are shared
 (:mod:`ipcverify.network._lipschitz_ball`, re-exported here).
 """
 
 from __future__ import annotations
 
-import copy
-import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import torch
 from numpy.typing import NDArray
-from torch import nn
-from torch.func import functional_call, grad, vmap
 
 from ipcverify.contract._model import IPCModel
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import InvalidInputError
-from ipcverify.network._architecture import LOGDIAG_CLAMP
+from ipcverify.network._interface import engine_for, is_network
 from ipcverify.network._lipschitz_ball import (
     DEFAULT_RADIUS,
     FLOAT_MARGIN,
-    SVD_MARGIN,
     DataBox,
     LipschitzBound,
     check_radius,
-    hidden_norm_bounds,
-    jacobian_bound,
-    operator_norm,
 )
-from ipcverify.network._lipschitz_lowrank import ensemble_gradient_norms, sound_lipschitz_lowrank
-from ipcverify.network._lowrank import LowRankEnsemble
-from ipcverify.network._modules import IPCNetwork, Network
+from ipcverify.network._modules import Network
 
 __all__ = [
     "DEFAULT_RADIUS",
@@ -100,7 +92,7 @@ def theorem1_unavailable(model: IPCModel) -> str | None:
 
 
 def _unsupported(network: Any) -> str | None:
-    if isinstance(network, (IPCNetwork, LowRankEnsemble)):
+    if is_network(network):
         return None
     return (
         f"no Lipschitz bound is derived for a network of class {type(network).__name__}: Theorem 1 covers "
@@ -142,25 +134,12 @@ class LipschitzEstimate:
         return {"value": self.value, "n_samples": self.n_samples, "argmax": self.argmax, "kind": self.kind}
 
 
-def _score_function(net: IPCNetwork) -> Any:
-    buffers = dict(net.named_buffers())
-
-    def g_single(
-        params: dict[str, torch.Tensor], x: torch.Tensor, y: torch.Tensor, yhat: torch.Tensor
-    ) -> torch.Tensor:
-        center, C, _ = functional_call(net, (params, buffers), (x[None], yhat[None]))
-        v = C[0] @ (y - center[0])
-        return torch.sqrt((v * v).sum())
-
-    return g_single
-
-
 def per_sample_gradient_norms(
     network: Network,
     x: FloatArray,
     y: FloatArray,
     yhat: FloatArray,
-    params: dict[str, torch.Tensor] | None = None,
+    params: Mapping[str, torch.Tensor] | None = None,
     chunk_size: int = 4096,
     dtype: torch.dtype = torch.float64,
 ) -> FloatArray:
@@ -187,28 +166,13 @@ def per_sample_gradient_norms(
     Examples
     --------
     >>> from ipcverify.network._architecture import ModelConfig
+    >>> from ipcverify.network._modules import IPCNetwork
     >>> net = IPCNetwork(ModelConfig(x_dim=2, y_dim=2, hidden=(4,), param="cholesky"))
     >>> per_sample_gradient_norms(net, np.ones((3, 2)), np.ones((3, 2)), np.zeros((3, 2))).shape
     (3,)
     """
     checked = _require_supported(network)
-    if isinstance(checked, LowRankEnsemble):
-        return ensemble_gradient_norms(checked, x, y, yhat, params, chunk_size=chunk_size, dtype=dtype)
-    net = copy.deepcopy(checked).to(dtype).eval()
-    if params is None:
-        params = {k: v.detach() for k, v in net.named_parameters()}
-    else:
-        params = {k: torch.as_tensor(v, dtype=dtype) for k, v in params.items()}
-    gfun = vmap(grad(_score_function(net)), in_dims=(None, 0, 0, 0))
-    out = []
-    xt, yt, yht = (torch.tensor(np.asarray(a), dtype=dtype) for a in (x, y, yhat))
-    with torch.no_grad():
-        for i in range(0, len(xt), chunk_size):
-            sl = slice(i, i + chunk_size)
-            grads = gfun(params, xt[sl], yt[sl], yht[sl])
-            norms = torch.stack([torch.linalg.vector_norm(g.flatten(1), dim=1) for g in grads.values()], 1)
-            out.append(torch.linalg.vector_norm(norms.double(), dim=1).numpy())
-    return np.concatenate(out) if out else np.zeros(0)
+    return engine_for(checked).gradient_norms(checked, x, y, yhat, params, chunk_size, dtype)
 
 
 def empirical_lipschitz(
@@ -240,25 +204,12 @@ def empirical_lipschitz(
     >>> est.value > 0, est.n_samples
     (True, 100)
     """
-    norms = per_sample_gradient_norms(
-        model.network, data.x, data.y, data.yhat, chunk_size=chunk_size, dtype=dtype
-    )
+    net = _require_supported(model.network)
+    norms = model.engine.gradient_norms(net, data.x, data.y, data.yhat, None, chunk_size, dtype)
     if not np.isfinite(norms).all():
         raise InvalidInputError("a per-sample gradient is not finite; the network output overflowed")
     i = int(np.argmax(norms))
     return LipschitzEstimate(value=float(norms[i]), n_samples=len(norms), argmax=i)
-
-
-def _linear_layers(net: IPCNetwork) -> list[tuple[FloatArray, FloatArray]]:
-    layers = []
-    for mod in net.body:
-        if isinstance(mod, nn.Linear):
-            layers.append((mod.weight.detach().double().numpy(), mod.bias.detach().double().numpy()))
-        elif not isinstance(mod, (nn.ReLU, nn.Tanh, nn.ELU)):
-            raise InvalidInputError(f"sound Lipschitz bound: unsupported layer {type(mod).__name__}")
-        elif isinstance(mod, nn.ELU) and mod.alpha != 1.0:
-            raise InvalidInputError("sound Lipschitz bound: ELU needs alpha = 1 (1-Lipschitz)")
-    return layers
 
 
 def sound_lipschitz(
@@ -295,65 +246,4 @@ def sound_lipschitz(
     if isinstance(box, PerceptionDataset):
         box = DataBox.from_dataset(box)
     net = _require_supported(model.network)
-    if isinstance(net, LowRankEnsemble):
-        return sound_lipschitz_lowrank(net, box, radius)
-    cfg = net.config
-    box.check_dims(cfg.x_dim, cfg.y_dim)
-    n = cfg.y_dim
-    in_mean = net.in_mean.double().numpy()
-    in_std = net.in_std.double().numpy()
-    sigma = net.sigma.double().numpy()
-    y_mean = net.y_mean.double().numpy()
-    up = 1.0 + 1e-12  # per-operation rounding guard in the interval arithmetic below
-
-    # 1. normalised input z = (u - mean) / std, u = (x, yhat) in the box
-    u_lo = np.concatenate([box.x_lo, box.yhat_lo])
-    u_hi = np.concatenate([box.x_hi, box.yhat_hi])
-    z_abs = np.maximum(np.abs(u_lo - in_mean), np.abs(u_hi - in_mean)) / in_std * up
-    H = [float(np.linalg.norm(z_abs)) * up]
-
-    # 2. hidden layers: ||h_l|| <= ||W|| ||h|| + ||b|| + r sqrt(||h||^2 + 1)   (|phi(t)| <= |t|)
-    layers = _linear_layers(net)
-    H = hidden_norm_bounds(layers, H[0], radius)
-
-    # 3. output bounds: centre part o (rows :n) as a whole, each shape output separately
-    W_L, b_L = layers[-1]
-    h = H[-1]
-    pert = radius * math.sqrt(h * h + 1.0)
-    o_bound = (operator_norm(W_L[:n]) * h + float(np.linalg.norm(b_L[:n])) + pert) * up
-    s_bound = (np.linalg.norm(W_L[n:], axis=1) * (1.0 + SVD_MARGIN) * h + np.abs(b_L[n:]) + pert) * up
-
-    # 4. d = r - o with r = (y - base) / sigma over the box
-    if cfg.center == "offset":
-        r_lo, r_hi = box.y_lo - box.yhat_hi, box.y_hi - box.yhat_lo
-    else:
-        r_lo, r_hi = box.y_lo - y_mean, box.y_hi - y_mean
-    r_abs = np.maximum(np.abs(r_lo), np.abs(r_hi)) / sigma * up
-    d_bound = (float(np.linalg.norm(r_abs)) + o_bound) * up
-
-    # 5. ||d v / d out||_F with v = L(s) d
-    if cfg.param == "full":
-        L_fro_sq = float(np.sum(s_bound**2))
-        ds_fro_sq = n * d_bound**2
-    else:
-        rows, cols = np.tril_indices(n)
-        diag = rows == cols
-        D = np.exp(np.minimum(s_bound[diag], LOGDIAG_CLAMP)) * up
-        L_fro_sq = float(np.sum(D**2) + np.sum(s_bound[~diag] ** 2))
-        ds_fro_sq = ((n - 1) + float(np.max(D)) ** 2) * d_bound**2
-    out_grad = math.sqrt(L_fro_sq + ds_fro_sq) * up
-
-    # 6. Jacobian of the output w.r.t. all parameters: sum_l P_l^2 (||h_{l-1}||^2 + 1)
-    jac = jacobian_bound(layers, H, radius)
-
-    value = out_grad * jac * (1.0 + FLOAT_MARGIN)
-    if not math.isfinite(value):
-        raise InvalidInputError("the sound Lipschitz bound overflowed; the box or the weights are too large")
-    return LipschitzBound(
-        value=value,
-        radius=radius,
-        jacobian_bound=jac,
-        output_gradient_bound=out_grad,
-        hidden_norm_bounds=tuple(H),
-        box=box,
-    )
+    return model.engine.sound_lipschitz(net, box, radius)

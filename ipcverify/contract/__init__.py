@@ -16,7 +16,6 @@ if TYPE_CHECKING:
     )
     from ipcverify.contract._model import (
         IPCModel,
-        engine_for,
         network_fingerprint,
     )
     from ipcverify.contract._prediction import (
@@ -32,7 +31,6 @@ __all__ = [
     "LogMonitoring",
     "Predictions",
     "calibrate",
-    "engine_for",
     "monitor_log",
     "network_fingerprint",
     "predict_sets",

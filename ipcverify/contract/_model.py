@@ -2,8 +2,9 @@
 
 An :class:`IPCModel` holds the network's weights (:class:`~ipcverify.network.NetworkWeights`,
 NumPy), its calibration and its domain of validity, and evaluates its sets with the float64
-engine of record (:mod:`ipcverify.network._engine` for the paper's heads,
-:mod:`ipcverify.network._lowrank_engine` for the default ensemble). It is built from a torch network
+engine of record (:class:`ipcverify.network.Engine`, from :func:`ipcverify.network.engine_for`:
+:mod:`ipcverify.network._engine` for the paper's heads, :mod:`ipcverify.network._lowrank_engine`
+for the default ensemble). It is built from a torch network
 (:mod:`ipcverify.network._modules`, after training) or from weights read from a file
 (:func:`ipcverify.io.load_model`); in the second case torch is imported only if
 :attr:`IPCModel.network` is asked for (training, the sound Lipschitz bound, the ONNX export),
@@ -26,16 +27,15 @@ from ipcverify.calibration._protocol import Calibration
 from ipcverify.errors import InvalidInputError, SetError
 from ipcverify.guard._domain import DomainModel
 from ipcverify.network._architecture import ModelConfig
-from ipcverify.network._engine import InferenceEngine
-from ipcverify.network._lowrank_engine import LowRankEngine
+from ipcverify.network._interface import Engine, engine_for
 from ipcverify.network._nonsingular import checked_ellipsoid
-from ipcverify.network._weights import NetworkWeights
+from ipcverify.network._weights import NetworkWeights, weights_and_network
 from ipcverify.sets._shapes import Ellipsoid
 
 if TYPE_CHECKING:
     from ipcverify.network._modules import Network
 
-__all__ = ["IPCModel", "engine_for", "network_fingerprint"]
+__all__ = ["IPCModel", "network_fingerprint"]
 
 FloatArray = NDArray[np.float64]
 #: Names that moved to :mod:`ipcverify.network._modules`, still importable from here (they import torch).
@@ -48,28 +48,6 @@ def __getattr__(name: str) -> Any:
 
         return getattr(modules, name)
     raise AttributeError(f"module 'ipcverify.contract._model' has no attribute {name!r}")
-
-
-def engine_for(network: Network | NetworkWeights) -> InferenceEngine | LowRankEngine:
-    """The float64 engine of record for a network or its weights.
-
-    Parameters
-    ----------
-    network : Network or NetworkWeights
-        The network, or its weights.
-
-    Examples
-    --------
-    >>> from ipcverify.network._weights import state_layout
-    >>> cfg = ModelConfig(x_dim=1, y_dim=2, hidden=(4,), members=2)
-    >>> w = NetworkWeights(cfg, {k: np.ones(s, t) for k, (s, t, _) in state_layout(cfg).items()})
-    >>> type(engine_for(w)).__name__
-    'LowRankEngine'
-    """
-    weights = network if isinstance(network, NetworkWeights) else NetworkWeights.from_network(network)
-    if weights.config.lowrank:
-        return LowRankEngine.from_weights(weights)
-    return InferenceEngine.from_weights(weights)
 
 
 @dataclass(frozen=True, eq=False)
@@ -104,14 +82,12 @@ class IPCModel:
     domain: DomainModel | None = None
     _weights: NetworkWeights = field(init=False, repr=False)
     _network: Network | None = field(init=False, repr=False)
-    _engine: InferenceEngine | LowRankEngine = field(init=False, repr=False)
+    _engine: Engine = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
-        if isinstance(self.source, NetworkWeights):
-            weights, network = self.source, None
-        else:
-            self.source.eval()
-            weights, network = NetworkWeights.from_network(self.source), self.source
+        weights, network = weights_and_network(self.source)
+        if network is not None:
+            network.eval()
         object.__setattr__(self, "_weights", weights)
         object.__setattr__(self, "_network", network)
         if self.domain is not None and len(self.domain.mean) != self.config.x_dim + self.config.y_dim:
@@ -139,9 +115,9 @@ class IPCModel:
         return self._weights
 
     @property
-    def engine(self) -> InferenceEngine | LowRankEngine:
-        """The float64 NumPy evaluation of the network (:mod:`ipcverify.network._engine` or
-        :mod:`ipcverify.network._lowrank_engine`)."""
+    def engine(self) -> Engine:
+        """The float64 NumPy evaluation of the network (:class:`ipcverify.network.Engine`: the dense
+        :mod:`ipcverify.network._engine` or the ensemble's :mod:`ipcverify.network._lowrank_engine`)."""
         return self._engine
 
     @property
@@ -174,8 +150,8 @@ class IPCModel:
     def raw_arrays(self, x: Any, yhat: Any, batch_size: int | None = None) -> tuple[FloatArray, FloatArray]:
         """Uncalibrated centres (B, n) and shapes (B, n, n), evaluated in float64.
 
-        All of ipcverify evaluates a trained model through this one path (the
-        float64 engine of :mod:`ipcverify.network._engine`), so calibration, certificates
+        All of ipcverify evaluates a trained model through this one path (the model's
+        float64 engine, :class:`ipcverify.network.Engine`), so calibration, certificates
         and the controller see exactly the same sets. ``batch_size`` rows are evaluated
         together (default: the engine's, :func:`ipcverify.network.chunk_rows`, which keeps them in cache).
         """
@@ -278,5 +254,4 @@ def network_fingerprint(network: Network | NetworkWeights) -> str:
     >>> len(network_fingerprint(build_network(ModelConfig(x_dim=1, y_dim=1, hidden=(2,)))))
     64
     """
-    weights = network if isinstance(network, NetworkWeights) else NetworkWeights.from_network(network)
-    return weights.fingerprint()
+    return NetworkWeights.of(network).fingerprint()

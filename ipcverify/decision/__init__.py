@@ -1,7 +1,8 @@
 """Decisions built on a set.
 
-Containment proofs (Proposition 1), the landing rule and its float bound, and the one-query path
-(``IPCQuery``).
+Containment proofs (Proposition 1), the landing rule and its float bound, the one-query path
+(``IPCQuery``: engine -> calibration scale -> domain test, any output dimension) and the landing
+decision on it (``LandingQuery(IPCQuery(model), G)``).
 """
 
 from __future__ import annotations
@@ -34,9 +35,13 @@ if TYPE_CHECKING:
         landing_by_bound_compiled,
         prepare,
     )
+    from ipcverify.decision._landing_query import (
+        LandingQuery,
+        Transform,
+    )
     from ipcverify.decision._query import (
         IPCQuery,
-        Transform,
+        QuerySet,
     )
 
 __all__ = [
@@ -46,8 +51,10 @@ __all__ = [
     "DecidedBy",
     "IPCQuery",
     "LandingDecision",
+    "LandingQuery",
     "LandingRule",
     "QueryDecision",
+    "QuerySet",
     "Transform",
     "Verdict",
     "bound_target",

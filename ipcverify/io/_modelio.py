@@ -128,7 +128,7 @@ def save_model(model: IPCModel, path: str | os.PathLike[str]) -> None:
         domain = {**record, "reference": reference}
     payload = {
         "format": FORMAT,
-        "format_version": FORMAT_VERSION if model.config.lowrank else 1,
+        "format_version": model.config.file_version,  # the oldest that holds it (older readers read it)
         "config": model.config.to_dict(),
         "state_dict": {k: torch.from_numpy(np.array(v)) for k, v in model.weights.state.items()},
         "metadata": metadata,
@@ -179,8 +179,11 @@ def load_model(path: str | os.PathLike[str]) -> IPCModel:
         )
     try:
         config = ModelConfig.from_dict(payload["config"])
-        if config.lowrank and version < 2:
-            raise InvalidInputError("a low-rank network in a version-1 file")
+        if version < config.file_version:
+            raise InvalidInputError(
+                f"a {config.param} network in a version-{version} file "
+                f"(it needs version {config.file_version})"
+            )
         weights = NetworkWeights.from_state_dict(config, payload["state_dict"])
     except (KeyError, TypeError, AttributeError, ValueError) as exc:  # InvalidInputError is a ValueError
         first = str(exc).strip().splitlines()[0]

@@ -2,12 +2,12 @@
 
 The exported graph maps ``x`` (B, d) and ``yhat`` (B, n) to ``center`` (B, n) and
 ``shape`` (B, n, n), the contract's ellipsoids ``E(c, C) = {y : ||C (y - c)|| <= 1}``,
-with exactly the operations of the float64 engine: for the paper's heads
-(:mod:`ipcverify.network._engine`) input standardisation, the MLP, the centre head and the shape
-head (Cholesky diagonal ``exp(clip(., -12, 12))`` or the full matrix); for the default
-low-rank ensemble (:mod:`ipcverify.network._lowrank_engine`) the members' stacked MLPs, the moment
-matching and a Cholesky factorisation written out entry by entry
-(:mod:`ipcverify.network._onnx_lowrank`). Then ``C / scale`` for a calibrated model.
+with exactly the operations of the float64 engine: input standardisation, then the engine's
+own nodes (:meth:`ipcverify.network.Engine.onnx_nodes`): for the paper's heads
+(:mod:`ipcverify.network._onnx_mlp`) the MLP, the centre head and the shape head (Cholesky
+diagonal ``exp(clip(., -12, 12))`` or the full matrix); for the default low-rank ensemble
+(:mod:`ipcverify.network._onnx_lowrank`) the members' stacked MLPs, the moment matching and a
+Cholesky factorisation written out entry by entry. Then ``C / scale`` for a calibrated model.
 
 * ``dtype="float64"`` (default) evaluates in float64 like the reference engine, so the
   exported sets are the calibrated sets up to the summation order of the matrix
@@ -60,9 +60,6 @@ from ipcverify._package import VERSION
 from ipcverify.contract._model import IPCModel
 from ipcverify.data._files import atomic_write
 from ipcverify.errors import InvalidInputError
-from ipcverify.network._architecture import LOGDIAG_CLAMP
-from ipcverify.network._engine import InferenceEngine
-from ipcverify.network._onnx_lowrank import lowrank_nodes
 
 __all__ = [
     "OPSET",
@@ -189,10 +186,7 @@ def build_onnx(model: IPCModel, dtype: Dtype = "float64", *, without_domain: boo
     z = node("Concat", ["x", "yhat"], "inputs", axis=1)
     z = node("Sub", [z, const("in_mean", eng.in_mean)], "centred")
     z = node("Mul", [z, const("in_scale", eng.in_scale)], "standardised")
-    if isinstance(eng, InferenceEngine):
-        _paper_head_nodes(eng, z, node, const, scale)
-    else:
-        lowrank_nodes(eng, z, node, const, scale, np_t)
+    eng.onnx_nodes(z, node, const, scale, np_t)  # the network kind's own graph
     graph = helper.make_graph(
         nodes,
         "ipcverify_ipc",
@@ -231,43 +225,6 @@ def build_onnx(model: IPCModel, dtype: Dtype = "float64", *, without_domain: boo
     helper.set_model_props(proto, meta)
     onnx.checker.check_model(proto)
     return proto
-
-
-def _paper_head_nodes(eng: InferenceEngine, z: str, node: Any, const: Any, scale: float | None) -> None:
-    """The nodes from the standardised inputs ``z`` to ``center`` and ``shape`` for the paper's heads."""
-    cfg = eng.config
-    n = cfg.y_dim
-    act = {"relu": "Relu", "tanh": "Tanh", "elu": "Elu"}[cfg.activation]
-    last = len(eng.weights) - 1
-    for i, (w, b) in enumerate(zip(eng.weights, eng.biases, strict=True)):
-        z = node("MatMul", [z, const(f"W{i}", w)], f"matmul{i}")
-        z = node("Add", [z, const(f"b{i}", b)], f"linear{i}")
-        if i < last:
-            z = node(act, [z], f"hidden{i}")
-    i64 = np.int64
-    o = node("Slice", [z, const("o_start", [0], i64), const("o_end", [n], i64), const("ax", [1], i64)], "o")
-    k = cfg.n_shape_outputs
-    s = node("Slice", [z, const("s_start", [n], i64), const("s_end", [n + k], i64), "ax"], "s")
-    base = "yhat" if cfg.center == "offset" else const("y_mean", eng.y_mean)
-    node("Add", [base, node("Mul", [o, const("sigma", eng.sigma)], "offset")], "center")
-    if cfg.param == "full":
-        L = node("Reshape", [s, const("L_shape", [-1, n, n], i64)], "L")
-    else:
-        diag = np.zeros(k)
-        diag[eng.diag_pos] = 1.0
-        clipped = node("Clip", [s, const("lo", -LOGDIAG_CLAMP), const("hi", LOGDIAG_CLAMP)], "s_clipped")
-        on_diag = node("Mul", [node("Exp", [clipped], "s_exp"), const("diag_mask", diag)], "diag_part")
-        off_diag = node("Mul", [s, const("off_mask", 1.0 - diag)], "off_part")
-        vals = node("Add", [on_diag, off_diag], "tril_values")
-        embed = np.zeros((k, n * n))
-        embed[np.arange(k), eng.tril_rows * n + eng.tril_cols] = 1.0
-        flat = node("MatMul", [vals, const("tril_embed", embed)], "L_flat")
-        L = node("Reshape", [flat, const("L_shape", [-1, n, n], i64)], "L")
-    if scale is None:
-        node("Mul", [L, const("inv_sigma", eng.inv_sigma)], "shape")
-    else:
-        raw = node("Mul", [L, const("inv_sigma", eng.inv_sigma)], "raw_shape")
-        node("Div", [raw, const("scale", scale)], "shape")
 
 
 def check_domain_export(model: IPCModel, without_domain: bool) -> None:

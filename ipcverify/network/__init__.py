@@ -1,7 +1,8 @@
 """The IPC networks.
 
-Architectures and recipes, the torch modules, their float64 engines of record, compiled kernels, the
-nonsingularity check, the per-kind Lipschitz bounds and ONNX graphs.
+Architectures and recipes, the torch modules, their float64 engines of record (one interface,
+:class:`Engine`, chosen by :func:`engine_for`: the only switch on the network kind in ipcverify),
+compiled kernels, the nonsingularity check, the per-kind Lipschitz bounds and ONNX graphs.
 """
 
 from __future__ import annotations
@@ -26,6 +27,11 @@ if TYPE_CHECKING:
         activate,
         chunk_rows,
         float64_array,
+    )
+    from ipcverify.network._interface import (
+        Engine,
+        engine_for,
+        is_network,
     )
     from ipcverify.network._kernels import (
         ACTIVATION_CODES,
@@ -56,6 +62,10 @@ if TYPE_CHECKING:
         score_gradient_bound,
         sound_lipschitz_lowrank,
     )
+    from ipcverify.network._lipschitz_mlp import (
+        mlp_gradient_norms,
+        sound_lipschitz_mlp,
+    )
     from ipcverify.network._lowrank import (
         SIGMA_FLOOR,
         LowRankEnsemble,
@@ -84,12 +94,16 @@ if TYPE_CHECKING:
     from ipcverify.network._onnx_lowrank import (
         lowrank_nodes,
     )
+    from ipcverify.network._onnx_mlp import (
+        mlp_nodes,
+    )
     from ipcverify.network._scoring import (
         ScoredNetwork,
     )
     from ipcverify.network._weights import (
         NetworkWeights,
         state_layout,
+        weights_and_network,
     )
 
 __all__ = [
@@ -108,6 +122,7 @@ __all__ = [
     "SVD_MARGIN",
     "CheckedEllipsoid",
     "DataBox",
+    "Engine",
     "IPCNetwork",
     "InferenceEngine",
     "LipschitzBound",
@@ -129,26 +144,32 @@ __all__ = [
     "chunk_rows",
     "clamped_exp2",
     "compiled",
+    "engine_for",
     "ensemble_gradient_norms",
     "ensemble_scores",
     "fit_linear_stage",
     "float64_array",
     "hidden_norm_bounds",
+    "is_network",
     "jacobian_bound",
     "lower_inverse",
     "lowrank_nodes",
     "lowrank_one",
     "lowrank_sets",
     "member_covariances",
+    "mlp_gradient_norms",
+    "mlp_nodes",
     "moment_match",
     "nonsingular",
     "operator_norm",
     "rcond_lower_3",
     "score_gradient_bound",
     "sound_lipschitz_lowrank",
+    "sound_lipschitz_mlp",
     "standardise",
     "state_layout",
     "svd_rcond",
+    "weights_and_network",
 ]
 
 __getattr__, __dir__ = lazy_exports(__name__, __file__)

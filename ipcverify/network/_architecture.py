@@ -163,9 +163,38 @@ linear_center=False, members=1)
         return cls(x_dim=x_dim, y_dim=y_dim, **{**_RECIPE_MODEL[name], **overrides})
 
     @property
+    def kind(self) -> str:
+        """The network kind: ``"lowrank"`` (:class:`~ipcverify.network.LowRankEnsemble`, the default) or
+        ``"mlp"`` (:class:`~ipcverify.network.IPCNetwork`, the paper's heads). A key for registries
+        (the training package's trainers); within ipcverify only the network package branches on it.
+
+        Examples
+        --------
+        >>> ModelConfig(x_dim=1, y_dim=1).kind, ModelConfig.recipe("paper", x_dim=1, y_dim=1).kind
+        ('lowrank', 'mlp')
+        """
+        return "lowrank" if self.lowrank else "mlp"
+
+    @property
     def lowrank(self) -> bool:
         """True for the low-rank head (single network or ensemble), False for the paper's heads."""
         return self.param == "lowrank"
+
+    @property
+    def file_version(self) -> int:
+        """The oldest model-file format version that holds this network (:mod:`ipcverify.io._modelio`).
+
+        2 for the low-rank head (its stacked members and config keys came with version 2); 1 for the
+        paper's heads, so that older ipcverify versions still read them.
+
+        Examples
+        --------
+        >>> ModelConfig.recipe("v1", x_dim=1, y_dim=1).file_version
+        1
+        >>> ModelConfig(x_dim=1, y_dim=1).file_version
+        2
+        """
+        return 2 if self.lowrank else 1
 
     @property
     def n_shape_outputs(self) -> int:

@@ -10,7 +10,8 @@ single queries of a control loop.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -18,6 +19,7 @@ from numpy.typing import NDArray
 
 from ipcverify.errors import InvalidInputError
 from ipcverify.network._architecture import LOGDIAG_CLAMP, ModelConfig
+from ipcverify.network._kind import KindModules
 from ipcverify.network._weights import NetworkWeights
 
 if TYPE_CHECKING:
@@ -86,11 +88,12 @@ def activate(h: FloatArray, activation: str) -> FloatArray:
 
 
 @dataclass(frozen=True, eq=False)
-class InferenceEngine:
+class InferenceEngine(KindModules):
     """Float64 forward pass of an :class:`~ipcverify.network.IPCNetwork`.
 
-    Build it with :meth:`from_weights` (or :meth:`from_network`); call :meth:`batch` for (B, ·) arrays or
-    :meth:`single` for one query (1-D arrays, lowest latency).
+    Build it with :meth:`from_weights` (or :meth:`from_network`); call :meth:`batch` for (B, ·) arrays,
+    :meth:`single` for one query, :meth:`single_values` for one query's values as Python floats
+    (lowest latency). It satisfies :class:`ipcverify.network.Engine`.
 
     Examples
     --------
@@ -104,6 +107,10 @@ class InferenceEngine:
     ((4, 3), (4, 3, 3))
     """
 
+    ONNX = ("ipcverify.network._onnx_mlp", "mlp_nodes")
+    GRADIENTS = ("ipcverify.network._lipschitz_mlp", "mlp_gradient_norms")
+    BOUND = ("ipcverify.network._lipschitz_mlp", "sound_lipschitz_mlp")
+
     config: ModelConfig
     weights: tuple[FloatArray, ...]
     biases: tuple[FloatArray, ...]
@@ -115,6 +122,20 @@ class InferenceEngine:
     tril_rows: NDArray[np.intp]
     tril_cols: NDArray[np.intp]
     diag_pos: NDArray[np.intp]
+    #: flat (row-major) positions of the packed lower triangle and of the diagonal in an n x n matrix
+    flat_tril: NDArray[np.intp] = field(init=False, repr=False)
+    flat_diag: NDArray[np.intp] = field(init=False, repr=False)
+    #: n = 3 with the Cholesky head: (sigma, 1 / sigma, y_mean, clamp) as Python floats for
+    #: :meth:`_heads3`; None for the other heads
+    heads3: tuple[list[float], list[float], list[float], float] | None = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        n = self.config.y_dim
+        object.__setattr__(self, "flat_tril", self.tril_rows * n + self.tril_cols)
+        object.__setattr__(self, "flat_diag", np.arange(n) * (n + 1))
+        fast = n == 3 and self.config.param != "full"
+        consts = (self.sigma.tolist(), self.inv_sigma.tolist(), self.y_mean.tolist(), LOGDIAG_CLAMP)
+        object.__setattr__(self, "heads3", consts if fast else None)
 
     @classmethod
     def from_weights(cls, weights: NetworkWeights) -> InferenceEngine:
@@ -198,3 +219,67 @@ class InferenceEngine:
         """Centre (n,) and shape matrix (n, n) for one query given as 1-D float64 arrays."""
         c, C = self.batch(x[None, :], yhat[None, :])
         return c[0], C[0]
+
+    @property
+    def chunk(self) -> int:
+        """Rows :meth:`batch` evaluates together by default (:data:`CHUNK`)."""
+        return CHUNK
+
+    def single_values(self, z: FloatArray) -> tuple[list[float], list[float]]:
+        """Centre (n floats) and row-major shape matrix (n * n floats) for one input row ``concat(x, yhat)``.
+
+        The operations of :meth:`batch` on one row. For ``n = 3`` with the Cholesky head the
+        heads are plain float arithmetic (:meth:`_heads3`); otherwise NumPy on the row.
+
+        Examples
+        --------
+        >>> from ipcverify.network._modules import IPCNetwork
+        >>> net = IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(8,), param="cholesky"))
+        >>> eng = InferenceEngine.from_network(net)
+        >>> c, C = eng.single_values(np.array([0.0, 1.0, 0.1, 0.2, 0.3]))
+        >>> bool(np.allclose(C, eng.batch(np.array([[0.0, 1.0]]), np.array([[0.1, 0.2, 0.3]]))[1].ravel()))
+        True
+        """
+        d, n = self.config.x_dim, self.config.y_dim
+        h = z - self.in_mean
+        h *= self.in_scale
+        out = self.mlp(h)  # the engine's own MLP evaluation (1-D input: one query)
+        consts = self.heads3
+        if consts is not None:
+            return self._heads3(out.tolist(), z[d:], consts)
+        ya = z[d:]
+        center = (ya if self.config.center == "offset" else self.y_mean) + self.sigma * out[:n]
+        if self.config.param == "full":
+            L = out[n:].reshape(n, n)
+        else:
+            flat_l = np.zeros(n * n)
+            flat_l[self.flat_tril] = out[n:]
+            diag = out[n:][self.diag_pos]
+            flat_l[self.flat_diag] = np.exp(np.minimum(np.maximum(diag, -LOGDIAG_CLAMP), LOGDIAG_CLAMP))
+            L = flat_l.reshape(n, n)
+        return center.tolist(), (L * self.inv_sigma).ravel().tolist()
+
+    def _heads3(
+        self, out: list[float], ya: FloatArray, consts: tuple[list[float], list[float], list[float], float]
+    ) -> tuple[list[float], list[float]]:
+        """Centre and row-major ``L diag(1/sigma)`` for n = 3, Cholesky head, in plain floats.
+
+        The same operations as :meth:`batch` (``base + sigma o``; ``exp`` of the clamped
+        diagonal; ``L_ij / sigma_j``); only ``math.exp`` may differ from NumPy's ``exp`` in the
+        last bit.
+        """
+        o0, o1, o2, l00, l10, l11, l20, l21, l22 = out
+        (s0, s1, s2), (i0, i1, i2), y_mean, clamp = consts
+        b0, b1, b2 = ya.tolist() if self.config.center == "offset" else y_mean
+        center = [b0 + s0 * o0, b1 + s1 * o1, b2 + s2 * o2]
+        e00 = math.exp(min(max(l00, -clamp), clamp))
+        e11 = math.exp(min(max(l11, -clamp), clamp))
+        e22 = math.exp(min(max(l22, -clamp), clamp))
+        return center, [e00 * i0, 0.0, 0.0, l10 * i0, e11 * i1, 0.0, l20 * i0, l21 * i1, e22 * i2]
+
+    def prepare(self) -> None:
+        """Nothing to compile: the one-query path is NumPy and Python floats."""
+
+    def float64_layers(self, z: FloatArray) -> FloatArray:
+        """The MLP alone on standardised rows ``z`` (:meth:`mlp`)."""
+        return self.mlp(z)

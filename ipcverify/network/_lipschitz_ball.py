@@ -1,6 +1,6 @@
 """What both sound Lipschitz bounds share: the box of ``X``, the parameter ball, an MLP's norm bounds in it.
 
-The sound bounds on ``L_g`` (:mod:`ipcverify.certification._lipschitz` for the paper's heads,
+The sound bounds on ``L_g`` (:mod:`ipcverify.network._lipschitz_mlp` for the paper's heads,
 :mod:`ipcverify.network._lipschitz_lowrank` for the default ensemble) hold for every parameter vector
 ``theta`` in the Euclidean ball ``B(theta_hat, r)`` and every ``X = (x, y, yhat)`` in a
 :class:`DataBox`. Both propagate the same layer-by-layer bounds through an MLP
@@ -33,6 +33,7 @@ __all__ = [
     "DataBox",
     "LipschitzBound",
     "check_radius",
+    "require_kind",
     "operator_norm",
     "hidden_norm_bounds",
     "jacobian_bound",
@@ -152,6 +153,23 @@ class LipschitzBound:
             "hidden_norm_bounds": list(self.hidden_norm_bounds),
             "kind": self.kind,
         }
+
+
+def require_kind(network: object, kind: type) -> None:
+    """Refuse a network of another kind than the bound's (each kind's engine calls its own).
+
+    Examples
+    --------
+    >>> require_kind(object(), int)  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    ipcverify.errors.InvalidInputError: this is for a int network; got a object (ask the network's own ...
+    """
+    if not isinstance(network, kind):
+        raise InvalidInputError(
+            f"this is for a {kind.__name__} network; got a {type(network).__name__} (ask the network's own "
+            "engine: ipcverify.network.engine_for(network))"
+        )
 
 
 def check_radius(radius: float) -> float:

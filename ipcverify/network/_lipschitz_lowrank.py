@@ -22,8 +22,9 @@ data (buffers), so ``t`` does not depend on ``theta``.
   outputs by ``sqrt(1/(K mu) + g^2 max(1, 1/(K mu)))``. Derivation:
   ``proofs/lipschitz_lowrank.md``.
 
-:mod:`ipcverify.certification._lipschitz` calls these for an ensemble; use its ``sound_lipschitz`` and
-``empirical_lipschitz``, which take any model.
+:class:`~ipcverify.network.LowRankEngine` answers with these (its ``gradient_norms`` and
+``sound_lipschitz``, :class:`ipcverify.network.Engine`); use
+:func:`ipcverify.certification.sound_lipschitz` and ``empirical_lipschitz``, which take any model.
 """
 
 from __future__ import annotations
@@ -48,6 +49,7 @@ from ipcverify.network._lipschitz_ball import (
     hidden_norm_bounds,
     jacobian_bound,
     operator_norm,
+    require_kind,
 )
 from ipcverify.network._lowrank import LowRankEnsemble, StackedLinear, member_covariances, moment_match
 
@@ -140,6 +142,7 @@ def ensemble_gradient_norms(
     >>> ensemble_gradient_norms(net, np.ones((3, 2)), np.ones((3, 2)), np.zeros((3, 2))).shape
     (3,)
     """
+    require_kind(network, LowRankEnsemble)
     if chunk_size < 1:
         raise InvalidInputError(f"chunk_size must be a positive number of samples; got {chunk_size!r}")
     net = _working_copy(network, params, dtype)
@@ -242,6 +245,7 @@ def sound_lipschitz_lowrank(network: LowRankEnsemble, box: DataBox, radius: floa
     >>> bool(bound.value >= ensemble_gradient_norms(net, ds.x, ds.y, ds.yhat).max())
     True
     """
+    require_kind(network, LowRankEnsemble)
     r = check_radius(radius)
     cfg = network.config
     box.check_dims(cfg.x_dim, cfg.y_dim)

@@ -35,6 +35,7 @@ from ipcverify.network._kernels import (
     lowrank_sets,
     standardise,
 )
+from ipcverify.network._kind import KindModules
 from ipcverify.network._weights import NetworkWeights
 
 if TYPE_CHECKING:
@@ -100,11 +101,12 @@ def _u_layout(n: int) -> NDArray[np.intp]:
 
 
 @dataclass(frozen=True, eq=False)
-class LowRankEngine:
+class LowRankEngine(KindModules):
     """Float64 forward pass of a :class:`~ipcverify.network.LowRankEnsemble` (all members at once).
 
     Build it with :meth:`from_weights` (or :meth:`from_network`); :meth:`batch` for (B, ·)
-    arrays, :meth:`single` for one query. The weights are stored so that every member's outputs come out as
+    arrays, :meth:`single` for one query (it satisfies :class:`ipcverify.network.Engine`). The
+    weights are stored so that every member's outputs come out as
     ``[U | h]``: ``U = [V | o]`` (n x (n + 1), row-major) and the log-diagonal ``h``; the
     moment-matched covariance is then ``mean_k U_k' U_k'^T + diag(mean_k exp(2 h_k))`` with
     ``U_k'`` the member's ``U`` with its centre offset replaced by the deviation from the
@@ -118,6 +120,10 @@ class LowRankEngine:
     >>> c.shape, C.shape
     ((4, 3), (4, 3, 3))
     """
+
+    ONNX = ("ipcverify.network._onnx_lowrank", "lowrank_nodes")
+    GRADIENTS = ("ipcverify.network._lipschitz_lowrank", "ensemble_gradient_norms")
+    BOUND = ("ipcverify.network._lipschitz_lowrank", "sound_lipschitz_lowrank")
 
     config: ModelConfig
     #: first layer, then the skip paths in the layout of U: (K, d + n, h1 + n (n + 1)) and (K, 1, ·)
@@ -367,6 +373,10 @@ class LowRankEngine:
         d = self.config.x_dim
         z = np.array(self.in_mean, dtype=np.float64).reshape(-1)
         self.single(z[:d], z[d:])
+
+    def float64_layers(self, z: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """The network's layers alone on standardised rows ``z`` (:meth:`layers`)."""
+        return self.layers(z)
 
     def _check_one(self, z: FloatArray) -> None:
         """The compiled kernel reads without bounds checks: one query's input row is checked here."""

@@ -12,20 +12,18 @@ engine and the torch network by :func:`ipcverify.io.check_onnx`.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ipcverify.network._architecture import LOGDIAG_CLAMP
-from ipcverify.network._lowrank_engine import LowRankEngine
+from ipcverify.network._interface import ConstFn, NodeFn
+from ipcverify.network._onnx_mlp import ACTIVATION_OPS, layer_nodes, scaled_shape_nodes
+
+if TYPE_CHECKING:
+    from ipcverify.network._lowrank_engine import LowRankEngine
 
 __all__ = ["lowrank_nodes"]
-
-#: ``node(op, inputs, output_name, **attributes) -> output_name``
-NodeFn = Callable[..., str]
-#: ``const(name, value, dtype=graph dtype) -> name`` (an initializer)
-ConstFn = Callable[..., str]
 
 
 def lowrank_nodes(
@@ -48,7 +46,7 @@ def lowrank_nodes(
     nu = n * (n + 1)
     i64 = np.int64
     width = eng.first_weight.shape[2] - nu
-    act = {"relu": "Relu", "tanh": "Tanh", "elu": "Elu"}[cfg.activation]
+    act = ACTIVATION_OPS[cfg.activation]
 
     def piece(src: str, start: int, stop: int, name: str, axis: int = -1) -> str:
         bounds = [const(f"{name}_start", [start], i64), const(f"{name}_stop", [stop], i64)]
@@ -60,12 +58,7 @@ def lowrank_nodes(
     first = node("Add", [first, const("b0", eng.first_bias)], "linear0")
     h = node(act, [piece(first, 0, width, "hidden_in0")], "hidden0")
     skip = piece(first, width, width + nu, "skip_u")
-    last = len(eng.weights) - 1
-    for i, (w, b) in enumerate(zip(eng.weights, eng.biases, strict=True)):
-        mm = node("MatMul", [h, const(f"W{i + 1}", w)], f"matmul{i + 1}")
-        h = node("Add", [mm, const(f"b{i + 1}", b)], f"linear{i + 1}")
-        if i < last:
-            h = node(act, [h], f"hidden{i + 1}")
+    h = layer_nodes(h, eng.weights, eng.biases, cfg.activation, node, const, start=1)
     # every member's U = [V | o] (n x (n + 1)) and log-diagonal h, in the engine's layout
     u_flat = node("Add", [piece(h, 0, nu, "u_net"), skip], "u_flat")
     U = node("Reshape", [u_flat, const("u_shape", [k, -1, n, n + 1], i64)], "U")
@@ -141,6 +134,4 @@ def lowrank_nodes(
         [node("Add", ["yhat", lin], "base"), node("Mul", [mean, const("sigma", eng.sigma)], "offset")],
         "center",
     )
-    raw = node("Mul", [inv, const("inv_sigma", eng.inv_sigma)], "shape" if scale is None else "raw_shape")
-    if scale is not None:
-        node("Div", [raw, const("scale", scale)], "shape")
+    scaled_shape_nodes(inv, eng.inv_sigma, node, const, scale)

@@ -32,7 +32,7 @@ from ipcverify.network._architecture import ModelConfig
 if TYPE_CHECKING:
     from ipcverify.network._modules import Network
 
-__all__ = ["NetworkWeights", "state_layout"]
+__all__ = ["NetworkWeights", "state_layout", "weights_and_network"]
 
 #: One state-dict entry: shape, dtype name, and whether it is a trained parameter (else a buffer).
 Entry = tuple[tuple[int, ...], str, bool]
@@ -160,6 +160,11 @@ the network's is (2,), float32
         return cls(config, cast)
 
     @classmethod
+    def of(cls, source: Network | NetworkWeights) -> NetworkWeights:
+        """The weights of a torch network (copied), or ``source`` itself if it is weights already."""
+        return weights_and_network(source)[0]
+
+    @classmethod
     def from_network(cls, network: Network) -> NetworkWeights:
         """The weights of a torch network (copied)."""
         state = {k: v.detach().cpu().numpy().copy() for k, v in network.state_dict().items()}
@@ -190,3 +195,18 @@ the network's is (2,), float32
             h.update(str(arr.dtype).encode() + str(arr.shape).encode())
             h.update(arr.tobytes())
         return h.hexdigest()
+
+
+def weights_and_network(source: Network | NetworkWeights) -> tuple[NetworkWeights, Network | None]:
+    """A network's weights and the torch network itself (None if ``source`` is weights already).
+
+    Examples
+    --------
+    >>> cfg = ModelConfig.recipe("v1", x_dim=1, y_dim=1, hidden=(2,))
+    >>> w = NetworkWeights(cfg, {k: np.ones(s, t) for k, (s, t, _) in state_layout(cfg).items()})
+    >>> weights_and_network(w) == (w, None)
+    True
+    """
+    if isinstance(source, NetworkWeights):
+        return source, None
+    return NetworkWeights.from_network(source), source

@@ -12,6 +12,7 @@ import copy
 import dataclasses
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -52,6 +53,8 @@ __all__ = [
     "NonFiniteLossError",
     "HingeSelection",
     "select_hinge",
+    "Trainer",
+    "trainer_for",
 ]
 
 #: Recipes whose unstated hinge settings are chosen by :class:`HingeSelection` when no
@@ -141,7 +144,7 @@ def _train_network(
     train_data: PerceptionDataset, mc: ModelConfig, tc: TrainConfig, progress: bool
 ) -> tuple[IPCNetwork, list[dict[str, float]]]:
     """The training loop of one network with the paper's heads (recipes ``"v1"``, ``"paper"``)."""
-    if (tc.center_warm_start or tc.start_at_estimate) and mc.lowrank:
+    if (tc.center_warm_start or tc.start_at_estimate) and not trainer_for(mc).warm_start:
         raise InvalidInputError("center_warm_start and start_at_estimate are for the paper's heads")
     torch.manual_seed(tc.seed)
     gen = torch.Generator().manual_seed(tc.seed)
@@ -274,7 +277,7 @@ def select_hinge(
     >>> len(rec.candidates), tc.alpha == rec.chosen.alpha
     (2, True)
     """
-    if model_config.lowrank:
+    if not trainer_for(model_config).hinge_selection:
         raise InvalidInputError("the hinge selection is for the paper's heads (recipes 'paper', 'v1')")
     parts = train_data.split(
         (1 - rule.val_fraction, 0.0, rule.val_fraction),
@@ -300,6 +303,36 @@ def select_hinge(
     return dataclasses.replace(
         train_config, alpha=best.alpha, lam=best.lam, batch_size=best.batch_size
     ), record
+
+
+@dataclass(frozen=True)
+class Trainer:
+    """How one network kind is trained (an entry of the registry :func:`trainer_for` reads).
+
+    Attributes
+    ----------
+    fit : callable
+        ``fit(train_data, model_config, train_config, progress) -> (network, history)``.
+    hinge_selection : bool
+        Whether :class:`HingeSelection` applies (the hinge objective's settings).
+    warm_start : bool
+        Whether ``center_warm_start`` and ``start_at_estimate`` apply.
+    """
+
+    fit: Callable[[PerceptionDataset, ModelConfig, TrainConfig, bool], tuple[Network, list[dict[str, float]]]]
+    hinge_selection: bool
+    warm_start: bool
+
+
+def trainer_for(config: ModelConfig) -> Trainer:
+    """The trainer of ``config``'s network kind (:attr:`ModelConfig.kind`): the training package's one choice.
+
+    Examples
+    --------
+    >>> trainer_for(ModelConfig(x_dim=1, y_dim=1)).hinge_selection
+    False
+    """
+    return _TRAINERS[config.kind]
 
 
 def train(
@@ -373,11 +406,7 @@ def train(
     record = None
     if select is not None:
         tc, record = select_hinge(train_data, mc, tc, select, progress)
-    net: Network
-    if mc.lowrank:
-        net, history = train_lowrank(train_data, mc, tc, progress)
-    else:
-        net, history = _train_network(train_data, mc, tc, progress)
+    net, history = trainer_for(mc).fit(train_data, mc, tc, progress)
     model = IPCModel(net)
     metadata: dict[str, Any] = {
         "train_config": tc.to_dict(),
@@ -394,3 +423,11 @@ def train(
     if record is not None:
         metadata["selection"] = record.to_dict()
     return TrainResult(IPCModel(net, None, metadata), history)
+
+
+#: One trainer per network kind (:attr:`ModelConfig.kind`): the paper's heads by the loop above,
+#: the low-rank ensemble by :mod:`ipcverify.training._lowrank` (all members at once).
+_TRAINERS: dict[str, Trainer] = {
+    "mlp": Trainer(_train_network, hinge_selection=True, warm_start=True),
+    "lowrank": Trainer(train_lowrank, hinge_selection=False, warm_start=False),
+}

@@ -3,9 +3,10 @@
 * :class:`LearnedContract` — a trained, calibrated IPC in the camera frame. Each query
   ``(x_C, yhat_C)`` goes through the library's one query path,
   :class:`ipcverify.decision.IPCQuery`: the model's float64 engine (the same evaluation the
-  calibration certified), the calibration's scale, the domain-of-validity test, then the
-  set moved to W with the measurement's *current* camera pose ``T_WC``
-  (:func:`.frames.transform_ellipsoid`), as in the paper, and the landing decision.
+  calibration certified), the calibration's scale, the domain-of-validity test; then
+  :class:`ipcverify.decision.LandingQuery` moves the set to W with the measurement's *current*
+  camera pose ``T_WC`` (:func:`.frames.transform_ellipsoid`), as in the paper, and takes the
+  landing decision.
 * :class:`TrivialContract` — the paper's baseline ``E(yhat, 10000 I)``: a ball of radius
   0.1 mm around the perceived position, i.e. "trust every measurement", decided by the same
   rule (:class:`ipcverify.decision.LandingRule`).
@@ -32,7 +33,7 @@ import numpy as np
 from case_studies.quad_landing.sim.flight import Measurement
 from case_studies.quad_landing.sim.frames import transform_ellipsoid
 from ipcverify.contract import IPCModel
-from ipcverify.decision import IPCQuery, LandingRule, QueryDecision
+from ipcverify.decision import IPCQuery, LandingQuery, LandingRule, QueryDecision
 from ipcverify.errors import InvalidInputError
 from ipcverify.sets import Box
 
@@ -60,7 +61,7 @@ def _require_detection(m: Measurement) -> tuple[np.ndarray, np.ndarray]:
 
 @dataclass(frozen=True, eq=False)
 class LearnedContract:
-    """A calibrated IPC learned in the camera frame, queried per measurement through :class:`IPCQuery`.
+    """A calibrated IPC learned in the camera frame, queried per measurement through :class:`LandingQuery`.
 
     Parameters
     ----------
@@ -83,7 +84,7 @@ class LearnedContract:
     model: IPCModel
     name: str = "ipc"
     uncalibrated: bool = False
-    _queries: dict[tuple[float, ...], IPCQuery] = field(default_factory=dict, repr=False)
+    _queries: dict[tuple[float, ...], LandingQuery] = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
         if self.uncalibrated:
@@ -100,11 +101,11 @@ class LearnedContract:
                 f"y_dim={self.model.config.y_dim}"
             )
 
-    def query(self, target: Box) -> IPCQuery:
-        """The :class:`IPCQuery` of this contract for ``target`` (built once per target)."""
+    def query(self, target: Box) -> LandingQuery:
+        """The :class:`LandingQuery` of this contract for ``target`` (built once per target)."""
         key = (*target.lower.tolist(), *target.upper.tolist())
         if key not in self._queries:
-            self._queries[key] = IPCQuery(self.model, target)
+            self._queries[key] = LandingQuery(IPCQuery(self.model), target)
         return self._queries[key]
 
     def decide(self, measurement: Measurement, target: Box) -> QueryDecision:

@@ -5,8 +5,9 @@ States (paper, Fig. "state machine"), preceded by a search:
 * **Searching** — fly the scenario's transit (:mod:`.scenario`) and run the detector on
   every frame; the first detection is the first measurement (taken in motion).
 * **Measuring** — ask the contract (:meth:`.contracts.Contract.decide`): the learned IPC
-  answers through the library's one query path, :class:`ipcverify.decision.IPCQuery`, with the
-  set moved to W by the current camera pose. Accept iff the answer is PROVEN in exact
+  answers through the library's one query path, :class:`ipcverify.decision.IPCQuery` (wrapped
+  by :class:`ipcverify.decision.LandingQuery`), with the set moved to W by the current camera
+  pose. Accept iff the answer is PROVEN in exact
   arithmetic (:func:`ipcverify.decision.landing_decision`): ``P - y in G_tau`` for every ``y``
   in the ellipsoid, where ``P = [c_x, c_y, z_max]`` and ``G_tau`` is ``G`` (``[landing]
   target_lower/upper`` of ``reproduce.toml``, the paper's ``[-0.05, 0.05]^2 x [0, 0.05]``)

@@ -7,6 +7,7 @@ import pytest
 
 from ipcverify.contract._calibrate import calibrate
 from ipcverify.contract._model import IPCModel, IPCNetwork
+from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.data._synthetic import make_lagged_perception
 from ipcverify.decision._landing import (
     LandingRule,
@@ -15,6 +16,7 @@ from ipcverify.decision._landing import (
     landing_accept_float,
     landing_decision,
 )
+from ipcverify.decision._landing_query import LandingQuery
 from ipcverify.decision._query import IPCQuery
 from ipcverify.errors import InvalidInputError, SetError
 from ipcverify.network._architecture import ModelConfig
@@ -43,7 +45,7 @@ def trained(request, data):
 @pytest.mark.parametrize("calibrated", [False, True])
 def test_query_sets_are_the_models_sets(trained, data, calibrated):
     model = calibrate(trained, data[1], 0.05, 0.01) if calibrated else trained
-    q = IPCQuery(model, G)
+    q = LandingQuery(IPCQuery(model), G)
     test = make_lagged_perception(50, seed=2)
     ref = model.predict(test.x, test.yhat)
     for i in range(len(test)):
@@ -57,7 +59,7 @@ def test_mondrian_calibration_is_applied_per_query(data):
     cal = calibrate(model, make_lagged_perception(3000, seed=5), 0.1, 0.05, mondrian_column="x_5", bins=2)
     test = make_lagged_perception(20, seed=3)
     ref = cal.predict(test.x, test.yhat)
-    q = IPCQuery(cal, G)
+    q = LandingQuery(IPCQuery(cal), G)
     for i in range(len(test)):
         np.testing.assert_allclose(q.ellipsoid(test.x[i], test.yhat[i])[1], ref.shapes[i], rtol=1e-12)
 
@@ -79,7 +81,7 @@ def _near_threshold_ellipsoids(rng, count):
 
 
 def test_decide_agrees_with_the_exact_decision_near_the_threshold(trained):
-    q = IPCQuery(trained, G)
+    q = LandingQuery(IPCQuery(trained), G)
     rng = np.random.default_rng(11)
     cases = _near_threshold_ellipsoids(rng, 150)
     cases += [Ellipsoid(rng.normal(size=3), np.diag(1.0 / rng.uniform(0.005, 0.1, 3))) for _ in range(150)]
@@ -102,7 +104,7 @@ def test_decide_agrees_with_the_exact_decision_near_the_threshold(trained):
 
 def test_single_float_rule_matches_the_batch_rule_away_from_the_threshold(trained):
     """One rule, two half-width computations (3x3 adjugate vs batched inverse): same answers."""
-    q = IPCQuery(trained, G)
+    q = LandingQuery(IPCQuery(trained), G)
     rng = np.random.default_rng(3)
     es = [Ellipsoid(rng.normal(size=3), np.diag(1.0 / rng.uniform(0.005, 0.1, 3))) for _ in range(200)]
     batch = Ellipsoid(np.stack([e.centers[0] for e in es]), np.stack([e.shapes[0] for e in es]))
@@ -115,7 +117,7 @@ def test_single_float_rule_matches_the_batch_rule_away_from_the_threshold(traine
 
 
 def test_decide_end_to_end_runs_and_reports_a_proof_only_for_accepts(trained, data):
-    q = IPCQuery(calibrate(trained, data[1], 0.05, 0.01), G)
+    q = LandingQuery(IPCQuery(calibrate(trained, data[1], 0.05, 0.01)), G)
     test = make_lagged_perception(30, seed=4)
     for i in range(len(test)):
         d = q.decide(test.x[i], test.yhat[i])
@@ -127,9 +129,9 @@ def test_decide_end_to_end_runs_and_reports_a_proof_only_for_accepts(trained, da
 @pytest.mark.parametrize(("method", "seed"), [("decide", 6), ("decide_float", 7)])
 def test_decide_is_the_rules_decision_on_the_querys_own_set(trained, data, method, seed):
     """decide() and decide_float() keep the set in Python floats until the answer: the array path's."""
-    q_small = IPCQuery(calibrate(trained, data[1], 0.05, 0.01), G)
-    q_wide = IPCQuery(q_small.model, Box([-20.0, -20.0, -20.0], [20.0, 20.0, 20.0]))
-    q_tiny = IPCQuery(q_small.model, Box([-1e-6, -1e-6, 0.0], [1e-6, 1e-6, 1e-6]))
+    q_small = LandingQuery(IPCQuery(calibrate(trained, data[1], 0.05, 0.01)), G)
+    q_wide = LandingQuery(IPCQuery(q_small.model), Box([-20.0, -20.0, -20.0], [20.0, 20.0, 20.0]))
+    q_tiny = LandingQuery(IPCQuery(q_small.model), Box([-1e-6, -1e-6, 0.0], [1e-6, 1e-6, 1e-6]))
     test = make_lagged_perception(40, seed=seed)
     verdicts = set()
     for q in (q_small, q_wide, q_tiny):
@@ -205,19 +207,24 @@ def test_the_outside_domain_answer_on_floats_is_the_one_on_arrays():
 )
 def test_bad_queries_are_refused_with_a_message(trained, x, yhat, match):
     with pytest.raises(InvalidInputError, match=match):
-        IPCQuery(trained, G).decide(x, yhat)
+        LandingQuery(IPCQuery(trained), G).decide(x, yhat)
 
 
 def test_landing_needs_three_dimensions():
-    q = IPCQuery(IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=2, hidden=(4,), param="cholesky"))), G)
+    q = IPCQuery(IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=2, hidden=(4,), param="cholesky"))))
     assert q.ellipsoid(np.zeros(2), np.zeros(2))[1].shape == (2, 2)
-    with pytest.raises(SetError, match="needs a 3-D ellipsoid"):
-        q.decide(np.zeros(2), np.zeros(2))
+    with pytest.raises(SetError, match="needs a 3-D ellipsoid; this model has n = 2"):
+        LandingQuery(q, G)
+    three = IPCQuery(IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(4,), param="cholesky"))))
+    with pytest.raises(SetError, match="the landing target must be a 3-D Box"):
+        LandingQuery(three, Box([0.0, 0.0], [1.0, 1.0]))
 
 
 def test_query_needs_a_model():
     with pytest.raises(InvalidInputError, match="needs an IPCModel"):
-        IPCQuery("model.pt", G)  # type: ignore[arg-type]
+        IPCQuery("model.pt")  # type: ignore[arg-type]
+    with pytest.raises(InvalidInputError, match=r"needs an IPCQuery \(IPCQuery\(model\)\)"):
+        LandingQuery("model.pt", G)  # type: ignore[arg-type]
 
 
 def test_the_constructor_compiles_the_kernels_the_first_query_runs(data):
@@ -230,7 +237,7 @@ def test_the_constructor_compiles_the_kernels_the_first_query_runs(data):
     mc = ModelConfig(x_dim=6, y_dim=3, hidden=(16, 16), param="lowrank", center="offset")
     model = calibrate(train(data[0], mc, TrainConfig(epochs=1, seed=3)).model, data[1], 0.05, 0.01)
     assert model.domain is not None
-    q = IPCQuery(model, G)
+    q = LandingQuery(IPCQuery(model), G)
     kernel_list = (kernels.lowrank_one, domain_kernels.domain_one)
     compiled = [len(k.signatures) for k in kernel_list]
     assert all(c >= 1 for c in compiled)
@@ -239,3 +246,39 @@ def test_the_constructor_compiles_the_kernels_the_first_query_runs(data):
     for i in range(20):
         q.decide(x[i], yhat[i])
     assert [len(k.signatures) for k in kernel_list] == compiled
+
+
+def _two_dimensional(n: int, seed: int) -> PerceptionDataset:
+    """Synthetic 2-D perception: y from x, yhat = y + noise whose scale grows with |x_0|."""
+    rng = np.random.default_rng(seed)
+    x = rng.uniform(-1.0, 1.0, (n, 2))
+    y = np.column_stack([np.sin(2.0 * x[:, 0]), x[:, 1] ** 2])
+    yhat = y + (0.05 + 0.1 * np.abs(x[:, :1])) * rng.standard_normal((n, 2))
+    return PerceptionDataset(x, y, yhat)
+
+
+@pytest.mark.parametrize("param", ["lowrank", "cholesky"])
+def test_the_query_path_works_on_a_model_with_a_two_dimensional_output(param):
+    mc = ModelConfig(x_dim=2, y_dim=2, hidden=(16,), param=param, members=3 if param == "lowrank" else 1)
+    model = train(_two_dimensional(800, 0), mc, TrainConfig(epochs=3, seed=0)).model
+    model = calibrate(model, _two_dimensional(1500, 1), 0.05, 0.01)
+    assert model.domain is not None and model.config.y_dim == 2
+    q = IPCQuery(model)
+    test = _two_dimensional(40, 2)
+    # half the queries moved far from the data: outside the domain of validity
+    xs = np.concatenate([test.x[:20], test.x[20:] + 4.0])
+    ref = model.predict(xs, test.yhat)
+    inside = model.domain.contains(xs, test.yhat)
+    assert inside[:20].any() and not inside[20:].any()
+    for i in range(len(xs)):
+        s = q.evaluate(xs[i], test.yhat[i])
+        assert s.center.shape == (2,) and s.shape.shape == (2, 2)
+        np.testing.assert_allclose(s.center, ref.centers[i], rtol=1e-12, atol=1e-15)
+        np.testing.assert_allclose(s.shape, ref.shapes[i], rtol=1e-12, atol=1e-15)
+        assert s.in_domain is bool(inside[i])
+        center, flat, in_domain = q.values(xs[i], test.yhat[i])  # the same numbers as Python floats
+        assert (center, flat, in_domain) == (s.center.tolist(), s.shape.ravel().tolist(), s.in_domain)
+        c, C = q.ellipsoid(xs[i], test.yhat[i])
+        np.testing.assert_array_equal(C, s.shape)
+    with pytest.raises(InvalidInputError, match=r"x of shape \(2,\) and yhat of shape \(2,\)"):
+        q.evaluate(np.zeros(2), np.zeros(3))

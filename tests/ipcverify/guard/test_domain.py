@@ -10,6 +10,7 @@ from ipcverify.contract._calibrate import calibrate
 from ipcverify.contract._model import IPCModel, IPCNetwork
 from ipcverify.data._synthetic import make_lagged_perception
 from ipcverify.decision._landing import Verdict
+from ipcverify.decision._landing_query import LandingQuery
 from ipcverify.decision._query import IPCQuery
 from ipcverify.errors import InvalidInputError, SampleSizeError, SetError
 from ipcverify.guard._domain import DomainModel
@@ -134,7 +135,7 @@ def test_calibrate_fits_the_domain_and_the_model_file_keeps_it(calibrated, tmp_p
 
 
 def test_the_query_path_answers_outside_domain_never_accept(calibrated):
-    q = IPCQuery(calibrated, Box([-10.0, -10.0, -10.0], [10.0, 10.0, 10.0]))
+    q = LandingQuery(IPCQuery(calibrated), Box([-10.0, -10.0, -10.0], [10.0, 10.0, 10.0]))
     test = make_lagged_perception(50, seed=7)
     inside = q.decide(test.x[0], test.yhat[0])
     assert inside.in_domain and inside.verdict in (Verdict.ACCEPT, Verdict.REJECT)
@@ -144,7 +145,9 @@ def test_the_query_path_answers_outside_domain_never_accept(calibrated):
 
 
 def test_a_degenerate_set_is_an_outside_domain_answer_not_an_accept():
-    q = IPCQuery(IPCModel(IPCNetwork(ModelConfig(x_dim=1, y_dim=3, hidden=(2,), param="cholesky"))), G)
+    q = LandingQuery(
+        IPCQuery(IPCModel(IPCNetwork(ModelConfig(x_dim=1, y_dim=3, hidden=(2,), param="cholesky")))), G
+    )
     d = q.rule.decide(np.zeros(3), np.zeros((3, 3)))
     assert d.verdict is Verdict.OUTSIDE_DOMAIN and not d.accept
 
@@ -158,7 +161,7 @@ def test_a_singular_set_on_a_far_input_blames_the_input(recipe, far):
         SetError, match=r"input row 0: the contract's set is degenerate .* outside the domain"
     ):
         cal.predict(np.full((1, 6), far), np.zeros((1, 3)))
-    q = IPCQuery(cal, Box([-10.0, -10.0, -10.0], [10.0, 10.0, 10.0]))
+    q = LandingQuery(IPCQuery(cal), Box([-10.0, -10.0, -10.0], [10.0, 10.0, 10.0]))
     assert q.decide(np.full(6, far), np.zeros(3)).verdict is Verdict.OUTSIDE_DOMAIN
 
 

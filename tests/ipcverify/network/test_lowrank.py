@@ -252,5 +252,5 @@ def test_default_training_records_theorem1_statistics():
 
 
 def test_lowrank_network_refuses_a_paper_head_config():
-    with pytest.raises(InvalidInputError, match="use ipcverify.network.build_network"):
+    with pytest.raises(InvalidInputError, match="use ipcverify.network.build_network\\(config\\)"):
         LowRankEnsemble(ModelConfig.recipe("v1", x_dim=1, y_dim=1))

@@ -277,7 +277,7 @@ def test_bad_model_config_and_inputs():
         ModelConfig(x_dim=1, y_dim=1, members=2.5)  # type: ignore[arg-type]
     with pytest.raises(InvalidInputError, match="linear_center must be True or False"):
         ModelConfig(x_dim=1, y_dim=1, linear_center="yes")  # type: ignore[arg-type]
-    with pytest.raises(InvalidInputError, match=r"build it with ipcverify\.network\.build_network"):
+    with pytest.raises(InvalidInputError, match=r"build it with ipcverify.network.build_network\(config\)"):
         IPCNetwork(ModelConfig(x_dim=1, y_dim=1))
     with pytest.raises(
         InvalidInputError, match="center_warm_start and start_at_estimate are for the paper's heads"
