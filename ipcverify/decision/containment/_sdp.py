@@ -9,7 +9,7 @@ trust-region maximiser of the normalised problem, checked exactly.
 Examples
 --------
 >>> import numpy as np
->>> from ipcverify.sets._shapes import Ellipsoid
+>>> from ipcverify.sets._ellipsoid import Ellipsoid
 >>> ball = Ellipsoid(np.zeros(2), np.eye(2))
 >>> prove_sdp(ball, ball.scaled(2.0)).status.name, prove_sdp(ball.scaled(2.0), ball).status.name
 ('PROVEN', 'REFUTED')
@@ -28,8 +28,8 @@ from ipcverify.decision.containment._certificate import ContainmentCertificate
 from ipcverify.decision.containment._geometry import ExactEllipsoid, check_lmi, witness_from_direction
 from ipcverify.decision.containment._status import Method, Status
 from ipcverify.errors import SetError
+from ipcverify.sets._ellipsoid import Ellipsoid
 from ipcverify.sets._exact import exact_vector, matvec
-from ipcverify.sets._shapes import Ellipsoid
 
 __all__ = ["prove_sdp", "normalised", "trust_region_maximiser", "sdp_problem"]
 

@@ -8,7 +8,7 @@ other than ``optimal`` (``optimal_inaccurate`` included) is UNKNOWN.
 Examples
 --------
 >>> import numpy as np
->>> from ipcverify.sets._shapes import Box, Ellipsoid
+>>> from ipcverify.sets import Box, Ellipsoid
 >>> prove_socp(Ellipsoid(np.zeros(2), np.eye(2)), Box([-2.0, -2.0], [2.0, 2.0])).status.name
 'PROVEN'
 """
@@ -23,8 +23,9 @@ import numpy as np
 from ipcverify.decision.containment._certificate import ContainmentCertificate
 from ipcverify.decision.containment._geometry import ExactEllipsoid, check_faces, witness_from_direction
 from ipcverify.decision.containment._status import Method, Status
+from ipcverify.sets._ellipsoid import Ellipsoid
 from ipcverify.sets._exact import exact_vector, matvec
-from ipcverify.sets._shapes import Box, Ellipsoid, Polytope
+from ipcverify.sets._faces import FacedSet
 
 __all__ = ["prove_socp", "socp_problem"]
 
@@ -48,7 +49,7 @@ def socp_problem(n: int, m: int) -> Any:
 
 
 def prove_socp(
-    inner: Ellipsoid, outer: Box | Polytope, exact: ExactEllipsoid | None = None
+    inner: Ellipsoid, outer: FacedSet, exact: ExactEllipsoid | None = None
 ) -> ContainmentCertificate:
     """Prove or refute ``inner ⊆ outer`` with Clarabel's support values, re-checked exactly."""
     import cvxpy as cp  # imported on first use: it takes about a second
