@@ -26,7 +26,8 @@ from case_studies.quad_landing.landing.state_machine import (
 )
 from case_studies.quad_landing.reproduction.config import load_reproduce_config
 from case_studies.quad_landing.sim.config import load_config
-from ipcverify.decision._landing import LandingRule, landing_decision
+from ipcverify.decision._landing import LandingRule
+from ipcverify.decision._landing_proof import landing_decision
 from ipcverify.decision.containment import Status
 from ipcverify.errors import InvalidInputError
 from ipcverify.sets._exact import exact_vector

@@ -32,8 +32,10 @@ from ipcverify.decision.containment._face_lmi import (
 )
 from ipcverify.decision.containment._face_sdp import FaceSolution, prove_sdp_faces, solve_face_sdp
 from ipcverify.errors import InvalidInputError
+from ipcverify.sets._box import Box
+from ipcverify.sets._ellipsoid import Ellipsoid
 from ipcverify.sets._exact import is_positive_semidefinite
-from ipcverify.sets._shapes import Box, Ellipsoid, Polytope
+from ipcverify.sets._polytope import Polytope
 
 F = Fraction
 PROPS = settings(derandomize=True, max_examples=80, deadline=None)
@@ -179,7 +181,7 @@ def test_zero_row_means_zero_at_most_b(b, expected):
 
 
 def test_landing_example_of_the_docs_is_proven_by_both_routes():
-    from ipcverify.decision._landing import landing_decision
+    from ipcverify.decision._landing_proof import landing_decision
 
     e = Ellipsoid([1.0, 2.0, 0.3], np.diag([40.0, 40.0, 80.0]))  # the top face touches exactly
     d = landing_decision(e, Box([-0.05, -0.05, 0.0], [0.05, 0.05, 0.05]))

@@ -27,7 +27,9 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from ipcverify.decision.containment import ContainmentCertificate, Status, prove, verify
-from ipcverify.sets._shapes import Box, Ellipsoid, Polytope
+from ipcverify.sets._box import Box
+from ipcverify.sets._ellipsoid import Ellipsoid
+from ipcverify.sets._polytope import Polytope
 
 F = Fraction
 PROPS = settings(derandomize=True, max_examples=60, deadline=None)
