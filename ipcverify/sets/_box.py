@@ -13,18 +13,15 @@ from fractions import Fraction
 from typing import Any, ClassVar
 
 import numpy as np
-from numpy.typing import NDArray
 
 from ipcverify.errors import SetError
 from ipcverify.sets._ellipsoid import Ellipsoid
 from ipcverify.sets._exact import ExactMatrix, ExactVector, exact_vector, sqnorm
-from ipcverify.sets._faces import UNIT_ROUNDOFF, ExactFace, FacedSet, float_array
+from ipcverify.sets._faces import UNIT_ROUNDOFF, ExactFace, FacedSet, FloatArray, float_array
 from ipcverify.sets._json import json_field, json_vector
 from ipcverify.sets._outer import register_shape
 
 __all__ = ["Box"]
-
-FloatArray = NDArray[np.float64]
 
 
 @register_shape

@@ -7,16 +7,13 @@ from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
-from numpy.typing import NDArray
 
 from ipcverify.errors import SetError
-from ipcverify.sets._faces import FacedSet, float_array
+from ipcverify.sets._faces import FacedSet, FloatArray, float_array
 from ipcverify.sets._json import json_field, json_matrix, json_vector
 from ipcverify.sets._outer import register_shape
 
 __all__ = ["Polytope"]
-
-FloatArray = NDArray[np.float64]
 
 
 @register_shape

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 from fractions import Fraction
+from functools import partial
 
 from ipcverify.decision.containment._certificate import ContainmentCertificate
 from ipcverify.decision.containment._geometry import ExactEllipsoid, exact_faces, face_witness
@@ -46,15 +47,13 @@ def prove_closed_form(
         Try the float margins with rigorous rounding bounds first (a PROVEN answer needs no
         exact inverse); False decides in exact arithmetic only.
     """
+    answer = partial(ContainmentCertificate, inner, outer, Method.CLOSED_FORM)
     if fast:
         fb = support_slack_bounds(inner, outer)
         if bool(fb.proven()[0]):
             slack = fb.slack[0]
             support = [s - m for s, m in zip(_face_sigma(inner, outer), slack.tolist(), strict=True)]
-            return ContainmentCertificate(
-                inner,
-                outer,
-                Method.CLOSED_FORM,
+            return answer(
                 Status.PROVEN,
                 {"support": tuple(Fraction(v) for v in support)},
                 float(slack.min()),
@@ -71,38 +70,19 @@ def prove_closed_form(
     }
     violated = [f for f in faces if not f.holds]
     if not violated:
-        return ContainmentCertificate(
-            inner,
-            outer,
-            Method.CLOSED_FORM,
-            Status.PROVEN,
-            mult,
-            margin,
-            detail=f"all {len(faces)} faces hold exactly",
-        )
+        return answer(Status.PROVEN, mult, margin, detail=f"all {len(faces)} faces hold exactly")
     violated.sort(key=lambda f: f.margin)
     for f in violated:
         w = face_witness(ex, outer, f)
         if w is not None:
-            return ContainmentCertificate(
-                inner,
-                outer,
-                Method.CLOSED_FORM,
+            return answer(
                 Status.REFUTED,
                 mult,
                 margin,
                 tuple(w),
                 detail=f"face {f.index} is violated; witness maximises a^T y over the inner set",
             )
-    return ContainmentCertificate(
-        inner,
-        outer,
-        Method.CLOSED_FORM,
-        Status.UNKNOWN,
-        mult,
-        margin,
-        detail="a face fails exactly but no exact witness was found",
-    )
+    return answer(Status.UNKNOWN, mult, margin, detail="a face fails exactly but no exact witness was found")
 
 
 def _face_sigma(inner: Ellipsoid, outer: FacedSet) -> list[float]:

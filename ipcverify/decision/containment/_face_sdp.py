@@ -43,6 +43,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from fractions import Fraction
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -250,14 +251,12 @@ def prove_sdp_faces(
         Method ``sdp``; PROVEN carries one exact multiplier per face (``"lambda"``, in the
         order of ``outer.faces()``), each passing :func:`~ipcverify.decision.containment.check_face_lmis`.
     """
+    answer = partial(ContainmentCertificate, inner, outer, Method.SDP)
     sol = solve_face_sdp(inner, outer)
     m = outer.faces()[1].shape[0]
     lam, slack, scale = sol.lam, sol.slack, sol.scale
     if not sol.solved or lam is None or slack is None or scale is None:
-        return ContainmentCertificate(
-            inner,
-            outer,
-            Method.SDP,
+        return answer(
             Status.UNKNOWN,
             detail=f"no Clarabel solution to trust ({sol.status}; only 'Solved' is): nothing is proven "
             "or refuted",
@@ -277,10 +276,7 @@ def prove_sdp_faces(
             chosen.append(q)
     mult = {"lambda": tuple(chosen)}
     if not failed:
-        return ContainmentCertificate(
-            inner,
-            outer,
-            Method.SDP,
+        return answer(
             Status.PROVEN,
             mult,
             margin,
@@ -293,11 +289,8 @@ def prove_sdp_faces(
     if found is not None:
         witness, how = found
         detail = f"Clarabel status 'Solved'; {how}"
-        return ContainmentCertificate(inner, outer, Method.SDP, Status.REFUTED, mult, margin, witness, detail)
-    return ContainmentCertificate(
-        inner,
-        outer,
-        Method.SDP,
+        return answer(Status.REFUTED, mult, margin, witness, detail=detail)
+    return answer(
         Status.UNKNOWN,
         mult,
         margin,

@@ -16,7 +16,7 @@ from ipcverify.errors import SetError
 from ipcverify.sets._ellipsoid import Ellipsoid
 from ipcverify.sets._faces import FacedSet
 
-__all__ = ["support_slack", "contained_float"]
+__all__ = ["check_faced_pair", "contained_float", "support_slack"]
 
 FloatArray = NDArray[np.float64]
 
@@ -37,13 +37,20 @@ def support_slack(inner: Ellipsoid, outer: FacedSet) -> FloatArray:
     >>> support_slack(e, Box([-1.0], [1.0]))
     array([[0.5, 0.5]])
     """
+    check_faced_pair(inner, outer, "support_slack")
+    return outer.support_slack(inner)
+
+
+def check_faced_pair(inner: Ellipsoid, outer: FacedSet, what: str) -> None:
+    """Refuse anything but a batch of ellipsoids and a set given by faces of the same dimension."""
     if not isinstance(inner, Ellipsoid):
         raise SetError("inner must be an Ellipsoid")
     if not isinstance(outer, FacedSet):
-        raise SetError(f"support_slack needs a Box or Polytope; got {type(outer).__name__}")
+        raise SetError(
+            f"{what} needs a Box, Polytope or other set given by faces; got {type(outer).__name__}"
+        )
     if outer.dim != inner.dim:
         raise SetError(f"{outer.kind} dimension {outer.dim} != ellipsoid dimension {inner.dim}")
-    return outer.support_slack(inner)
 
 
 def contained_float(inner: Ellipsoid, outer: FacedSet) -> NDArray[np.bool_]:

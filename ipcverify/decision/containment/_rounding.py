@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ipcverify.errors import SetError
+from ipcverify.decision.containment._margin import check_faced_pair
 from ipcverify.sets._ellipsoid import Ellipsoid
 from ipcverify.sets._faces import UNDERFLOW_ALLOWANCE, UNIT_ROUNDOFF, FacedSet, gamma
 
@@ -109,12 +109,7 @@ def support_slack_bounds(inner: Ellipsoid, outer: FacedSet) -> SlackBounds:
     SlackBounds
         ``slack`` and ``bound`` of shape (B, m); see the module docstring.
     """
-    if not isinstance(inner, Ellipsoid):
-        raise SetError("inner must be an Ellipsoid")
-    if not isinstance(outer, FacedSet):
-        raise SetError(f"support_slack_bounds needs a Box or Polytope; got {type(outer).__name__}")
-    if outer.dim != inner.dim:
-        raise SetError(f"outer dimension {outer.dim} != inner dimension {inner.dim}")
+    check_faced_pair(inner, outer, "support_slack_bounds")
     n = inner.dim
     c, C = inner.centers, inner.shapes
     X, rho = _inverse_residual(C)

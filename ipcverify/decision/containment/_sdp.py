@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 from fractions import Fraction
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -170,6 +171,7 @@ def prove_sdp(
     """Prove or refute ``inner ⊆ outer`` for two single ellipsoids (S-lemma, checked exactly)."""
     import cvxpy as cp  # imported on first use: it takes about a second
 
+    answer = partial(ContainmentCertificate, inner, outer, Method.SDP)
     ex = ExactEllipsoid.of(inner) if exact is None else exact
     n = inner.dim
     d_mat, d = normalised(inner, outer)
@@ -199,13 +201,10 @@ def prove_sdp(
             for lq, tq, why in _sdp_candidates(lam, tau, lift):
                 ok, how = check_lmi(q1, q2, lq, tq)
                 if ok:
-                    return ContainmentCertificate(
-                        inner=inner,
-                        outer=outer,
-                        method=Method.SDP,
-                        status=Status.PROVEN,
-                        multipliers={"lambda": (lq,), "tau": (tq,)},
-                        margin=1.0 - tau,
+                    return answer(
+                        Status.PROVEN,
+                        {"lambda": (lq,), "tau": (tq,)},
+                        1.0 - tau,
                         detail=f"{notes[0]}; {why}; {how}",
                     )
             notes.append("no multiplier candidate passed the exact PSD test")
@@ -219,16 +218,7 @@ def prove_sdp(
         for cand in (u, -u):
             y = witness_from_direction(ex, outer, exact_vector(cand))
             if y is not None:
-                return ContainmentCertificate(
-                    inner=inner,
-                    outer=outer,
-                    method=Method.SDP,
-                    status=Status.REFUTED,
-                    multipliers=mult,
-                    margin=margin,
-                    witness=tuple(y),
-                    detail="; ".join([*notes, how]),
-                )
+                return answer(Status.REFUTED, mult, margin, tuple(y), detail="; ".join([*notes, how]))
         return None
 
     u, _ = trust_region_maximiser(d_mat, d)
@@ -242,25 +232,14 @@ def prove_sdp(
         for lq in (Fraction(mu), Fraction(mu) * (1 + Fraction(1, 2**40))):
             ok, how = check_lmi(q1, q2, lq, Fraction(1))
             if ok:
-                return ContainmentCertificate(
-                    inner=inner,
-                    outer=outer,
-                    method=Method.SDP,
-                    status=Status.PROVEN,
-                    multipliers={"lambda": (lq,), "tau": (Fraction(1),)},
-                    margin=margin,
+                return answer(
+                    Status.PROVEN,
+                    {"lambda": (lq,), "tau": (Fraction(1),)},
+                    margin,
                     detail=f"{notes[0]}; lambda refined by the trust-region secular equation, tau = 1; {how}",
                 )
     cert = refuted(u, "witness: trust-region maximiser of the exactly normalised problem")
     if cert is not None:
         return cert
     notes.append("no exact witness found")
-    return ContainmentCertificate(
-        inner=inner,
-        outer=outer,
-        method=Method.SDP,
-        status=Status.UNKNOWN,
-        multipliers=mult,
-        margin=margin,
-        detail="; ".join(notes),
-    )
+    return answer(Status.UNKNOWN, mult, margin, detail="; ".join(notes))

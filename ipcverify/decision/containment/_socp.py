@@ -16,6 +16,7 @@ Examples
 from __future__ import annotations
 
 from fractions import Fraction
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -54,6 +55,7 @@ def prove_socp(
     """Prove or refute ``inner ⊆ outer`` with Clarabel's support values, re-checked exactly."""
     import cvxpy as cp  # imported on first use: it takes about a second
 
+    answer = partial(ContainmentCertificate, inner, outer, Method.SOCP)
     ex = ExactEllipsoid.of(inner) if exact is None else exact
     a, b = outer.faces()
     n, m = inner.dim, a.shape[0]
@@ -70,21 +72,12 @@ def prove_socp(
     except cp.error.SolverError as exc:
         status = f"solver error ({exc})"
     if status != cp.OPTIMAL or w.value is None:
-        return ContainmentCertificate(
-            inner=inner,
-            outer=outer,
-            method=Method.SOCP,
-            status=Status.UNKNOWN,
-            detail=f"Clarabel status '{status}' is not 'optimal'",
-        )
+        return answer(Status.UNKNOWN, detail=f"Clarabel status '{status}' is not 'optimal'")
     with np.errstate(over="ignore"):
         wv = np.asarray(w.value) / scale
     if not np.isfinite(wv).all():
-        return ContainmentCertificate(
-            inner=inner,
-            outer=outer,
-            method=Method.SOCP,
-            status=Status.UNKNOWN,
+        return answer(
+            Status.UNKNOWN,
             detail="the inner set's extent is beyond float's range; decide it with method='closed-form'",
         )
     support = np.einsum("ji,ji->j", a / anorm[:, None], wv) * anorm
@@ -94,15 +87,7 @@ def prove_socp(
     tol = 1e-7 * (1.0 + np.abs(b) + np.abs(a @ c) + np.abs(support))
     ok_exact, why = check_faces(ex, outer)
     if (slack >= -tol).all() and ok_exact:
-        return ContainmentCertificate(
-            inner=inner,
-            outer=outer,
-            method=Method.SOCP,
-            status=Status.PROVEN,
-            multipliers=mult,
-            margin=margin,
-            detail=f"Clarabel optimal; exact check: {why}",
-        )
+        return answer(Status.PROVEN, mult, margin, detail=f"Clarabel optimal; exact check: {why}")
     if (slack < -tol).any():
         for j in np.argsort(slack):
             if slack[j] >= -tol[j]:
@@ -111,22 +96,16 @@ def prove_socp(
             u = matvec(ex.C, wj)  # C (y - c)
             y = witness_from_direction(ex, outer, u)
             if y is not None:
-                return ContainmentCertificate(
-                    inner=inner,
-                    outer=outer,
-                    method=Method.SOCP,
-                    status=Status.REFUTED,
-                    multipliers=mult,
-                    margin=margin,
-                    witness=tuple(y),
+                return answer(
+                    Status.REFUTED,
+                    mult,
+                    margin,
+                    tuple(y),
                     detail=f"Clarabel optimal; maximiser on face {j} checked exactly",
                 )
-    return ContainmentCertificate(
-        inner=inner,
-        outer=outer,
-        method=Method.SOCP,
-        status=Status.UNKNOWN,
-        multipliers=mult,
-        margin=margin,
+    return answer(
+        Status.UNKNOWN,
+        mult,
+        margin,
         detail=f"Clarabel optimal but not decisive or contradicted by the exact check ({why})",
     )

@@ -18,6 +18,7 @@ margins down to 1e-15, i.e. a few ulps, both signs). All tests are derandomized.
 
 from __future__ import annotations
 
+import functools
 import itertools
 from fractions import Fraction
 
@@ -105,15 +106,6 @@ def _outside_oracle(outer, y) -> bool:
     return any(
         sum(x * F(v) for x, v in zip(a, y, strict=True)) > bj
         for a, bj in zip(_q(a_rows), [F(float(v)) for v in b], strict=True)
-    )
-
-
-def _psd_by_minors(m) -> bool:
-    n = len(m)
-    return all(
-        _det([[m[i][j] for j in idx] for i in idx]) >= 0
-        for k in range(1, n + 1)
-        for idx in itertools.combinations(range(n), k)
     )
 
 
@@ -225,7 +217,7 @@ def _homothetic(seed, n, log_cond, margin, sign):
     return e1, Ellipsoid(c2, e1.shapes[0] / f), _homothetic_contains(e1, c2, f)
 
 
-def _concentric(seed, n, log_cond, margin, sign):
+def _concentric(seed, n, log_cond, margin, sign, psd):
     """C2 = K C1 with ||K|| = 1 / (1 - sign margin): contained iff C1^T C1 - C2^T C2 is PSD."""
     rng = np.random.default_rng(seed)
     e1 = _ellipsoid(rng, n, log_cond)
@@ -236,7 +228,7 @@ def _concentric(seed, n, log_cond, margin, sign):
     return (
         e1,
         e2,
-        _psd_by_minors([[a - b for a, b in zip(r1, r2, strict=True)] for r1, r2 in zip(g1, g2, strict=True)]),
+        psd([[a - b for a, b in zip(r1, r2, strict=True)] for r1, r2 in zip(g1, g2, strict=True)]),
     )
 
 
@@ -249,8 +241,8 @@ def test_sdp_homothetic_pairs_are_sound(seed, n, log_cond, margin, sign):
 
 @PROPS
 @given(seed=seeds, n=dims, log_cond=log_conds, margin=margins, sign=signs)
-def test_sdp_concentric_pairs_are_sound(seed, n, log_cond, margin, sign):
-    e1, e2, truth = _concentric(seed, n, log_cond, margin, sign)
+def test_sdp_concentric_pairs_are_sound(seed, n, log_cond, margin, sign, minors):
+    e1, e2, truth = _concentric(seed, n, log_cond, margin, sign, minors.psd)
     _check_against_truth(prove(e1, e2), truth)
 
 
@@ -323,7 +315,7 @@ def test_verify_rejects_multipliers_reused_for_a_non_contained_pair(seed, n, log
 
 
 # ------------------------------------------------------------- how rare is UNKNOWN
-def test_unknown_is_rare_for_sdp_and_absent_for_closed_forms():
+def test_unknown_is_rare_for_sdp_and_absent_for_closed_forms(minors):
     """A fixed, seeded sweep over conditioning and margins (numbers reported by the benchmark)."""
     unknown_sdp = total_sdp = unknown_closed = 0
     for i, (log_cond, margin, sign) in enumerate(
@@ -331,7 +323,7 @@ def test_unknown_is_rare_for_sdp_and_absent_for_closed_forms():
     ):
         for j in range(3):
             seed = 1000 * i + j
-            for make in (_homothetic, _concentric):
+            for make in (_homothetic, functools.partial(_concentric, psd=minors.psd)):
                 e1, e2, truth = make(seed, 3, log_cond, margin, sign)
                 cert = prove(e1, e2)
                 _check_against_truth(cert, truth)
