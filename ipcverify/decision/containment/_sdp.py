@@ -27,7 +27,7 @@ from numpy.typing import NDArray
 
 from ipcverify.decision.containment._certificate import ContainmentCertificate
 from ipcverify.decision.containment._geometry import ExactEllipsoid, check_lmi, witness_from_direction
-from ipcverify.decision.containment._status import Method, Status
+from ipcverify.decision.containment._status import Method, Status, solve_with_clarabel
 from ipcverify.errors import SetError
 from ipcverify.sets._ellipsoid import Ellipsoid
 from ipcverify.sets._exact import exact_vector, matvec
@@ -179,12 +179,7 @@ def prove_sdp(
     scale = max(1.0, float(np.abs(q2n).max()))
     prob, lam_v, tau_v, q2p = sdp_problem(n)
     q2p.value = q2n / scale
-    try:
-        with np.errstate(all="ignore"):
-            prob.solve(solver=cp.CLARABEL)
-        status = prob.status
-    except cp.error.SolverError as exc:
-        status = f"solver error ({exc})"
+    status = solve_with_clarabel(prob)
     notes = [f"Clarabel status '{status}'"]
     lam = tau = math.nan
     q1 = ex.quadratic_form(1)

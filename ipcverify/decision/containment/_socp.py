@@ -23,7 +23,7 @@ import numpy as np
 
 from ipcverify.decision.containment._certificate import ContainmentCertificate
 from ipcverify.decision.containment._geometry import ExactEllipsoid, check_faces, witness_from_direction
-from ipcverify.decision.containment._status import Method, Status
+from ipcverify.decision.containment._status import Method, Status, solve_with_clarabel
 from ipcverify.sets._ellipsoid import Ellipsoid
 from ipcverify.sets._exact import exact_vector, matvec
 from ipcverify.sets._faces import FacedSet
@@ -65,12 +65,7 @@ def prove_socp(
     cpar.value = cmat / scale  # ||C w|| <= 1  <=>  ||(C/s) w|| <= 1/s; solve for v = w s
     anorm = np.maximum(np.linalg.norm(a, axis=1), np.finfo(float).tiny)
     apar.value = a / anorm[:, None]
-    try:
-        with np.errstate(all="ignore"):
-            prob.solve(solver=cp.CLARABEL)
-        status = prob.status
-    except cp.error.SolverError as exc:
-        status = f"solver error ({exc})"
+    status = solve_with_clarabel(prob)
     if status != cp.OPTIMAL or w.value is None:
         return answer(Status.UNKNOWN, detail=f"Clarabel status '{status}' is not 'optimal'")
     with np.errstate(over="ignore"):

@@ -12,10 +12,12 @@ import json
 from enum import Enum
 from typing import Any
 
+import numpy as np
+
 from ipcverify.errors import InvalidInputError
 from ipcverify.sets._outer import OuterSet
 
-__all__ = ["Status", "Method", "parse_method", "check_method", "default_method"]
+__all__ = ["Status", "Method", "parse_method", "check_method", "default_method", "solve_with_clarabel"]
 
 
 class Status(Enum):
@@ -116,3 +118,19 @@ def default_method(outer: OuterSet) -> Method:
     'sdp'
     """
     return Method(outer.methods[0])
+
+
+def solve_with_clarabel(problem: Any) -> str:
+    """Solve a cvxpy problem with Clarabel; its status, or ``"solver error (...)"`` if Clarabel failed.
+
+    Only ``"optimal"`` may lead to a proof; every other status (``optimal_inaccurate`` included)
+    is UNKNOWN to the provers.
+    """
+    import cvxpy as cp  # imported on first use: it takes about a second
+
+    try:
+        with np.errstate(all="ignore"):
+            problem.solve(solver=cp.CLARABEL)
+        return str(problem.status)
+    except cp.error.SolverError as exc:
+        return f"solver error ({exc})"

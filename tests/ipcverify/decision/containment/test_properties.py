@@ -165,12 +165,17 @@ def test_closed_form_polytope_is_exact(seed, n, log_cond, margin, sign):
     _check_against_truth(cert, truth)
 
 
+def _near_tight_faces(seed, n, log_cond, margin, sign, box):
+    """A near-tight box or polytope, with the oracle's answer."""
+    make = _near_tight_box if box else _near_tight_polytope
+    e, outer = make(seed, n, log_cond, margin, sign)
+    return e, outer, _faces_hold_oracle(e, *outer.faces())
+
+
 @settings(derandomize=True, max_examples=40, deadline=None)
 @given(seed=seeds, n=dims, log_cond=log_conds, margin=margins, sign=signs, box=st.booleans())
 def test_socp_agrees_with_closed_form_when_decisive(seed, n, log_cond, margin, sign, box):
-    make = _near_tight_box if box else _near_tight_polytope
-    e, outer = make(seed, n, log_cond, margin, sign)
-    truth = _faces_hold_oracle(e, *outer.faces())
+    e, outer, truth = _near_tight_faces(seed, n, log_cond, margin, sign, box)
     socp = prove(e, outer, method="socp")
     closed = prove(e, outer)
     _check_against_truth(socp, truth)
@@ -187,9 +192,7 @@ def test_socp_agrees_with_closed_form_when_decisive(seed, n, log_cond, margin, s
 @settings(derandomize=True, max_examples=200, deadline=None)
 @given(seed=seeds, n=dims, log_cond=log_conds, margin=margins, sign=signs, box=st.booleans())
 def test_sdp_faces_agree_with_the_closed_form_and_the_oracle(seed, n, log_cond, margin, sign, box):
-    make = _near_tight_box if box else _near_tight_polytope
-    e, outer = make(seed, n, log_cond, margin, sign)
-    truth = _faces_hold_oracle(e, *outer.faces())
+    e, outer, truth = _near_tight_faces(seed, n, log_cond, margin, sign, box)
     sdp = prove(e, outer, method="sdp")
     _check_against_truth(sdp, truth)
     # conditioning to 1e6 and margins down to a few ulps: the S-lemma route still decides
