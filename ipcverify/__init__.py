@@ -41,7 +41,9 @@ if TYPE_CHECKING:
     from ipcverify.data._dataset import PerceptionDataset
     from ipcverify.decision._query import IPCQuery
     from ipcverify.io._modelio import load_model, save_model
-    from ipcverify.sets._shapes import Box, Ellipsoid, Polytope
+    from ipcverify.sets._box import Box
+    from ipcverify.sets._ellipsoid import Ellipsoid
+    from ipcverify.sets._polytope import Polytope
     from ipcverify.training._train import train
 
 __version__ = VERSION

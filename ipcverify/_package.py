@@ -47,7 +47,7 @@ def exported_names(init_file: str) -> dict[str, tuple[str, str]]:
     --------
     >>> import ipcverify.sets
     >>> exported_names(ipcverify.sets.__file__)["Box"]
-    ('ipcverify.sets._shapes', 'Box')
+    ('ipcverify.sets._box', 'Box')
     """
     with open(init_file, encoding="utf-8") as fh:
         tree = ast.parse(fh.read())

@@ -17,7 +17,7 @@ from ipcverify.data._dataset import PerceptionDataset, save_dataset
 from ipcverify.data._files import atomic_write
 from ipcverify.data._synthetic import make_lagged_perception
 from ipcverify.io._modelio import save_model
-from ipcverify.sets._shapes import Ellipsoid
+from ipcverify.sets._ellipsoid import Ellipsoid
 from ipcverify.training._train import TrainConfig, train
 
 __all__ = ["DemoSummary", "run_demo", "plot_demo_sets"]

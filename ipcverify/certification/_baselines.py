@@ -24,7 +24,7 @@ from ipcverify.calibration import ScoreThreshold, threshold_scores
 from ipcverify.calibration._bounds import CalibrationMode
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import InvalidInputError
-from ipcverify.sets._shapes import Ellipsoid
+from ipcverify.sets._ellipsoid import Ellipsoid
 
 __all__ = ["Boxes", "GlobalMahalanobis", "BonferroniBox", "fit_global_mahalanobis", "fit_bonferroni_box"]
 

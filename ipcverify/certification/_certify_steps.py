@@ -21,7 +21,7 @@ from ipcverify.certification._theorem1 import Theorem1Result, TrainingStatistics
 from ipcverify.contract._model import IPCModel
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import InvalidInputError
-from ipcverify.sets._shapes import Ellipsoid
+from ipcverify.sets._ellipsoid import Ellipsoid
 
 __all__ = [
     "DEFAULT_DELTA",

@@ -30,7 +30,7 @@ from ipcverify.network._architecture import ModelConfig
 from ipcverify.network._interface import Engine, engine_for
 from ipcverify.network._nonsingular import checked_ellipsoid
 from ipcverify.network._weights import NetworkWeights, weights_and_network
-from ipcverify.sets._shapes import Ellipsoid
+from ipcverify.sets._ellipsoid import Ellipsoid
 
 if TYPE_CHECKING:
     from ipcverify.network._modules import Network

@@ -13,17 +13,10 @@ from ipcverify._package import lazy_exports
 
 if TYPE_CHECKING:
     from ipcverify.decision._landing import (
-        PRECHECK_MARGIN,
         DecidedBy,
-        LandingDecision,
         LandingRule,
         QueryDecision,
         Verdict,
-        check_landing,
-        landing_accept_float,
-        landing_decision,
-        landing_slack,
-        turnoff_point,
     )
     from ipcverify.decision._landing_bound import (
         RANGE,
@@ -34,6 +27,17 @@ if TYPE_CHECKING:
         landing_by_bound,
         landing_by_bound_compiled,
         prepare,
+    )
+    from ipcverify.decision._landing_float import (
+        PRECHECK_MARGIN,
+        landing_accept_float,
+        landing_slack,
+    )
+    from ipcverify.decision._landing_proof import (
+        LandingDecision,
+        check_landing,
+        landing_decision,
+        turnoff_point,
     )
     from ipcverify.decision._landing_query import (
         LandingQuery,

@@ -45,8 +45,8 @@ from typing import Any, NamedTuple
 
 from numba.extending import register_jitable
 
+from ipcverify.sets._ellipsoid import SINGULAR_RCOND
 from ipcverify.sets._exact import dyadic, float_up, sqrt_upper
-from ipcverify.sets._shapes import SINGULAR_RCOND
 
 __all__ = [
     "BoundDecision",

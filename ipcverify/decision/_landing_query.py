@@ -26,7 +26,7 @@ from ipcverify.contract._model import IPCModel
 from ipcverify.decision._landing import LandingRule, QueryDecision
 from ipcverify.decision._query import IPCQuery
 from ipcverify.errors import InvalidInputError, SetError
-from ipcverify.sets._shapes import Box
+from ipcverify.sets._box import Box
 
 __all__ = ["LandingQuery", "Transform"]
 

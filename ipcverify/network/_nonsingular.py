@@ -1,7 +1,7 @@
 """Which shape matrices of a batch are non-singular by the rule of Ellipsoid -- without an SVD each.
 
 :class:`~ipcverify.sets.Ellipsoid` refuses a shape matrix ``C`` whose reciprocal condition number
-``sigma_min / sigma_max`` (from an SVD) is below :data:`~ipcverify.sets._shapes.SINGULAR_RCOND`. An SVD per
+``sigma_min / sigma_max`` (from an SVD) is below :data:`~ipcverify.sets.SINGULAR_RCOND`. An SVD per
 matrix costs about 1.4 microseconds, more than the whole network evaluation of a query. For
 ``n = 3``:
 
@@ -32,7 +32,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ipcverify.errors import SetError
 from ipcverify.network._kernels import rcond_lower_3
-from ipcverify.sets._shapes import SINGULAR_RCOND, Ellipsoid
+from ipcverify.sets._ellipsoid import SINGULAR_RCOND, Ellipsoid
 
 __all__ = ["CheckedEllipsoid", "checked_ellipsoid", "nonsingular", "svd_rcond"]
 

@@ -15,7 +15,7 @@ Examples
 --------
 >>> import numpy as np
 >>> from case_studies.quad_landing import Flight, Pad, hover_state
->>> from ipcverify.sets._shapes import Box
+>>> from ipcverify.sets import Box
 >>> flight = Flight(buffer_size=1, seed=0)
 >>> flight.reset(hover_state((0.05, -0.03, 1.0)), Pad((0.0, 0.0, 0.0), yaw=0.3))
 >>> d = TrivialContract().decide(flight.measure(), Box([-0.05, -0.05, 0.0], [0.05, 0.05, 0.05]))

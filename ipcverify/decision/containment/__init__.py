@@ -17,7 +17,11 @@ per job:
   behind :func:`prove`; :mod:`~ipcverify.decision.containment._face_lmi` -- the exact check of the
   per-face S-lemma certificates.
 
-The set types themselves live in :mod:`ipcverify.sets._shapes`.
+The set types themselves live in :mod:`ipcverify.sets`, one module per shape; the provers ask
+the outer set, through :class:`ipcverify.sets.OuterSet` (and :class:`ipcverify.sets.FacedSet` for
+sets given by faces), for what depends on its shape: its JSON form, the methods that apply, its
+proof form (faces or an ellipsoid), its face offsets, slacks and rounding bounds, and its exact
+faces and membership. A new shape is one module (``docs/containment.md``).
 
 * **closed form** (box, polytope): ``max_{y in E(c, C)} a^T y = a^T c + ||C^{-T} a||``,
   so ``E`` is inside ``{y : A y <= b}`` iff ``a_j^T c + ||C^{-T} a_j|| <= b_j`` for every
@@ -43,7 +47,7 @@ outside the outer one; anything else is UNKNOWN.
 Examples
 --------
 >>> import numpy as np
->>> from ipcverify.sets._shapes import Box, Ellipsoid
+>>> from ipcverify.sets import Box, Ellipsoid
 >>> inner = Ellipsoid(np.zeros(2), np.diag([2.0, 4.0]))     # semi-axes 0.5, 0.25
 >>> cert = prove(inner, Box([-0.5, -0.25], [0.5, 0.25]))
 >>> cert.status.name, verify(cert).status.name

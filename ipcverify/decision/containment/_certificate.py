@@ -10,7 +10,7 @@ Examples
 --------
 >>> import numpy as np
 >>> from ipcverify.decision.containment import prove
->>> from ipcverify.sets._shapes import Box, Ellipsoid
+>>> from ipcverify.sets import Box, Ellipsoid
 >>> cert = prove(Ellipsoid(np.zeros(1), np.eye(1)), Box([-1.0], [1.0]))
 >>> verify(cert).status.name
 'PROVEN'
@@ -20,19 +20,21 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from fractions import Fraction
 from types import MappingProxyType
-from typing import Any
+from typing import Any, cast
 
 from ipcverify.decision.containment._face_lmi import check_face_lmis
 from ipcverify.decision.containment._geometry import ExactEllipsoid, check_faces, check_lmi, is_outside
 from ipcverify.decision.containment._io import json_field, json_number, set_from_dict, set_to_dict
 from ipcverify.decision.containment._status import Method, Status, check_method, parse_method
 from ipcverify.errors import InvalidInputError, SetError
+from ipcverify.sets._ellipsoid import Ellipsoid, single_ellipsoid
 from ipcverify.sets._exact import decode_exact, encode_exact
-from ipcverify.sets._shapes import Box, Ellipsoid, OuterSet, Polytope, single_ellipsoid
+from ipcverify.sets._faces import FacedSet
+from ipcverify.sets._outer import OuterSet
 
 __all__ = ["ContainmentCertificate", "Verification", "certificate_from_dict", "verify"]
 
@@ -53,8 +55,8 @@ class ContainmentCertificate:
     ----------
     inner : Ellipsoid
         The inner set (a batch of one).
-    outer : Box, Polytope or Ellipsoid
-        The outer set.
+    outer : OuterSet
+        The outer set (a Box, Polytope or Ellipsoid, or any :class:`~ipcverify.sets.OuterSet`).
     method : Method
         How the answer was reached.
     status : Status
@@ -83,6 +85,7 @@ class ContainmentCertificate:
     --------
     >>> import numpy as np
     >>> from ipcverify.decision.containment import prove
+    >>> from ipcverify.sets import Box
     >>> inner = Ellipsoid(np.zeros(1), np.eye(1))
     >>> cert = prove(inner, Box([-1.0], [1.0]))
     >>> str(cert.status).split(":")[0], cert.margin
@@ -102,10 +105,9 @@ class ContainmentCertificate:
 
     def __post_init__(self) -> None:
         single_ellipsoid(self.inner, "certificate inner set")
-        if not isinstance(self.outer, (Box, Polytope, Ellipsoid)):
+        if not isinstance(self.outer, OuterSet):
             raise SetError(f"outer must be a Box, Polytope or Ellipsoid; got {type(self.outer).__name__}")
-        if isinstance(self.outer, Ellipsoid):
-            single_ellipsoid(self.outer, "certificate outer set")
+        self.outer.as_outer("certificate outer set")
         if self.outer.dim != self.inner.dim:
             raise SetError(f"outer dimension {self.outer.dim} != inner dimension {self.inner.dim}")
         method = self.method if isinstance(self.method, Method) else parse_method(self.method, "method")
@@ -120,17 +122,7 @@ class ContainmentCertificate:
                 raise InvalidInputError("certificate margin must be finite or None")
             object.__setattr__(self, "margin", m)
         if method is Method.SDP and status is Status.PROVEN:
-            if isinstance(self.outer, Ellipsoid):
-                for key in ("lambda", "tau"):
-                    if len(self.multipliers.get(key, ())) != 1:
-                        raise InvalidInputError(f"a PROVEN sdp certificate needs one '{key}' multiplier")
-            else:
-                faces = self.outer.faces()[1].shape[0]
-                if len(self.multipliers.get("lambda", ())) != faces:
-                    raise InvalidInputError(
-                        f"a PROVEN sdp certificate for a {type(self.outer).__name__.lower()} needs one "
-                        f"'lambda' multiplier per face ({faces})"
-                    )
+            _SDP_MULTIPLIERS[self.outer.proof_form](self.outer, self.multipliers)
         if status is Status.REFUTED:
             if self.witness is None or len(self.witness) != self.inner.dim:
                 raise InvalidInputError(
@@ -296,13 +288,53 @@ def verify(certificate: ContainmentCertificate) -> Verification:
             Status.REFUTED,
             "witness is inside the inner set and outside the outer set (exact)",
         )
-    outer = certificate.outer
-    if isinstance(outer, Ellipsoid):
-        lam = certificate.multipliers["lambda"][0]
-        tau = certificate.multipliers["tau"][0]
-        ok, why = check_lmi(inner.quadratic_form(1), ExactEllipsoid.of(outer).quadratic_form(0), lam, tau)
-    elif certificate.method is Method.SDP:
-        ok, why = check_face_lmis(certificate.inner, outer, certificate.multipliers["lambda"])
-    else:
-        ok, why = check_faces(inner, outer)
+    ok, why = _PROOF_CHECKS[(certificate.outer.proof_form, certificate.method)](certificate, inner)
     return Verification(claimed, Status.PROVEN if ok else Status.UNKNOWN, why)
+
+
+def _ellipsoid_sdp_multipliers(outer: OuterSet, multipliers: Mapping[str, tuple[Fraction, ...]]) -> None:
+    for key in ("lambda", "tau"):
+        if len(multipliers.get(key, ())) != 1:
+            raise InvalidInputError(f"a PROVEN sdp certificate needs one '{key}' multiplier")
+
+
+def _face_sdp_multipliers(outer: OuterSet, multipliers: Mapping[str, tuple[Fraction, ...]]) -> None:
+    faces = cast(FacedSet, outer).faces()[1].shape[0]
+    if len(multipliers.get("lambda", ())) != faces:
+        raise InvalidInputError(
+            f"a PROVEN sdp certificate for a {type(outer).__name__.lower()} needs one "
+            f"'lambda' multiplier per face ({faces})"
+        )
+
+
+#: The multipliers a PROVEN sdp certificate must carry, per proof form.
+_SDP_MULTIPLIERS: dict[str, Callable[[OuterSet, Mapping[str, tuple[Fraction, ...]]], None]] = {
+    "ellipsoid": _ellipsoid_sdp_multipliers,
+    "faces": _face_sdp_multipliers,
+}
+
+
+def _check_ellipsoid_lmi(certificate: ContainmentCertificate, inner: ExactEllipsoid) -> tuple[bool, str]:
+    lam = certificate.multipliers["lambda"][0]
+    tau = certificate.multipliers["tau"][0]
+    outer = ExactEllipsoid.of(cast(Ellipsoid, certificate.outer))
+    return check_lmi(inner.quadratic_form(1), outer.quadratic_form(0), lam, tau)
+
+
+def _check_face_lmis(certificate: ContainmentCertificate, inner: ExactEllipsoid) -> tuple[bool, str]:
+    outer = cast(FacedSet, certificate.outer)
+    return check_face_lmis(certificate.inner, outer, certificate.multipliers["lambda"])
+
+
+def _check_faces(certificate: ContainmentCertificate, inner: ExactEllipsoid) -> tuple[bool, str]:
+    return check_faces(inner, cast(FacedSet, certificate.outer))
+
+
+#: The exact re-check of a PROVEN claim, per proof form and method.
+_Check = Callable[[ContainmentCertificate, ExactEllipsoid], tuple[bool, str]]
+_PROOF_CHECKS: dict[tuple[str, Method], _Check] = {
+    ("ellipsoid", Method.SDP): _check_ellipsoid_lmi,
+    ("faces", Method.SDP): _check_face_lmis,
+    ("faces", Method.CLOSED_FORM): _check_faces,
+    ("faces", Method.SOCP): _check_faces,
+}

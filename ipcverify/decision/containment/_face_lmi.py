@@ -19,7 +19,7 @@ Examples
 --------
 >>> import numpy as np
 >>> from fractions import Fraction
->>> from ipcverify.sets._shapes import Box, Ellipsoid
+>>> from ipcverify.sets import Box, Ellipsoid
 >>> disc = Ellipsoid(np.zeros(2), np.eye(2))
 >>> box = Box([-1.0, -1.0], [1.0, 1.0])
 >>> check_face_lmis(disc, box, [Fraction(1, 2)] * 4)[0]      # the touching box: lam = s / 2
@@ -33,8 +33,9 @@ from __future__ import annotations
 from collections.abc import Sequence
 from fractions import Fraction
 
+from ipcverify.sets._ellipsoid import Ellipsoid
 from ipcverify.sets._exact import dyadic, is_positive_semidefinite
-from ipcverify.sets._shapes import Box, Ellipsoid, Polytope
+from ipcverify.sets._faces import FacedSet
 
 __all__ = ["FaceSystem", "check_face_lmis", "face_centre", "integer_definiteness"]
 
@@ -97,7 +98,7 @@ class FaceSystem:
         Faces in the order of ``outer.faces()`` (a box: upper faces, then lower).
     """
 
-    def __init__(self, inner: Ellipsoid, outer: Box | Polytope) -> None:
+    def __init__(self, inner: Ellipsoid, outer: FacedSet) -> None:
         c, C = inner.centers[0], inner.shapes[0]
         n = c.shape[0]
         ints, self._e = dyadic([*C.ravel().tolist(), *c.tolist()])
@@ -157,7 +158,7 @@ def face_centre(system: FaceSystem, j: int) -> Fraction:
     return system.slack(j) / 2
 
 
-def check_face_lmis(inner: Ellipsoid, outer: Box | Polytope, lambdas: Sequence[Fraction]) -> tuple[bool, str]:
+def check_face_lmis(inner: Ellipsoid, outer: FacedSet, lambdas: Sequence[Fraction]) -> tuple[bool, str]:
     """Exactly: ``lam_j >= 0`` and ``M_j(lam_j) >= 0`` for every face ``j``, i.e. ``inner ⊆ outer``.
 
     Parameters

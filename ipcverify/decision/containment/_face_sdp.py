@@ -29,7 +29,7 @@ data the solver was given, or the centre ``c``. Anything else is UNKNOWN.
 Examples
 --------
 >>> import numpy as np
->>> from ipcverify.sets._shapes import Box, Ellipsoid
+>>> from ipcverify.sets import Box, Ellipsoid
 >>> e = Ellipsoid(np.zeros(2), np.diag([2.0, 4.0]))        # semi-axes 0.5, 0.25
 >>> prove_sdp_faces(e, Box([-0.5, -0.25], [0.5, 0.25])).status.name   # touching on every face
 'PROVEN'
@@ -43,6 +43,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from fractions import Fraction
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -52,8 +53,9 @@ from ipcverify.decision.containment._certificate import ContainmentCertificate
 from ipcverify.decision.containment._face_lmi import FaceSystem, face_centre
 from ipcverify.decision.containment._geometry import ExactEllipsoid, witness_from_direction
 from ipcverify.decision.containment._status import Method, Status
+from ipcverify.sets._ellipsoid import Ellipsoid
 from ipcverify.sets._exact import exact_vector
-from ipcverify.sets._shapes import Box, Ellipsoid, Polytope
+from ipcverify.sets._faces import FacedSet
 
 __all__ = ["POLISH_TOLERANCE", "FaceSolution", "prove_sdp_faces", "solve_face_sdp"]
 
@@ -133,13 +135,13 @@ def _pattern(n: int, m: int) -> Any:
     return _PATTERNS[key]
 
 
-def solve_face_sdp(inner: Ellipsoid, outer: Box | Polytope) -> FaceSolution:
+def solve_face_sdp(inner: Ellipsoid, outer: FacedSet) -> FaceSolution:
     """Solve the face SDP (see the module docstring) with Clarabel; float, not a proof.
 
     Examples
     --------
     >>> import numpy as np
-    >>> from ipcverify.sets._shapes import Box, Ellipsoid
+    >>> from ipcverify.sets import Box, Ellipsoid
     >>> sol = solve_face_sdp(Ellipsoid(np.zeros(1), np.eye(1)), Box([-2.0], [3.0]))
     >>> sol.status, np.round(sol.lam, 4).tolist(), np.round(sol.slack, 4).tolist()
     ('Solved', [1.5, 1.0], [2.0, 1.0])
@@ -203,7 +205,7 @@ def _certify_face(system: FaceSystem, j: int, lam: float, scale: float) -> tuple
     return None, ""
 
 
-def _refute(ex: ExactEllipsoid, outer: Box | Polytope, sol: FaceSolution, faces: list[int]) -> Any:
+def _refute(ex: ExactEllipsoid, outer: FacedSet, sol: FaceSolution, faces: list[int]) -> Any:
     """An exact witness from the failing faces' maximisers (dual, then polished), or None.
 
     The centre ``c`` is tried last: it refutes when a face fails even there (``b_j < a_j^T c``).
@@ -230,7 +232,7 @@ def _refute(ex: ExactEllipsoid, outer: Box | Polytope, sol: FaceSolution, faces:
 
 
 def prove_sdp_faces(
-    inner: Ellipsoid, outer: Box | Polytope, exact: ExactEllipsoid | None = None
+    inner: Ellipsoid, outer: FacedSet, exact: ExactEllipsoid | None = None
 ) -> ContainmentCertificate:
     """Prove or refute ``inner ⊆ outer`` for a box or polytope by the face SDP, checked exactly.
 
@@ -238,8 +240,8 @@ def prove_sdp_faces(
     ----------
     inner : Ellipsoid
         A single ellipsoid.
-    outer : Box or Polytope
-        The outer set.
+    outer : FacedSet
+        The outer set: a Box, a Polytope or any set given by faces.
     exact : ExactEllipsoid, optional
         ``inner`` in exact arithmetic, if the caller has it (used only to build a witness).
 
@@ -249,14 +251,12 @@ def prove_sdp_faces(
         Method ``sdp``; PROVEN carries one exact multiplier per face (``"lambda"``, in the
         order of ``outer.faces()``), each passing :func:`~ipcverify.decision.containment.check_face_lmis`.
     """
+    answer = partial(ContainmentCertificate, inner, outer, Method.SDP)
     sol = solve_face_sdp(inner, outer)
     m = outer.faces()[1].shape[0]
     lam, slack, scale = sol.lam, sol.slack, sol.scale
     if not sol.solved or lam is None or slack is None or scale is None:
-        return ContainmentCertificate(
-            inner,
-            outer,
-            Method.SDP,
+        return answer(
             Status.UNKNOWN,
             detail=f"no Clarabel solution to trust ({sol.status}; only 'Solved' is): nothing is proven "
             "or refuted",
@@ -276,10 +276,7 @@ def prove_sdp_faces(
             chosen.append(q)
     mult = {"lambda": tuple(chosen)}
     if not failed:
-        return ContainmentCertificate(
-            inner,
-            outer,
-            Method.SDP,
+        return answer(
             Status.PROVEN,
             mult,
             margin,
@@ -292,11 +289,8 @@ def prove_sdp_faces(
     if found is not None:
         witness, how = found
         detail = f"Clarabel status 'Solved'; {how}"
-        return ContainmentCertificate(inner, outer, Method.SDP, Status.REFUTED, mult, margin, witness, detail)
-    return ContainmentCertificate(
-        inner,
-        outer,
-        Method.SDP,
+        return answer(Status.REFUTED, mult, margin, witness, detail=detail)
+    return answer(
         Status.UNKNOWN,
         mult,
         margin,

@@ -13,7 +13,7 @@ test here is decided without rounding:
 Examples
 --------
 >>> import numpy as np
->>> from ipcverify.sets._shapes import Box, Ellipsoid
+>>> from ipcverify.sets import Box, Ellipsoid
 >>> ex = ExactEllipsoid.of(Ellipsoid(np.zeros(2), np.diag([2.0, 4.0])))
 >>> check_faces(ex, Box([-0.5, -0.25], [0.5, 0.25]))[0]
 True
@@ -27,6 +27,7 @@ from dataclasses import dataclass
 from fractions import Fraction
 
 from ipcverify.errors import InvalidInputError
+from ipcverify.sets._ellipsoid import Ellipsoid
 from ipcverify.sets._exact import (
     ExactMatrix,
     ExactVector,
@@ -39,7 +40,8 @@ from ipcverify.sets._exact import (
     sqnorm,
     sqrt_upper,
 )
-from ipcverify.sets._shapes import Box, Ellipsoid, OuterSet, Polytope
+from ipcverify.sets._faces import FacedSet
+from ipcverify.sets._outer import OuterSet
 
 __all__ = [
     "ExactEllipsoid",
@@ -126,43 +128,14 @@ class Face:
                 return math.inf
 
 
-def exact_faces(ex: ExactEllipsoid, outer: Box | Polytope) -> list[Face]:
-    """Every face of ``outer`` with its exact slack and ``||C^{-T} a||^2``."""
-    n = len(ex.c)
-    ci = ex.cinv
-    faces: list[Face] = []
-    if isinstance(outer, Box):
-        up, lo = exact_vector(outer.upper), exact_vector(outer.lower)
-        rows = [ci[i] for i in range(n)]  # C^{-T} e_i = row i of C^{-1}
-        norms = [sqnorm(r) for r in rows]
-        for i in range(n):
-            e = [Fraction(int(k == i)) for k in range(n)]
-            faces.append(Face(i, e, up[i], rows[i], up[i] - ex.c[i], norms[i]))
-        for i in range(n):
-            e = [Fraction(-int(k == i)) for k in range(n)]
-            faces.append(Face(n + i, e, -lo[i], [-v for v in rows[i]], ex.c[i] - lo[i], norms[i]))
-        return faces
-    a_rows, b = exact_matrix(outer.A), exact_vector(outer.b)
-    for j, (a, bj) in enumerate(zip(a_rows, b, strict=True)):
-        # C^{-T} a = sum_k a_k * (row k of C^{-1})
-        z = [sum((ak * ci[k][i] for k, ak in enumerate(a) if ak), Fraction(0)) for i in range(n)]
-        ac = sum((x * y for x, y in zip(a, ex.c, strict=True)), Fraction(0))
-        faces.append(Face(j, a, bj, z, bj - ac, sqnorm(z)))
-    return faces
+def exact_faces(ex: ExactEllipsoid, outer: FacedSet) -> list[Face]:
+    """Every face of ``outer`` with its exact slack and ``||C^{-T} a||^2`` (the shape's ``exact_faces``)."""
+    return [Face(j, *face) for j, face in enumerate(outer.exact_faces(ex.c, ex.cinv))]
 
 
 def is_outside(outer: OuterSet, y: Sequence[Fraction]) -> bool:
-    """Exactly: ``y`` is not in ``outer``."""
-    if isinstance(outer, Ellipsoid):
-        return ExactEllipsoid.of(outer).g2(y) > 1
-    if isinstance(outer, Box):
-        lo, up = exact_vector(outer.lower), exact_vector(outer.upper)
-        return any(v < lo_i or v > up_i for v, lo_i, up_i in zip(y, lo, up, strict=True))
-    a_rows, b = exact_matrix(outer.A), exact_vector(outer.b)
-    return any(
-        sum((x * v for x, v in zip(a, y, strict=True)), Fraction(0)) > bj
-        for a, bj in zip(a_rows, b, strict=True)
-    )
+    """Exactly: ``y`` is not in ``outer`` (:meth:`~ipcverify.sets.OuterSet.outside_exact`)."""
+    return outer.outside_exact(y)
 
 
 def _as_float_witness(ex: ExactEllipsoid, outer: OuterSet, y: Sequence[Fraction]) -> ExactVector | None:
@@ -195,7 +168,7 @@ def witness_from_direction(
     return _as_float_witness(ex, outer, y) or y
 
 
-def face_witness(ex: ExactEllipsoid, outer: Box | Polytope, face: Face) -> ExactVector | None:
+def face_witness(ex: ExactEllipsoid, outer: FacedSet, face: Face) -> ExactVector | None:
     """Exact witness for a violated face: the maximiser of ``a^T y`` over ``E``, pulled inside."""
     if face.zz == 0:
         y = list(ex.c)
@@ -210,7 +183,7 @@ def face_witness(ex: ExactEllipsoid, outer: Box | Polytope, face: Face) -> Exact
     return None
 
 
-def check_faces(ex: ExactEllipsoid, outer: Box | Polytope) -> tuple[bool, str]:
+def check_faces(ex: ExactEllipsoid, outer: FacedSet) -> tuple[bool, str]:
     try:
         faces = exact_faces(ex, outer)
     except InvalidInputError as exc:

@@ -8,6 +8,9 @@ independent second route).
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
 from ipcverify.decision.containment._certificate import ContainmentCertificate
 from ipcverify.decision.containment._closed_form import prove_closed_form
 from ipcverify.decision.containment._face_sdp import prove_sdp_faces
@@ -16,9 +19,18 @@ from ipcverify.decision.containment._sdp import prove_sdp
 from ipcverify.decision.containment._socp import prove_socp
 from ipcverify.decision.containment._status import Method, check_method, default_method, parse_method
 from ipcverify.errors import SetError
-from ipcverify.sets._shapes import Box, Ellipsoid, OuterSet, Polytope, single_ellipsoid
+from ipcverify.sets._ellipsoid import Ellipsoid, single_ellipsoid
+from ipcverify.sets._outer import OuterSet
 
 __all__ = ["prove", "prove_batch"]
+
+#: The prover of each proof form (:attr:`ipcverify.sets.OuterSet.proof_form`) and method.
+_PROVERS: dict[tuple[str, Method], Callable[[Ellipsoid, Any, ExactEllipsoid], ContainmentCertificate]] = {
+    ("faces", Method.CLOSED_FORM): prove_closed_form,
+    ("faces", Method.SOCP): prove_socp,
+    ("faces", Method.SDP): prove_sdp_faces,
+    ("ellipsoid", Method.SDP): prove_sdp,
+}
 
 
 def prove(inner: Ellipsoid, outer: OuterSet, *, method: Method | str | None = None) -> ContainmentCertificate:
@@ -28,8 +40,9 @@ def prove(inner: Ellipsoid, outer: OuterSet, *, method: Method | str | None = No
     ----------
     inner : Ellipsoid
         A single ellipsoid (batch of one).
-    outer : Box, Polytope or Ellipsoid
-        The outer set (an ellipsoid must be a batch of one).
+    outer : OuterSet
+        The outer set: a Box, Polytope or Ellipsoid (a batch of one), or any
+        :class:`~ipcverify.sets.OuterSet`; its ``proof_form`` and the method choose the prover.
     method : Method or str, optional
         ``"closed-form"`` (default for boxes/polytopes: exact, never UNKNOWN), ``"socp"``
         (cross-check) or ``"sdp"`` (the only method, and default, for ellipsoids; for boxes and
@@ -43,6 +56,7 @@ def prove(inner: Ellipsoid, outer: OuterSet, *, method: Method | str | None = No
     Examples
     --------
     >>> import numpy as np
+    >>> from ipcverify.sets import Box, Polytope
     >>> e = Ellipsoid(np.zeros(2), np.eye(2))
     >>> prove(e, Polytope([[1.0, 1.0]], [1.5])).status.name
     'PROVEN'
@@ -51,7 +65,7 @@ def prove(inner: Ellipsoid, outer: OuterSet, *, method: Method | str | None = No
     ('sdp', 'PROVEN', 4)
     """
     inner = single_ellipsoid(inner, "inner")
-    if not isinstance(outer, (Box, Polytope, Ellipsoid)):
+    if not isinstance(outer, OuterSet):
         raise SetError(f"outer must be a Box, Polytope or Ellipsoid; got {type(outer).__name__}")
     if outer.dim != inner.dim:
         raise SetError(f"outer dimension {outer.dim} != inner dimension {inner.dim}")
@@ -61,14 +75,10 @@ def prove(inner: Ellipsoid, outer: OuterSet, *, method: Method | str | None = No
         else parse_method(method.value if isinstance(method, Method) else method, "method")
     )
     check_method(m, outer)
-    ex = ExactEllipsoid.of(inner)
-    if isinstance(outer, Ellipsoid):
-        return prove_sdp(inner, single_ellipsoid(outer, "outer"), ex)
-    if m is Method.SOCP:
-        return prove_socp(inner, outer, ex)
-    if m is Method.SDP:
-        return prove_sdp_faces(inner, outer, ex)
-    return prove_closed_form(inner, outer, ex)
+    prover = _PROVERS.get((outer.proof_form, m))
+    if prover is None:
+        raise SetError(f"no {m.value} prover for sets of proof form '{outer.proof_form}'")
+    return prover(inner, outer.as_outer("outer"), ExactEllipsoid.of(inner))
 
 
 def prove_batch(
@@ -79,6 +89,7 @@ def prove_batch(
     Examples
     --------
     >>> import numpy as np
+    >>> from ipcverify.sets import Box
     >>> e = Ellipsoid(np.zeros((2, 1)), np.array([[[2.0]], [[0.5]]]))
     >>> [c.status.name for c in prove_batch(e, Box([-1.0], [1.0]))]
     ['PROVEN', 'REFUTED']

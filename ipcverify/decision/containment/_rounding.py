@@ -17,7 +17,7 @@ residual plus the standard bound ``gamma_n |C| |X|`` on the rounding of ``C X``.
 Examples
 --------
 >>> import numpy as np
->>> from ipcverify.sets._shapes import Box, Ellipsoid
+>>> from ipcverify.sets import Box, Ellipsoid
 >>> e = Ellipsoid(np.zeros((1, 2)), np.full((1, 2, 2), 2.0) * np.eye(2))  # radius 0.5
 >>> sb = support_slack_bounds(e, Box([-1.0, -0.5], [1.0, 1.0]))
 >>> sb.slack.round(3).tolist(), bool((sb.bound < 1e-14).all())
@@ -33,14 +33,16 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ipcverify.errors import SetError
-from ipcverify.sets._shapes import Box, Ellipsoid, Polytope
+from ipcverify.decision.containment._margin import check_faced_pair
+from ipcverify.sets._ellipsoid import Ellipsoid
+from ipcverify.sets._faces import UNDERFLOW_ALLOWANCE, UNIT_ROUNDOFF, FacedSet, gamma
 
 __all__ = ["SlackBounds", "support_slack_bounds"]
 
 FloatArray = NDArray[np.float64]
-_U = 2.0**-53
-_ABS = 2.0**-520  # absolute allowance for every underflow of the analysis (far above its size)
+_U = UNIT_ROUNDOFF
+_ABS = UNDERFLOW_ALLOWANCE  # absolute allowance for every underflow of the analysis (far above its size)
+_gamma = gamma
 
 
 @dataclass(frozen=True, eq=False)
@@ -67,11 +69,6 @@ class SlackBounds:
         return np.asarray((self.slack < -self.bound).any(axis=1), dtype=np.bool_)
 
 
-def _gamma(k: int) -> float:
-    """A float at least ``gamma_k = k u / (1 - k u)`` (and its own rounding), for ``k u < 0.01``."""
-    return 1.02 * k * _U
-
-
 def _inverse_residual(C: FloatArray) -> tuple[FloatArray, FloatArray]:
     """``X ~ C^{-1}`` and ``rho >= ||I - C X||_2`` per matrix (``rho = inf`` if ``inv`` fails)."""
     n = C.shape[-1]
@@ -95,47 +92,30 @@ def _safe_inv(m: FloatArray) -> FloatArray:
         return np.full_like(m, np.nan)
 
 
-def support_slack_bounds(inner: Ellipsoid, outer: Box | Polytope) -> SlackBounds:
+def support_slack_bounds(inner: Ellipsoid, outer: FacedSet) -> SlackBounds:
     """Face slacks of ``inner`` against ``outer`` with rigorous rounding-error bounds.
 
     Parameters
     ----------
     inner : Ellipsoid
         A batch of ``B`` ellipsoids.
-    outer : Box or Polytope
-        The outer set (``m = 2n`` faces for a box).
+    outer : FacedSet
+        The outer set, a Box or Polytope (``m = 2n`` faces for a box) or any set given by faces;
+        its :meth:`~ipcverify.sets.FacedSet.slack_terms` give ``b - A c`` and ``||X^T a_j||`` with
+        their rounding bounds.
 
     Returns
     -------
     SlackBounds
         ``slack`` and ``bound`` of shape (B, m); see the module docstring.
     """
-    if not isinstance(inner, Ellipsoid):
-        raise SetError("inner must be an Ellipsoid")
-    if not isinstance(outer, (Box, Polytope)):
-        raise SetError(f"support_slack_bounds needs a Box or Polytope; got {type(outer).__name__}")
-    if outer.dim != inner.dim:
-        raise SetError(f"outer dimension {outer.dim} != inner dimension {inner.dim}")
+    check_faced_pair(inner, outer, "support_slack_bounds")
     n = inner.dim
     c, C = inner.centers, inner.shapes
     X, rho = _inverse_residual(C)
     with np.errstate(all="ignore"):
         kappa = np.where(rho < 0.5, rho / (1.0 - rho) * (1.0 + 4.0 * _U), np.inf)[:, None]
-        if isinstance(outer, Box):
-            # a = +-e_i: X^T a = +-(row i of X), exactly; the slack's float error is one rounding
-            s_hat = np.sqrt(np.einsum("bij,bij->bi", X, X))
-            s_hat = np.concatenate([s_hat, s_hat], axis=1)
-            e_v = 0.0
-            sigma = np.concatenate([outer.upper - c, c - outer.lower], axis=1)
-            e_sigma = _U * np.abs(sigma)
-        else:
-            A, b = outer.A, outer.b
-            V = np.einsum("bki,jk->bji", X, A)  # X^T a_j
-            s_hat = np.sqrt(np.einsum("bji,bji->bj", V, V))
-            W = np.einsum("bki,jk->bji", np.abs(X), np.abs(A))  # |X|^T |a_j|: bounds the rounding of X^T a_j
-            e_v = _gamma(n + 2) * np.sqrt(np.einsum("bji,bji->bj", W, W)) + _ABS
-            sigma = b - c @ A.T
-            e_sigma = _gamma(n + 3) * (np.abs(b) + np.abs(c) @ np.abs(A).T) + _ABS
+        sigma, e_sigma, s_hat, e_v = outer.slack_terms(c, X)  # the shape's face arithmetic
         # ||X^T a|| from its float value, then ||C^{-T} a|| from ||X^T a|| (verified inverse)
         e_norm = _gamma(n + 3) * s_hat + _ABS
         norm_hi = s_hat + e_norm + e_v

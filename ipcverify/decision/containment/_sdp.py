@@ -9,7 +9,7 @@ trust-region maximiser of the normalised problem, checked exactly.
 Examples
 --------
 >>> import numpy as np
->>> from ipcverify.sets._shapes import Ellipsoid
+>>> from ipcverify.sets._ellipsoid import Ellipsoid
 >>> ball = Ellipsoid(np.zeros(2), np.eye(2))
 >>> prove_sdp(ball, ball.scaled(2.0)).status.name, prove_sdp(ball.scaled(2.0), ball).status.name
 ('PROVEN', 'REFUTED')
@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 from fractions import Fraction
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -26,10 +27,10 @@ from numpy.typing import NDArray
 
 from ipcverify.decision.containment._certificate import ContainmentCertificate
 from ipcverify.decision.containment._geometry import ExactEllipsoid, check_lmi, witness_from_direction
-from ipcverify.decision.containment._status import Method, Status
+from ipcverify.decision.containment._status import Method, Status, solve_with_clarabel
 from ipcverify.errors import SetError
+from ipcverify.sets._ellipsoid import Ellipsoid
 from ipcverify.sets._exact import exact_vector, matvec
-from ipcverify.sets._shapes import Ellipsoid
 
 __all__ = ["prove_sdp", "normalised", "trust_region_maximiser", "sdp_problem"]
 
@@ -170,6 +171,7 @@ def prove_sdp(
     """Prove or refute ``inner ⊆ outer`` for two single ellipsoids (S-lemma, checked exactly)."""
     import cvxpy as cp  # imported on first use: it takes about a second
 
+    answer = partial(ContainmentCertificate, inner, outer, Method.SDP)
     ex = ExactEllipsoid.of(inner) if exact is None else exact
     n = inner.dim
     d_mat, d = normalised(inner, outer)
@@ -177,12 +179,7 @@ def prove_sdp(
     scale = max(1.0, float(np.abs(q2n).max()))
     prob, lam_v, tau_v, q2p = sdp_problem(n)
     q2p.value = q2n / scale
-    try:
-        with np.errstate(all="ignore"):
-            prob.solve(solver=cp.CLARABEL)
-        status = prob.status
-    except cp.error.SolverError as exc:
-        status = f"solver error ({exc})"
+    status = solve_with_clarabel(prob)
     notes = [f"Clarabel status '{status}'"]
     lam = tau = math.nan
     q1 = ex.quadratic_form(1)
@@ -199,13 +196,10 @@ def prove_sdp(
             for lq, tq, why in _sdp_candidates(lam, tau, lift):
                 ok, how = check_lmi(q1, q2, lq, tq)
                 if ok:
-                    return ContainmentCertificate(
-                        inner=inner,
-                        outer=outer,
-                        method=Method.SDP,
-                        status=Status.PROVEN,
-                        multipliers={"lambda": (lq,), "tau": (tq,)},
-                        margin=1.0 - tau,
+                    return answer(
+                        Status.PROVEN,
+                        {"lambda": (lq,), "tau": (tq,)},
+                        1.0 - tau,
                         detail=f"{notes[0]}; {why}; {how}",
                     )
             notes.append("no multiplier candidate passed the exact PSD test")
@@ -219,16 +213,7 @@ def prove_sdp(
         for cand in (u, -u):
             y = witness_from_direction(ex, outer, exact_vector(cand))
             if y is not None:
-                return ContainmentCertificate(
-                    inner=inner,
-                    outer=outer,
-                    method=Method.SDP,
-                    status=Status.REFUTED,
-                    multipliers=mult,
-                    margin=margin,
-                    witness=tuple(y),
-                    detail="; ".join([*notes, how]),
-                )
+                return answer(Status.REFUTED, mult, margin, tuple(y), detail="; ".join([*notes, how]))
         return None
 
     u, _ = trust_region_maximiser(d_mat, d)
@@ -242,25 +227,14 @@ def prove_sdp(
         for lq in (Fraction(mu), Fraction(mu) * (1 + Fraction(1, 2**40))):
             ok, how = check_lmi(q1, q2, lq, Fraction(1))
             if ok:
-                return ContainmentCertificate(
-                    inner=inner,
-                    outer=outer,
-                    method=Method.SDP,
-                    status=Status.PROVEN,
-                    multipliers={"lambda": (lq,), "tau": (Fraction(1),)},
-                    margin=margin,
+                return answer(
+                    Status.PROVEN,
+                    {"lambda": (lq,), "tau": (Fraction(1),)},
+                    margin,
                     detail=f"{notes[0]}; lambda refined by the trust-region secular equation, tau = 1; {how}",
                 )
     cert = refuted(u, "witness: trust-region maximiser of the exactly normalised problem")
     if cert is not None:
         return cert
     notes.append("no exact witness found")
-    return ContainmentCertificate(
-        inner=inner,
-        outer=outer,
-        method=Method.SDP,
-        status=Status.UNKNOWN,
-        multipliers=mult,
-        margin=margin,
-        detail="; ".join(notes),
-    )
+    return answer(Status.UNKNOWN, mult, margin, detail="; ".join(notes))

@@ -8,7 +8,7 @@ other than ``optimal`` (``optimal_inaccurate`` included) is UNKNOWN.
 Examples
 --------
 >>> import numpy as np
->>> from ipcverify.sets._shapes import Box, Ellipsoid
+>>> from ipcverify.sets import Box, Ellipsoid
 >>> prove_socp(Ellipsoid(np.zeros(2), np.eye(2)), Box([-2.0, -2.0], [2.0, 2.0])).status.name
 'PROVEN'
 """
@@ -16,15 +16,17 @@ Examples
 from __future__ import annotations
 
 from fractions import Fraction
+from functools import partial
 from typing import Any
 
 import numpy as np
 
 from ipcverify.decision.containment._certificate import ContainmentCertificate
 from ipcverify.decision.containment._geometry import ExactEllipsoid, check_faces, witness_from_direction
-from ipcverify.decision.containment._status import Method, Status
+from ipcverify.decision.containment._status import Method, Status, solve_with_clarabel
+from ipcverify.sets._ellipsoid import Ellipsoid
 from ipcverify.sets._exact import exact_vector, matvec
-from ipcverify.sets._shapes import Box, Ellipsoid, Polytope
+from ipcverify.sets._faces import FacedSet
 
 __all__ = ["prove_socp", "socp_problem"]
 
@@ -48,11 +50,12 @@ def socp_problem(n: int, m: int) -> Any:
 
 
 def prove_socp(
-    inner: Ellipsoid, outer: Box | Polytope, exact: ExactEllipsoid | None = None
+    inner: Ellipsoid, outer: FacedSet, exact: ExactEllipsoid | None = None
 ) -> ContainmentCertificate:
     """Prove or refute ``inner ⊆ outer`` with Clarabel's support values, re-checked exactly."""
     import cvxpy as cp  # imported on first use: it takes about a second
 
+    answer = partial(ContainmentCertificate, inner, outer, Method.SOCP)
     ex = ExactEllipsoid.of(inner) if exact is None else exact
     a, b = outer.faces()
     n, m = inner.dim, a.shape[0]
@@ -62,28 +65,14 @@ def prove_socp(
     cpar.value = cmat / scale  # ||C w|| <= 1  <=>  ||(C/s) w|| <= 1/s; solve for v = w s
     anorm = np.maximum(np.linalg.norm(a, axis=1), np.finfo(float).tiny)
     apar.value = a / anorm[:, None]
-    try:
-        with np.errstate(all="ignore"):
-            prob.solve(solver=cp.CLARABEL)
-        status = prob.status
-    except cp.error.SolverError as exc:
-        status = f"solver error ({exc})"
+    status = solve_with_clarabel(prob)
     if status != cp.OPTIMAL or w.value is None:
-        return ContainmentCertificate(
-            inner=inner,
-            outer=outer,
-            method=Method.SOCP,
-            status=Status.UNKNOWN,
-            detail=f"Clarabel status '{status}' is not 'optimal'",
-        )
+        return answer(Status.UNKNOWN, detail=f"Clarabel status '{status}' is not 'optimal'")
     with np.errstate(over="ignore"):
         wv = np.asarray(w.value) / scale
     if not np.isfinite(wv).all():
-        return ContainmentCertificate(
-            inner=inner,
-            outer=outer,
-            method=Method.SOCP,
-            status=Status.UNKNOWN,
+        return answer(
+            Status.UNKNOWN,
             detail="the inner set's extent is beyond float's range; decide it with method='closed-form'",
         )
     support = np.einsum("ji,ji->j", a / anorm[:, None], wv) * anorm
@@ -93,15 +82,7 @@ def prove_socp(
     tol = 1e-7 * (1.0 + np.abs(b) + np.abs(a @ c) + np.abs(support))
     ok_exact, why = check_faces(ex, outer)
     if (slack >= -tol).all() and ok_exact:
-        return ContainmentCertificate(
-            inner=inner,
-            outer=outer,
-            method=Method.SOCP,
-            status=Status.PROVEN,
-            multipliers=mult,
-            margin=margin,
-            detail=f"Clarabel optimal; exact check: {why}",
-        )
+        return answer(Status.PROVEN, mult, margin, detail=f"Clarabel optimal; exact check: {why}")
     if (slack < -tol).any():
         for j in np.argsort(slack):
             if slack[j] >= -tol[j]:
@@ -110,22 +91,16 @@ def prove_socp(
             u = matvec(ex.C, wj)  # C (y - c)
             y = witness_from_direction(ex, outer, u)
             if y is not None:
-                return ContainmentCertificate(
-                    inner=inner,
-                    outer=outer,
-                    method=Method.SOCP,
-                    status=Status.REFUTED,
-                    multipliers=mult,
-                    margin=margin,
-                    witness=tuple(y),
+                return answer(
+                    Status.REFUTED,
+                    mult,
+                    margin,
+                    tuple(y),
                     detail=f"Clarabel optimal; maximiser on face {j} checked exactly",
                 )
-    return ContainmentCertificate(
-        inner=inner,
-        outer=outer,
-        method=Method.SOCP,
-        status=Status.UNKNOWN,
-        multipliers=mult,
-        margin=margin,
+    return answer(
+        Status.UNKNOWN,
+        mult,
+        margin,
         detail=f"Clarabel optimal but not decisive or contradicted by the exact check ({why})",
     )

@@ -12,10 +12,12 @@ import json
 from enum import Enum
 from typing import Any
 
-from ipcverify.errors import InvalidInputError
-from ipcverify.sets._shapes import Ellipsoid, OuterSet
+import numpy as np
 
-__all__ = ["Status", "Method", "parse_method", "check_method", "default_method"]
+from ipcverify.errors import InvalidInputError
+from ipcverify.sets._outer import OuterSet
+
+__all__ = ["Status", "Method", "parse_method", "check_method", "default_method", "solve_with_clarabel"]
 
 
 class Status(Enum):
@@ -86,7 +88,8 @@ def check_method(method: Method, outer: OuterSet) -> None:
     Examples
     --------
     >>> import numpy as np
-    >>> from ipcverify.sets._shapes import Box
+    >>> from ipcverify.sets._box import Box
+    >>> from ipcverify.sets._ellipsoid import Ellipsoid
     >>> check_method(Method.SOCP, Ellipsoid(np.zeros(1), np.eye(1)))  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
@@ -94,20 +97,40 @@ def check_method(method: Method, outer: OuterSet) -> None:
     >>> check_method(Method.SDP, Box([0.0], [1.0])) is None       # the S-lemma applies to every set
     True
     """
-    if isinstance(outer, Ellipsoid) and method is not Method.SDP:
+    if method.value not in outer.methods:
+        article = "an" if outer.kind[:1] in "aeiou" else "a"
+        use = " or ".join(f"'{m}'" for m in outer.methods)
         raise InvalidInputError(
-            f"method '{method.value}' does not apply to an ellipsoid outer set: "
-            "use 'sdp' for ellipsoids; 'closed-form', 'socp' or 'sdp' for boxes and polytopes"
+            f"method '{method.value}' does not apply to {article} {outer.kind} outer set: "
+            f"use {use} for {outer.kind}s; 'closed-form', 'socp' or 'sdp' for boxes and polytopes"
         )
 
 
 def default_method(outer: OuterSet) -> Method:
-    """``sdp`` for an ellipsoid, ``closed-form`` for a box or polytope.
+    """The outer set's default method (the first of its ``methods``): ``sdp`` for an ellipsoid,
+    ``closed-form`` for a box or polytope.
 
     Examples
     --------
     >>> import numpy as np
+    >>> from ipcverify.sets._ellipsoid import Ellipsoid
     >>> default_method(Ellipsoid(np.zeros(1), np.eye(1))).value
     'sdp'
     """
-    return Method.SDP if isinstance(outer, Ellipsoid) else Method.CLOSED_FORM
+    return Method(outer.methods[0])
+
+
+def solve_with_clarabel(problem: Any) -> str:
+    """Solve a cvxpy problem with Clarabel; its status, or ``"solver error (...)"`` if Clarabel failed.
+
+    Only ``"optimal"`` may lead to a proof; every other status (``optimal_inaccurate`` included)
+    is UNKNOWN to the provers.
+    """
+    import cvxpy as cp  # imported on first use: it takes about a second
+
+    try:
+        with np.errstate(all="ignore"):
+            problem.solve(solver=cp.CLARABEL)
+        return str(problem.status)
+    except cp.error.SolverError as exc:
+        return f"solver error ({exc})"

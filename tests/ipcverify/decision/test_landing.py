@@ -10,16 +10,17 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from ipcverify.decision._landing import (
+from ipcverify.decision._landing_float import landing_accept_float
+from ipcverify.decision._landing_proof import (
     LandingDecision,
     check_landing,
-    landing_accept_float,
     landing_decision,
     turnoff_point,
 )
 from ipcverify.decision.containment import Status, verify
 from ipcverify.errors import SetError
-from ipcverify.sets._shapes import Box, Ellipsoid
+from ipcverify.sets._box import Box
+from ipcverify.sets._ellipsoid import Ellipsoid
 
 #: The paper's target box G (the library takes it from the caller).
 G = Box([-0.05, -0.05, 0.0], [0.05, 0.05, 0.05])

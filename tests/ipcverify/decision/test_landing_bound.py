@@ -26,11 +26,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ipcverify.decision._landing import DecidedBy, LandingRule, check_landing, landing_decision
+from ipcverify.decision._landing import DecidedBy, LandingRule
 from ipcverify.decision._landing_bound import RANGE, bound_target, landing_by_bound, landing_by_bound_compiled
+from ipcverify.decision._landing_proof import check_landing, landing_decision
 from ipcverify.decision.containment import Status
 from ipcverify.errors import SetError
-from ipcverify.sets._shapes import Box, Ellipsoid
+from ipcverify.sets._box import Box
+from ipcverify.sets._ellipsoid import Ellipsoid
 
 PAPER_G = Box([-0.05, -0.05, 0.0], [0.05, 0.05, 0.05])
 SEEDS = st.integers(0, 2**32 - 1)

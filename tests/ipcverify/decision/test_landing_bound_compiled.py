@@ -18,7 +18,7 @@ import pytest
 import ipcverify.decision._landing_bound as landing_bound
 from ipcverify.decision._landing import DecidedBy, LandingRule
 from ipcverify.decision._landing_bound import float_tier, landing_by_bound, landing_by_bound_compiled
-from ipcverify.sets._shapes import Box
+from ipcverify.sets._box import Box
 
 SETS = Path(__file__).resolve().parents[2] / "data" / "landing_sets.npz"
 G = ((-0.05, -0.05, 0.0), (0.05, 0.05, 0.05))

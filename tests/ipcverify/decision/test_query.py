@@ -9,18 +9,15 @@ from ipcverify.contract._calibrate import calibrate
 from ipcverify.contract._model import IPCModel, IPCNetwork
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.data._synthetic import make_lagged_perception
-from ipcverify.decision._landing import (
-    LandingRule,
-    Verdict,
-    check_landing,
-    landing_accept_float,
-    landing_decision,
-)
+from ipcverify.decision._landing import LandingRule, Verdict
+from ipcverify.decision._landing_float import landing_accept_float
+from ipcverify.decision._landing_proof import check_landing, landing_decision
 from ipcverify.decision._landing_query import LandingQuery
 from ipcverify.decision._query import IPCQuery
 from ipcverify.errors import InvalidInputError, SetError
 from ipcverify.network._architecture import ModelConfig
-from ipcverify.sets._shapes import Box, Ellipsoid
+from ipcverify.sets._box import Box
+from ipcverify.sets._ellipsoid import Ellipsoid
 from ipcverify.training._train import TrainConfig, train
 
 #: The paper's target box G (the library takes it from the caller).

@@ -17,7 +17,7 @@ from ipcverify.guard._domain import DomainModel
 from ipcverify.guard._domain_report import DomainReport
 from ipcverify.io._modelio import load_model, save_model
 from ipcverify.network._architecture import ModelConfig
-from ipcverify.sets._shapes import Box
+from ipcverify.sets._box import Box
 from ipcverify.training._train import TrainConfig, train
 
 G = Box([-0.05, -0.05, 0.0], [0.05, 0.05, 0.05])

@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 from ipcverify.errors import SetError
 from ipcverify.network._nonsingular import CheckedEllipsoid, checked_ellipsoid, nonsingular, svd_rcond
-from ipcverify.sets._shapes import SINGULAR_RCOND, Ellipsoid
+from ipcverify.sets._ellipsoid import SINGULAR_RCOND, Ellipsoid
 
 
 def _batch(rng: np.random.Generator, size: int, n: int) -> np.ndarray:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import itertools
 import math
 from fractions import Fraction
 
@@ -33,27 +32,6 @@ F = Fraction
 DERANDOMIZED = settings(derandomize=True, max_examples=150, deadline=None)
 
 
-def _det(m):
-    """Laplace expansion: an independent determinant for small matrices."""
-    if len(m) == 1:
-        return m[0][0]
-    return sum((-1) ** j * m[0][j] * _det([r[:j] + r[j + 1 :] for r in m[1:]]) for j in range(len(m)))
-
-
-def _psd_by_minors(m) -> bool:
-    """PSD iff every principal minor is >= 0 (exact, independent of the pivoting code)."""
-    n = len(m)
-    return all(
-        _det([[m[i][j] for j in idx] for i in idx]) >= 0
-        for k in range(1, n + 1)
-        for idx in itertools.combinations(range(n), k)
-    )
-
-
-def _pd_by_minors(m) -> bool:
-    return all(_det([row[:k] for row in m[:k]]) > 0 for k in range(1, len(m) + 1))
-
-
 def test_exact_conversion_is_exact():
     assert exact_vector([0.1])[0] == F(3602879701896397, 2**55)
     assert exact_matrix([[1e-300, 2.0]])[0][0] == F(1e-300)
@@ -81,14 +59,14 @@ def test_inverse_rejects_singular():
     entries=st.lists(st.integers(-3, 3), min_size=9, max_size=9),
     rank=st.integers(0, 3),
 )
-def test_definiteness_matches_minors(entries, rank):
+def test_definiteness_matches_minors(entries, rank, minors):
     # M = B^T B with B of `rank` rows (PSD, singular when rank < 3), plus a nudge of
     # -1/4, 0 or +1/4 on the last diagonal entry (sometimes indefinite, sometimes PD)
     rows = [[F(entries[3 * i + j]) for j in range(3)] for i in range(rank)]
     m = [[sum((r[i] * r[j] for r in rows), F(0)) for j in range(3)] for i in range(3)]
     m[2][2] += F(entries[0] % 3 - 1, 4)
-    assert is_positive_semidefinite(m) == _psd_by_minors(m)
-    assert is_positive_definite(m) == _pd_by_minors(m)
+    assert is_positive_semidefinite(m) == minors.psd(m)
+    assert is_positive_definite(m) == minors.pd(m)
 
 
 def test_psd_handles_zero_pivots():

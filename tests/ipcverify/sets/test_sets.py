@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ipcverify.errors import SetError
-from ipcverify.sets._shapes import Ellipsoid, unit_ball_log_volume
+from ipcverify.sets._ellipsoid import Ellipsoid, unit_ball_log_volume
 
 
 def random_ellipsoids(rng: np.random.Generator, b: int, n: int, cond: float = 100.0) -> Ellipsoid:

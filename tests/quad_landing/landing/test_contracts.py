@@ -10,7 +10,8 @@ from case_studies.quad_landing.landing.contracts import LearnedContract, Trivial
 from ipcverify.contract._model import IPCModel, IPCNetwork
 from ipcverify.errors import InvalidInputError
 from ipcverify.network._architecture import ModelConfig
-from ipcverify.sets._shapes import Box, Ellipsoid
+from ipcverify.sets._box import Box
+from ipcverify.sets._ellipsoid import Ellipsoid
 
 G = Box([-0.05, -0.05, 0.0], [0.05, 0.05, 0.05])
 

@@ -26,11 +26,12 @@ from case_studies.quad_landing.landing.state_machine import (
 )
 from case_studies.quad_landing.reproduction.config import load_reproduce_config
 from case_studies.quad_landing.sim.config import load_config
-from ipcverify.decision._landing import LandingRule, landing_decision
+from ipcverify.decision._landing import LandingRule
+from ipcverify.decision._landing_proof import landing_decision
 from ipcverify.decision.containment import Status
 from ipcverify.errors import InvalidInputError
+from ipcverify.sets._ellipsoid import Ellipsoid
 from ipcverify.sets._exact import exact_vector
-from ipcverify.sets._shapes import Ellipsoid
 
 CFG = load_config()
 TAUS = [0.001, 0.005, 0.01, 0.02]

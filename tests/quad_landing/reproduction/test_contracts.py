@@ -15,7 +15,7 @@ from case_studies.quad_landing.reproduction.contracts import (
 )
 from case_studies.quad_landing.reproduction.table1 import Table1, Table1Row
 from ipcverify.errors import InvalidInputError
-from ipcverify.sets._shapes import Box
+from ipcverify.sets._box import Box
 
 G_TAU = Box([-0.045, -0.045, 0.0], [0.045, 0.045, 0.04])
 

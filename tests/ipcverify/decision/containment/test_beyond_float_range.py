@@ -6,7 +6,9 @@ import numpy as np
 import pytest
 
 from ipcverify.decision.containment import Status, prove, verify
-from ipcverify.sets._shapes import Box, Ellipsoid, Polytope
+from ipcverify.sets._box import Box
+from ipcverify.sets._ellipsoid import Ellipsoid
+from ipcverify.sets._polytope import Polytope
 
 OUTERS = [Box([-1.0] * 3, [1.0] * 3), Polytope(np.vstack([np.eye(3), -np.eye(3)]), np.ones(6))]
 

@@ -6,7 +6,6 @@ Oracles never come from the code under test: definiteness from all principal min
 
 from __future__ import annotations
 
-import itertools
 from fractions import Fraction
 
 import numpy as np
@@ -32,25 +31,13 @@ from ipcverify.decision.containment._face_lmi import (
 )
 from ipcverify.decision.containment._face_sdp import FaceSolution, prove_sdp_faces, solve_face_sdp
 from ipcverify.errors import InvalidInputError
+from ipcverify.sets._box import Box
+from ipcverify.sets._ellipsoid import Ellipsoid
 from ipcverify.sets._exact import is_positive_semidefinite
-from ipcverify.sets._shapes import Box, Ellipsoid, Polytope
+from ipcverify.sets._polytope import Polytope
 
 F = Fraction
 PROPS = settings(derandomize=True, max_examples=80, deadline=None)
-
-
-def _det(m):
-    if len(m) == 1:
-        return m[0][0]
-    return sum((-1) ** j * m[0][j] * _det([r[:j] + r[j + 1 :] for r in m[1:]]) for j in range(len(m)))
-
-
-def _minors(m, leading=False):
-    n = len(m)
-    subsets = [tuple(range(k)) for k in range(1, n + 1)] if leading else [
-        idx for k in range(1, n + 1) for idx in itertools.combinations(range(n), k)
-    ]  # fmt: skip
-    return [_det([[m[i][j] for j in idx] for i in idx]) for idx in subsets]
 
 
 def _face_matrix(e: Ellipsoid, a, b, lam: Fraction):
@@ -66,15 +53,15 @@ def _face_matrix(e: Ellipsoid, a, b, lam: Fraction):
     return m
 
 
-def _holds_exact(e: Ellipsoid, a, b) -> bool:
+def _holds_exact(e: Ellipsoid, a, b, det) -> bool:
     """Closed form written out: s >= 0 and s^2 >= a^T (C^T C)^{-1} a, via Cramer's rule."""
     c = [F(float(v)) for v in e.centers[0]]
     cm = [[F(float(v)) for v in row] for row in e.shapes[0]]
     n = len(c)
     A = [[sum(cm[k][i] * cm[k][j] for k in range(n)) for j in range(n)] for i in range(n)]
     aq = [F(float(v)) for v in a]
-    det = _det(A)
-    x = [_det([[aq[r] if j == i else A[r][j] for j in range(n)] for r in range(n)]) / det for i in range(n)]
+    d = det(A)
+    x = [det([[aq[r] if j == i else A[r][j] for j in range(n)] for r in range(n)]) / d for i in range(n)]
     s = F(float(b)) - sum(p * q for p, q in zip(aq, c, strict=True))
     return s >= 0 and s * s >= sum(p * q for p, q in zip(aq, x, strict=True))
 
@@ -85,7 +72,7 @@ def _holds_exact(e: Ellipsoid, a, b) -> bool:
     entries=st.lists(st.integers(-6, 6), min_size=10, max_size=10),
     rank_one=st.booleans(),
 )
-def test_integer_definiteness_agrees_with_minors(entries, rank_one):
+def test_integer_definiteness_agrees_with_minors(entries, rank_one, minors):
     it = iter(entries)
     m = [[0] * 4 for _ in range(4)]
     for i in range(4):
@@ -95,11 +82,11 @@ def test_integer_definiteness_agrees_with_minors(entries, rank_one):
         v = entries[:4]
         m = [[v[i] * v[j] + (entries[4 + i] % 2) * (i == j) for j in range(4)] for i in range(4)]
     verdict = integer_definiteness(m)
-    leading = _minors(m, leading=True)
+    leading = minors.of(m, leading=True)
     if verdict is True:
         assert all(d > 0 for d in leading)
     elif verdict is False:
-        assert not all(d >= 0 for d in _minors(m))  # not PSD
+        assert not minors.psd(m)  # not PSD
     else:
         assert any(d == 0 for d in leading)
         first = next(d for d in leading if d <= 0)
@@ -130,7 +117,7 @@ def test_face_system_matrix_is_a_positive_multiple_of_the_lmi(seed, n, odd, scal
         assert system.slack(j) == exact[n][n] + lam
 
 
-def test_centre_certifies_exactly_the_faces_that_hold():
+def test_centre_certifies_exactly_the_faces_that_hold(minors):
     rng = np.random.default_rng(3)
     for _ in range(40):
         n = 3
@@ -142,7 +129,7 @@ def test_centre_certifies_exactly_the_faces_that_hold():
         system = FaceSystem(e, poly)
         for j in range(4):
             centre = face_centre(system, j)
-            assert system.check(j, max(centre, F(0)))[0] == _holds_exact(e, a[j], b[j])
+            assert system.check(j, max(centre, F(0)))[0] == _holds_exact(e, a[j], b[j], minors.det)
 
 
 def test_touching_faces_have_one_multiplier_only():
@@ -179,7 +166,7 @@ def test_zero_row_means_zero_at_most_b(b, expected):
 
 
 def test_landing_example_of_the_docs_is_proven_by_both_routes():
-    from ipcverify.decision._landing import landing_decision
+    from ipcverify.decision._landing_proof import landing_decision
 
     e = Ellipsoid([1.0, 2.0, 0.3], np.diag([40.0, 40.0, 80.0]))  # the top face touches exactly
     d = landing_decision(e, Box([-0.05, -0.05, 0.0], [0.05, 0.05, 0.05]))

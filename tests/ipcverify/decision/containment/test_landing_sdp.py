@@ -16,9 +16,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ipcverify.decision._landing import landing_decision
+from ipcverify.decision._landing_proof import landing_decision
 from ipcverify.decision.containment import Status, prove, verify
-from ipcverify.sets._shapes import Box, Ellipsoid
+from ipcverify.sets._box import Box
+from ipcverify.sets._ellipsoid import Ellipsoid
 
 DATA = Path(__file__).resolve().parents[3] / "data" / "landing_sets.npz"
 

@@ -18,6 +18,7 @@ margins down to 1e-15, i.e. a few ulps, both signs). All tests are derandomized.
 
 from __future__ import annotations
 
+import functools
 import itertools
 from fractions import Fraction
 
@@ -27,7 +28,9 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from ipcverify.decision.containment import ContainmentCertificate, Status, prove, verify
-from ipcverify.sets._shapes import Box, Ellipsoid, Polytope
+from ipcverify.sets._box import Box
+from ipcverify.sets._ellipsoid import Ellipsoid
+from ipcverify.sets._polytope import Polytope
 
 F = Fraction
 PROPS = settings(derandomize=True, max_examples=60, deadline=None)
@@ -106,15 +109,6 @@ def _outside_oracle(outer, y) -> bool:
     )
 
 
-def _psd_by_minors(m) -> bool:
-    n = len(m)
-    return all(
-        _det([[m[i][j] for j in idx] for i in idx]) >= 0
-        for k in range(1, n + 1)
-        for idx in itertools.combinations(range(n), k)
-    )
-
-
 def _check_against_truth(cert: ContainmentCertificate, truth: bool) -> None:
     """The soundness properties every certificate must have."""
     if cert.status is Status.PROVEN:
@@ -171,12 +165,17 @@ def test_closed_form_polytope_is_exact(seed, n, log_cond, margin, sign):
     _check_against_truth(cert, truth)
 
 
+def _near_tight_faces(seed, n, log_cond, margin, sign, box):
+    """A near-tight box or polytope, with the oracle's answer."""
+    make = _near_tight_box if box else _near_tight_polytope
+    e, outer = make(seed, n, log_cond, margin, sign)
+    return e, outer, _faces_hold_oracle(e, *outer.faces())
+
+
 @settings(derandomize=True, max_examples=40, deadline=None)
 @given(seed=seeds, n=dims, log_cond=log_conds, margin=margins, sign=signs, box=st.booleans())
 def test_socp_agrees_with_closed_form_when_decisive(seed, n, log_cond, margin, sign, box):
-    make = _near_tight_box if box else _near_tight_polytope
-    e, outer = make(seed, n, log_cond, margin, sign)
-    truth = _faces_hold_oracle(e, *outer.faces())
+    e, outer, truth = _near_tight_faces(seed, n, log_cond, margin, sign, box)
     socp = prove(e, outer, method="socp")
     closed = prove(e, outer)
     _check_against_truth(socp, truth)
@@ -193,9 +192,7 @@ def test_socp_agrees_with_closed_form_when_decisive(seed, n, log_cond, margin, s
 @settings(derandomize=True, max_examples=200, deadline=None)
 @given(seed=seeds, n=dims, log_cond=log_conds, margin=margins, sign=signs, box=st.booleans())
 def test_sdp_faces_agree_with_the_closed_form_and_the_oracle(seed, n, log_cond, margin, sign, box):
-    make = _near_tight_box if box else _near_tight_polytope
-    e, outer = make(seed, n, log_cond, margin, sign)
-    truth = _faces_hold_oracle(e, *outer.faces())
+    e, outer, truth = _near_tight_faces(seed, n, log_cond, margin, sign, box)
     sdp = prove(e, outer, method="sdp")
     _check_against_truth(sdp, truth)
     # conditioning to 1e6 and margins down to a few ulps: the S-lemma route still decides
@@ -223,7 +220,7 @@ def _homothetic(seed, n, log_cond, margin, sign):
     return e1, Ellipsoid(c2, e1.shapes[0] / f), _homothetic_contains(e1, c2, f)
 
 
-def _concentric(seed, n, log_cond, margin, sign):
+def _concentric(seed, n, log_cond, margin, sign, psd):
     """C2 = K C1 with ||K|| = 1 / (1 - sign margin): contained iff C1^T C1 - C2^T C2 is PSD."""
     rng = np.random.default_rng(seed)
     e1 = _ellipsoid(rng, n, log_cond)
@@ -234,7 +231,7 @@ def _concentric(seed, n, log_cond, margin, sign):
     return (
         e1,
         e2,
-        _psd_by_minors([[a - b for a, b in zip(r1, r2, strict=True)] for r1, r2 in zip(g1, g2, strict=True)]),
+        psd([[a - b for a, b in zip(r1, r2, strict=True)] for r1, r2 in zip(g1, g2, strict=True)]),
     )
 
 
@@ -247,8 +244,8 @@ def test_sdp_homothetic_pairs_are_sound(seed, n, log_cond, margin, sign):
 
 @PROPS
 @given(seed=seeds, n=dims, log_cond=log_conds, margin=margins, sign=signs)
-def test_sdp_concentric_pairs_are_sound(seed, n, log_cond, margin, sign):
-    e1, e2, truth = _concentric(seed, n, log_cond, margin, sign)
+def test_sdp_concentric_pairs_are_sound(seed, n, log_cond, margin, sign, minors):
+    e1, e2, truth = _concentric(seed, n, log_cond, margin, sign, minors.psd)
     _check_against_truth(prove(e1, e2), truth)
 
 
@@ -321,7 +318,7 @@ def test_verify_rejects_multipliers_reused_for_a_non_contained_pair(seed, n, log
 
 
 # ------------------------------------------------------------- how rare is UNKNOWN
-def test_unknown_is_rare_for_sdp_and_absent_for_closed_forms():
+def test_unknown_is_rare_for_sdp_and_absent_for_closed_forms(minors):
     """A fixed, seeded sweep over conditioning and margins (numbers reported by the benchmark)."""
     unknown_sdp = total_sdp = unknown_closed = 0
     for i, (log_cond, margin, sign) in enumerate(
@@ -329,7 +326,7 @@ def test_unknown_is_rare_for_sdp_and_absent_for_closed_forms():
     ):
         for j in range(3):
             seed = 1000 * i + j
-            for make in (_homothetic, _concentric):
+            for make in (_homothetic, functools.partial(_concentric, psd=minors.psd)):
                 e1, e2, truth = make(seed, 3, log_cond, margin, sign)
                 cert = prove(e1, e2)
                 _check_against_truth(cert, truth)

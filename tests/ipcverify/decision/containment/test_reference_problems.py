@@ -25,7 +25,9 @@ from ipcverify.decision.containment import (
     verify,
 )
 from ipcverify.errors import InvalidInputError, SetError
-from ipcverify.sets._shapes import Box, Ellipsoid, Polytope
+from ipcverify.sets._box import Box
+from ipcverify.sets._ellipsoid import Ellipsoid
+from ipcverify.sets._polytope import Polytope
 
 F = Fraction
 

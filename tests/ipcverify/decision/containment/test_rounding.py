@@ -14,7 +14,9 @@ from hypothesis import strategies as st
 
 from ipcverify.decision.containment import Status, prove, support_slack, support_slack_bounds, verify
 from ipcverify.decision.containment._geometry import ExactEllipsoid, exact_faces
-from ipcverify.sets._shapes import Box, Ellipsoid, Polytope
+from ipcverify.sets._box import Box
+from ipcverify.sets._ellipsoid import Ellipsoid
+from ipcverify.sets._polytope import Polytope
 
 SEEDS = st.integers(0, 2**32 - 1)
 

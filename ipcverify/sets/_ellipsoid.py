@@ -1,30 +1,29 @@
-"""The sets ipcverify works with: ellipsoids (what an IPC outputs), boxes and polytopes.
-
-* :class:`Ellipsoid` -- an immutable *batch* of ellipsoids, the contract's output.
-* :class:`Box` and :class:`Polytope` -- outer sets that decisions are checked against
-  (for example "the ellipsoid fits in the landing box").
-* :data:`OuterSet` -- any of the three, as accepted by :mod:`ipcverify.decision.containment`.
-
-Each type validates itself on construction and is read-only afterwards.
+"""The ellipsoid: an immutable *batch* of ellipsoids, the contract's output, and an outer set.
 
 An ellipsoid is ``E(c, C) = {y : ||C (y - c)||_2 <= 1}`` with centre ``c`` and a
 non-singular shape matrix ``C`` (the paper's convention). With ``P = (C^T C)^{-1}``
 the ellipsoid is also ``{c + P^{1/2} u : ||u|| <= 1}``, so its axis-aligned extent
 along coordinate ``i`` is ``c_i +/- sqrt(P_ii)`` and its volume is
-``vol(unit ball) / |det C|``.
+``vol(unit ball) / |det C|``. As an :class:`~ipcverify.sets.OuterSet` (a batch of one) it is
+proved against by the S-lemma (``proof_form`` ``"ellipsoid"``, method ``sdp``).
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from fractions import Fraction
+from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ipcverify.errors import SetError
+from ipcverify.errors import InvalidInputError, SetError
+from ipcverify.sets._exact import exact_matrix, exact_vector, matvec, sqnorm
+from ipcverify.sets._json import json_field, json_matrix, json_vector
+from ipcverify.sets._outer import OuterSet, register_shape
 
-__all__ = ["Box", "Ellipsoid", "OuterSet", "Polytope", "single_ellipsoid", "unit_ball_log_volume"]
+__all__ = ["Ellipsoid", "single_ellipsoid", "unit_ball_log_volume"]
 
 FloatArray = NDArray[np.float64]
 
@@ -50,8 +49,9 @@ def _readonly(a: FloatArray) -> FloatArray:
     return a
 
 
+@register_shape
 @dataclass(frozen=True, eq=False)
-class Ellipsoid:
+class Ellipsoid(OuterSet):
     """An immutable batch of ``B`` ellipsoids in ``R^n``.
 
     Parameters
@@ -77,6 +77,10 @@ class Ellipsoid:
     >>> bool(e.contains(np.array([0.4, 0.0]))[0])
     True
     """
+
+    kind: ClassVar[str] = "ellipsoid"
+    proof_form: ClassVar[str] = "ellipsoid"
+    methods: ClassVar[tuple[str, ...]] = ("sdp",)
 
     centers: FloatArray
     shapes: FloatArray
@@ -248,104 +252,31 @@ class Ellipsoid:
         except KeyError as exc:
             raise SetError(f"ellipsoid data lacks the key {exc}") from None
 
+    # ---------------------------------------------------------- as an outer set
+    def as_outer(self, what: str) -> Ellipsoid:
+        """The ellipsoid itself if it is a batch of one (an outer set is one set)."""
+        return single_ellipsoid(self, what)
 
-def _float_array(values: ArrayLike, ndim: int, what: str) -> FloatArray:
-    try:
-        a = np.array(values, dtype=np.float64, copy=True)
-    except (TypeError, ValueError) as exc:
-        raise SetError(f"{what} must be an array of numbers ({exc})") from None
-    if a.ndim != ndim:
-        raise SetError(f"{what} must be {ndim}-D; got shape {a.shape}")
-    if not np.isfinite(a).all():
-        raise SetError(f"{what} has a non-finite entry; use finite numbers")
-    a.setflags(write=False)
-    return a
+    def to_set_dict(self) -> dict[str, Any]:
+        """JSON form of a single ellipsoid, ``{"type": "ellipsoid", "center": [...], "shape": [[...]]}``."""
+        single_ellipsoid(self, "ellipsoid")
+        return {"type": "ellipsoid", "center": self.centers[0].tolist(), "shape": self.shapes[0].tolist()}
 
-
-@dataclass(frozen=True, eq=False)
-class Box:
-    """The axis-aligned box ``{y : lower <= y <= upper}`` (closed).
-
-    Parameters
-    ----------
-    lower, upper : array_like, shape (n,)
-        Finite bounds with ``lower <= upper``.
-
-    Examples
-    --------
-    >>> Box([-1.0, 0.0], [1.0, 2.0]).dim
-    2
-    """
-
-    lower: FloatArray
-    upper: FloatArray
-
-    def __post_init__(self) -> None:
-        lo = _float_array(self.lower, 1, "box lower")
-        up = _float_array(self.upper, 1, "box upper")
-        if lo.shape != up.shape or lo.size == 0:
-            raise SetError(f"box lower {lo.shape} and upper {up.shape} must both have shape (n,), n >= 1")
-        if not (lo <= up).all():
-            i = int(np.flatnonzero(~(lo <= up))[0])
-            raise SetError(
-                f"box coordinate {i}: lower {float(lo[i])!r} > upper {float(up[i])!r}; swap them or widen "
-                "the box"
+    @classmethod
+    def from_set_dict(cls, d: Mapping[str, Any], where: str) -> Ellipsoid:
+        """Inverse of :meth:`to_set_dict`; errors name the field."""
+        c = json_vector(json_field(d, "center", where), f"{where}center")
+        s = json_matrix(json_field(d, "shape", where), f"{where}shape", len(c))
+        if len(s) != len(c):
+            raise InvalidInputError(
+                f"field '{where}shape': expected {len(c)} rows to match the center, got {len(s)}"
             )
-        object.__setattr__(self, "lower", lo)
-        object.__setattr__(self, "upper", up)
+        return cls(np.array(c), np.array(s))
 
-    @property
-    def dim(self) -> int:
-        """Ambient dimension ``n``."""
-        return int(self.lower.shape[0])
-
-    def faces(self) -> tuple[FloatArray, FloatArray]:
-        """``(A, b)`` with the box ``= {y : A y <= b}``: rows ``e_i`` then ``-e_i``."""
-        eye = np.eye(self.dim)
-        return np.vstack([eye, -eye]), np.concatenate([self.upper, -self.lower])
-
-
-@dataclass(frozen=True, eq=False)
-class Polytope:
-    """The polyhedron ``{y : A y <= b}`` (``m >= 1`` closed halfspaces).
-
-    Parameters
-    ----------
-    A : array_like, shape (m, n)
-        Face normals (need not be normalised; a zero row means ``0 <= b_j``).
-    b : array_like, shape (m,)
-        Offsets.
-
-    Examples
-    --------
-    >>> Polytope([[1.0, 1.0]], [1.0]).faces()[1]
-    array([1.])
-    """
-
-    A: FloatArray
-    b: FloatArray
-
-    def __post_init__(self) -> None:
-        a = _float_array(self.A, 2, "polytope A")
-        b = _float_array(self.b, 1, "polytope b")
-        if a.shape[0] == 0 or a.shape[1] == 0:
-            raise SetError(f"polytope A must have shape (m, n) with m, n >= 1; got {a.shape}")
-        if b.shape != (a.shape[0],):
-            raise SetError(f"polytope b must have shape ({a.shape[0]},) to match A; got {b.shape}")
-        object.__setattr__(self, "A", a)
-        object.__setattr__(self, "b", b)
-
-    @property
-    def dim(self) -> int:
-        """Ambient dimension ``n``."""
-        return int(self.A.shape[1])
-
-    def faces(self) -> tuple[FloatArray, FloatArray]:
-        """``(A, b)``."""
-        return self.A, self.b
-
-
-OuterSet = Box | Polytope | Ellipsoid
+    def outside_exact(self, y: Sequence[Fraction]) -> bool:
+        """Exactly: ``||C (y - c)||^2 > 1`` for the first ellipsoid of the batch."""
+        c, C = exact_vector(self.centers[0]), exact_matrix(self.shapes[0])
+        return sqnorm(matvec(C, [a - b for a, b in zip(y, c, strict=True)])) > 1
 
 
 def single_ellipsoid(e: Ellipsoid, what: str) -> Ellipsoid:
