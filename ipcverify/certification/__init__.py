@@ -36,12 +36,7 @@ if TYPE_CHECKING:
     from ipcverify.certification._certify_steps import (
         DEFAULT_DELTA,
         NO_STATISTICS,
-        TestScores,
-        check_inputs,
-        score_test_set,
         statement,
-        test_results,
-        theorem1_step,
     )
     from ipcverify.certification._evaluation import (
         BinCoverage,
@@ -60,25 +55,17 @@ if TYPE_CHECKING:
         empirical_lipschitz,
         per_sample_gradient_norms,
         sound_lipschitz,
-        theorem1_unavailable,
     )
     from ipcverify.certification._report import (
         render_report,
     )
-    from ipcverify.certification._report_head import (
-        banner_colors,
-        display_text,
-    )
     from ipcverify.certification._report_plots import (
-        ellipse_outline,
         figure_to_png,
         plot_coverage,
         plot_projections,
         plot_scores,
     )
     from ipcverify.certification._summarize import (
-        capitalized,
-        output_labels,
         summarize,
     )
     from ipcverify.certification._summary import (
@@ -88,9 +75,6 @@ if TYPE_CHECKING:
         Check,
         CheckLevel,
         Strength,
-        target_strength,
-        utc_now,
-        weak_target_phrase,
     )
     from ipcverify.certification._test_result import (
         Consistency,
@@ -134,21 +118,15 @@ __all__ = [
     "ModelIdentity",
     "Strength",
     "TestResult",
-    "TestScores",
     "Theorem1Bound",
     "Theorem1Result",
     "Theorem1UnavailableError",
     "TrainingStatistics",
     "VolumeSummary",
     "WorstBin",
-    "banner_colors",
-    "capitalized",
     "certify",
     "certify_files",
-    "check_inputs",
     "coverage_by_bin",
-    "display_text",
-    "ellipse_outline",
     "empirical_lipschitz",
     "evaluate",
     "figure_to_png",
@@ -156,25 +134,17 @@ __all__ = [
     "fit_global_mahalanobis",
     "group_test_step",
     "n_needed",
-    "output_labels",
     "per_sample_gradient_norms",
     "plot_coverage",
     "plot_projections",
     "plot_scores",
     "render_report",
-    "score_test_set",
     "sound_lipschitz",
     "statement",
     "summarize",
-    "target_strength",
-    "test_results",
     "theorem1",
-    "theorem1_step",
     "theorem1_terms",
-    "theorem1_unavailable",
     "truncated_hinge_mean",
-    "utc_now",
-    "weak_target_phrase",
     "worst_bin_coverage",
     "write_certificate",
 ]

@@ -19,9 +19,7 @@ if TYPE_CHECKING:
         Verdict,
     )
     from ipcverify.decision._landing_bound import (
-        RANGE,
         BoundDecision,
-        bound_target,
         finish,
         float_tier,
         landing_by_bound,
@@ -29,7 +27,6 @@ if TYPE_CHECKING:
         prepare,
     )
     from ipcverify.decision._landing_float import (
-        PRECHECK_MARGIN,
         landing_accept_float,
         landing_slack,
     )
@@ -49,8 +46,6 @@ if TYPE_CHECKING:
     )
 
 __all__ = [
-    "PRECHECK_MARGIN",
-    "RANGE",
     "BoundDecision",
     "DecidedBy",
     "IPCQuery",
@@ -61,7 +56,6 @@ __all__ = [
     "QuerySet",
     "Transform",
     "Verdict",
-    "bound_target",
     "check_landing",
     "finish",
     "float_tier",

@@ -20,13 +20,10 @@ if TYPE_CHECKING:
         DomainReport,
     )
     from ipcverify.guard._eprocess import (
-        ADAPTIVE_MEMORIES,
-        MAX_BET_FRACTION,
         BettingEProcess,
     )
     from ipcverify.guard._index import (
         BAND,
-        LEAF_SIZE,
         MAX_INPUTS,
         DomainIndex,
         levels,
@@ -53,13 +50,10 @@ if TYPE_CHECKING:
     )
 
 __all__ = [
-    "ADAPTIVE_MEMORIES",
     "ALARM_MARGIN",
     "BAND",
     "DEFAULT_ALPHA",
     "DEFAULT_K",
-    "LEAF_SIZE",
-    "MAX_BET_FRACTION",
     "MAX_INPUTS",
     "MAX_REFERENCE",
     "BettingEProcess",

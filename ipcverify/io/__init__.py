@@ -11,20 +11,16 @@ from ipcverify._package import lazy_exports
 
 if TYPE_CHECKING:
     from ipcverify.io._modelio import (
-        FORMAT,
         FORMAT_VERSION,
-        READ_VERSIONS,
         load_data_for_model,
         load_inputs_for_model,
         load_model,
         save_model,
     )
     from ipcverify.io._onnx import (
-        OPSET,
         ExportInfo,
         OnnxCheck,
         build_onnx,
-        check_domain_export,
         check_onnx,
         export_onnx,
         onnx_session,
@@ -33,28 +29,22 @@ if TYPE_CHECKING:
         DamagedArchiveError,
         NeedsTorchError,
         UnsafeContentError,
-        read_torch_file,
     )
 
 __all__ = [
-    "FORMAT",
     "FORMAT_VERSION",
-    "OPSET",
-    "READ_VERSIONS",
     "DamagedArchiveError",
     "ExportInfo",
     "NeedsTorchError",
     "OnnxCheck",
     "UnsafeContentError",
     "build_onnx",
-    "check_domain_export",
     "check_onnx",
     "export_onnx",
     "load_data_for_model",
     "load_inputs_for_model",
     "load_model",
     "onnx_session",
-    "read_torch_file",
     "save_model",
 ]
 

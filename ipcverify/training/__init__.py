@@ -11,21 +11,15 @@ from typing import TYPE_CHECKING
 from ipcverify._package import lazy_exports
 
 if TYPE_CHECKING:
-    from ipcverify.training._lowrank import (
-        member_losses,
-        train_lowrank,
-    )
     from ipcverify.training._objectives import (
         Loss,
         NonFiniteLossError,
         Schedule,
         TrainConfig,
-        epoch_bar,
         hinge,
         ipc_loss,
         likelihood_loss,
         objective,
-        step_factor,
     )
     from ipcverify.training._selection import (
         Candidate,
@@ -36,7 +30,6 @@ if TYPE_CHECKING:
         TrainResult,
         select_hinge,
         train,
-        warm_start_center,
     )
 
 __all__ = [
@@ -48,17 +41,12 @@ __all__ = [
     "SelectionRecord",
     "TrainConfig",
     "TrainResult",
-    "epoch_bar",
     "hinge",
     "ipc_loss",
     "likelihood_loss",
-    "member_losses",
     "objective",
     "select_hinge",
-    "step_factor",
     "train",
-    "train_lowrank",
-    "warm_start_center",
 ]
 
 __getattr__, __dir__ = lazy_exports(__name__, __file__)

@@ -78,25 +78,12 @@ if TYPE_CHECKING:
     )
     from ipcverify.decision.containment._face_lmi import (
         FaceSystem,
-        check_face_lmis,
         face_centre,
-        integer_definiteness,
     )
     from ipcverify.decision.containment._face_sdp import (
         POLISH_TOLERANCE,
-        FaceSolution,
         prove_sdp_faces,
         solve_face_sdp,
-    )
-    from ipcverify.decision.containment._geometry import (
-        ExactEllipsoid,
-        Face,
-        check_faces,
-        check_lmi,
-        exact_faces,
-        face_witness,
-        is_outside,
-        witness_from_direction,
     )
     from ipcverify.decision.containment._io import (
         json_field,
@@ -114,7 +101,6 @@ if TYPE_CHECKING:
         prove_batch,
     )
     from ipcverify.decision.containment._rounding import (
-        SlackBounds,
         support_slack_bounds,
     )
     from ipcverify.decision.containment._sdp import (
@@ -123,62 +109,38 @@ if TYPE_CHECKING:
         sdp_problem,
         trust_region_maximiser,
     )
-    from ipcverify.decision.containment._socp import (
-        prove_socp,
-        socp_problem,
-    )
     from ipcverify.decision.containment._status import (
         Method,
         Status,
-        check_method,
-        default_method,
-        parse_method,
     )
 
 __all__ = [
     "POLISH_TOLERANCE",
     "ContainmentCertificate",
-    "ExactEllipsoid",
-    "Face",
-    "FaceSolution",
     "FaceSystem",
     "Method",
-    "SlackBounds",
     "Status",
     "Verification",
     "certificate_from_dict",
-    "check_face_lmis",
-    "check_faces",
-    "check_lmi",
-    "check_method",
     "contained_float",
-    "default_method",
-    "exact_faces",
     "face_centre",
-    "face_witness",
-    "integer_definiteness",
-    "is_outside",
     "json_field",
     "json_number",
     "normalised",
-    "parse_method",
     "problem_from_dict",
     "prove",
     "prove_batch",
     "prove_closed_form",
     "prove_sdp",
     "prove_sdp_faces",
-    "prove_socp",
     "sdp_problem",
     "set_from_dict",
     "set_to_dict",
-    "socp_problem",
     "solve_face_sdp",
     "support_slack",
     "support_slack_bounds",
     "trust_region_maximiser",
     "verify",
-    "witness_from_direction",
 ]
 
 __getattr__, __dir__ = lazy_exports(__name__, __file__)
