@@ -24,8 +24,6 @@ import sys
 from collections.abc import Callable
 from typing import Any
 
-__all__ = ["VERSION", "exported_names", "lazy_exports"]
-
 #: The version of ipcverify (also ``ipcverify.__version__``; pyproject.toml holds the same).
 VERSION = "0.1.0"
 

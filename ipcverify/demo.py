@@ -11,7 +11,8 @@ from matplotlib.figure import Figure
 
 from ipcverify.certification._baselines import fit_global_mahalanobis
 from ipcverify.certification._evaluation import Evaluation, evaluate
-from ipcverify.certification._report import ellipse_outline, figure_to_png
+from ipcverify.certification._report import figure_to_png
+from ipcverify.certification._report_plots import ellipse_outline
 from ipcverify.contract._calibrate import calibrate
 from ipcverify.data._dataset import PerceptionDataset, save_dataset
 from ipcverify.data._files import atomic_write

@@ -45,7 +45,8 @@ from ipcverify.calibration._threshold import (
     check_mode,
     threshold_scores,
 )
-from ipcverify.data._dataset import PerceptionDataset, group_codes
+from ipcverify.data._dataset import PerceptionDataset
+from ipcverify.data._split import group_codes
 from ipcverify.errors import InvalidInputError, SampleSizeError
 
 __all__ = [

@@ -26,8 +26,6 @@ from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import InvalidInputError
 from ipcverify.sets._ellipsoid import Ellipsoid
 
-__all__ = ["Boxes", "GlobalMahalanobis", "BonferroniBox", "fit_global_mahalanobis", "fit_bonferroni_box"]
-
 FloatArray = NDArray[np.float64]
 
 

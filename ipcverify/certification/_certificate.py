@@ -33,17 +33,6 @@ from ipcverify.certification._test_result import Consistency, GroupTest, GroupTe
 from ipcverify.certification._theorem1 import Theorem1Result
 from ipcverify.guard._domain_report import DomainReport
 
-__all__ = [
-    "ASSUMPTION",
-    "CertificateStatus",
-    "ModelIdentity",
-    "DataIdentity",
-    "VolumeSummary",
-    "Certificate",
-    "CertifyEvidence",
-    "CertifyResult",
-]
-
 FloatArray = NDArray[np.float64]
 
 #: What every statement of a certificate assumes.

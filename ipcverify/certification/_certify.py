@@ -65,8 +65,6 @@ from ipcverify.guard._domain_report import DomainReport
 from ipcverify.io._modelio import load_data_for_model, load_model
 from ipcverify.network._lipschitz_ball import DEFAULT_RADIUS
 
-__all__ = ["certify", "write_certificate", "certify_files"]
-
 FloatArray = NDArray[np.float64]
 PathLike = str | os.PathLike[str]
 

@@ -23,18 +23,6 @@ from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import InvalidInputError
 from ipcverify.sets._ellipsoid import Ellipsoid
 
-__all__ = [
-    "DEFAULT_DELTA",
-    "NO_STATISTICS",
-    "TestScores",
-    "certificate_status",
-    "check_inputs",
-    "score_test_set",
-    "statement",
-    "test_results",
-    "theorem1_step",
-]
-
 FloatArray = NDArray[np.float64]
 
 #: Confidence parameter of the test-set bound when the model carries no calibration.

@@ -14,8 +14,6 @@ from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import DataError, InvalidInputError
 from ipcverify.guard._domain_report import DomainReport
 
-__all__ = ["Evaluation", "BinCoverage", "WorstBin", "evaluate", "coverage_by_bin", "worst_bin_coverage"]
-
 FloatArray = NDArray[np.float64]
 
 

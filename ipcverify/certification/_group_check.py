@@ -23,8 +23,6 @@ from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.data._split import group_codes
 from ipcverify.errors import InvalidInputError
 
-__all__ = ["group_test_step"]
-
 
 def _group_labels(test_data: PerceptionDataset, column: str) -> NDArray[np.intp]:
     """Group codes of the test rows; refuse an unknown column or a single group."""

@@ -40,25 +40,11 @@ from ipcverify.errors import InvalidInputError
 from ipcverify.network._interface import engine_for, is_network
 from ipcverify.network._lipschitz_ball import (
     DEFAULT_RADIUS,
-    FLOAT_MARGIN,
     DataBox,
     LipschitzBound,
     check_radius,
 )
 from ipcverify.network._modules import Network
-
-__all__ = [
-    "DEFAULT_RADIUS",
-    "FLOAT_MARGIN",
-    "DataBox",
-    "LipschitzEstimate",
-    "LipschitzBound",
-    "per_sample_gradient_norms",
-    "empirical_lipschitz",
-    "sound_lipschitz",
-    "theorem1_unavailable",
-    "Theorem1UnavailableError",
-]
 
 FloatArray = NDArray[np.float64]
 

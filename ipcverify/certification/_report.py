@@ -27,7 +27,6 @@ from ipcverify.calibration._protocol import CalibrationSummary
 from ipcverify.certification._certificate import Certificate, CertifyEvidence, CertifyResult
 from ipcverify.certification._report_head import html_table, html_value, page_header
 from ipcverify.certification._report_plots import (
-    ellipse_outline,
     figure_to_png,
     plot_coverage,
     plot_projections,
@@ -36,15 +35,6 @@ from ipcverify.certification._report_plots import (
 from ipcverify.certification._summarize import capitalized, summarize
 from ipcverify.certification._summary import CertificateSummary
 from ipcverify.certification._test_result import Consistency
-
-__all__ = [
-    "figure_to_png",
-    "ellipse_outline",
-    "plot_scores",
-    "plot_coverage",
-    "plot_projections",
-    "render_report",
-]
 
 
 def _img(fig: Figure, alt: str) -> str:

@@ -17,8 +17,6 @@ from ipcverify.certification._certificate import Certificate, CertificateStatus
 from ipcverify.certification._summarize import capitalized
 from ipcverify.certification._summary import WEAK_EPSILON, CertificateSummary
 
-__all__ = ["banner_colors", "display_text", "html_table", "html_value", "page_header"]
-
 #: Banner background and text colour per status (a certified weak target: :data:`_WEAK`).
 _COLORS = {
     CertificateStatus.CERTIFIED: ("#1b7f3b", "#ffffff"),

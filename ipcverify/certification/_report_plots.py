@@ -25,8 +25,6 @@ from ipcverify.certification._certificate import CertifyEvidence
 from ipcverify.certification._evaluation import BinCoverage
 from ipcverify.certification._summary import DEFAULT_UNITS
 
-__all__ = ["figure_to_png", "ellipse_outline", "plot_scores", "plot_coverage", "plot_projections"]
-
 
 def figure_to_png(fig: Figure, dpi: int = 100) -> bytes:
     """Render a figure with the Agg canvas to PNG bytes.

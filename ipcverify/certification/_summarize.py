@@ -21,8 +21,6 @@ from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import InvalidInputError
 from ipcverify.guard._domain_report import DomainReport
 
-__all__ = ["summarize", "output_labels", "capitalized"]
-
 _NOT_RUN = "no test data given: the held-out test was not run"
 
 

@@ -21,18 +21,6 @@ from typing import Any, Literal
 
 from ipcverify.errors import InvalidInputError
 
-__all__ = [
-    "WEAK_EPSILON",
-    "DEFAULT_UNITS",
-    "CheckLevel",
-    "Strength",
-    "Check",
-    "CertificateSummary",
-    "target_strength",
-    "weak_target_phrase",
-    "utc_now",
-]
-
 #: A calibration target ``epsilon`` at or above this is a weak target.
 WEAK_EPSILON = 0.1
 #: What the page says for the units of ``y`` when the user named none.

@@ -22,8 +22,6 @@ from ipcverify.calibration._bounds import (
 from ipcverify.calibration._protocol import GROUP_UNITS, AllowedRate, GroupUnit
 from ipcverify.errors import InvalidInputError
 
-__all__ = ["TestResult", "GroupTestResult", "Consistency", "GroupTest"]
-
 
 @dataclass(frozen=True, kw_only=True)
 class TestResult:

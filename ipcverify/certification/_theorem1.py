@@ -40,16 +40,6 @@ from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import InvalidInputError
 from ipcverify.network._lipschitz_ball import DEFAULT_RADIUS, DataBox
 
-__all__ = [
-    "TrainingStatistics",
-    "Theorem1Bound",
-    "Theorem1Result",
-    "truncated_hinge_mean",
-    "theorem1_terms",
-    "theorem1",
-    "n_needed",
-]
-
 
 @dataclass(frozen=True, kw_only=True)
 class TrainingStatistics:

@@ -24,8 +24,6 @@ from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import InvalidInputError, SampleSizeError
 from ipcverify.guard._domain import DEFAULT_ALPHA, DomainModel
 
-__all__ = ["calibrate"]
-
 
 def _locate_column(data: PerceptionDataset, name: str) -> tuple[Literal["x", "yhat"], int]:
     if name in data.x_columns:

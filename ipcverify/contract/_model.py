@@ -35,8 +35,6 @@ from ipcverify.sets._ellipsoid import Ellipsoid
 if TYPE_CHECKING:
     from ipcverify.network._modules import Network
 
-__all__ = ["IPCModel", "network_fingerprint"]
-
 FloatArray = NDArray[np.float64]
 #: Names that moved to :mod:`ipcverify.network._modules`, still importable from here (they import torch).
 _MOVED = ("IPCNetwork", "Network", "build_network")

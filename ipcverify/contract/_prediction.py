@@ -12,7 +12,8 @@ Examples
 --------
 >>> import numpy as np
 >>> from ipcverify.network._architecture import ModelConfig
->>> from ipcverify.data._dataset import PerceptionDataset, PerceptionInputs, group_codes
+>>> from ipcverify.data._dataset import PerceptionDataset, PerceptionInputs
+>>> from ipcverify.data._split import group_codes
 >>> from ipcverify.contract._model import IPCModel, IPCNetwork
 >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(8,), param="cholesky")))
 >>> p = predict_sets(m, PerceptionInputs(np.zeros((4, 2)), np.zeros((4, 3))))
@@ -32,15 +33,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ipcverify.contract._model import IPCModel
-from ipcverify.data._dataset import PerceptionDataset, PerceptionInputs, group_codes
+from ipcverify.data._dataset import PerceptionDataset, PerceptionInputs
 from ipcverify.data._files import atomic_write
+from ipcverify.data._split import group_codes
 from ipcverify.errors import InvalidInputError
 from ipcverify.guard._domain import DomainModel, DomainReport
 from ipcverify.guard._index import one_blas_thread
 from ipcverify.guard._monitor import MonitorResult, ViolationMonitor
 from ipcverify.network._nonsingular import nonsingular
-
-__all__ = ["LogMonitoring", "Predictions", "monitor_log", "predict_sets", "write_predictions"]
 
 FloatArray = NDArray[np.float64]
 

@@ -24,18 +24,6 @@ from scipy import stats
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import DataError, DataWarning, Hint
 
-__all__ = [
-    "GROUP_NAMES",
-    "MIN_DISTINCT_SHARE",
-    "MOSTLY_OUTSIDE",
-    "SURPRISE",
-    "check_informative",
-    "group_like_columns",
-    "input_ranges",
-    "warn_correlated_rows",
-    "warn_outside_training",
-]
-
 #: Column names (case-insensitive, also with ``_id``) that usually name a group of correlated rows.
 GROUP_NAMES = ("run", "flight", "sequence", "group", "episode", "trajectory", "session")
 #: Data with fewer distinct rows than this share of its rows are refused.

@@ -23,19 +23,9 @@ import pandas as pd
 from numpy.typing import NDArray
 
 from ipcverify.data._files import atomic_write
-from ipcverify.data._split import group_codes, split_fractions, split_parts
+from ipcverify.data._split import split_fractions, split_parts
 from ipcverify.data._tables import SUFFIXES, data_file, frame_blocks, read_blocks
 from ipcverify.errors import DataError
-
-__all__ = [
-    "PerceptionDataset",
-    "PerceptionInputs",
-    "DatasetSplits",
-    "load_dataset",
-    "load_inputs",
-    "save_dataset",
-    "group_codes",  # defined in ipcverify.data._split; still importable from here
-]
 
 FloatArray = NDArray[np.float64]
 #: Largest magnitude accepted in x, y and yhat: the network trains in float32 (largest float ~3.4e38),

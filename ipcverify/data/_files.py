@@ -37,8 +37,6 @@ from typing import IO, Any
 
 import numpy as np
 
-__all__ = ["atomic_write", "file_sha256", "json_data", "json_float", "dumps_json", "write_json"]
-
 
 def _umask() -> int:
     """The process umask (read by setting and restoring it)."""

@@ -17,8 +17,6 @@ from numpy.typing import ArrayLike, NDArray
 
 from ipcverify.errors import DataError
 
-__all__ = ["group_codes", "split_fractions", "split_parts"]
-
 
 def split_parts(
     n: int,

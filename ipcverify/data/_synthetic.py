@@ -17,8 +17,6 @@ import numpy as np
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import InvalidInputError
 
-__all__ = ["make_lagged_perception", "FRAME_TIME"]
-
 #: Nominal lag, one frame at 30 fps (seconds).
 FRAME_TIME = 1.0 / 30.0
 

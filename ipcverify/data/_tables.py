@@ -24,15 +24,6 @@ from numpy.typing import NDArray
 
 from ipcverify.errors import DataError
 
-__all__ = [
-    "SUFFIXES",
-    "data_file",
-    "frame_blocks",
-    "numbered_columns",
-    "read_blocks",
-    "refuse_unknown_columns",
-]
-
 SUFFIXES = (".csv", ".parquet", ".pq", ".npz")
 
 

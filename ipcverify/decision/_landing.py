@@ -42,8 +42,6 @@ from ipcverify.errors import IPCVerifyError, SetError
 from ipcverify.sets._box import Box
 from ipcverify.sets._ellipsoid import Ellipsoid
 
-__all__ = ["DecidedBy", "FastPathError", "LandingRule", "QueryDecision", "Verdict"]
-
 FloatArray = NDArray[np.float64]
 
 

@@ -48,17 +48,6 @@ from numba.extending import register_jitable
 from ipcverify.sets._ellipsoid import SINGULAR_RCOND
 from ipcverify.sets._exact import dyadic, float_up, sqrt_upper
 
-__all__ = [
-    "BoundDecision",
-    "RANGE",
-    "bound_target",
-    "finish",
-    "float_tier",
-    "landing_by_bound",
-    "landing_by_bound_compiled",
-    "prepare",
-]
-
 #: Entries of ``C`` are brought into ``[-RANGE, RANGE]`` by an exact power-of-two scaling (the centre
 #: and ``G`` must lie in ``[-2^600, 2^600]``): then nothing in the analysis overflows, and underflow
 #: is covered by absolute allowances.

@@ -24,8 +24,6 @@ from ipcverify.errors import SetError
 from ipcverify.sets._box import Box
 from ipcverify.sets._ellipsoid import Ellipsoid
 
-__all__ = ["PRECHECK_MARGIN", "half_widths_3", "half_widths_values", "landing_accept_float", "landing_slack"]
-
 FloatArray = NDArray[np.float64]
 
 #: Tolerance of the float rule (:func:`landing_slack`, :meth:`LandingRule.decide_float`, not a

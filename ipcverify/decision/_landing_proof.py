@@ -50,8 +50,6 @@ from ipcverify.sets._box import Box
 from ipcverify.sets._ellipsoid import Ellipsoid
 from ipcverify.sets._exact import exact_vector, float_down, float_up, sqnorm, sqrt_upper
 
-__all__ = ["LandingDecision", "check_landing", "check_target", "landing_decision", "turnoff_point"]
-
 FloatArray = NDArray[np.float64]
 
 

@@ -28,8 +28,6 @@ from ipcverify.decision._query import IPCQuery
 from ipcverify.errors import InvalidInputError, SetError
 from ipcverify.sets._box import Box
 
-__all__ = ["LandingQuery", "Transform"]
-
 FloatArray = NDArray[np.float64]
 #: Moves an ellipsoid ``(c, C)`` to another frame (e.g. camera -> world) before deciding.
 Transform = Callable[[FloatArray, FloatArray], tuple[FloatArray, FloatArray]]

@@ -43,8 +43,6 @@ from ipcverify.guard._domain import DomainModel
 from ipcverify.network._architecture import ModelConfig
 from ipcverify.network._interface import Engine
 
-__all__ = ["IPCQuery", "QuerySet"]
-
 FloatArray = NDArray[np.float64]
 
 

@@ -61,14 +61,6 @@ from ipcverify.guard._index import BAND, MAX_INPUTS, DomainIndex, levels
 from ipcverify.guard._kernels import domain_one, whiten_one, whiten_rows
 from ipcverify.guard._neighbours import other_group_distances
 
-__all__ = [
-    "DEFAULT_ALPHA",
-    "DEFAULT_K",
-    "MAX_REFERENCE",
-    "DomainModel",
-    "DomainReport",  # defined in ipcverify.guard._domain_report; still importable from here
-]
-
 FloatArray = NDArray[np.float64]
 
 #: Default false-alarm rate of the domain test (share of in-distribution queries flagged).

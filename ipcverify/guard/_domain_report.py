@@ -9,8 +9,6 @@ from scipy import stats
 
 from ipcverify.errors import InvalidInputError
 
-__all__ = ["WELL_ABOVE_LEVEL", "DomainReport"]
-
 #: Level of the one-sided binomial test behind "far more queries outside than false alarms explain".
 WELL_ABOVE_LEVEL = 1e-3
 

@@ -28,8 +28,6 @@ from scipy.special import logsumexp
 
 from ipcverify.errors import InvalidInputError
 
-__all__ = ["ADAPTIVE_MEMORIES", "MAX_BET_FRACTION", "BettingEProcess", "check_rate"]
-
 FloatArray = NDArray[np.float64]
 
 #: Largest bet as a fraction of 1 / null rate: a non-violation costs at most this share of the wealth.

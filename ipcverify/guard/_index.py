@@ -53,8 +53,6 @@ from numpy.typing import NDArray
 from ipcverify.errors import InvalidInputError
 from ipcverify.guard._kernels import domain_rows, kth_rows, scan_rows
 
-__all__ = ["BAND", "LEAF_SIZE", "MAX_INPUTS", "DomainIndex", "levels", "one_blas_thread"]
-
 FloatArray = NDArray[np.float64]
 
 #: References per leaf of the k-d tree.

@@ -35,8 +35,6 @@ from numpy.typing import NDArray
 
 from ipcverify.network._kernels import compiled
 
-__all__ = ["domain_one", "domain_rows", "kth_rows", "scan_rows", "whiten_one", "whiten_rows"]
-
 FloatArray = NDArray[np.float64]
 
 

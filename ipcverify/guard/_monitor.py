@@ -32,15 +32,6 @@ from ipcverify.guard._eprocess import BettingEProcess, check_rate
 if TYPE_CHECKING:  # matplotlib is imported by plot_monitor only: predict needs none of it
     from matplotlib.figure import Figure
 
-__all__ = [
-    "ALARM_MARGIN",
-    "MonitorConfig",
-    "MonitorResult",
-    "MonitorState",
-    "ViolationMonitor",
-    "plot_monitor",
-]
-
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 

@@ -11,8 +11,6 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-__all__ = ["other_group_distances"]
-
 FloatArray = NDArray[np.float64]
 
 

@@ -46,16 +46,6 @@ from ipcverify.io._torchfile import DamagedArchiveError, NeedsTorchError, Unsafe
 from ipcverify.network._architecture import ModelConfig
 from ipcverify.network._weights import NetworkWeights
 
-__all__ = [
-    "FORMAT",
-    "FORMAT_VERSION",
-    "READ_VERSIONS",
-    "save_model",
-    "load_model",
-    "load_data_for_model",
-    "load_inputs_for_model",
-]
-
 FORMAT = "ipcverify-model"
 #: Every torch.save archive starts with a zip local-file header.
 _ZIP_MAGIC = b"PK\x03\x04"

@@ -61,17 +61,6 @@ from ipcverify.contract._model import IPCModel
 from ipcverify.data._files import atomic_write
 from ipcverify.errors import InvalidInputError
 
-__all__ = [
-    "OPSET",
-    "ExportInfo",
-    "OnnxCheck",
-    "build_onnx",
-    "check_domain_export",
-    "export_onnx",
-    "check_onnx",
-    "onnx_session",
-]
-
 FloatArray = NDArray[np.float64]
 Dtype = Literal["float64", "float32"]
 #: ONNX opset of the exported graph.

@@ -41,8 +41,6 @@ from typing import IO, Any
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["NeedsTorchError", "UnsafeContentError", "DamagedArchiveError", "read_torch_file"]
-
 #: Storage classes (``torch.FloatStorage`` ...) and the NumPy dtype of their elements.
 STORAGE_DTYPES = {
     "DoubleStorage": "f8",

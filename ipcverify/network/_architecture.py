@@ -13,8 +13,6 @@ from typing import Any, Literal
 
 from ipcverify.errors import InvalidInputError
 
-__all__ = ["ACTIVATIONS", "DEFAULT_RECIPE", "LOGDIAG_CLAMP", "MAX_MEMBERS", "RECIPES", "ModelConfig"]
-
 #: Bound on the log of the Cholesky diagonal (keeps exp finite in float32).
 LOGDIAG_CLAMP = 12.0
 #: Hidden-layer non-linearities.

@@ -25,8 +25,6 @@ from ipcverify.network._weights import NetworkWeights
 if TYPE_CHECKING:
     from ipcverify.network._modules import IPCNetwork
 
-__all__ = ["CACHE_BYTES", "CHUNK", "InferenceEngine", "activate", "chunk_rows", "float64_array"]
-
 #: Bytes of one layer's activations per chunk of a batch: half a megabyte, so that a layer's input
 #: and output stay in a core's L2 cache (1 MB and up on current x86 and ARM server cores).
 CACHE_BYTES = 1 << 19

@@ -36,8 +36,6 @@ if TYPE_CHECKING:
     from ipcverify.network._lipschitz_ball import DataBox, LipschitzBound
     from ipcverify.network._modules import Network
 
-__all__ = ["ConstFn", "Engine", "NodeFn", "engine_for", "is_network"]
-
 FloatArray = NDArray[np.float64]
 #: ``node(op, inputs, output_name, **attributes) -> output_name`` (adds an ONNX node)
 NodeFn = Callable[..., str]

@@ -44,18 +44,6 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-__all__ = [
-    "ACTIVATION_CODES",
-    "bias_activate",
-    "bias_skip_add",
-    "clamped_exp2",
-    "lowrank_one",
-    "lowrank_sets",
-    "compiled",
-    "rcond_lower_3",
-    "standardise",
-]
-
 FloatArray = NDArray[np.float64]
 
 #: the hidden non-linearities of ``ModelConfig.activation``, as the kernels' integer codes

@@ -19,8 +19,6 @@ if TYPE_CHECKING:
     from ipcverify.network._lipschitz_ball import DataBox, LipschitzBound
     from ipcverify.network._modules import Network
 
-__all__ = ["KindModules"]
-
 FloatArray = NDArray[np.float64]
 
 

@@ -25,20 +25,6 @@ from ipcverify.errors import InvalidInputError
 if TYPE_CHECKING:  # for annotations only: the CLI reads DEFAULT_RADIUS without loading pandas
     from ipcverify.data._dataset import PerceptionDataset
 
-__all__ = [
-    "DEFAULT_RADIUS",
-    "FLOAT_MARGIN",
-    "ROUND_UP",
-    "SVD_MARGIN",
-    "DataBox",
-    "LipschitzBound",
-    "check_radius",
-    "require_kind",
-    "operator_norm",
-    "hidden_norm_bounds",
-    "jacobian_bound",
-]
-
 FloatArray = NDArray[np.float64]
 
 #: Radius of the parameter ball of the sound bound. Fixed here, never tuned on data.

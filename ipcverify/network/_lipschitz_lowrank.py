@@ -53,8 +53,6 @@ from ipcverify.network._lipschitz_ball import (
 )
 from ipcverify.network._lowrank import LowRankEnsemble, StackedLinear, member_covariances, moment_match
 
-__all__ = ["ensemble_scores", "ensemble_gradient_norms", "score_gradient_bound", "sound_lipschitz_lowrank"]
-
 FloatArray = NDArray[np.float64]
 #: Relative slack that covers the rounding of a float64 sum of a few hundred terms.
 _SUM_SLACK = 1e-12

@@ -43,8 +43,6 @@ from ipcverify.network._lipschitz_ball import (
 )
 from ipcverify.network._modules import IPCNetwork
 
-__all__ = ["mlp_gradient_norms", "sound_lipschitz_mlp"]
-
 FloatArray = NDArray[np.float64]
 
 

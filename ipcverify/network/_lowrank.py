@@ -38,16 +38,6 @@ from ipcverify.errors import InvalidInputError
 from ipcverify.network._architecture import LOGDIAG_CLAMP, ModelConfig
 from ipcverify.network._scoring import ScoredNetwork
 
-__all__ = [
-    "SIGMA_FLOOR",
-    "StackedLinear",
-    "StackedMLP",
-    "LowRankEnsemble",
-    "member_covariances",
-    "moment_match",
-    "fit_linear_stage",
-]
-
 FloatArray = NDArray[np.float64]
 #: Floor of ``sigma`` relative to the spread of the raw residual ``y - yhat``.
 SIGMA_FLOOR = 1e-6

@@ -41,8 +41,6 @@ from ipcverify.network._weights import NetworkWeights
 if TYPE_CHECKING:
     from ipcverify.network._lowrank import LowRankEnsemble
 
-__all__ = ["LowRankEngine", "cholesky_lower", "lower_inverse"]
-
 FloatArray = NDArray[np.float64]
 
 

@@ -32,8 +32,6 @@ from ipcverify.network._architecture import LOGDIAG_CLAMP, ModelConfig
 from ipcverify.network._lowrank import LowRankEnsemble
 from ipcverify.network._scoring import ScoredNetwork
 
-__all__ = ["IPCNetwork", "Network", "build_network"]
-
 FloatArray = NDArray[np.float64]
 _ACTIVATIONS: dict[str, type[nn.Module]] = {"relu": nn.ReLU, "tanh": nn.Tanh, "elu": nn.ELU}
 

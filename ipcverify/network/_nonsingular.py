@@ -34,8 +34,6 @@ from ipcverify.errors import SetError
 from ipcverify.network._kernels import rcond_lower_3
 from ipcverify.sets._ellipsoid import SINGULAR_RCOND, Ellipsoid
 
-__all__ = ["CheckedEllipsoid", "checked_ellipsoid", "nonsingular", "svd_rcond"]
-
 FloatArray = NDArray[np.float64]
 _U8 = 8.0 * 2.0**-53
 _ABS = 2.0**-1060

@@ -23,8 +23,6 @@ from ipcverify.network._onnx_mlp import ACTIVATION_OPS, layer_nodes, scaled_shap
 if TYPE_CHECKING:
     from ipcverify.network._lowrank_engine import LowRankEngine
 
-__all__ = ["lowrank_nodes"]
-
 
 def lowrank_nodes(
     eng: LowRankEngine,

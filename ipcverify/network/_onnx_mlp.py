@@ -21,8 +21,6 @@ from ipcverify.network._interface import ConstFn, NodeFn
 if TYPE_CHECKING:
     from ipcverify.network._engine import InferenceEngine
 
-__all__ = ["ACTIVATION_OPS", "layer_nodes", "mlp_nodes", "scaled_shape_nodes"]
-
 FloatArray = NDArray[np.float64]
 
 #: ONNX operator of each hidden-layer activation.

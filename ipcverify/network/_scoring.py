@@ -23,8 +23,6 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-__all__ = ["ScoredNetwork"]
-
 
 class ScoredNetwork(nn.Module):
     """An ``nn.Module`` whose forward returns ``(centre (B, n), C (B, n, n), log det(C^T C) (B,))``."""

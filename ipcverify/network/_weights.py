@@ -32,8 +32,6 @@ from ipcverify.network._architecture import ModelConfig
 if TYPE_CHECKING:
     from ipcverify.network._modules import Network
 
-__all__ = ["NetworkWeights", "state_layout", "weights_and_network"]
-
 #: One state-dict entry: shape, dtype name, and whether it is a trained parameter (else a buffer).
 Entry = tuple[tuple[int, ...], str, bool]
 

@@ -21,8 +21,6 @@ from ipcverify.sets._faces import UNIT_ROUNDOFF, ExactFace, FacedSet, FloatArray
 from ipcverify.sets._json import json_field, json_vector
 from ipcverify.sets._outer import register_shape
 
-__all__ = ["Box"]
-
 
 @register_shape
 @dataclass(frozen=True, eq=False)

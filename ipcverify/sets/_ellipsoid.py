@@ -23,8 +23,6 @@ from ipcverify.sets._exact import exact_matrix, exact_vector, matvec, sqnorm
 from ipcverify.sets._json import json_field, json_matrix, json_vector
 from ipcverify.sets._outer import OuterSet, register_shape
 
-__all__ = ["Ellipsoid", "single_ellipsoid", "unit_ball_log_volume"]
-
 FloatArray = NDArray[np.float64]
 
 #: Reciprocal condition number below which a shape matrix counts as singular.

@@ -24,26 +24,6 @@ from numpy.typing import ArrayLike
 
 from ipcverify.errors import InvalidInputError
 
-__all__ = [
-    "ExactMatrix",
-    "ExactVector",
-    "decode_exact",
-    "dyadic",
-    "encode_exact",
-    "exact_matrix",
-    "exact_vector",
-    "float_down",
-    "float_up",
-    "inverse",
-    "is_positive_definite",
-    "is_positive_semidefinite",
-    "matmul",
-    "matvec",
-    "sqnorm",
-    "sqrt_lower",
-    "sqrt_upper",
-]
-
 ExactVector = list[Fraction]
 ExactMatrix = list[list[Fraction]]
 

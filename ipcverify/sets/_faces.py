@@ -39,16 +39,6 @@ from ipcverify.sets._ellipsoid import Ellipsoid
 from ipcverify.sets._exact import ExactMatrix, ExactVector, exact_matrix, exact_vector, sqnorm
 from ipcverify.sets._outer import OuterSet
 
-__all__ = [
-    "FacedSet",
-    "ExactFace",
-    "FloatArray",
-    "UNIT_ROUNDOFF",
-    "UNDERFLOW_ALLOWANCE",
-    "float_array",
-    "gamma",
-]
-
 FloatArray = NDArray[np.float64]
 #: One exact face: ``(a, b, z, s, zz)`` with ``z = C^{-T} a``, ``s = b - a^T c``, ``zz = ||z||^2``.
 ExactFace = tuple[ExactVector, Fraction, ExactVector, Fraction, Fraction]

@@ -23,8 +23,6 @@ from typing import Any
 
 from ipcverify.errors import InvalidInputError
 
-__all__ = ["json_field", "json_matrix", "json_number", "json_vector"]
-
 
 def json_number(v: Any, where: str) -> float:
     """A finite JSON number as a float (an integer must be exactly representable)."""

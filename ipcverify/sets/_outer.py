@@ -35,8 +35,6 @@ from collections.abc import Mapping, Sequence
 from fractions import Fraction
 from typing import Any, ClassVar, TypeVar
 
-__all__ = ["OuterSet", "register_shape", "registered_shapes"]
-
 
 class OuterSet(ABC):
     """A set that an ellipsoid's containment is proved against (see the module docstring).

@@ -13,8 +13,6 @@ from ipcverify.sets._faces import FacedSet, FloatArray, float_array
 from ipcverify.sets._json import json_field, json_matrix, json_vector
 from ipcverify.sets._outer import register_shape
 
-__all__ = ["Polytope"]
-
 
 @register_shape
 @dataclass(frozen=True, eq=False)

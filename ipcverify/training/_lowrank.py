@@ -33,8 +33,6 @@ from ipcverify.network._architecture import ModelConfig
 from ipcverify.network._lowrank import LowRankEnsemble, member_covariances
 from ipcverify.training._objectives import NonFiniteLossError, TrainConfig, epoch_bar, hinge, step_factor
 
-__all__ = ["member_losses", "train_lowrank"]
-
 
 def member_losses(
     net: LowRankEnsemble, z: torch.Tensor, t: torch.Tensor, loss: str, cfg: TrainConfig

@@ -28,19 +28,6 @@ from rich.progress import BarColumn, Progress, TaskID, TextColumn, TimeRemaining
 from ipcverify.errors import InvalidInputError
 from ipcverify.network._architecture import RECIPES
 
-__all__ = [
-    "TrainConfig",
-    "Loss",
-    "Schedule",
-    "NonFiniteLossError",
-    "hinge",
-    "ipc_loss",
-    "likelihood_loss",
-    "objective",
-    "step_factor",
-    "epoch_bar",
-]
-
 #: Training objectives: the paper's hinge + volume loss, or Gaussian likelihood.
 Loss = Literal["hinge", "likelihood"]
 _LOSSES: tuple[str, ...] = ("hinge", "likelihood")

@@ -44,8 +44,6 @@ from typing import Any
 
 from ipcverify.errors import InvalidInputError
 
-__all__ = ["HingeSelection", "Candidate", "SelectionRecord"]
-
 
 @dataclass(frozen=True, kw_only=True)
 class HingeSelection:

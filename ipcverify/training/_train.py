@@ -29,33 +29,13 @@ from ipcverify.network._architecture import DEFAULT_RECIPE, ModelConfig
 from ipcverify.network._modules import IPCNetwork, Network
 from ipcverify.training._lowrank import train_lowrank
 from ipcverify.training._objectives import (
-    Loss,
     NonFiniteLossError,
     TrainConfig,
     epoch_bar,
-    hinge,
-    ipc_loss,
-    likelihood_loss,
     objective,
     step_factor,
 )
 from ipcverify.training._selection import Candidate, HingeSelection, SelectionRecord
-
-__all__ = [
-    "TrainConfig",
-    "TrainResult",
-    "Loss",
-    "hinge",
-    "ipc_loss",
-    "likelihood_loss",
-    "warm_start_center",
-    "train",
-    "NonFiniteLossError",
-    "HingeSelection",
-    "select_hinge",
-    "Trainer",
-    "trainer_for",
-]
 
 #: Recipes whose unstated hinge settings are chosen by :class:`HingeSelection` when no
 #: training configuration is given.

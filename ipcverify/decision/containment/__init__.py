@@ -86,8 +86,6 @@ if TYPE_CHECKING:
         solve_face_sdp,
     )
     from ipcverify.decision.containment._io import (
-        json_field,
-        json_number,
         problem_from_dict,
         set_from_dict,
         set_to_dict,
@@ -124,8 +122,6 @@ __all__ = [
     "certificate_from_dict",
     "contained_float",
     "face_centre",
-    "json_field",
-    "json_number",
     "normalised",
     "problem_from_dict",
     "prove",

@@ -28,15 +28,14 @@ from typing import Any, cast
 
 from ipcverify.decision.containment._face_lmi import check_face_lmis
 from ipcverify.decision.containment._geometry import ExactEllipsoid, check_faces, check_lmi, is_outside
-from ipcverify.decision.containment._io import json_field, json_number, set_from_dict, set_to_dict
+from ipcverify.decision.containment._io import set_from_dict, set_to_dict
 from ipcverify.decision.containment._status import Method, Status, check_method, parse_method
 from ipcverify.errors import InvalidInputError, SetError
 from ipcverify.sets._ellipsoid import Ellipsoid, single_ellipsoid
 from ipcverify.sets._exact import decode_exact, encode_exact
 from ipcverify.sets._faces import FacedSet
+from ipcverify.sets._json import json_field, json_number
 from ipcverify.sets._outer import OuterSet
-
-__all__ = ["ContainmentCertificate", "Verification", "certificate_from_dict", "verify"]
 
 
 def _freeze_multipliers(m: Mapping[str, Any]) -> Mapping[str, tuple[Fraction, ...]]:

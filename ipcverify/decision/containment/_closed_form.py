@@ -27,8 +27,6 @@ from ipcverify.sets._ellipsoid import Ellipsoid
 from ipcverify.sets._exact import sqrt_upper
 from ipcverify.sets._faces import FacedSet
 
-__all__ = ["prove_closed_form"]
-
 
 def prove_closed_form(
     inner: Ellipsoid, outer: FacedSet, exact: ExactEllipsoid | None = None, *, fast: bool = True

@@ -37,8 +37,6 @@ from ipcverify.sets._ellipsoid import Ellipsoid
 from ipcverify.sets._exact import dyadic, is_positive_semidefinite
 from ipcverify.sets._faces import FacedSet
 
-__all__ = ["FaceSystem", "check_face_lmis", "face_centre", "integer_definiteness"]
-
 IntMatrix = list[list[int]]
 
 

@@ -57,8 +57,6 @@ from ipcverify.sets._ellipsoid import Ellipsoid
 from ipcverify.sets._exact import exact_vector
 from ipcverify.sets._faces import FacedSet
 
-__all__ = ["POLISH_TOLERANCE", "FaceSolution", "prove_sdp_faces", "solve_face_sdp"]
-
 FloatArray = NDArray[np.float64]
 
 #: Relative distance within which the solver's multiplier (or dual maximiser) is replaced by

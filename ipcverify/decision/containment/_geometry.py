@@ -43,17 +43,6 @@ from ipcverify.sets._exact import (
 from ipcverify.sets._faces import FacedSet
 from ipcverify.sets._outer import OuterSet
 
-__all__ = [
-    "ExactEllipsoid",
-    "Face",
-    "exact_faces",
-    "check_faces",
-    "check_lmi",
-    "is_outside",
-    "face_witness",
-    "witness_from_direction",
-]
-
 
 @dataclass
 class ExactEllipsoid:

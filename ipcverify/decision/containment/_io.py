@@ -22,16 +22,8 @@ from typing import Any
 from ipcverify.decision.containment._status import Method, check_method, parse_method
 from ipcverify.errors import InvalidInputError, SetError
 from ipcverify.sets._ellipsoid import Ellipsoid
-from ipcverify.sets._json import json_field, json_number
+from ipcverify.sets._json import json_field
 from ipcverify.sets._outer import OuterSet, registered_shapes
-
-__all__ = [
-    "json_number",
-    "json_field",
-    "set_to_dict",
-    "set_from_dict",
-    "problem_from_dict",
-]
 
 
 def set_to_dict(s: OuterSet) -> dict[str, Any]:

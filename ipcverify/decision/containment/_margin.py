@@ -16,8 +16,6 @@ from ipcverify.errors import SetError
 from ipcverify.sets._ellipsoid import Ellipsoid
 from ipcverify.sets._faces import FacedSet
 
-__all__ = ["check_faced_pair", "contained_float", "support_slack"]
-
 FloatArray = NDArray[np.float64]
 
 

@@ -22,8 +22,6 @@ from ipcverify.errors import SetError
 from ipcverify.sets._ellipsoid import Ellipsoid, single_ellipsoid
 from ipcverify.sets._outer import OuterSet
 
-__all__ = ["prove", "prove_batch"]
-
 #: The prover of each proof form (:attr:`ipcverify.sets.OuterSet.proof_form`) and method.
 _PROVERS: dict[tuple[str, Method], Callable[[Ellipsoid, Any, ExactEllipsoid], ContainmentCertificate]] = {
     ("faces", Method.CLOSED_FORM): prove_closed_form,

@@ -37,8 +37,6 @@ from ipcverify.decision.containment._margin import check_faced_pair
 from ipcverify.sets._ellipsoid import Ellipsoid
 from ipcverify.sets._faces import UNDERFLOW_ALLOWANCE, UNIT_ROUNDOFF, FacedSet, gamma
 
-__all__ = ["SlackBounds", "support_slack_bounds"]
-
 FloatArray = NDArray[np.float64]
 _U = UNIT_ROUNDOFF
 _ABS = UNDERFLOW_ALLOWANCE  # absolute allowance for every underflow of the analysis (far above its size)

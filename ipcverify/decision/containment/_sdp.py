@@ -32,8 +32,6 @@ from ipcverify.errors import SetError
 from ipcverify.sets._ellipsoid import Ellipsoid
 from ipcverify.sets._exact import exact_vector, matvec
 
-__all__ = ["prove_sdp", "normalised", "trust_region_maximiser", "sdp_problem"]
-
 FloatArray = NDArray[np.float64]
 
 

@@ -28,9 +28,6 @@ from ipcverify.sets._ellipsoid import Ellipsoid
 from ipcverify.sets._exact import exact_vector, matvec
 from ipcverify.sets._faces import FacedSet
 
-__all__ = ["prove_socp", "socp_problem"]
-
-
 _SOCP_CACHE: dict[tuple[int, int], Any] = {}
 
 

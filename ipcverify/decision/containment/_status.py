@@ -17,8 +17,6 @@ import numpy as np
 from ipcverify.errors import InvalidInputError
 from ipcverify.sets._outer import OuterSet
 
-__all__ = ["Status", "Method", "parse_method", "check_method", "default_method", "solve_with_clarabel"]
-
 
 class Status(Enum):
     """Outcome of a containment proof; ``str(status)`` says what to do next.

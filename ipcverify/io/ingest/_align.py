@@ -21,8 +21,6 @@ from scipy.spatial.transform import Rotation
 
 from ipcverify.errors import DataError
 
-__all__ = ["Alignment", "fit_alignment"]
-
 AlignKind = Literal["se3", "sim3"]
 
 

@@ -23,8 +23,6 @@ from ipcverify.io.ingest._formats import Format, read_trajectory
 from ipcverify.io.ingest._manifest import input_record
 from ipcverify.io.ingest._samples import MANIFEST_KEY, IngestOptions, RunData, build_samples
 
-__all__ = ["ingest_trajectories", "ingest_bags", "run_names"]
-
 PathLike = str | os.PathLike[str]
 
 

@@ -31,16 +31,6 @@ from ipcverify.io.ingest._messages import TF_TYPE, check_pose_type, field_reader
 from ipcverify.io.ingest._rawpose import raw_pose_parser
 from ipcverify.io.ingest._trajectory import Trajectory
 
-__all__ = [
-    "TopicInfo",
-    "PoseRequest",
-    "StateSeries",
-    "BagContents",
-    "typestore_names",
-    "list_topics",
-    "read_bag",
-]
-
 Stamp = Literal["header", "receive"]
 
 

@@ -31,8 +31,6 @@ from scipy.spatial.transform import Rotation
 from ipcverify.errors import DataError
 from ipcverify.io.ingest._trajectory import Trajectory
 
-__all__ = ["FORMATS", "FileTrajectory", "read_trajectory", "read_times"]
-
 FORMATS = ("tum", "euroc", "kitti")
 Format = Literal["tum", "euroc", "kitti"]
 

@@ -19,8 +19,6 @@ from ipcverify.data._files import atomic_write, file_sha256, write_json
 from ipcverify.errors import DataError
 from ipcverify.io.ingest._samples import MANIFEST_KEY
 
-__all__ = ["TABLE_SUFFIXES", "input_record", "manifest_path", "write_ingested"]
-
 TABLE_SUFFIXES = (".csv", ".parquet", ".pq")
 
 

@@ -19,8 +19,6 @@ from typing import Any
 
 from ipcverify.errors import DataError
 
-__all__ = ["POSE_TYPES", "TF_TYPE", "PoseRow", "pose_rows", "field_reader", "check_pose_type"]
-
 TF_TYPE = "tf2_msgs/msg/TFMessage"
 
 #: A pose record: header stamp (s, ns), position x, y, z, quaternion x, y, z, w.

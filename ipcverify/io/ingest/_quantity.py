@@ -27,8 +27,6 @@ from numpy.typing import NDArray
 
 from ipcverify.io.ingest._trajectory import PosesAt
 
-__all__ = ["QUANTITIES", "STATE_COLUMNS", "quantity_pair", "state_features"]
-
 Quantity = Literal["displacement", "position", "pose"]
 QUANTITIES: tuple[Quantity, ...] = ("displacement", "position", "pose")
 

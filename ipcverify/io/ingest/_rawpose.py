@@ -23,8 +23,6 @@ from typing import Any
 
 from ipcverify.io.ingest._messages import PoseRow
 
-__all__ = ["raw_pose_parser"]
-
 #: Strings between the header and the pose, per type.
 _STRINGS_AFTER_HEADER = {
     "geometry_msgs/msg/PoseStamped": 0,

@@ -32,8 +32,6 @@ from ipcverify.io.ingest._bagio import StateSeries
 from ipcverify.io.ingest._quantity import QUANTITIES, STATE_COLUMNS, Quantity, quantity_pair, state_features
 from ipcverify.io.ingest._trajectory import PosesAt, Trajectory
 
-__all__ = ["IngestOptions", "RunData", "REASONS", "MANIFEST_KEY", "build_samples"]
-
 REASONS = ("estimate_gap", "truth_outside", "truth_gap", "no_state")
 #: Where :func:`build_samples` leaves its account of the rows in ``DataFrame.attrs``.
 MANIFEST_KEY = "ipcverify.io.ingest"

@@ -20,8 +20,6 @@ from scipy.spatial.transform import Rotation, Slerp
 
 from ipcverify.errors import DataError
 
-__all__ = ["Trajectory", "PosesAt"]
-
 FloatArray = NDArray[np.float64]
 
 

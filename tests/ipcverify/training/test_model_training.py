@@ -11,15 +11,8 @@ from ipcverify.contract._model import IPCModel, IPCNetwork
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import InvalidInputError
 from ipcverify.network._architecture import ModelConfig
-from ipcverify.training._train import (
-    NonFiniteLossError,
-    TrainConfig,
-    hinge,
-    ipc_loss,
-    likelihood_loss,
-    train,
-    warm_start_center,
-)
+from ipcverify.training._objectives import NonFiniteLossError, TrainConfig, hinge, ipc_loss, likelihood_loss
+from ipcverify.training._train import train, warm_start_center
 
 
 def test_loss_matches_hand_computation():
