@@ -56,6 +56,24 @@ def _ratio(r: dict[str, Any], key: str) -> str:
     return fmt(r.get(key), 3)
 
 
+#: The volume ratios every tightness table shows, in its column order.
+_RATIO_REFERENCES = ("mapie", "oracle", "oracle_same_coverage", "oracle_exact", "global_mahalanobis")
+
+
+def _ratio_cells(r: dict[str, Any]) -> str:
+    """The five ``× reference`` cells of a method's row, ``" | "``-joined."""
+    return " | ".join(_ratio(r, f"mean_volume_ratio_to_{ref}") for ref in _RATIO_REFERENCES)
+
+
+def _factor_cells(d: dict[str, Any]) -> tuple[str, str]:
+    """A diagnosis's symmetric factors (centre, shape, calibration, PAC margin) and its statistics
+    (RMS whitened centre bias, sd of log size, aspect misfit), each as ``" | "``-joined cells."""
+    sym, st = d["factors_symmetric"], d["stats"]
+    factors = [sym["centre"], sym["shape"], sym["calibration"], d["factors"]["pac_margin"]]
+    stats = [st["rms_whitened_bias"], st["sd_log_rel_scale"], st["aspect_misfit"]]
+    return " | ".join(map(fmt, factors)), " | ".join(map(fmt, stats))
+
+
 def tightness_table(name: str, res: dict[str, Any]) -> list[str]:
     """All methods on one dataset: volumes, coverage, worst-bin coverage and the volume ratios."""
     ipc = res["ipc"]
@@ -78,11 +96,7 @@ def tightness_table(name: str, res: dict[str, Any]) -> list[str]:
         train_s = fmt(r["train_seconds"], 2) if "train_seconds" in r else ""
         lines.append(
             f"| {label} | {cal} | {_vol(r, 'mean_volume')} | {_vol(r, 'median_volume')} | "
-            f"{100 * r['coverage']:.2f} % | {r['worst_bin_coverage']:.3f} | "
-            f"{_ratio(r, 'mean_volume_ratio_to_mapie')} | {_ratio(r, 'mean_volume_ratio_to_oracle')} | "
-            f"{_ratio(r, 'mean_volume_ratio_to_oracle_same_coverage')} | "
-            f"{_ratio(r, 'mean_volume_ratio_to_oracle_exact')} | "
-            f"{_ratio(r, 'mean_volume_ratio_to_global_mahalanobis')} | {train_s} |"
+            f"{100 * r['coverage']:.2f} % | {r['worst_bin_coverage']:.3f} | {_ratio_cells(r)} | {train_s} |"
         )
     return lines
 
@@ -101,12 +115,8 @@ def before_after_table(tightness: dict[str, Any]) -> list[str]:
                 continue
             label = {"ipc_v1": "before: `v1`", "ipc": "**after: `tight`**"}.get(method, LABELS[method])
             lines.append(
-                f"| {name} | {label} | {fmt(r['mean_volume'] * CM3)} | "
-                f"{_ratio(r, 'mean_volume_ratio_to_mapie')} | {_ratio(r, 'mean_volume_ratio_to_oracle')} | "
-                f"{_ratio(r, 'mean_volume_ratio_to_oracle_same_coverage')} | "
-                f"{_ratio(r, 'mean_volume_ratio_to_oracle_exact')} | "
-                f"{_ratio(r, 'mean_volume_ratio_to_global_mahalanobis')} | {100 * r['coverage']:.2f} % | "
-                f"{r['worst_bin_coverage']:.3f} |"
+                f"| {name} | {label} | {fmt(r['mean_volume'] * CM3)} | {_ratio_cells(r)} | "
+                f"{100 * r['coverage']:.2f} % | {r['worst_bin_coverage']:.3f} |"
             )
     return lines
 
@@ -124,16 +134,15 @@ def diagnosis_table(tightness: dict[str, Any]) -> list[str]:
             d = res.get(method, {}).get("diagnosis")
             if d is None:
                 continue
-            f, sf, sym, st = d["factors"], d["factors_shape_first"], d["factors_symmetric"], d["stats"]
+            sf, st = d["factors_shape_first"], d["stats"]
+            factors, stats = _factor_cells(d)
             label = {"ipc_v1": "`v1` (earlier default)", "ipc": "`tight` (default)"}.get(
                 method, LABELS[method]
             )
             lines.append(
-                f"| {name} | {label} | {fmt(d['volume_ratio_to_oracle'])} | {fmt(sym['centre'])} | "
-                f"{fmt(sym['shape'])} | {fmt(sym['calibration'])} | {fmt(f['pac_margin'])} | "
+                f"| {name} | {label} | {fmt(d['volume_ratio_to_oracle'])} | {factors} | "
                 f"{fmt(sf['rel_scale'])} / {fmt(sf['orientation'])} / {fmt(sf['centre'])} | "
-                f"{fmt(st['rms_whitened_bias'])} | {fmt(st['sd_log_rel_scale'])} | "
-                f"{fmt(st['aspect_misfit'])} | {100 * st['population_coverage']:.2f} % | "
+                f"{stats} | {100 * st['population_coverage']:.2f} % | "
                 f"{fmt(d.get('volume_ratio_to_oracle_same_coverage'))} |"
             )
     return lines
@@ -151,13 +160,10 @@ def diagnosis_runs_table(diagnosis: dict[str, Any]) -> list[str]:
             continue
         for recipe, runs in recipes.items():
             for seed, d in enumerate(runs):
-                sym, st = d["factors_symmetric"], d["stats"]
+                factors, stats = _factor_cells(d)
                 lines.append(
-                    f"| {law} | `{recipe}` | {seed} | {fmt(d['volume_ratio_to_oracle'])} | "
-                    f"{fmt(sym['centre'])} | {fmt(sym['shape'])} | {fmt(sym['calibration'])} | "
-                    f"{fmt(d['factors']['pac_margin'])} | {fmt(st['rms_whitened_bias'])} | "
-                    f"{fmt(st['sd_log_rel_scale'])} | {fmt(st['aspect_misfit'])} | "
-                    f"{100 * d['coverage']:.2f} % |"
+                    f"| {law} | `{recipe}` | {seed} | {fmt(d['volume_ratio_to_oracle'])} | {factors} | "
+                    f"{stats} | {100 * d['coverage']:.2f} % |"
                 )
     return lines
 
