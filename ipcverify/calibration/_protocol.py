@@ -19,8 +19,12 @@ ONNX export, reports and the case study use only the :class:`Calibration` protoc
   ``calibration`` block of ``certificate.json``;
 * :meth:`~Calibration.guarantee`, :meth:`~Calibration.to_dict`.
 
-A new kind is one module that implements this protocol and registers its ``kind`` in
-:mod:`ipcverify.calibration._kinds`.
+What the user chooses is a :class:`CalibrationMethod`: a frozen spec of a kind's options
+(:class:`~ipcverify.calibration.Global`, :class:`~ipcverify.calibration.Mondrian`,
+:class:`~ipcverify.calibration.Grouped`, ...) whose :meth:`~CalibrationMethod.fit` returns the
+kind's calibration; :func:`ipcverify.contract.calibrate` calls it without asking which kind it
+holds. A new kind is one module that implements both protocols and a line that registers its
+spec (:func:`~ipcverify.calibration.register_kind`), so that model files can read it back.
 """
 
 from __future__ import annotations
@@ -28,7 +32,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, Literal, Protocol
+from typing import Any, ClassVar, Literal, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -39,6 +43,8 @@ from ipcverify.errors import InvalidInputError
 
 __all__ = [
     "Calibration",
+    "CalibrationMethod",
+    "CalibrationRecord",
     "GroupInfo",
     "AllowedRate",
     "CalibrationSummary",
@@ -47,6 +53,7 @@ __all__ = [
     "GroupUnit",
     "GROUP_UNITS",
     "row_counts",
+    "summarize",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -326,4 +333,95 @@ class Calibration(Protocol):
 
     def to_dict(self) -> dict[str, Any]:
         """Plain-data form stored in the model file (``kind`` included)."""
+        ...
+
+
+def one_scale(x: FloatArray, scale: float) -> FloatArray:
+    """The scale of a kind with one scale for every query, shape (B,)."""
+    return np.full(len(np.asarray(x)), scale)
+
+
+def one_group(x: FloatArray) -> NDArray[np.intp]:
+    """The group index of a kind with one group: zeros, shape (B,)."""
+    return np.zeros(len(np.asarray(x)), dtype=np.intp)
+
+
+def summarize(
+    cal: Calibration, *, certified_epsilon: float, grouping: str, details: Mapping[str, Any]
+) -> CalibrationSummary:
+    """The :class:`CalibrationSummary` of a calibration: the common fields from the protocol, and its own.
+
+    Parameters
+    ----------
+    cal : Calibration
+        The calibration summarised (its kind, mode, epsilon, delta, n, guarantee, data hash and
+        groups are read from it).
+    certified_epsilon : float
+        The violation rate it certifies.
+    grouping : str
+        What its groups are, in words.
+    details : mapping
+        Its kind-specific fields.
+    """
+    return CalibrationSummary(
+        kind=cal.kind,
+        mode=cal.mode,
+        epsilon=cal.epsilon,
+        delta=cal.delta,
+        n=cal.n,
+        certified_epsilon=certified_epsilon,
+        guarantee=cal.guarantee(),
+        data_sha256=cal.data_hash,
+        groups=cal.groups(),
+        grouping=grouping,
+        details=details,
+    )
+
+
+class CalibrationRecord(Protocol):
+    """A calibration class as a reader of its stored records (``cls.from_dict``)."""
+
+    @property
+    def kind(self) -> str:
+        """The ``kind`` its records carry."""
+        ...
+
+    def from_dict(self, data: Mapping[str, Any]) -> Calibration:
+        """Rebuild a calibration from its ``to_dict()`` form."""
+        ...
+
+
+class CalibrationMethod(Protocol):
+    """A calibration kind as the user chooses it: a frozen spec of its options that fits the calibration.
+
+    :func:`ipcverify.contract.calibrate` scores the calibration data with the network and
+    calls :meth:`fit`; it never asks which kind the spec is. Specs validate their options
+    when they are made.
+    """
+
+    #: The kind's name, the ``kind`` of the calibrations it fits (the registry's key).
+    kind: ClassVar[str]
+    #: The calibration class it fits, which reads its stored records back.
+    record: ClassVar[CalibrationRecord]
+
+    @property
+    def unit_column(self) -> str | None:
+        """The column whose groups (flights, runs) are the exchangeable units; None: the rows are."""
+        ...
+
+    def fit(
+        self,
+        scores: FloatArray,
+        data: PerceptionDataset,
+        epsilon: float,
+        delta: float,
+        *,
+        data_hash: str,
+        network_hash: str,
+    ) -> Calibration:
+        """Calibrate on the scores ``g = ||C (y - c)||`` of the rows of ``data`` (N,).
+
+        Raises :class:`~ipcverify.errors.SampleSizeError` if there are too few samples
+        (or groups) for ``(epsilon, delta)``.
+        """
         ...

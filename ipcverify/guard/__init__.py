@@ -18,6 +18,9 @@ if TYPE_CHECKING:
         DomainReport,
         other_group_distances,
     )
+    from ipcverify.guard._domain_spec import (
+        DomainSpec,
+    )
     from ipcverify.guard._index import (
         BAND,
         LEAF_SIZE,
@@ -60,6 +63,7 @@ __all__ = [
     "DomainIndex",
     "DomainModel",
     "DomainReport",
+    "DomainSpec",
     "MonitorConfig",
     "MonitorResult",
     "MonitorState",

@@ -52,7 +52,7 @@ from scipy import stats
 from scipy.spatial import cKDTree
 
 from ipcverify.calibration._bounds import marginal_conformal_index
-from ipcverify.calibration._grouped import risk_control_threshold
+from ipcverify.calibration._risk_control import risk_control_threshold
 from ipcverify.data._dataset import group_codes
 from ipcverify.errors import InvalidInputError, SampleSizeError
 from ipcverify.guard._index import BAND, MAX_INPUTS, DomainIndex, levels
