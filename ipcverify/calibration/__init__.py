@@ -84,6 +84,12 @@ if TYPE_CHECKING:
         calibration_from_dict,
         register_kind,
     )
+    from ipcverify.calibration._method import (
+        CalibrationMethod,
+        CalibrationRecord,
+        CalibrationSample,
+        CalibrationSpec,
+    )
     from ipcverify.calibration._mondrian import (
         GroupScale,
         Mondrian,
@@ -97,8 +103,6 @@ if TYPE_CHECKING:
         GROUP_UNITS,
         AllowedRate,
         Calibration,
-        CalibrationMethod,
-        CalibrationRecord,
         CalibrationSummary,
         GroupClaim,
         GroupInfo,
@@ -136,6 +140,8 @@ __all__ = [
     "CalibrationMethod",
     "CalibrationMode",
     "CalibrationRecord",
+    "CalibrationSample",
+    "CalibrationSpec",
     "CalibrationSummary",
     "Global",
     "GlobalCalibration",

@@ -15,9 +15,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ipcverify.calibration._bounds import CalibrationMode
+from ipcverify.calibration._method import CalibrationRecord, CalibrationSample, CalibrationSpec
 from ipcverify.calibration._protocol import (
     AllowedRate,
-    CalibrationRecord,
     CalibrationSummary,
     GroupInfo,
     TestCounts,
@@ -26,7 +26,7 @@ from ipcverify.calibration._protocol import (
     row_counts,
     summarize,
 )
-from ipcverify.calibration._threshold import ScoreThreshold, check_mode, guarantee_sentence, threshold_scores
+from ipcverify.calibration._threshold import ScoreThreshold, guarantee_sentence, threshold_scores
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import InvalidInputError
 
@@ -138,7 +138,7 @@ class GlobalCalibration:
     def to_dict(self) -> dict[str, Any]:
         """Plain-data form stored in the model file."""
         return {
-            "kind": "global",
+            "kind": self.kind,
             **self.threshold.to_dict(),
             "data_hash": self.data_hash,
             "network_hash": self.network_hash,
@@ -173,7 +173,7 @@ class GlobalCalibration:
 
 
 @dataclass(frozen=True, kw_only=True)
-class Global:
+class Global(CalibrationSpec):
     """Global calibration, one scale factor for every query: a spec for ``calibrate()``.
 
     Parameters
@@ -184,8 +184,9 @@ class Global:
 
     Examples
     --------
-    >>> cal = Global(mode="marginal").fit(np.linspace(0.1, 2.0, 200), None, 0.1, 0.1,
-    ...                                   data_hash="d", network_hash="h")
+    >>> sample = CalibrationSample(scores=np.linspace(0.1, 2.0, 200), data=None, epsilon=0.1, delta=0.1,
+    ...                            data_hash="d", network_hash="h")
+    >>> cal = Global(mode="marginal").fit(sample)
     >>> cal.kind, cal.groups()[0].k
     ('global', 181)
     >>> Global(mode="bayes")
@@ -194,29 +195,9 @@ class Global:
     ipcverify.errors.InvalidInputError: mode must be 'pac' or 'marginal'; got 'bayes'
     """
 
-    mode: CalibrationMode = "pac"
     kind: ClassVar[str] = "global"
     record: ClassVar[CalibrationRecord] = GlobalCalibration
 
-    def __post_init__(self) -> None:
-        check_mode(self.mode)
-
-    @property
-    def unit_column(self) -> None:
-        """None: the rows are the exchangeable units."""
-        return None
-
-    def fit(
-        self,
-        scores: FloatArray,
-        data: PerceptionDataset | None,
-        epsilon: float,
-        delta: float,
-        *,
-        data_hash: str,
-        network_hash: str,
-    ) -> GlobalCalibration:
-        """Calibrate one threshold on all the scores (``data`` is not read)."""
-        return GlobalCalibration.fit(
-            scores, epsilon, delta, self.mode, data_hash=data_hash, network_hash=network_hash
-        )
+    def fit(self, sample: CalibrationSample) -> GlobalCalibration:
+        """Calibrate one threshold on all the scores."""
+        return GlobalCalibration.fit(sample.scores, sample.epsilon, sample.delta, self.mode, **sample.ids)

@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from ipcverify.calibration._bounds import CalibrationMode, min_calibration_size, smallest_epsilon
 from ipcverify.calibration._group_counts import GuaranteeKind, check_guarantee, group_layout, one_per_group
@@ -48,24 +48,30 @@ def too_few_groups(
     return text + ")"
 
 
-@dataclass(frozen=True, kw_only=True)
+@dataclass(frozen=True, kw_only=True, eq=False)
 class GroupThreshold:
-    """The fitted fields of a :class:`~ipcverify.calibration.GroupedCalibration` (see its attributes).
+    """The threshold of the group statistics, and the scores and group sizes it came from.
 
-    The record checks them (:meth:`GroupedCalibration.__post_init__`); this only carries them.
+    Attributes
+    ----------
+    k_groups : int or None
+        Order statistic among the group statistics (None for risk control).
+    order_statistic, scale : float
+        The selected score ``t`` and the stored scale (``t * (1 + SCALE_MARGIN)``, at least ``MIN_SCALE``).
+    risk : float or None
+        Risk control only: ``mean_g V_g(t)``.
+    used : ndarray
+        The scores that entered the threshold (all rows, or one per group).
+    sizes : ndarray of int
+        Rows per group.
     """
 
-    n_groups: int
     k_groups: int | None
     order_statistic: float
     scale: float
     risk: float | None
-    n_rows: int
-    n_used: int
-    n_inside: int
-    size_min: int
-    size_median: float
-    size_max: int
+    used: NDArray[np.float64]
+    sizes: NDArray[np.intp]
 
 
 def group_threshold(
@@ -111,15 +117,5 @@ def group_threshold(
         stat, risk = risk_control_threshold(s, codes, epsilon)
         scale = max(stat * (1.0 + SCALE_MARGIN), MIN_SCALE)
     return GroupThreshold(
-        n_groups=G,
-        k_groups=k_groups,
-        order_statistic=stat,
-        scale=scale,
-        risk=risk,
-        n_rows=int(s.size),
-        n_used=int(used.size),
-        n_inside=int((used <= stat).sum()),
-        size_min=int(sizes.min()),
-        size_median=float(np.median(sizes)),
-        size_max=int(sizes.max()),
+        k_groups=k_groups, order_statistic=stat, scale=scale, risk=risk, used=used, sizes=sizes
     )

@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import asdict, dataclass, fields
+from dataclasses import dataclass, fields
 from typing import Any, ClassVar, Literal
 
 import numpy as np
@@ -41,9 +41,9 @@ from ipcverify.calibration._group_counts import (
     group_violation_counts,
 )
 from ipcverify.calibration._group_fit import group_threshold
+from ipcverify.calibration._method import CalibrationRecord, CalibrationSample, CalibrationSpec
 from ipcverify.calibration._protocol import (
     AllowedRate,
-    CalibrationRecord,
     CalibrationSummary,
     GroupClaim,
     GroupInfo,
@@ -403,13 +403,24 @@ delta=0.001: at least 688 groups are needed
         fitted = group_threshold(
             scores, groups, epsilon, delta, mode, guarantee=guarantee, column=column, seed=seed
         )
+        t = fitted.order_statistic
         return cls(
             column=column,
             guarantee_kind=guarantee,
             mode=mode,
             epsilon=float(epsilon),
             delta=float(delta),
-            **asdict(fitted),
+            n_groups=len(fitted.sizes),
+            k_groups=fitted.k_groups,
+            order_statistic=t,
+            scale=fitted.scale,
+            risk=fitted.risk,
+            n_rows=int(np.asarray(scores).size),
+            n_used=int(fitted.used.size),
+            n_inside=int((fitted.used <= t).sum()),
+            size_min=int(fitted.sizes.min()),
+            size_median=float(np.median(fitted.sizes)),
+            size_max=int(fitted.sizes.max()),
             seed=int(seed),
             data_hash=data_hash,
             network_hash=network_hash,
@@ -417,7 +428,7 @@ delta=0.001: at least 688 groups are needed
 
 
 @dataclass(frozen=True, kw_only=True)
-class Grouped:
+class Grouped(CalibrationSpec):
     """Grouped calibration, whole groups (flights, runs) as exchangeable units: a spec for ``calibrate()``.
 
     Parameters
@@ -447,12 +458,11 @@ inside its set) or 'sample' (the expected fraction of a new group's samples outs
     column: str
     guarantee: GuaranteeKind = "sample"
     seed: int = 0
-    mode: CalibrationMode = "pac"
     kind: ClassVar[str] = "grouped"
     record: ClassVar[CalibrationRecord] = GroupedCalibration
 
     def __post_init__(self) -> None:
-        check_mode(self.mode)
+        super().__post_init__()
         if not (isinstance(self.column, str) and self.column):
             raise InvalidInputError(f"a grouped calibration needs a group column name; got {self.column!r}")
         check_guarantee(self.guarantee)
@@ -463,26 +473,16 @@ inside its set) or 'sample' (the expected fraction of a new group's samples outs
         """The group column: its groups are the exchangeable units (also of the domain test by default)."""
         return self.column
 
-    def fit(
-        self,
-        scores: FloatArray,
-        data: PerceptionDataset,
-        epsilon: float,
-        delta: float,
-        *,
-        data_hash: str,
-        network_hash: str,
-    ) -> GroupedCalibration:
-        """Calibrate one scale with the groups of ``data.column(column)`` as the units."""
+    def fit(self, sample: CalibrationSample) -> GroupedCalibration:
+        """Calibrate one scale with the groups of the data's column as the units."""
         return GroupedCalibration.fit(
-            scores,
-            data.column(self.column),
-            epsilon,
-            delta,
+            sample.scores,
+            sample.rows().column(self.column),
+            sample.epsilon,
+            sample.delta,
             self.mode,
             guarantee=self.guarantee,
             column=self.column,
             seed=self.seed,
-            data_hash=data_hash,
-            network_hash=network_hash,
+            **sample.ids,
         )

@@ -15,8 +15,9 @@ from typing import Any, TypeVar
 
 from ipcverify.calibration._global_scale import Global
 from ipcverify.calibration._grouped import Grouped
+from ipcverify.calibration._method import CalibrationMethod, CalibrationRecord
 from ipcverify.calibration._mondrian import Mondrian
-from ipcverify.calibration._protocol import Calibration, CalibrationMethod, CalibrationRecord
+from ipcverify.calibration._protocol import Calibration
 from ipcverify.errors import InvalidInputError
 
 __all__ = ["KINDS", "METHODS", "calibration_from_dict", "check_registered", "register_kind"]

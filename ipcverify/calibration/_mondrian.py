@@ -19,6 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ipcverify.calibration._bounds import CalibrationMode, min_calibration_size
+from ipcverify.calibration._method import CalibrationRecord, CalibrationSample, CalibrationSpec
 from ipcverify.calibration._mondrian_groups import (
     EDGE_FRACTION,
     MAX_GROUPS,
@@ -30,7 +31,6 @@ from ipcverify.calibration._mondrian_groups import (
 )
 from ipcverify.calibration._protocol import (
     AllowedRate,
-    CalibrationRecord,
     CalibrationSummary,
     GroupInfo,
     TestCounts,
@@ -260,7 +260,7 @@ class MondrianCalibration:
     def to_dict(self) -> dict[str, Any]:
         """Plain-data form stored in the model file."""
         return {
-            "kind": "mondrian",
+            "kind": self.kind,
             "column": self.column,
             "source": self.source,
             "index": self.index,
@@ -362,7 +362,7 @@ class MondrianCalibration:
 
 
 @dataclass(frozen=True, kw_only=True)
-class Mondrian:
+class Mondrian(CalibrationSpec):
     """Mondrian calibration, one scale per group of an ``x`` or ``yhat`` column: a spec for ``calibrate()``.
 
     Parameters
@@ -393,12 +393,11 @@ class Mondrian:
     bins: int | None = None
     edge_fraction: float = EDGE_FRACTION
     seed: int = 0
-    mode: CalibrationMode = "pac"
     kind: ClassVar[str] = "mondrian"
     record: ClassVar[CalibrationRecord] = MondrianCalibration
 
     def __post_init__(self) -> None:
-        check_mode(self.mode)
+        super().__post_init__()
         if not (isinstance(self.column, str) and self.column):
             raise InvalidInputError(f"a Mondrian calibration needs a column name; got {self.column!r}")
         if self.bins is not None:
@@ -406,36 +405,22 @@ class Mondrian:
         check_edge_fraction(self.edge_fraction)
         check_seed(self.seed)
 
-    @property
-    def unit_column(self) -> None:
-        """None: the rows (within each group) are the exchangeable units."""
-        return None
-
-    def fit(
-        self,
-        scores: FloatArray,
-        data: PerceptionDataset,
-        epsilon: float,
-        delta: float,
-        *,
-        data_hash: str,
-        network_hash: str,
-    ) -> MondrianCalibration:
-        """Calibrate one threshold per group of the column's values in ``data``."""
+    def fit(self, sample: CalibrationSample) -> MondrianCalibration:
+        """Calibrate one threshold per group of the column's values in the calibration data."""
+        data = sample.rows()
         source, index = locate_column(data, self.column)
         values = (data.x if source == "x" else data.yhat)[:, index]
         return MondrianCalibration.fit(
-            scores,
+            sample.scores,
             np.asarray(values, dtype=np.float64),
             column=self.column,
             source=source,
             index=index,
             bins=self.bins,
-            epsilon=epsilon,
-            delta=delta,
+            epsilon=sample.epsilon,
+            delta=sample.delta,
             mode=self.mode,
             edge_fraction=self.edge_fraction,
             seed=int(self.seed),
-            data_hash=data_hash,
-            network_hash=network_hash,
+            **sample.ids,
         )

@@ -19,12 +19,11 @@ ONNX export, reports and the case study use only the :class:`Calibration` protoc
   ``calibration`` block of ``certificate.json``;
 * :meth:`~Calibration.guarantee`, :meth:`~Calibration.to_dict`.
 
-What the user chooses is a :class:`CalibrationMethod`: a frozen spec of a kind's options
-(:class:`~ipcverify.calibration.Global`, :class:`~ipcverify.calibration.Mondrian`,
-:class:`~ipcverify.calibration.Grouped`, ...) whose :meth:`~CalibrationMethod.fit` returns the
-kind's calibration; :func:`ipcverify.contract.calibrate` calls it without asking which kind it
-holds. A new kind is one module that implements both protocols and a line that registers its
-spec (:func:`~ipcverify.calibration.register_kind`), so that model files can read it back.
+What the user chooses is a :class:`~ipcverify.calibration.CalibrationMethod`
+(:mod:`ipcverify.calibration._method`): a frozen spec of a kind's options whose ``fit`` returns
+the kind's calibration. A new kind is one module that implements both protocols and a line that
+registers its spec (:func:`~ipcverify.calibration.register_kind`), so that model files can read
+it back.
 """
 
 from __future__ import annotations
@@ -32,7 +31,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, ClassVar, Literal, Protocol
+from typing import Any, Literal, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -43,8 +42,6 @@ from ipcverify.errors import InvalidInputError
 
 __all__ = [
     "Calibration",
-    "CalibrationMethod",
-    "CalibrationRecord",
     "GroupInfo",
     "AllowedRate",
     "CalibrationSummary",
@@ -376,52 +373,3 @@ def summarize(
         grouping=grouping,
         details=details,
     )
-
-
-class CalibrationRecord(Protocol):
-    """A calibration class as a reader of its stored records (``cls.from_dict``)."""
-
-    @property
-    def kind(self) -> str:
-        """The ``kind`` its records carry."""
-        ...
-
-    def from_dict(self, data: Mapping[str, Any]) -> Calibration:
-        """Rebuild a calibration from its ``to_dict()`` form."""
-        ...
-
-
-class CalibrationMethod(Protocol):
-    """A calibration kind as the user chooses it: a frozen spec of its options that fits the calibration.
-
-    :func:`ipcverify.contract.calibrate` scores the calibration data with the network and
-    calls :meth:`fit`; it never asks which kind the spec is. Specs validate their options
-    when they are made.
-    """
-
-    #: The kind's name, the ``kind`` of the calibrations it fits (the registry's key).
-    kind: ClassVar[str]
-    #: The calibration class it fits, which reads its stored records back.
-    record: ClassVar[CalibrationRecord]
-
-    @property
-    def unit_column(self) -> str | None:
-        """The column whose groups (flights, runs) are the exchangeable units; None: the rows are."""
-        ...
-
-    def fit(
-        self,
-        scores: FloatArray,
-        data: PerceptionDataset,
-        epsilon: float,
-        delta: float,
-        *,
-        data_hash: str,
-        network_hash: str,
-    ) -> Calibration:
-        """Calibrate on the scores ``g = ||C (y - c)||`` of the rows of ``data`` (N,).
-
-        Raises :class:`~ipcverify.errors.SampleSizeError` if there are too few samples
-        (or groups) for ``(epsilon, delta)``.
-        """
-        ...

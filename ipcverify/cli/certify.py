@@ -21,7 +21,7 @@ from ipcverify.network._lipschitz_ball import DEFAULT_RADIUS
 if TYPE_CHECKING:
     from ipcverify.calibration._bounds import CalibrationMode
     from ipcverify.calibration._group_counts import GuaranteeKind
-    from ipcverify.calibration._protocol import CalibrationMethod
+    from ipcverify.calibration._method import CalibrationMethod
 
 __all__: list[str] = []
 

@@ -14,7 +14,8 @@ from __future__ import annotations
 
 from ipcverify.calibration._global_scale import Global
 from ipcverify.calibration._kinds import check_registered
-from ipcverify.calibration._protocol import Calibration, CalibrationMethod
+from ipcverify.calibration._method import CalibrationMethod, CalibrationSample
+from ipcverify.calibration._protocol import Calibration
 from ipcverify.calibration._threshold import check_eps_delta
 from ipcverify.contract._model import IPCModel
 from ipcverify.data._checks import check_informative, warn_correlated_rows, warn_outside_training
@@ -109,12 +110,18 @@ def calibrate(
     (100, 100)
     """
     _check_inputs(model, calibration_data, epsilon, delta, method, domain, recalibrate)
-    scores = model.raw_scores(calibration_data.x, calibration_data.y, calibration_data.yhat)
-    ids = {"data_hash": calibration_data.content_hash(), "network_hash": model.weights.fingerprint()}
+    sample = CalibrationSample(
+        scores=model.raw_scores(calibration_data.x, calibration_data.y, calibration_data.yhat),
+        data=calibration_data,
+        epsilon=epsilon,
+        delta=delta,
+        data_hash=calibration_data.content_hash(),
+        network_hash=model.weights.fingerprint(),
+    )
     unmet: list[str] = []  # every sample-size requirement is reported at once
     cal: Calibration | None = None
     try:
-        cal = method.fit(scores, calibration_data, epsilon, delta, **ids)
+        cal = method.fit(sample)
     except SampleSizeError as exc:
         unmet.append(str(exc))
     dom: DomainModel | None = None

@@ -4,9 +4,8 @@ options and fit exactly what their calibration classes fit; the registry refuses
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import ClassVar
 
 import numpy as np
 import pytest
@@ -14,9 +13,9 @@ import pytest
 from ipcverify.calibration import (
     KINDS,
     METHODS,
-    AllowedRate,
     CalibrationRecord,
-    CalibrationSummary,
+    CalibrationSample,
+    CalibrationSpec,
     Global,
     GlobalCalibration,
     Grouped,
@@ -24,15 +23,10 @@ from ipcverify.calibration import (
     GroupInfo,
     Mondrian,
     MondrianCalibration,
-    ScoreThreshold,
-    TestCounts,
     calibration_from_dict,
     register_kind,
-    row_counts,
     threshold_scores,
 )
-from ipcverify.calibration._protocol import summarize
-from ipcverify.calibration._threshold import guarantee_sentence
 from ipcverify.certification import certify
 from ipcverify.contract import IPCModel, calibrate
 from ipcverify.data import PerceptionDataset
@@ -48,99 +42,29 @@ TOY = "every-other-row"
 
 # ------------------------------------------------------------------ a new kind, one module's worth
 @dataclass(frozen=True, kw_only=True)
-class EveryOtherRowCalibration:
-    """A toy kind: the global order statistic of every other calibration row (a valid, wasteful one)."""
+class EveryOtherRowCalibration(GlobalCalibration):
+    """A toy kind: the global order statistic of every other calibration row (valid, and wasteful).
 
-    threshold: ScoreThreshold
-    data_hash: str
-    network_hash: str
+    It answers the Calibration protocol as a global calibration does, under its own kind.
+    """
+
     kind: ClassVar[str] = TOY
-
-    @property
-    def mode(self) -> Any:
-        return self.threshold.mode
-
-    @property
-    def epsilon(self) -> float:
-        return self.threshold.epsilon
-
-    @property
-    def delta(self) -> float:
-        return self.threshold.delta
-
-    @property
-    def n(self) -> int:
-        return self.threshold.n
-
-    def scale_for(self, x: np.ndarray, yhat: np.ndarray) -> np.ndarray:
-        return np.full(len(x), self.threshold.scale)
-
-    def group_index(self, x: np.ndarray, yhat: np.ndarray) -> np.ndarray:
-        return np.zeros(len(x), dtype=np.intp)
 
     def groups(self) -> tuple[GroupInfo, ...]:
         t = self.threshold
         return (GroupInfo(label="every other row", n=t.n, k=t.k, scale=t.scale),)
 
-    def allowed_violation_rate(self) -> AllowedRate:
-        return AllowedRate(rate=self.threshold.allowed_rate(), reason="as a global calibration on n/2 rows")
-
-    def test_counts(self, violated: np.ndarray, test_data: PerceptionDataset) -> TestCounts:
-        return row_counts(violated)
-
-    def group_claim(self) -> None:
-        return None
-
-    def summary(self) -> CalibrationSummary:
-        t = self.threshold
-        return summarize(
-            self, certified_epsilon=t.certified_epsilon, grouping="every other row", details={"k": t.k}
-        )
-
-    def guarantee(self) -> str:
-        return guarantee_sentence(self.threshold, "a new sample")
-
-    def to_dict(self) -> dict[str, Any]:
-        return {
-            "kind": TOY,
-            **self.threshold.to_dict(),
-            "data_hash": self.data_hash,
-            "network_hash": self.network_hash,
-        }
-
-    @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> EveryOtherRowCalibration:
-        return cls(
-            threshold=ScoreThreshold.from_dict(data),
-            data_hash=str(data["data_hash"]),
-            network_hash=str(data["network_hash"]),
-        )
-
 
 @dataclass(frozen=True, kw_only=True)
-class EveryOtherRow:
-    """The toy kind's spec."""
+class EveryOtherRow(CalibrationSpec):
+    """The toy kind's spec: what a user passes to calibrate()."""
 
-    mode: Any = "pac"
     kind: ClassVar[str] = TOY
     record: ClassVar[CalibrationRecord] = EveryOtherRowCalibration
 
-    @property
-    def unit_column(self) -> None:
-        return None
-
-    def fit(
-        self,
-        scores: np.ndarray,
-        data: PerceptionDataset,
-        epsilon: float,
-        delta: float,
-        *,
-        data_hash: str,
-        network_hash: str,
-    ) -> EveryOtherRowCalibration:
-        t = threshold_scores(scores[::2], epsilon, delta, self.mode)
-        return EveryOtherRowCalibration(threshold=t, data_hash=data_hash, network_hash=network_hash)
+    def fit(self, sample: CalibrationSample) -> EveryOtherRowCalibration:
+        t = threshold_scores(sample.scores[::2], sample.epsilon, sample.delta, self.mode)
+        return EveryOtherRowCalibration(threshold=t, **sample.ids)
 
 
 @pytest.fixture
@@ -234,11 +158,10 @@ def test_each_spec_fits_what_its_calibration_class_fits():
     data = _flights(make_lagged_perception(3000, seed=43), 15)
     scores = np.random.default_rng(0).random(len(data)) ** 2
     ids = {"data_hash": "d", "network_hash": "h"}
-    assert Global(mode="marginal").fit(scores, data, 0.1, 0.05, **ids) == GlobalCalibration.fit(
-        scores, 0.1, 0.05, "marginal", **ids
-    )
+    sample = CalibrationSample(scores=scores, data=data, epsilon=0.1, delta=0.05, **ids)
+    assert Global(mode="marginal").fit(sample) == GlobalCalibration.fit(scores, 0.1, 0.05, "marginal", **ids)
     mondrian = Mondrian(column="x_3", bins=3, edge_fraction=0.25, seed=7)
-    assert mondrian.fit(scores, data, 0.1, 0.05, **ids) == MondrianCalibration.fit(
+    assert mondrian.fit(sample) == MondrianCalibration.fit(
         scores,
         data.x[:, 3],
         column="x_3",
@@ -256,7 +179,7 @@ def test_each_spec_fits_what_its_calibration_class_fits():
         for mode in ("pac", "marginal"):
             spec = Grouped(column="flight", guarantee=guarantee, seed=3, mode=mode)
             assert spec.unit_column == "flight"
-            assert spec.fit(scores, data, 0.1, 0.05, **ids) == GroupedCalibration.fit(
+            assert spec.fit(sample) == GroupedCalibration.fit(
                 scores,
                 data.column("flight"),
                 0.1,
