@@ -45,9 +45,10 @@ from benchmarks.common import blas_single_thread, machine_info, write_json
 from benchmarks.datasets import load_splits, quad_flights
 from benchmarks.oracle_data import make_hetlag
 from benchmarks.timing import run_child
+from ipcverify.calibration import Global
 from ipcverify.contract import IPCModel, calibrate, predict_sets, write_predictions
 from ipcverify.data import PerceptionInputs, atomic_write
-from ipcverify.guard import DomainModel
+from ipcverify.guard import DomainModel, DomainSpec
 from ipcverify.io import load_inputs_for_model, load_model, save_model
 from ipcverify.training._train import TrainConfig, train
 
@@ -160,12 +161,12 @@ def _quad_contract(quick: bool) -> tuple[IPCModel, PerceptionInputs]:
         model = train(data, train_config=TrainConfig.recipe("tight", seed=0, epochs=2)).model
         cal, _ = make_hetlag(1000, 4, "gauss")
         test, _ = make_hetlag(500, 5, "gauss")
-        contract = calibrate(model, cal, 0.05, 0.05, "pac")
+        contract = calibrate(model, cal, 0.05, 0.05, Global(mode="pac"))
         return contract, PerceptionInputs(test.x, test.yhat)
     splits = load_splits("quad_landing", 5000, 5000, 5000)
     model = train(splits.train, train_config=TrainConfig.recipe("tight", seed=0)).model
     cal, test = quad_flights()
-    contract = calibrate(model, cal, 0.01, 0.001, "pac", domain_group_column="path")
+    contract = calibrate(model, cal, 0.01, 0.001, Global(mode="pac"), domain=DomainSpec(group_column="path"))
     return contract, PerceptionInputs(test.x, test.yhat)
 
 

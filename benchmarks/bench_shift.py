@@ -34,6 +34,7 @@ import pandas as pd
 
 from benchmarks.common import write_json
 from benchmarks.oracle_data import make_fresh_lagged, make_hetlag
+from ipcverify.calibration import Global
 from ipcverify.certification import fit_global_mahalanobis
 from ipcverify.contract import calibrate
 from ipcverify.data import PerceptionDataset
@@ -57,7 +58,7 @@ def _fit(
     if recipe is None:
         return fit_global_mahalanobis(tr).calibrate(cal, epsilon, delta, "pac")
     model = train(tr, train_config=TrainConfig.recipe(recipe, seed=seed), recipe=recipe).model
-    return calibrate(model, cal, epsilon, delta, "pac", domain_alpha=None)
+    return calibrate(model, cal, epsilon, delta, Global(mode="pac"), domain=None)
 
 
 def _measure(fitted: Fitted, te: PerceptionDataset, groups: np.ndarray | None = None) -> dict[str, Any]:

@@ -49,7 +49,7 @@ from benchmarks.common import spread
 from benchmarks.datasets import Splits
 from benchmarks.diagnose_tightness import diagnose
 from benchmarks.peers import MAPIE_VERSION, fit_mapie_multivariate, mapie_available
-from ipcverify.calibration import CalibrationMode, threshold_scores
+from ipcverify.calibration import CalibrationMode, Global, threshold_scores
 from ipcverify.certification import fit_bonferroni_box, fit_global_mahalanobis, worst_bin_coverage
 from ipcverify.contract import IPCModel, calibrate
 from ipcverify.data import PerceptionDataset
@@ -150,7 +150,7 @@ def _recipe_runs(
                 )
             )
             calibrated, t_cal = _timed(
-                lambda model=model: calibrate(model, cal, epsilon, delta, mode, domain_alpha=None)
+                lambda model=model: calibrate(model, cal, epsilon, delta, Global(mode=mode), domain=None)
             )
             first = first or calibrated
             sets = calibrated.predict(te.x, te.yhat)

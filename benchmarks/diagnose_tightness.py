@@ -294,6 +294,7 @@ def diagnose_recipes(
     """
     import torch
 
+    from ipcverify.calibration import Global
     from ipcverify.contract import calibrate
     from ipcverify.training._train import TrainConfig, train
 
@@ -310,7 +311,7 @@ def diagnose_recipes(
                 t0 = time.perf_counter()
                 model = train(tr, train_config=TrainConfig.recipe(recipe, seed=seed), recipe=recipe).model
                 secs = time.perf_counter() - t0
-                cm = calibrate(model, cal, 0.01, 0.001, "pac", domain_alpha=None)
+                cm = calibrate(model, cal, 0.01, 0.001, Global(mode="pac"), domain=None)
                 th = cm.require_calibration().groups()[0]
                 sets = cm.predict(te.x, te.yhat)
                 d = diagnose(sets, orc, 0.99, pac_k=th.k, pac_n=th.n)

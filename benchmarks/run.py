@@ -39,8 +39,10 @@ from benchmarks.bench_tightness import bench_tightness
 from benchmarks.common import blas_single_thread, machine_info, write_json
 from benchmarks.datasets import CACHE, DATASETS, Splits, load_splits, quad_flights
 from benchmarks.report import render_markdown, targets
+from ipcverify.calibration import Global
 from ipcverify.contract import calibrate
 from ipcverify.errors import InvalidInputError
+from ipcverify.guard import DomainSpec
 
 __all__ = ["RunConfig", "latency_workloads", "run", "main"]
 
@@ -122,7 +124,15 @@ def latency_workloads(models: dict[str, tuple[Any, Splits, float]], cfg: RunConf
         out.append(
             Workload(
                 "quad_flights",
-                calibrate(ipc, cal, eps, delta, "pac", recalibrate=True, domain_group_column="path"),
+                calibrate(
+                    ipc,
+                    cal,
+                    eps,
+                    delta,
+                    Global(mode="pac"),
+                    domain=DomainSpec(group_column="path"),
+                    recalibrate=True,
+                ),
                 test,
                 f"quad landing: calibrated on {len(cal)} rows of 120 exploration flights (every 20th frame), "
                 f"domain fitted by flight; queries: {len(test)} rows of 80 held-out flights drawn like them",
@@ -133,7 +143,7 @@ def latency_workloads(models: dict[str, tuple[Any, Splits, float]], cfg: RunConf
         out.append(
             Workload(
                 "synthetic",
-                calibrate(ipc, splits.calibration, eps, delta, "pac", recalibrate=True),
+                calibrate(ipc, splits.calibration, eps, delta, Global(mode="pac"), recalibrate=True),
                 splits.test,
                 "synthetic (hetlag): calibrated on its calibration split, row-level domain; queries: the "
                 "test split (an independent draw of the same law)",
@@ -144,7 +154,7 @@ def latency_workloads(models: dict[str, tuple[Any, Splits, float]], cfg: RunConf
         out.append(
             Workload(
                 "quad_out_of_domain",
-                calibrate(ipc, splits.calibration, eps, delta, "pac", recalibrate=True),
+                calibrate(ipc, splits.calibration, eps, delta, Global(mode="pac"), recalibrate=True),
                 splits.test,
                 "quad landing, out of domain: calibrated on the 12 flights of the calibration split (every "
                 "2nd frame), row-level domain; queries: the 12 unseen flights of the test split",
@@ -156,7 +166,7 @@ def latency_workloads(models: dict[str, tuple[Any, Splits, float]], cfg: RunConf
         out.append(
             Workload(
                 name,
-                calibrate(ipc, splits.calibration, eps, delta, "pac", recalibrate=True),
+                calibrate(ipc, splits.calibration, eps, delta, Global(mode="pac"), recalibrate=True),
                 splits.test,
                 f"{name}: calibrated on its calibration split; queries: its test split",
             )  # fmt: skip

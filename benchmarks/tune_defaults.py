@@ -25,6 +25,7 @@ import torch
 
 from benchmarks.common import blas_single_thread, machine_info
 from benchmarks.datasets import load_splits
+from ipcverify.calibration import Global
 from ipcverify.contract import calibrate
 from ipcverify.network import ModelConfig
 from ipcverify.training._train import TrainConfig, train
@@ -69,7 +70,7 @@ def run_one(splits: Any, overrides: dict[str, Any], seed: int) -> dict[str, floa
     t0 = time.perf_counter()
     model = train(splits.train, mc, TrainConfig.recipe("v1", seed=seed, **tkw)).model
     seconds = time.perf_counter() - t0
-    cal = calibrate(model, splits.calibration, EPSILON, DELTA, "pac")
+    cal = calibrate(model, splits.calibration, EPSILON, DELTA, Global(mode="pac"))
     sets = cal.predict(splits.test.x, splits.test.yhat)
     vol = np.exp(sets.log_volume())
     raw = model.predict_raw(splits.test.x, splits.test.yhat)

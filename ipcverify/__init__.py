@@ -35,11 +35,16 @@ from ipcverify.errors import (
 )
 
 if TYPE_CHECKING:
+    from ipcverify.calibration._global_scale import Global
+    from ipcverify.calibration._grouped import Grouped
+    from ipcverify.calibration._mondrian import Mondrian
     from ipcverify.certification._certify import certify
     from ipcverify.contract._calibrate import calibrate
     from ipcverify.contract._model import IPCModel
     from ipcverify.data._dataset import PerceptionDataset
+    from ipcverify.decision._landing_query import LandingQuery
     from ipcverify.decision._query import IPCQuery
+    from ipcverify.guard._domain_spec import DomainSpec
     from ipcverify.io._modelio import load_model, save_model
     from ipcverify.sets._box import Box
     from ipcverify.sets._ellipsoid import Ellipsoid
@@ -49,6 +54,11 @@ if TYPE_CHECKING:
 __version__ = VERSION
 
 __all__ = [
+    "DomainSpec",
+    "Global",
+    "Grouped",
+    "LandingQuery",
+    "Mondrian",
     "Box",
     "DataError",
     "Ellipsoid",

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
+from ipcverify.calibration._global_scale import Global
 from ipcverify.certification._baselines import fit_global_mahalanobis
 from ipcverify.certification._evaluation import Evaluation, evaluate
 from ipcverify.certification._report import figure_to_png
@@ -96,7 +97,7 @@ def run_demo(
         save_dataset(ds, out / f"{name}.csv")
     model = train(train_data, train_config=TrainConfig(seed=seed), progress=progress).model
     save_model(model, out / "model.pt")
-    calibrated = calibrate(model, cal_data, DEMO_EPSILON, DEMO_DELTA, mode="pac")
+    calibrated = calibrate(model, cal_data, DEMO_EPSILON, DEMO_DELTA, Global(mode="pac"))
     save_model(calibrated, out / "calibrated.pt")
     base = fit_global_mahalanobis(train_data).calibrate(cal_data, DEMO_EPSILON, DEMO_DELTA, mode="pac")
     base_sets = base.predict(test_data.x, test_data.yhat)

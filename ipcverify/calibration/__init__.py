@@ -2,9 +2,12 @@
 
 One module per job: :mod:`~ipcverify.calibration._threshold` (the order statistic of one
 set of scores), :mod:`~ipcverify.calibration._protocol` (what every kind provides),
-:mod:`~ipcverify.calibration._global_scale` and :mod:`~ipcverify.calibration._mondrian` (the
-kinds) and :mod:`~ipcverify.calibration._kinds` (their registry). The pipeline step that
-calibrates a model is :func:`ipcverify.contract.calibrate`.
+:mod:`~ipcverify.calibration._global_scale`, :mod:`~ipcverify.calibration._mondrian` and
+:mod:`~ipcverify.calibration._grouped` (the kinds, each a calibration record and the spec that
+fits it: :class:`Global`, :class:`Mondrian`, :class:`Grouped`) and
+:mod:`~ipcverify.calibration._kinds` (their registry). The pipeline step that calibrates a
+model is :func:`ipcverify.contract.calibrate`, which takes a spec:
+``calibrate(model, data, epsilon, delta, Grouped(column="run", guarantee="sample"))``.
 
 The network's score ``g = ||C (y - c)||`` is computed on ``n`` calibration samples
 that were *not* used for training. The calibrated contract is ``E(c, C / s)`` with
@@ -51,7 +54,6 @@ if TYPE_CHECKING:
     from ipcverify.calibration._bounds import (
         TAIL_MARGIN,
         CalibrationMode,
-        calibration_index,
         clopper_pearson_interval,
         clopper_pearson_lower,
         clopper_pearson_upper,
@@ -62,24 +64,39 @@ if TYPE_CHECKING:
         smallest_epsilon,
     )
     from ipcverify.calibration._global_scale import (
+        Global,
         GlobalCalibration,
     )
-    from ipcverify.calibration._grouped import (
+    from ipcverify.calibration._group_counts import (
         GUARANTEES,
-        GroupedCalibration,
         GroupViolations,
         GuaranteeKind,
         group_violation_counts,
-        risk_control_threshold,
+    )
+    from ipcverify.calibration._grouped import (
+        Grouped,
+        GroupedCalibration,
     )
     from ipcverify.calibration._kinds import (
         KINDS,
+        METHODS,
         calibration_from_dict,
+        register_kind,
+    )
+    from ipcverify.calibration._method import (
+        CalibrationMethod,
+        CalibrationRecord,
+        CalibrationSample,
+        CalibrationSpec,
     )
     from ipcverify.calibration._mondrian import (
-        MAX_GROUPS,
         GroupScale,
+        Mondrian,
         MondrianCalibration,
+    )
+    from ipcverify.calibration._mondrian_groups import (
+        EDGE_FRACTION,
+        MAX_GROUPS,
     )
     from ipcverify.calibration._protocol import (
         GROUP_UNITS,
@@ -90,58 +107,60 @@ if TYPE_CHECKING:
         GroupInfo,
         GroupUnit,
         TestCounts,
-        row_counts,
+    )
+    from ipcverify.calibration._risk_control import (
+        risk_control_threshold,
     )
     from ipcverify.calibration._threshold import (
-        MIN_SCALE,
         MODES,
         SCALE_MARGIN,
         ScoreThreshold,
-        check_eps_delta,
-        check_mode,
-        guarantee_sentence,
         threshold_scores,
     )
 
 __all__ = [
+    "EDGE_FRACTION",
     "GROUP_UNITS",
     "GUARANTEES",
     "KINDS",
     "MAX_GROUPS",
-    "MIN_SCALE",
+    "METHODS",
     "MODES",
     "SCALE_MARGIN",
     "TAIL_MARGIN",
     "AllowedRate",
     "Calibration",
+    "CalibrationMethod",
     "CalibrationMode",
+    "CalibrationRecord",
+    "CalibrationSample",
+    "CalibrationSpec",
     "CalibrationSummary",
+    "Global",
     "GlobalCalibration",
     "GroupClaim",
     "GroupInfo",
     "GroupScale",
     "GroupUnit",
     "GroupViolations",
+    "Grouped",
     "GroupedCalibration",
     "GuaranteeKind",
+    "Mondrian",
     "MondrianCalibration",
     "ScoreThreshold",
     "TestCounts",
     "calibration_from_dict",
-    "calibration_index",
-    "check_eps_delta",
-    "check_mode",
     "clopper_pearson_interval",
     "clopper_pearson_lower",
     "clopper_pearson_upper",
     "group_violation_counts",
-    "guarantee_sentence",
     "marginal_conformal_index",
     "min_calibration_size",
     "pac_calibration_index",
     "pac_epsilon",
+    "register_kind",
     "risk_control_threshold",
-    "row_counts",
     "smallest_epsilon",
     "threshold_scores",
 ]

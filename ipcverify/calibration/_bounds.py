@@ -31,20 +31,6 @@ from scipy import stats
 
 from ipcverify.errors import InvalidInputError, SampleSizeError
 
-__all__ = [
-    "CalibrationMode",
-    "TAIL_MARGIN",
-    "clopper_pearson_upper",
-    "clopper_pearson_lower",
-    "clopper_pearson_interval",
-    "pac_calibration_index",
-    "pac_epsilon",
-    "marginal_conformal_index",
-    "min_calibration_size",
-    "smallest_epsilon",
-    "calibration_index",
-]
-
 CalibrationMode = Literal["pac", "marginal"]
 
 #: Relative safety margin on binomial tail comparisons (guards against rounding in

@@ -1,4 +1,4 @@
-"""Global calibration: one scale factor for every query.
+"""Global calibration: one scale factor for every query (:class:`Global`, the default kind).
 
 The network's score ``g = ||C (y - c)||`` is computed on ``n`` held-out calibration
 samples; the calibrated contract is ``E(c, C / s)`` with ``s`` the ``k``-th smallest score
@@ -13,15 +13,22 @@ from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import stats
 
 from ipcverify.calibration._bounds import CalibrationMode
-from ipcverify.calibration._protocol import AllowedRate, CalibrationSummary, GroupInfo, TestCounts, row_counts
+from ipcverify.calibration._method import CalibrationRecord, CalibrationSample, CalibrationSpec
+from ipcverify.calibration._protocol import (
+    AllowedRate,
+    CalibrationSummary,
+    GroupInfo,
+    TestCounts,
+    one_group,
+    one_scale,
+    row_counts,
+    summarize,
+)
 from ipcverify.calibration._threshold import ScoreThreshold, guarantee_sentence, threshold_scores
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import InvalidInputError
-
-__all__ = ["GlobalCalibration"]
 
 FloatArray = NDArray[np.float64]
 
@@ -82,11 +89,11 @@ class GlobalCalibration:
 
     def scale_for(self, x: FloatArray, yhat: FloatArray) -> FloatArray:
         """The scale (same for every sample), shape (B,)."""
-        return np.full(len(np.asarray(x)), self.threshold.scale)
+        return one_scale(x, self.threshold.scale)
 
     def group_index(self, x: FloatArray, yhat: FloatArray) -> NDArray[np.intp]:
         """Every query is in the one group (zeros, shape (B,))."""
-        return np.zeros(len(np.asarray(x)), dtype=np.intp)
+        return one_group(x)
 
     def groups(self) -> tuple[GroupInfo, ...]:
         """One group, ``"all"``."""
@@ -96,16 +103,13 @@ class GlobalCalibration:
     def allowed_violation_rate(self) -> AllowedRate:
         """PAC: the certified epsilon; marginal: the ``1 - delta`` quantile of its Beta law."""
         t = self.threshold
-        if t.mode == "pac":
-            return AllowedRate(
-                rate=t.certified_epsilon,
-                reason="the PAC calibration allows a violation rate up to this value (w.p. 1 - delta)",
-            )
         # the violation rate of a marginal calibration is Beta(n - k + 1, k) (continuous scores)
-        return AllowedRate(
-            rate=float(stats.beta.ppf(1.0 - t.delta, t.n - t.k + 1, t.k)),
-            reason="1 - delta quantile of the marginal calibration's Beta(n - k + 1, k) violation rate",
+        reason = (
+            "the PAC calibration allows a violation rate up to this value (w.p. 1 - delta)"
+            if t.mode == "pac"
+            else "1 - delta quantile of the marginal calibration's Beta(n - k + 1, k) violation rate"
         )
+        return AllowedRate(rate=t.allowed_rate(), reason=reason)
 
     def test_counts(self, violated: NDArray[np.bool_], test_data: PerceptionDataset) -> TestCounts:
         """Rows: the claim is about a new sample."""
@@ -118,16 +122,9 @@ class GlobalCalibration:
     def summary(self) -> CalibrationSummary:
         """The typed record (``k``, ``scale`` and ``order_statistic`` as details)."""
         t = self.threshold
-        return CalibrationSummary(
-            kind=self.kind,
-            mode=t.mode,
-            epsilon=t.epsilon,
-            delta=t.delta,
-            n=t.n,
+        return summarize(
+            self,
             certified_epsilon=t.certified_epsilon,
-            guarantee=self.guarantee(),
-            data_sha256=self.data_hash,
-            groups=self.groups(),
             grouping="all samples",
             details={"k": t.k, "scale": t.scale, "order_statistic": t.order_statistic},
         )
@@ -139,7 +136,7 @@ class GlobalCalibration:
     def to_dict(self) -> dict[str, Any]:
         """Plain-data form stored in the model file."""
         return {
-            "kind": "global",
+            "kind": self.kind,
             **self.threshold.to_dict(),
             "data_hash": self.data_hash,
             "network_hash": self.network_hash,
@@ -171,3 +168,34 @@ class GlobalCalibration:
             data_hash=data_hash,
             network_hash=network_hash,
         )
+
+
+@dataclass(frozen=True, kw_only=True)
+class Global(CalibrationSpec):
+    """Global calibration, one scale factor for every query: a spec for ``calibrate()``.
+
+    Parameters
+    ----------
+    mode : {"pac", "marginal"}
+        Training-conditional (PAC: with probability ``1 - delta`` over the calibration draw) or
+        marginal (split conformal: on average over calibration draws) guarantee.
+
+    Examples
+    --------
+    >>> sample = CalibrationSample(scores=np.linspace(0.1, 2.0, 200), data=None, epsilon=0.1, delta=0.1,
+    ...                            data_hash="d", network_hash="h")
+    >>> cal = Global(mode="marginal").fit(sample)
+    >>> cal.kind, cal.groups()[0].k
+    ('global', 181)
+    >>> Global(mode="bayes")
+    Traceback (most recent call last):
+    ...
+    ipcverify.errors.InvalidInputError: mode must be 'pac' or 'marginal'; got 'bayes'
+    """
+
+    kind: ClassVar[str] = "global"
+    record: ClassVar[CalibrationRecord] = GlobalCalibration
+
+    def fit(self, sample: CalibrationSample) -> GlobalCalibration:
+        """Calibrate one threshold on all the scores."""
+        return GlobalCalibration.fit(sample.scores, sample.epsilon, sample.delta, self.mode, **sample.ids)

@@ -14,7 +14,8 @@ factor for every query. Two guarantees (``guarantee=``), each PAC or marginal:
 * ``"sample"``: a bound on ``E[V_new(t)]``, the expected fraction of a new group's samples
   outside their sets. PAC: one sample per group is drawn at random (seeded, independently
   of the scores) and the PAC order statistic of those ``G`` scores is used. Marginal:
-  conformal risk control with the group losses ``V_g(t)`` (:func:`risk_control_threshold`).
+  conformal risk control with the group losses ``V_g(t)``
+  (:func:`~ipcverify.calibration.risk_control_threshold`).
 
 PAC statements need independent, identically distributed groups; marginal ones need
 exchangeable groups. Within a group samples may depend on each other in any way. The
@@ -28,41 +29,39 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, fields
-from fractions import Fraction
 from typing import Any, ClassVar, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import stats
 
-from ipcverify.calibration._bounds import CalibrationMode, min_calibration_size, smallest_epsilon
-from ipcverify.calibration._protocol import AllowedRate, CalibrationSummary, GroupClaim, GroupInfo, TestCounts
+from ipcverify.calibration._bounds import CalibrationMode, min_calibration_size
+from ipcverify.calibration._group_counts import (
+    GuaranteeKind,
+    check_guarantee,
+    group_violation_counts,
+)
+from ipcverify.calibration._group_fit import group_threshold
+from ipcverify.calibration._method import CalibrationRecord, CalibrationSample, CalibrationSpec
+from ipcverify.calibration._protocol import (
+    AllowedRate,
+    CalibrationSummary,
+    GroupClaim,
+    GroupInfo,
+    TestCounts,
+    one_group,
+    one_scale,
+    summarize,
+)
 from ipcverify.calibration._threshold import (
-    MIN_SCALE,
-    SCALE_MARGIN,
     ScoreThreshold,
     check_eps_delta,
     check_mode,
-    threshold_scores,
+    check_seed,
 )
 from ipcverify.data._dataset import PerceptionDataset
-from ipcverify.data._split import group_codes
-from ipcverify.errors import InvalidInputError, SampleSizeError
-
-__all__ = [
-    "GUARANTEES",
-    "GuaranteeKind",
-    "GroupedCalibration",
-    "GroupViolations",
-    "group_violation_counts",
-    "risk_control_threshold",
-]
+from ipcverify.errors import InvalidInputError
 
 FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.intp]
-GuaranteeKind = Literal["trajectory", "sample"]  # = protocol.GroupUnit
-#: The two guarantees: every sample of a new group inside (trajectory), or a per-sample rate.
-GUARANTEES = ("trajectory", "sample")
 #: Relative slack when a stored risk-control record is re-checked (its mean risk is a rounded float).
 RISK_RTOL = 1e-9
 _INTS = ("n_groups", "k_groups", "n_rows", "n_used", "n_inside", "size_min", "size_max", "seed")
@@ -73,147 +72,6 @@ _RECORD_TYPES: dict[str, Any] = {
     **dict.fromkeys(_FLOATS, lambda v: None if v is None else float(v)),
     **dict.fromkeys(("column", "data_hash", "network_hash", "guarantee_kind", "mode"), str),
 }
-
-
-def _check_guarantee(guarantee: str) -> None:
-    if guarantee not in GUARANTEES:
-        raise InvalidInputError(
-            f"guarantee must be 'trajectory' (every sample of a new group inside its set) or 'sample' "
-            f"(the expected fraction of a new group's samples outside); got {guarantee!r}"
-        )
-
-
-def _group_layout(codes: IntArray, n_groups: int) -> tuple[IntArray, IntArray, IntArray]:
-    """Rows sorted by group (stable), each group's first position in that order, group sizes."""
-    order = np.argsort(codes, kind="stable")
-    sizes = np.bincount(codes, minlength=n_groups).astype(np.intp)
-    starts = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.intp)
-    return order, starts, sizes
-
-
-def _one_per_group(codes: IntArray, n_groups: int, seed: int) -> IntArray:
-    """Row index of one sample per group, uniformly at random within the group (seeded)."""
-    order, starts, sizes = _group_layout(codes, n_groups)
-    u = np.random.default_rng(seed).random(n_groups)
-    pick = np.minimum((u * sizes).astype(np.intp), sizes - 1)
-    return order[starts + pick]
-
-
-def risk_control_threshold(scores: ArrayLike, groups: ArrayLike, epsilon: float) -> tuple[float, float]:
-    """Conformal risk control over groups: the smallest ``t`` with ``(sum_g V_g(t) + 1) / (G + 1) <= eps``.
-
-    ``V_g(t)`` is the fraction of group ``g``'s samples with score ``> t`` (a loss in
-    ``[0, 1]``, non-increasing and right-continuous in ``t``). If the ``G`` calibration groups
-    and a new group are exchangeable, ``E[V_new(t)] <= epsilon`` (proofs/group_calibration.md).
-    The candidate is found in floating point and then settled in exact rational arithmetic,
-    so the result is the exact infimum (always one of the scores).
-
-    Returns ``(t, mean_g V_g(t))`` for scores (N,) with group labels (N,). Raises
-    :class:`SampleSizeError` if ``G < 1 / epsilon - 1`` (no ``t`` satisfies the condition).
-
-    Examples
-    --------
-    >>> s = np.array([0.1, 0.2, 0.3, 0.4, 1.0, 2.0, 3.0, 4.0])
-    >>> risk_control_threshold(s, [0, 0, 1, 1, 2, 2, 3, 3], 0.5)
-    (1.0, 0.375)
-    """
-    s = np.asarray(scores, dtype=np.float64).ravel()
-    codes, labels = group_codes(groups, "risk control groups")
-    G = len(labels)
-    if len(codes) != len(s):
-        raise InvalidInputError(f"{len(s)} scores but {len(codes)} group labels; give one label per score")
-    eps = Fraction(epsilon)
-    if eps * (G + 1) < 1:
-        need = min_calibration_size(epsilon, 0.5, "marginal")
-        raise SampleSizeError(
-            f"{G} groups are too few for conformal risk control at epsilon={epsilon:g}: at least {need} "
-            "groups are needed (G >= 1/epsilon - 1)"
-        )
-    sizes = np.bincount(codes, minlength=G)
-    order = np.argsort(s, kind="stable")
-    sorted_s = s[order]
-    last = np.flatnonzero(np.concatenate([sorted_s[1:] != sorted_s[:-1], [True]]))
-    risk_sum = G - np.cumsum(1.0 / sizes[codes[order]])[last]  # sum_g V_g at each distinct score
-    budget = eps * (G + 1) - 1
-    distinct_sizes = np.unique(sizes)
-
-    def exact_risk_sum(j: int) -> Fraction:
-        over = np.bincount(codes[s > sorted_s[last[j]]], minlength=G)
-        return sum((Fraction(int(over[sizes == m].sum()), int(m)) for m in distinct_sizes), Fraction(0))
-
-    # float candidate, then the exact infimum: the exact sum is decreasing in j, so step forward
-    # while it fails and back while the previous one passes (a few steps at most)
-    ok = np.flatnonzero(risk_sum <= float(budget))
-    j = int(ok[0]) if ok.size else len(last) - 1
-    while exact_risk_sum(j) > budget:  # at the largest score the sum is 0 <= budget
-        j += 1
-    while j > 0 and exact_risk_sum(j - 1) <= budget:
-        j -= 1
-    return float(sorted_s[last[j]]), float(exact_risk_sum(j) / G)
-
-
-def _too_few_groups(
-    G: int, column: str, epsilon: float, delta: float, mode: CalibrationMode, what: str
-) -> str:
-    need = min_calibration_size(epsilon, delta, mode)
-    text = (
-        f"{G} groups of column {column!r} are too few for a {mode} {what} calibration at "
-        f"epsilon={epsilon:g}, delta={delta:g}: at least {need} groups are needed. The groups (flights, "
-        "runs), not the rows, are the exchangeable units, so more rows per group do not help; collect "
-        f"more independent groups, or raise --epsilon (with {G} groups the smallest is "
-        f"{smallest_epsilon(G, delta, mode):g}"
-    )
-    if mode == "pac":
-        marginal = min_calibration_size(epsilon, delta, "marginal")
-        return text + f" at this delta) or --delta, or use --mode marginal (needs {marginal} groups)"
-    return text + ")"
-
-
-@dataclass(frozen=True, kw_only=True)
-class GroupViolations:
-    """``violations`` of ``n_groups`` test groups, one statistic per group (:func:`group_violation_counts`).
-
-    ``unit="trajectory"``: a group counts if any of its samples violates; ``"sample"``: if one
-    sample drawn at random (seeded) from it violates.
-    """
-
-    violations: int
-    n_groups: int
-    unit: GuaranteeKind
-
-    def __post_init__(self) -> None:
-        _check_guarantee(self.unit)
-        if not (0 <= self.violations <= self.n_groups and self.n_groups >= 1):
-            raise InvalidInputError(f"need 0 <= violations <= n_groups, n_groups >= 1; got {self}")
-
-
-def group_violation_counts(
-    violated: ArrayLike, groups: ArrayLike, unit: GuaranteeKind, seed: int = 0
-) -> GroupViolations:
-    """Count violations per test group, so that a binomial test is valid for correlated samples.
-
-    Rows of one group are correlated, so a Clopper--Pearson bound from row counts is not
-    valid; one statistic per group is, if the test groups are i.i.d. For ``unit="trajectory"``
-    its mean is the probability that a group leaves its sets somewhere; for ``"sample"`` (one
-    random sample per group) it is ``E[V_new]``, the expected violation fraction of a group.
-
-    Examples
-    --------
-    >>> v = np.array([False, True, False, False, False, False])
-    >>> group_violation_counts(v, [1, 1, 2, 2, 3, 3], "trajectory")
-    GroupViolations(violations=1, n_groups=3, unit='trajectory')
-    """
-    _check_guarantee(unit)
-    bad = np.asarray(violated, dtype=bool).ravel()
-    codes, labels = group_codes(groups, "test groups")
-    if len(codes) != len(bad):
-        raise InvalidInputError(f"{len(bad)} violation flags but {len(codes)} group labels; give one per row")
-    G = len(labels)
-    if unit == "trajectory":
-        count = int((np.bincount(codes, weights=bad.astype(np.float64), minlength=G) > 0).sum())
-    else:
-        count = int(bad[_one_per_group(codes, G, seed)].sum())
-    return GroupViolations(violations=count, n_groups=G, unit=unit)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -286,7 +144,7 @@ class GroupedCalibration:
     def __post_init__(self) -> None:
         check_mode(self.mode)
         check_eps_delta(self.epsilon, self.delta)
-        _check_guarantee(self.guarantee_kind)
+        check_guarantee(self.guarantee_kind)
         G = self.n_groups
         if not (isinstance(G, int) and G >= min_calibration_size(self.epsilon, self.delta, self.mode)):
             raise InvalidInputError(
@@ -362,11 +220,11 @@ class GroupedCalibration:
 
     def scale_for(self, x: FloatArray, yhat: FloatArray) -> FloatArray:
         """The scale (same for every query), shape (B,)."""
-        return np.full(len(np.asarray(x)), self.scale)
+        return one_scale(x, self.scale)
 
     def group_index(self, x: FloatArray, yhat: FloatArray) -> NDArray[np.intp]:
         """Every query is in the one calibrated group (zeros, shape (B,))."""
-        return np.zeros(len(np.asarray(x)), dtype=np.intp)
+        return one_group(x)
 
     def groups(self) -> tuple[GroupInfo, ...]:
         """One group ``"all"``: ``n`` rows used, ``k`` of them inside, the scale."""
@@ -392,11 +250,11 @@ class GroupedCalibration:
         )
         if self.mode == "pac":
             return AllowedRate(
-                rate=t.certified_epsilon,
+                rate=t.allowed_rate(),
                 reason=f"w.p. 1 - delta the probability that {what} is at most this; {unit}",
             )
         return AllowedRate(
-            rate=float(stats.beta.ppf(1.0 - t.delta, t.n - t.k + 1, t.k)),
+            rate=t.allowed_rate(),
             reason=f"1 - delta quantile of the Beta(G - k + 1, k) probability that {what}; {unit}",
         )
 
@@ -421,16 +279,9 @@ class GroupedCalibration:
 
     def summary(self) -> CalibrationSummary:
         """The typed record; groups, sizes, the guarantee kind and the method are in ``details``."""
-        return CalibrationSummary(
-            kind=self.kind,
-            mode=self.mode,
-            epsilon=self.epsilon,
-            delta=self.delta,
-            n=self.n_used,
+        return summarize(
+            self,
             certified_epsilon=self.certified_epsilon,
-            guarantee=self.guarantee(),
-            data_sha256=self.data_hash,
-            groups=self.groups(),
             grouping=f"all samples, one scale; {self.n_groups} groups of {self.column} as exchangeable units",
             details={
                 "group_column": self.column,
@@ -537,6 +388,7 @@ class GroupedCalibration:
 
         Examples
         --------
+        >>> from ipcverify.errors import SampleSizeError
         >>> runs = np.repeat(np.arange(20), 50)                 # 20 flights, 1000 rows
         >>> try:
         ...     GroupedCalibration.fit(np.ones(1000), runs, 0.01, 0.001, guarantee="trajectory",
@@ -546,55 +398,89 @@ class GroupedCalibration:
         20 groups of column 'run' are too few for a pac trajectory-level calibration at epsilon=0.01, \
 delta=0.001: at least 688 groups are needed
         """
-        check_mode(mode)
-        check_eps_delta(epsilon, delta)
-        _check_guarantee(guarantee)
-        if isinstance(seed, bool) or int(seed) != seed:
-            raise InvalidInputError(f"seed must be an integer; got {seed!r}")
-        s = np.asarray(scores, dtype=np.float64).ravel()
-        if s.size == 0 or not np.isfinite(s).all() or (s < 0).any():
-            raise InvalidInputError("calibration scores must be a non-empty array of finite values >= 0")
-        codes, labels = group_codes(groups, f"group column {column!r}")
-        if len(codes) != len(s):
-            raise InvalidInputError(
-                f"{len(s)} calibration scores but {len(codes)} labels in group column {column!r}; "
-                "give one group label per calibration row"
-            )
-        G = len(labels)
-        if G < min_calibration_size(epsilon, delta, mode):
-            raise SampleSizeError(_too_few_groups(G, column, epsilon, delta, mode, f"{guarantee}-level"))
-        order, starts, sizes = _group_layout(codes, G)
-        k_groups: int | None = None
-        risk: float | None = None
-        used = s
-        if guarantee == "trajectory":
-            t = threshold_scores(np.maximum.reduceat(s[order], starts), epsilon, delta, mode)
-            k_groups, stat, scale = t.k, t.order_statistic, t.scale
-        elif mode == "pac":
-            used = s[_one_per_group(codes, G, int(seed))]
-            t = threshold_scores(used, epsilon, delta, mode)
-            k_groups, stat, scale = t.k, t.order_statistic, t.scale
-        else:
-            stat, risk = risk_control_threshold(s, codes, epsilon)
-            scale = max(stat * (1.0 + SCALE_MARGIN), MIN_SCALE)
+        fitted = group_threshold(
+            scores, groups, epsilon, delta, mode, guarantee=guarantee, column=column, seed=seed
+        )
+        t = fitted.order_statistic
         return cls(
             column=column,
             guarantee_kind=guarantee,
             mode=mode,
             epsilon=float(epsilon),
             delta=float(delta),
-            n_groups=G,
-            k_groups=k_groups,
-            order_statistic=stat,
-            scale=scale,
-            risk=risk,
-            n_rows=int(s.size),
-            n_used=int(used.size),
-            n_inside=int((used <= stat).sum()),
-            size_min=int(sizes.min()),
-            size_median=float(np.median(sizes)),
-            size_max=int(sizes.max()),
+            n_groups=len(fitted.sizes),
+            k_groups=fitted.k_groups,
+            order_statistic=t,
+            scale=fitted.scale,
+            risk=fitted.risk,
+            n_rows=int(np.asarray(scores).size),
+            n_used=int(fitted.used.size),
+            n_inside=int((fitted.used <= t).sum()),
+            size_min=int(fitted.sizes.min()),
+            size_median=float(np.median(fitted.sizes)),
+            size_max=int(fitted.sizes.max()),
             seed=int(seed),
             data_hash=data_hash,
             network_hash=network_hash,
+        )
+
+
+@dataclass(frozen=True, kw_only=True)
+class Grouped(CalibrationSpec):
+    """Grouped calibration, whole groups (flights, runs) as exchangeable units: a spec for ``calibrate()``.
+
+    Parameters
+    ----------
+    column : str
+        The column naming each calibration sample's group (any column of the data; it is not
+        needed at predict time).
+    guarantee : {"sample", "trajectory"}
+        Bound the expected share of a new group's samples outside their sets (``"sample"``), or
+        the probability that a new group leaves its sets anywhere (``"trajectory"``).
+    seed : int
+        Seeds the choice of one sample per group (``guarantee="sample"``, PAC).
+    mode : {"pac", "marginal"}
+        PAC (i.i.d. groups) or marginal (exchangeable groups) guarantee.
+
+    Examples
+    --------
+    >>> Grouped(column="run").unit_column
+    'run'
+    >>> Grouped(column="run", guarantee="always")
+    Traceback (most recent call last):
+    ...
+    ipcverify.errors.InvalidInputError: guarantee must be 'trajectory' (every sample of a new group \
+inside its set) or 'sample' (the expected fraction of a new group's samples outside); got 'always'
+    """
+
+    column: str
+    guarantee: GuaranteeKind = "sample"
+    seed: int = 0
+    kind: ClassVar[str] = "grouped"
+    record: ClassVar[CalibrationRecord] = GroupedCalibration
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if not (isinstance(self.column, str) and self.column):
+            raise InvalidInputError(f"a grouped calibration needs a group column name; got {self.column!r}")
+        check_guarantee(self.guarantee)
+        check_seed(self.seed)
+
+    @property
+    def unit_column(self) -> str:
+        """The group column: its groups are the exchangeable units (also of the domain test by default)."""
+        return self.column
+
+    def fit(self, sample: CalibrationSample) -> GroupedCalibration:
+        """Calibrate one scale with the groups of the data's column as the units."""
+        return GroupedCalibration.fit(
+            sample.scores,
+            sample.rows().column(self.column),
+            sample.epsilon,
+            sample.delta,
+            self.mode,
+            guarantee=self.guarantee,
+            column=self.column,
+            seed=self.seed,
+            **sample.ids,
         )

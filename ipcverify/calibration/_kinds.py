@@ -1,26 +1,88 @@
-"""The registry of calibration kinds, and rebuilding a calibration from its stored record.
+"""The registry of calibration kinds: their specs by name, and rebuilding a calibration from its record.
 
-A model file stores ``calibration.to_dict()``, whose ``kind`` names the class that reads
-it back. A new kind registers here with one line.
+A kind is a spec (:class:`~ipcverify.calibration.CalibrationMethod`: what the user chooses,
+with its own ``fit``) and the calibration it fits (:class:`~ipcverify.calibration.Calibration`,
+stored in model files by ``to_dict()``, whose ``kind`` names the class that reads it back). A
+new kind registers its spec here with one line, or from its own module with
+:func:`register_kind`; :func:`ipcverify.contract.calibrate` fits only registered kinds, so
+that every calibrated model can be read back.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, TypeVar
 
-from ipcverify.calibration._global_scale import GlobalCalibration
-from ipcverify.calibration._grouped import GroupedCalibration
-from ipcverify.calibration._mondrian import MondrianCalibration
+from ipcverify.calibration._global_scale import Global
+from ipcverify.calibration._grouped import Grouped
+from ipcverify.calibration._method import CalibrationMethod, CalibrationRecord
+from ipcverify.calibration._mondrian import Mondrian
 from ipcverify.calibration._protocol import Calibration
 from ipcverify.errors import InvalidInputError
 
-__all__ = ["KINDS", "calibration_from_dict"]
+M = TypeVar("M", bound=type[CalibrationMethod])
 
-#: Calibration kinds by the ``kind`` stored in their records.
-KINDS: dict[str, Any] = {
-    cls.kind: cls for cls in (GlobalCalibration, MondrianCalibration, GroupedCalibration)
-}
+#: Calibration specs by kind name (``"global"``, ``"mondrian"``, ``"grouped"``, ...).
+METHODS: dict[str, type[CalibrationMethod]] = {}
+#: Calibration classes by the ``kind`` stored in their records.
+KINDS: dict[str, CalibrationRecord] = {}
+
+
+def register_kind(method: M) -> M:
+    """Register a calibration kind by its spec class (usable as a class decorator); returns it.
+
+    Raises
+    ------
+    InvalidInputError
+        If the spec's ``kind`` differs from its calibration class's, or another spec is
+        registered under that name.
+
+    Examples
+    --------
+    >>> register_kind(Global) is Global and METHODS["global"] is Global
+    True
+    """
+    kind, record = method.kind, method.record
+    if getattr(record, "kind", None) != kind:
+        raise InvalidInputError(
+            f"spec {method.__name__} fits kind {kind!r} but its record class is of kind "
+            f"{getattr(record, 'kind', None)!r}; give both the same kind"
+        )
+    if METHODS.get(kind, method) is not method:
+        raise InvalidInputError(
+            f"calibration kind {kind!r} is already registered (by {METHODS[kind].__name__}); "
+            "choose another name"
+        )
+    METHODS[kind] = method
+    KINDS[kind] = record
+    return method
+
+
+register_kind(Global)
+register_kind(Mondrian)
+register_kind(Grouped)
+
+
+def check_registered(method: CalibrationMethod) -> None:
+    """Refuse a spec whose kind is not registered (a model calibrated with it could not be read back).
+
+    Raises
+    ------
+    InvalidInputError
+        If ``method`` is not a calibration spec, or its kind is not registered.
+    """
+    kind = getattr(method, "kind", None)
+    if not (isinstance(kind, str) and callable(getattr(method, "fit", None))):
+        known = ", ".join(f"{m.__name__}(...)" for m in METHODS.values())
+        raise InvalidInputError(
+            f"method must be a calibration spec ({known}, from ipcverify.calibration); got {method!r}"
+        )
+    if METHODS.get(kind) is not type(method):
+        raise InvalidInputError(
+            f"calibration kind {kind!r} ({type(method).__name__}) is not registered, so a model calibrated "
+            "with it could not be read back; register its spec with "
+            "ipcverify.calibration.register_kind(...) first"
+        )
 
 
 def calibration_from_dict(data: Mapping[str, Any]) -> Calibration:
@@ -35,6 +97,7 @@ def calibration_from_dict(data: Mapping[str, Any]) -> Calibration:
     Examples
     --------
     >>> import numpy as np
+    >>> from ipcverify.calibration._global_scale import GlobalCalibration
     >>> from ipcverify.calibration._threshold import threshold_scores
     >>> t = threshold_scores(np.linspace(0.1, 2.0, 200), epsilon=0.1, delta=0.1, mode="marginal")
     >>> cal = GlobalCalibration(threshold=t, data_hash="d", network_hash="h")
@@ -42,9 +105,8 @@ def calibration_from_dict(data: Mapping[str, Any]) -> Calibration:
     True
     """
     kind = data.get("kind")
-    cls = KINDS.get(str(kind))
-    if cls is None:
+    record = KINDS.get(str(kind))
+    if record is None:
         known = ", ".join(repr(k) for k in KINDS)
         raise InvalidInputError(f"unknown calibration kind {kind!r} (expected one of {known})")
-    cal: Calibration = cls.from_dict(data)
-    return cal
+    return record.from_dict(data)

@@ -19,22 +19,34 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ipcverify.calibration._bounds import CalibrationMode, min_calibration_size
-from ipcverify.calibration._protocol import AllowedRate, CalibrationSummary, GroupInfo, TestCounts, row_counts
+from ipcverify.calibration._method import CalibrationRecord, CalibrationSample, CalibrationSpec
+from ipcverify.calibration._mondrian_groups import (
+    EDGE_FRACTION,
+    check_bins,
+    check_edge_fraction,
+    discrete_groups,
+    locate_column,
+    quantile_bins,
+)
+from ipcverify.calibration._protocol import (
+    AllowedRate,
+    CalibrationSummary,
+    GroupInfo,
+    TestCounts,
+    row_counts,
+    summarize,
+)
 from ipcverify.calibration._threshold import (
     ScoreThreshold,
     check_eps_delta,
     check_mode,
+    check_seed,
     threshold_scores,
 )
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import InvalidInputError, SampleSizeError
 
-__all__ = ["MAX_GROUPS", "GroupScale", "MondrianCalibration"]
-
 FloatArray = NDArray[np.float64]
-
-#: Most distinct values a discrete group column may have (use ``bins`` beyond that).
-MAX_GROUPS = 64
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -206,16 +218,9 @@ class MondrianCalibration:
 
     def summary(self) -> CalibrationSummary:
         """The typed record (per-group ``k``, ``scale`` and records as details)."""
-        return CalibrationSummary(
-            kind=self.kind,
-            mode=self.mode,
-            epsilon=self.epsilon,
-            delta=self.delta,
-            n=self.n,
+        return summarize(
+            self,
             certified_epsilon=self.epsilon,
-            guarantee=self.guarantee(),
-            data_sha256=self.data_hash,
-            groups=self.groups(),
             grouping=(
                 f"{len(self.group_scales)} values of {self.column}"
                 if self.binning == "groups"
@@ -252,7 +257,7 @@ class MondrianCalibration:
     def to_dict(self) -> dict[str, Any]:
         """Plain-data form stored in the model file."""
         return {
-            "kind": "mondrian",
+            "kind": self.kind,
             "column": self.column,
             "source": self.source,
             "index": self.index,
@@ -318,9 +323,9 @@ class MondrianCalibration:
     ) -> MondrianCalibration:
         """Calibrate one threshold per group of ``values`` (see the module docstring)."""
         if bins is None:
-            specs, members, edges, n_edge = _discrete_groups(values, column)
+            specs, members, edges, n_edge = discrete_groups(values, column)
         else:
-            specs, members, edges, n_edge, keep = _quantile_bins(values, column, bins, edge_fraction, seed)
+            specs, members, edges, n_edge, keep = quantile_bins(values, column, bins, edge_fraction, seed)
             scores = scores[keep]
         G = len(specs)
         group_delta = delta / G if mode == "pac" else delta
@@ -353,46 +358,66 @@ class MondrianCalibration:
         )
 
 
-_Groups = tuple[list[dict[str, Any]], list[NDArray[np.bool_]], tuple[float, ...], int]
+@dataclass(frozen=True, kw_only=True)
+class Mondrian(CalibrationSpec):
+    """Mondrian calibration, one scale per group of an ``x`` or ``yhat`` column: a spec for ``calibrate()``.
 
+    Parameters
+    ----------
+    column : str
+        An ``x`` or ``yhat`` column (it must be known at predict time).
+    bins : int, optional
+        Calibrate per quantile bin of a continuous column; without it the column's distinct
+        values (at most ``MAX_GROUPS``) are the groups.
+    edge_fraction : float
+        With ``bins``: the share of the calibration data used only to place the bin edges.
+    seed : int
+        Seeds the choice of that share.
+    mode : {"pac", "marginal"}
+        PAC (every group at ``delta / G``) or marginal guarantee.
 
-def _discrete_groups(values: FloatArray, column: str) -> _Groups:
-    """One group per distinct value: specs, membership masks, no edges, no edge samples."""
-    uniq = np.unique(values)
-    if len(uniq) > MAX_GROUPS:
-        raise InvalidInputError(
-            f"column {column!r} has {len(uniq)} distinct values (more than {MAX_GROUPS}); "
-            "it looks continuous -- pass bins=K (CLI: --bins K) to calibrate per quantile bin"
-        )
-    specs: list[dict[str, Any]] = [{"label": f"{column}={u:g}", "value": float(u)} for u in uniq]
-    return specs, [values == u for u in uniq], (), 0
-
-
-def _quantile_bins(
-    values: FloatArray, column: str, bins: int, edge_fraction: float, seed: int
-) -> tuple[list[dict[str, Any]], list[NDArray[np.bool_]], tuple[float, ...], int, NDArray[np.intp]]:
-    """Quantile bins whose edges come from a seeded share of the samples (then left out).
-
-    Returns the specs, membership masks over the kept samples, the interior edges, the
-    number of edge samples and the indices of the kept samples.
+    Examples
+    --------
+    >>> Mondrian(column="x_3", bins=4).edge_fraction
+    0.2
+    >>> Mondrian(column="x_3", bins=0)
+    Traceback (most recent call last):
+    ...
+    ipcverify.errors.InvalidInputError: bins must be a positive integer; got 0
     """
-    if int(bins) != bins or bins < 1:
-        raise InvalidInputError(f"bins must be a positive integer; got {bins!r}")
-    if not 0.0 < edge_fraction < 1.0:
-        raise InvalidInputError(f"edge_fraction must lie in (0, 1); got {edge_fraction!r}")
-    perm = np.random.default_rng(seed).permutation(len(values))
-    n_edge = max(1, int(round(edge_fraction * len(values))))
-    edge_vals, keep = values[perm[:n_edge]], np.sort(perm[n_edge:])
-    e = np.unique(np.quantile(edge_vals, np.arange(1, bins) / bins)) if bins > 1 else np.zeros(0)
-    edges = tuple(float(v) for v in e)
-    idx = np.searchsorted(e, values[keep], side="right")
-    bounds = [-math.inf, *edges, math.inf]
-    specs: list[dict[str, Any]] = [
-        {
-            "label": f"{bounds[j]:.4g} <= {column} < {bounds[j + 1]:.4g}",
-            "lower": bounds[j],
-            "upper": bounds[j + 1],
-        }
-        for j in range(len(edges) + 1)
-    ]
-    return specs, [idx == j for j in range(len(specs))], edges, n_edge, keep
+
+    column: str
+    bins: int | None = None
+    edge_fraction: float = EDGE_FRACTION
+    seed: int = 0
+    kind: ClassVar[str] = "mondrian"
+    record: ClassVar[CalibrationRecord] = MondrianCalibration
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if not (isinstance(self.column, str) and self.column):
+            raise InvalidInputError(f"a Mondrian calibration needs a column name; got {self.column!r}")
+        if self.bins is not None:
+            check_bins(self.bins)
+        check_edge_fraction(self.edge_fraction)
+        check_seed(self.seed)
+
+    def fit(self, sample: CalibrationSample) -> MondrianCalibration:
+        """Calibrate one threshold per group of the column's values in the calibration data."""
+        data = sample.rows()
+        source, index = locate_column(data, self.column)
+        values = (data.x if source == "x" else data.yhat)[:, index]
+        return MondrianCalibration.fit(
+            sample.scores,
+            np.asarray(values, dtype=np.float64),
+            column=self.column,
+            source=source,
+            index=index,
+            bins=self.bins,
+            epsilon=sample.epsilon,
+            delta=sample.delta,
+            mode=self.mode,
+            edge_fraction=self.edge_fraction,
+            seed=int(self.seed),
+            **sample.ids,
+        )

@@ -19,8 +19,11 @@ ONNX export, reports and the case study use only the :class:`Calibration` protoc
   ``calibration`` block of ``certificate.json``;
 * :meth:`~Calibration.guarantee`, :meth:`~Calibration.to_dict`.
 
-A new kind is one module that implements this protocol and registers its ``kind`` in
-:mod:`ipcverify.calibration._kinds`.
+What the user chooses is a :class:`~ipcverify.calibration.CalibrationMethod`
+(:mod:`ipcverify.calibration._method`): a frozen spec of a kind's options whose ``fit`` returns
+the kind's calibration. A new kind is one module that implements both protocols and a line that
+registers its spec (:func:`~ipcverify.calibration.register_kind`), so that model files can read
+it back.
 """
 
 from __future__ import annotations
@@ -36,18 +39,6 @@ from numpy.typing import NDArray
 from ipcverify.calibration._bounds import CalibrationMode
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import InvalidInputError
-
-__all__ = [
-    "Calibration",
-    "GroupInfo",
-    "AllowedRate",
-    "CalibrationSummary",
-    "TestCounts",
-    "GroupClaim",
-    "GroupUnit",
-    "GROUP_UNITS",
-    "row_counts",
-]
 
 FloatArray = NDArray[np.float64]
 #: The statistic of one group: any of its samples violates, or one random sample of it does.
@@ -327,3 +318,45 @@ class Calibration(Protocol):
     def to_dict(self) -> dict[str, Any]:
         """Plain-data form stored in the model file (``kind`` included)."""
         ...
+
+
+def one_scale(x: FloatArray, scale: float) -> FloatArray:
+    """The scale of a kind with one scale for every query, shape (B,)."""
+    return np.full(len(np.asarray(x)), scale)
+
+
+def one_group(x: FloatArray) -> NDArray[np.intp]:
+    """The group index of a kind with one group: zeros, shape (B,)."""
+    return np.zeros(len(np.asarray(x)), dtype=np.intp)
+
+
+def summarize(
+    cal: Calibration, *, certified_epsilon: float, grouping: str, details: Mapping[str, Any]
+) -> CalibrationSummary:
+    """The :class:`CalibrationSummary` of a calibration: the common fields from the protocol, and its own.
+
+    Parameters
+    ----------
+    cal : Calibration
+        The calibration summarised (its kind, mode, epsilon, delta, n, guarantee, data hash and
+        groups are read from it).
+    certified_epsilon : float
+        The violation rate it certifies.
+    grouping : str
+        What its groups are, in words.
+    details : mapping
+        Its kind-specific fields.
+    """
+    return CalibrationSummary(
+        kind=cal.kind,
+        mode=cal.mode,
+        epsilon=cal.epsilon,
+        delta=cal.delta,
+        n=cal.n,
+        certified_epsilon=certified_epsilon,
+        guarantee=cal.guarantee(),
+        data_sha256=cal.data_hash,
+        groups=cal.groups(),
+        grouping=grouping,
+        details=details,
+    )

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
+from scipy import stats
 
 from ipcverify.calibration._bounds import (
     CalibrationMode,
@@ -24,17 +25,6 @@ from ipcverify.calibration._bounds import (
     pac_epsilon,
 )
 from ipcverify.errors import InvalidInputError, SampleSizeError
-
-__all__ = [
-    "SCALE_MARGIN",
-    "MIN_SCALE",
-    "MODES",
-    "ScoreThreshold",
-    "threshold_scores",
-    "check_eps_delta",
-    "check_mode",
-    "guarantee_sentence",
-]
 
 #: Relative enlargement of the calibrated scale (float32 rounding guard; conservative).
 SCALE_MARGIN = 1e-5
@@ -55,6 +45,13 @@ def check_mode(mode: str) -> None:
     """Refuse a mode other than ``"pac"`` or ``"marginal"``."""
     if mode not in MODES:
         raise InvalidInputError(f"mode must be 'pac' or 'marginal'; got {mode!r}")
+
+
+def check_seed(seed: int) -> None:
+    """Refuse a seed that is not an integer (a bool is not one)."""
+    whole = isinstance(seed, (int, np.integer)) or (isinstance(seed, float) and seed.is_integer())
+    if isinstance(seed, bool) or not whole:
+        raise InvalidInputError(f"seed must be an integer; got {seed!r}")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -113,6 +110,17 @@ class ScoreThreshold:
         if self.mode == "marginal":
             return self.epsilon
         return min(self.epsilon, pac_epsilon(self.n, self.k, self.delta))
+
+    def allowed_rate(self) -> float:
+        """The violation rate that holds with probability ``1 - delta`` over the calibration draw.
+
+        PAC: :attr:`certified_epsilon`. Marginal: the ``1 - delta`` quantile of the violation
+        rate's law, ``Beta(n - k + 1, k)`` (continuous scores), since a marginal calibration
+        makes no per-draw claim of its own.
+        """
+        if self.mode == "pac":
+            return self.certified_epsilon
+        return float(stats.beta.ppf(1.0 - self.delta, self.n - self.k + 1, self.k))
 
     def to_dict(self) -> dict[str, Any]:
         """Plain-data form."""

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from ipcverify.calibration._grouped import group_violation_counts
+from ipcverify.calibration._group_counts import group_violation_counts
 from ipcverify.calibration._protocol import GROUP_UNITS, Calibration, GroupUnit
 from ipcverify.certification._test_result import Consistency, GroupTest, TestResult
 from ipcverify.data._checks import warn_correlated_rows

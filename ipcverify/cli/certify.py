@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING, cast
 
 import click
 from rich.table import Table
@@ -17,12 +18,55 @@ from ipcverify.cli.app import app, choice_option, console, err_console, out_dir_
 from ipcverify.errors import InvalidInputError
 from ipcverify.network._lipschitz_ball import DEFAULT_RADIUS
 
+if TYPE_CHECKING:
+    from ipcverify.calibration._bounds import CalibrationMode
+    from ipcverify.calibration._group_counts import GuaranteeKind
+    from ipcverify.calibration._method import CalibrationMethod
+
 __all__: list[str] = []
 
 _EXISTING = click.Path(exists=True, dir_okay=False, path_type=Path)
 #: ``ipcverify.guard.DEFAULT_ALPHA``, written out so that ``--help`` need not import the domain
 #: test (SciPy, Numba); ``tests/ipcverify/cli/test_startup.py`` checks that the two agree.
 _DOMAIN_ALPHA = 0.01
+
+
+def calibration_method(
+    mode: str,
+    mondrian_column: str | None,
+    bins: int | None,
+    group_column: str | None,
+    guarantee: str,
+    seed: int,
+) -> CalibrationMethod:
+    """The calibration spec that the ``calibrate`` command's options name.
+
+    ``--mondrian-column`` (with ``--bins``) gives :class:`~ipcverify.calibration.Mondrian`,
+    ``--group-column`` (with ``--guarantee``) :class:`~ipcverify.calibration.Grouped`, neither
+    :class:`~ipcverify.calibration.Global`; ``--mode`` and ``--seed`` go to the one chosen.
+
+    Raises
+    ------
+    InvalidInputError
+        If ``--bins`` comes without ``--mondrian-column``, or both column options are given.
+    """
+    from ipcverify.calibration._global_scale import Global
+    from ipcverify.calibration._grouped import Grouped
+    from ipcverify.calibration._mondrian import Mondrian
+
+    if bins is not None and mondrian_column is None:
+        raise InvalidInputError("bins needs a group column (CLI: --mondrian-column COL --bins K)")
+    if mondrian_column is not None and group_column is not None:
+        raise InvalidInputError(
+            "choose one of a Mondrian column (one scale per group of an x/yhat column) and a group column "
+            "(flights or runs as the exchangeable units); they cannot be combined"
+        )
+    kind = cast("CalibrationMode", mode)  # the specs check it
+    if group_column is not None:
+        return Grouped(column=group_column, guarantee=cast("GuaranteeKind", guarantee), seed=seed, mode=kind)
+    if mondrian_column is not None:
+        return Mondrian(column=mondrian_column, bins=bins, seed=seed, mode=kind)
+    return Global(mode=kind)
 
 
 @app.command("calibrate")
@@ -97,25 +141,14 @@ def calibrate_cmd(
     test is fitted on its inputs and stored with the model.
     """
     from ipcverify.contract._calibrate import calibrate
+    from ipcverify.guard._domain_spec import DomainSpec
     from ipcverify.io._modelio import load_data_for_model, load_model, save_model
 
+    method = calibration_method(mode, mondrian_column, bins, group_column, guarantee, seed)
+    domain = DomainSpec(alpha=domain_alpha, group_column=domain_group_column, seed=seed)
     m = load_model(model)
     ds = load_data_for_model(data, m)
-    cal_model = calibrate(
-        m,
-        ds,
-        epsilon,
-        delta,
-        mode,  # type: ignore[arg-type]
-        mondrian_column=mondrian_column,
-        bins=bins,
-        group_column=group_column,
-        guarantee=guarantee,  # type: ignore[arg-type]
-        recalibrate=recalibrate,
-        domain_alpha=domain_alpha,
-        domain_group_column=domain_group_column,
-        seed=seed,
-    )
+    cal_model = calibrate(m, ds, epsilon, delta, method, domain=domain, recalibrate=recalibrate)
     save_model(cal_model, out)
     cal = cal_model.calibration
     if cal is None:  # calibrate() always attaches one; guard the contract anyway

@@ -229,7 +229,9 @@ def group_like_columns(data: PerceptionDataset) -> list[str]:
     return [name for _, name in sorted(found, key=lambda t: -t[0])]
 
 
-def warn_correlated_rows(data: PerceptionDataset, what: str, remedy: str) -> None:
+def warn_correlated_rows(
+    data: PerceptionDataset, what: str, remedy: str, python: str = "group_column={col!r}"
+) -> None:
     """A :class:`~ipcverify.errors.Hint` that rows of one run (flight, ...) are likely correlated.
 
     Parameters
@@ -241,6 +243,9 @@ def warn_correlated_rows(data: PerceptionDataset, what: str, remedy: str) -> Non
     remedy : str
         What the option ``--group-column COL`` would do instead, e.g. "to calibrate with whole runs
         as the exchangeable units".
+    python : str
+        The Python spelling of that option, formatted with the column as ``col``
+        (``"group_column={col!r}"``; ``calibrate`` takes ``"Grouped(column={col!r})"``).
     """
     columns = group_like_columns(data)
     if not columns:
@@ -252,7 +257,7 @@ def warn_correlated_rows(data: PerceptionDataset, what: str, remedy: str) -> Non
         Hint(
             f"{data.source} has a {col!r} column ({groups} groups): rows of one {col} are usually "
             f"correlated, and {what} row by row treats every row as an independent sample; pass "
-            f"--group-column {col}{others} (Python: group_column={col!r}) {remedy}"
+            f"--group-column {col}{others} (Python: {python.format(col=col)}) {remedy}"
         ),
         stacklevel=3,
     )

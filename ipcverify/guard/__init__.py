@@ -19,6 +19,9 @@ if TYPE_CHECKING:
     from ipcverify.guard._domain_report import (
         DomainReport,
     )
+    from ipcverify.guard._domain_spec import (
+        DomainSpec,
+    )
     from ipcverify.guard._eprocess import (
         BettingEProcess,
     )
@@ -60,6 +63,7 @@ __all__ = [
     "DomainIndex",
     "DomainModel",
     "DomainReport",
+    "DomainSpec",
     "MonitorConfig",
     "MonitorResult",
     "MonitorState",

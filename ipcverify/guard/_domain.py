@@ -53,7 +53,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
 from ipcverify.calibration._bounds import marginal_conformal_index
-from ipcverify.calibration._grouped import risk_control_threshold
+from ipcverify.calibration._risk_control import risk_control_threshold
 from ipcverify.data._split import group_codes
 from ipcverify.errors import InvalidInputError, SampleSizeError
 from ipcverify.guard._domain_report import DomainReport

@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from ipcverify.calibration import Grouped
 from ipcverify.certification._certificate import CertificateStatus
 from ipcverify.certification._certify import certify
 from ipcverify.contract._calibrate import calibrate
@@ -95,11 +96,11 @@ def test_twenty_runs_cannot_certify_one_percent_at_the_group_level(parts):
     model = train(parts["train"], train_config=TrainConfig(epochs=1, seed=0)).model
     data = parts["calibration"]
     with pytest.raises(SampleSizeError, match=r"groups of column 'run' are too few"):
-        calibrate(model, data, 0.01, 0.001, group_column="run")
+        calibrate(model, data, 0.01, 0.001, Grouped(column="run"))
     # the domain test follows the groups too, and 1 % of a new run needs 99 runs: it says so
     with pytest.raises(SampleSizeError, match=r"group-aware domain test .* larger --domain-alpha"):
-        calibrate(model, data, 0.5, 0.1, group_column="run", guarantee="trajectory")
-    loose = calibrate(model, data, 0.5, 0.1, group_column="run", guarantee="trajectory", domain_alpha=None)
+        calibrate(model, data, 0.5, 0.1, Grouped(column="run", guarantee="trajectory"))
+    loose = calibrate(model, data, 0.5, 0.1, Grouped(column="run", guarantee="trajectory"), domain=None)
     summary = loose.require_calibration().summary()
     assert summary.kind == "grouped" and summary.details["group_column"] == "run"
     assert np.isfinite(loose.require_calibration().groups()[0].scale)

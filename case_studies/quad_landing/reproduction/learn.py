@@ -44,10 +44,11 @@ import torch
 
 from case_studies.quad_landing.reproduction.config import IpcParams
 from case_studies.quad_landing.reproduction.record import Record
-from ipcverify.calibration import CalibrationSummary
+from ipcverify.calibration import CalibrationSummary, Global, Grouped
 from ipcverify.contract import IPCModel, calibrate
 from ipcverify.data import PerceptionDataset, atomic_write
 from ipcverify.errors import Hint, ModelFileError, SampleSizeError
+from ipcverify.guard import DomainSpec
 from ipcverify.io import load_model, save_model
 from ipcverify.network import ModelConfig
 from ipcverify.training import train
@@ -120,8 +121,8 @@ def row_level_calibration(
     by = domain_groups(calibration_data, alpha)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", Hint)
-        return calibrate(model, calibration_data, epsilon, delta, mode="pac",
-                         domain_alpha=alpha, domain_group_column=by)  # fmt: skip
+        return calibrate(model, calibration_data, epsilon, delta, Global(mode="pac"),
+                         domain=DomainSpec(alpha=alpha, group_column=by))  # fmt: skip
 
 
 def domain_groups(calibration_data: PerceptionDataset, alpha: float) -> str | None:
@@ -214,9 +215,9 @@ def flight_level_check(
         row_scale_mean_violation_fraction=_mean_flight_violations(model, calibration_data, row_scale),
     )
     try:
-        by_flight = calibrate(model, calibration_data, epsilon, row.delta, mode="marginal",
-                              group_column="flight", guarantee="sample", recalibrate=True,
-                              domain_alpha=None)  # fmt: skip
+        by_flight = calibrate(model, calibration_data, epsilon, row.delta,
+                              Grouped(column="flight", guarantee="sample", mode="marginal"),
+                              domain=None, recalibrate=True)  # fmt: skip
     except SampleSizeError:
         return check
     summary = by_flight.require_calibration().summary()

@@ -11,7 +11,9 @@ from scipy import stats
 
 from ipcverify.calibration import (
     SCALE_MARGIN,
+    Global,
     GlobalCalibration,
+    Mondrian,
     MondrianCalibration,
     calibration_from_dict,
     threshold_scores,
@@ -79,7 +81,7 @@ def test_calibrate_attaches_a_global_scale(model, cal_data):
 
 
 def test_calibration_survives_the_model_file(model, cal_data, tmp_path):
-    cal_model = calibrate(model, cal_data, 0.05, 0.01, mode="marginal")
+    cal_model = calibrate(model, cal_data, 0.05, 0.01, Global(mode="marginal"))
     save_model(cal_model, tmp_path / "m.pt")
     back = load_model(tmp_path / "m.pt")
     assert back.calibration == cal_model.calibration
@@ -126,18 +128,22 @@ def test_refusals_have_messages(model, cal_data):
     with pytest.raises(InvalidInputError, match=r"epsilon must lie strictly between 0 and 1"):
         calibrate(model, cal_data, 1.5, 0.01)
     with pytest.raises(InvalidInputError, match=r"mode must be 'pac' or 'marginal'"):
-        calibrate(model, cal_data, 0.05, 0.01, mode="bayes")
-    with pytest.raises(InvalidInputError, match=r"bins needs a group column"):
-        calibrate(model, cal_data, 0.05, 0.01, bins=3)
+        calibrate(model, cal_data, 0.05, 0.01, Global(mode="bayes"))
+    with pytest.raises(
+        InvalidInputError, match=r"method must be a calibration spec \(Global\(...\), .*got 'pac'"
+    ):
+        calibrate(model, cal_data, 0.05, 0.01, "pac")  # the old positional mode
+    with pytest.raises(InvalidInputError, match=r"domain must be a DomainSpec.*got 0.01"):
+        calibrate(model, cal_data, 0.05, 0.01, domain=0.01)
     with pytest.raises(InvalidInputError, match=r"part of the ground truth y"):
-        calibrate(model, cal_data, 0.05, 0.01, mondrian_column="y_0")
+        calibrate(model, cal_data, 0.05, 0.01, Mondrian(column="y_0"))
     with pytest.raises(DataError, match=r"no column 'speed'"):
-        calibrate(model, cal_data, 0.05, 0.01, mondrian_column="speed")
+        calibrate(model, cal_data, 0.05, 0.01, Mondrian(column="speed"))
     extra = PerceptionDataset(
         cal_data.x, cal_data.y, cal_data.yhat, extra={"weather": np.zeros(len(cal_data))}, source="log.csv"
     )
     with pytest.raises(InvalidInputError, match=r"extra column of log.csv.*cannot see at predict time"):
-        calibrate(model, extra, 0.05, 0.01, mondrian_column="weather")
+        calibrate(model, extra, 0.05, 0.01, Mondrian(column="weather"))
 
 
 def test_refuses_the_training_data():
@@ -149,7 +155,7 @@ def test_refuses_the_training_data():
 
 def test_mondrian_discrete_groups(model):
     data = _with_discrete_column(make_lagged_perception(4000, seed=21), seed=1)
-    cm = calibrate(model, data, 0.05, 0.03, mondrian_column="x_2")
+    cm = calibrate(model, data, 0.05, 0.03, Mondrian(column="x_2"))
     cal = cm.calibration
     assert isinstance(cal, MondrianCalibration)
     assert [g.value for g in cal.group_scales] == [0.0, 1.0, 2.0]
@@ -172,12 +178,12 @@ def test_mondrian_discrete_groups(model):
 def test_mondrian_too_small_group_is_refused(model):
     data = _with_discrete_column(make_lagged_perception(1000, seed=22), seed=2)
     with pytest.raises(SampleSizeError, match=r"Mondrian group 'x_2=\d' has \d+ calibration samples"):
-        calibrate(model, data, 0.01, 0.001, mondrian_column="x_2")
+        calibrate(model, data, 0.01, 0.001, Mondrian(column="x_2"))
 
 
 def test_mondrian_continuous_bins(model, cal_data):
     cm = calibrate(
-        model, cal_data, 0.1, 0.05, mode="marginal", mondrian_column="x_3", bins=4, edge_fraction=0.2
+        model, cal_data, 0.1, 0.05, Mondrian(column="x_3", bins=4, edge_fraction=0.2, mode="marginal")
     )
     cal = cm.calibration
     assert cal.binning == "bins" and len(cal.group_scales) == 4 and len(cal.edges) == 3
@@ -193,7 +199,7 @@ def test_mondrian_continuous_bins(model, cal_data):
     assert list(cal.group_index(far, cal_data.yhat[:2])) == [0, 3]
     assert calibration_from_dict(cal.to_dict()) == cal
     with pytest.raises(InvalidInputError, match=r"looks continuous.*bins=K"):
-        calibrate(model, cal_data, 0.1, 0.05, mondrian_column="x_3")
+        calibrate(model, cal_data, 0.1, 0.05, Mondrian(column="x_3"))
 
 
 # ----------------------------------------------------------------------------- end to end
@@ -215,7 +221,7 @@ def test_end_to_end_marginal_coverage_through_calibrate(model, pool):
     viol = []
     for _ in range(250):
         sub = data.subset(rng.integers(0, len(data), n))
-        s = calibrate(model, sub, eps, 0.5, mode="marginal").calibration.threshold.scale
+        s = calibrate(model, sub, eps, 0.5, Global(mode="marginal")).calibration.threshold.scale
         viol.append(np.mean(scores > s))
     res = stats.ttest_1samp(np.array(viol), eps, alternative="greater")
     assert res.pvalue >= ALPHA_E2E, f"mean violation {np.mean(viol):.4f} significantly above {eps}"

@@ -7,6 +7,7 @@ import json
 import numpy as np
 import pytest
 
+from ipcverify.calibration import Global, Mondrian
 from ipcverify.calibration._bounds import clopper_pearson_upper
 from ipcverify.certification._certificate import CertificateStatus
 from ipcverify.certification._certify import certify
@@ -115,10 +116,10 @@ def test_contradicting_test_data_is_flagged(setup):
 
 
 def test_marginal_and_mondrian_certificates(setup):
-    marg = calibrate(setup["model"], setup["cal"], 0.1, 0.01, mode="marginal")
+    marg = calibrate(setup["model"], setup["cal"], 0.1, 0.01, Global(mode="marginal"))
     cert = certify(marg, setup["test"]).certificate
     assert cert.consistency.checked and cert.status is CertificateStatus.CERTIFIED
-    mond = calibrate(setup["model"], setup["cal"], 0.1, 0.05, mondrian_column="x_2", bins=2)
+    mond = calibrate(setup["model"], setup["cal"], 0.1, 0.05, Mondrian(column="x_2", bins=2))
     d = certify(mond, setup["test"]).certificate.to_dict()
     assert d["calibration"]["kind"] == "mondrian" and len(d["calibration"]["k"]) == 2
     assert sum(g["n"] for g in d["test"]["groups"]) == 3000

@@ -24,6 +24,7 @@ import pytest
 import torch
 from scipy import stats
 
+from ipcverify.calibration import Grouped
 from ipcverify.calibration._bounds import clopper_pearson_lower, clopper_pearson_upper
 from ipcverify.certification._certificate import CertificateStatus
 from ipcverify.certification._certify import certify, write_certificate
@@ -33,6 +34,7 @@ from ipcverify.contract._model import IPCModel, IPCNetwork
 from ipcverify.data._dataset import PerceptionDataset, save_dataset
 from ipcverify.data._synthetic import make_lagged_perception
 from ipcverify.errors import InvalidInputError
+from ipcverify.guard import DomainSpec
 from ipcverify.io._modelio import load_model, save_model
 from ipcverify.network._architecture import ModelConfig
 from ipcverify.training._train import TrainConfig, train
@@ -181,7 +183,14 @@ def test_row_level_calibration_reports_both_and_compares_the_per_flight_sample(n
 
 @pytest.mark.parametrize("guarantee", ["sample", "trajectory"])
 def test_flight_level_calibration_defaults_to_its_column_and_unit(net, flights, guarantee):
-    model = calibrate(net, flights["cal"], 0.1, 0.05, group_column="flight", guarantee=guarantee, seed=3)
+    model = calibrate(
+        net,
+        flights["cal"],
+        0.1,
+        0.05,
+        Grouped(column="flight", guarantee=guarantee, seed=3),
+        domain=DomainSpec(seed=3),
+    )
     cert = certify(model, flights["test"]).certificate  # no group_column: the calibration's
     g = cert.group_test
     assert g is not None and g.column == "flight" and g.compared_unit == guarantee and g.seed == 3

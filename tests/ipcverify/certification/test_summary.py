@@ -14,6 +14,7 @@ import pytest
 from matplotlib.figure import Figure
 
 import ipcverify
+from ipcverify.calibration import Grouped
 from ipcverify.certification._certificate import CertificateStatus
 from ipcverify.certification._certify import certify, write_certificate
 from ipcverify.certification._report_plots import plot_coverage, plot_projections, plot_scores
@@ -24,6 +25,7 @@ from ipcverify.data._dataset import PerceptionDataset, save_dataset
 from ipcverify.data._files import file_sha256
 from ipcverify.data._synthetic import make_lagged_perception
 from ipcverify.errors import InvalidInputError
+from ipcverify.guard import DomainSpec
 from ipcverify.io._modelio import save_model
 from ipcverify.network._architecture import ModelConfig
 from ipcverify.training._train import TrainConfig
@@ -231,8 +233,8 @@ def test_a_claim_about_flights_has_flights_as_its_unit(net):
         _flights(make_lagged_perception(1000, seed=83), 25),
         0.2,
         0.05,
-        group_column="flight",
-        domain_alpha=0.1,
+        Grouped(column="flight"),
+        domain=DomainSpec(alpha=0.1),
     )
     test = _flights(make_lagged_perception(1000, seed=84), 25)
     res = certify(model, test)

@@ -18,9 +18,11 @@ import numpy as np
 import pytest
 import torch
 
+from ipcverify.calibration import Grouped
 from ipcverify.contract._calibrate import calibrate
 from ipcverify.data._dataset import PerceptionDataset, save_dataset
 from ipcverify.data._synthetic import make_lagged_perception
+from ipcverify.guard import DomainSpec
 from ipcverify.io._modelio import save_model
 from ipcverify.network._architecture import ModelConfig
 from ipcverify.training._train import TrainConfig, train
@@ -73,7 +75,12 @@ def files(tmp_path_factory) -> dict[str, Path]:
     save_model(calibrate(model, cal_ds, 0.05, 0.01), f["calibrated"])
     f["flight_model"] = d / "flight_model.pt"
     flight_cal = calibrate(
-        model, _with_flights(cal_ds, 40), 0.3, 0.1, group_column="flight", domain_alpha=0.1, seed=1
+        model,
+        _with_flights(cal_ds, 40),
+        0.3,
+        0.1,
+        Grouped(column="flight", seed=1),
+        domain=DomainSpec(alpha=0.1, seed=1),
     )
     save_model(flight_cal, f["flight_model"])
 

@@ -12,10 +12,12 @@ import json
 import numpy as np
 import pytest
 
+from ipcverify.calibration import Grouped
 from ipcverify.contract._calibrate import calibrate
 from ipcverify.contract._prediction import monitor_log
 from ipcverify.data._dataset import PerceptionDataset, save_dataset
 from ipcverify.data._synthetic import make_lagged_perception
+from ipcverify.guard import DomainSpec
 from ipcverify.io._modelio import save_model
 from ipcverify.network._architecture import ModelConfig
 from ipcverify.training._train import TrainConfig, train
@@ -36,7 +38,9 @@ def setup(tmp_path_factory):
     f = {"model": d / "model.pt", "calibrated": d / "calibrated.pt", "flight_model": d / "flight_model.pt"}
     save_model(model, f["model"])
     save_model(calibrate(model, cal_ds, 0.05, 0.01), f["calibrated"])
-    flight_cal = calibrate(model, _flights(cal_ds, 100), 0.3, 0.1, group_column="flight", domain_alpha=0.1)
+    flight_cal = calibrate(
+        model, _flights(cal_ds, 100), 0.3, 0.1, Grouped(column="flight"), domain=DomainSpec(alpha=0.1)
+    )
     save_model(flight_cal, f["flight_model"])
     test = make_lagged_perception(600, seed=2)
     far = PerceptionDataset(test.x + np.r_[0, 0, 0, 0, 40.0, 0], test.y, test.yhat)

@@ -7,6 +7,7 @@ import warnings
 import numpy as np
 import pytest
 
+from ipcverify.calibration import Grouped
 from ipcverify.contract._calibrate import calibrate
 from ipcverify.contract._model import IPCModel, IPCNetwork
 from ipcverify.data._checks import (
@@ -19,6 +20,7 @@ from ipcverify.data._checks import (
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.data._synthetic import make_lagged_perception
 from ipcverify.errors import DataError, DataWarning, Hint
+from ipcverify.guard import DomainSpec
 from ipcverify.network._architecture import ModelConfig
 from ipcverify.training._train import TrainConfig, train
 
@@ -109,7 +111,7 @@ def test_calibrate_warns_far_from_training_and_hints_at_runs(recwarn):
     hint = [m for c, m in messages if c is Hint]
     assert len(hint) == 1 and "'run' column (15 groups)" in hint[0] and "--group-column run" in hint[0]
     recwarn.clear()
-    calibrate(model, far, 0.3, 0.2, group_column="run", domain_alpha=0.1)
+    calibrate(model, far, 0.3, 0.2, Grouped(column="run"), domain=DomainSpec(alpha=0.1))
     assert not [w for w in recwarn if w.category is Hint]  # grouped: no hint
 
 

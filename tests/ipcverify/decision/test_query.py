@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from ipcverify.calibration import Mondrian
 from ipcverify.contract._calibrate import calibrate
 from ipcverify.contract._model import IPCModel, IPCNetwork
 from ipcverify.data._dataset import PerceptionDataset
@@ -53,7 +54,7 @@ def test_query_sets_are_the_models_sets(trained, data, calibrated):
 
 def test_mondrian_calibration_is_applied_per_query(data):
     model = train(data[0], ModelConfig(x_dim=6, y_dim=3, hidden=(8,)), TrainConfig(epochs=1)).model
-    cal = calibrate(model, make_lagged_perception(3000, seed=5), 0.1, 0.05, mondrian_column="x_5", bins=2)
+    cal = calibrate(model, make_lagged_perception(3000, seed=5), 0.1, 0.05, Mondrian(column="x_5", bins=2))
     test = make_lagged_perception(20, seed=3)
     ref = cal.predict(test.x, test.yhat)
     q = LandingQuery(IPCQuery(cal), G)

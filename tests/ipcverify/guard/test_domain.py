@@ -129,7 +129,7 @@ def test_calibrate_fits_the_domain_and_the_model_file_keeps_it(calibrated, tmp_p
     assert again is not None and again.threshold == dom.threshold
     np.testing.assert_array_equal(again.reference, dom.reference)
     none = calibrate(
-        calibrated, make_lagged_perception(2000, seed=1), 0.05, 0.01, recalibrate=True, domain_alpha=None
+        calibrated, make_lagged_perception(2000, seed=1), 0.05, 0.01, recalibrate=True, domain=None
     )
     assert none.domain is None
 

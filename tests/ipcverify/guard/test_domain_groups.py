@@ -17,10 +17,12 @@ import pytest
 from scipy.spatial import cKDTree
 
 from benchmarks.bench_domain_groups import correlated_flights, figure, run
+from ipcverify.calibration import Grouped
 from ipcverify.contract._calibrate import calibrate
 from ipcverify.contract._model import IPCModel, IPCNetwork
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import InvalidInputError, SampleSizeError
+from ipcverify.guard import DomainSpec
 from ipcverify.guard._domain import DomainModel
 from ipcverify.guard._neighbours import other_group_distances
 from ipcverify.io._modelio import load_model, save_model
@@ -96,8 +98,10 @@ def test_calibrate_fits_the_domain_by_flight_and_the_model_file_keeps_it(tmp_pat
     data = _dataset(z, labels, rng)
     net = IPCModel(IPCNetwork(ModelConfig.recipe("v1", x_dim=3, y_dim=2, hidden=(8,))))
     rows = calibrate(net, data, 0.05, 0.01)
-    flights = calibrate(net, data, 0.05, 0.01, domain_group_column="flight", domain_alpha=ALPHA)
-    grouped = calibrate(net, data, 0.05, 0.01, mode="marginal", group_column="flight", domain_alpha=ALPHA)
+    flights = calibrate(net, data, 0.05, 0.01, domain=DomainSpec(alpha=ALPHA, group_column="flight"))
+    grouped = calibrate(
+        net, data, 0.05, 0.01, Grouped(column="flight", mode="marginal"), domain=DomainSpec(alpha=ALPHA)
+    )
     assert rows.domain is not None and rows.domain.n_groups is None
     assert flights.domain is not None and grouped.domain is not None
     assert flights.domain.n_groups == grouped.domain.n_groups == 120

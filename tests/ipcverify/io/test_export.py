@@ -8,6 +8,7 @@ import pytest
 pytest.importorskip("onnx")
 pytest.importorskip("onnxruntime")
 
+from ipcverify.calibration import Mondrian  # noqa: E402
 from ipcverify.contract._calibrate import calibrate  # noqa: E402
 from ipcverify.data._synthetic import make_lagged_perception  # noqa: E402
 from ipcverify.errors import InvalidInputError  # noqa: E402
@@ -72,13 +73,13 @@ def test_a_model_with_a_domain_test_is_exported_only_without_it_on_request(data,
     with pytest.raises(InvalidInputError, match=r"domain-of-validity test .* pass --no-domain"):
         export_onnx(cal, tmp_path / "cal.onnx")
     assert not (tmp_path / "cal.onnx").exists()
-    no_domain = calibrate(_model(data), data[1], 0.05, 0.01, domain_alpha=None)
+    no_domain = calibrate(_model(data), data[1], 0.05, 0.01, domain=None)
     assert export_onnx(no_domain, tmp_path / "plain.onnx").calibrated  # nothing left out: no flag needed
 
 
 def test_mondrian_models_are_refused(data, tmp_path):
     m = calibrate(
-        _model(data), make_lagged_perception(3000, seed=4), 0.1, 0.05, mondrian_column="x_5", bins=2
+        _model(data), make_lagged_perception(3000, seed=4), 0.1, 0.05, Mondrian(column="x_5", bins=2)
     )
     with pytest.raises(
         InvalidInputError, match=r"calibrated per group \(2 quantile bins of x_5\).*calibrate it globally"
@@ -114,7 +115,7 @@ def test_cli_export_writes_and_checks(run_cli, data, tmp_path):
 
 def test_cli_export_refuses_mondrian_with_exit_2(run_cli, data, tmp_path):
     m = calibrate(
-        _model(data), make_lagged_perception(3000, seed=4), 0.1, 0.05, mondrian_column="x_5", bins=2
+        _model(data), make_lagged_perception(3000, seed=4), 0.1, 0.05, Mondrian(column="x_5", bins=2)
     )
     save_model(m, tmp_path / "mondrian.pt")
     res = run_cli("export", tmp_path / "mondrian.pt", "--onnx", tmp_path / "m.onnx")
