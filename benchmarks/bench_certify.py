@@ -32,7 +32,7 @@ from ipcverify.certification import certify_files, fit_bonferroni_box, fit_globa
 from ipcverify.contract import calibrate
 from ipcverify.data import make_lagged_perception, save_dataset
 from ipcverify.io import save_model
-from ipcverify.training._train import TrainConfig, train
+from ipcverify.training import TrainConfig, train
 
 OUT = Path(__file__).with_name("certify_results.json")
 EPS, DELTA = 0.01, 0.001

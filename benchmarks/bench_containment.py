@@ -38,7 +38,7 @@ import numpy as np
 
 from benchmarks.common import machine_info
 from case_studies.quad_landing.landing.state_machine import LandingParams
-from ipcverify.certification._report import figure_to_png
+from ipcverify.certification import figure_to_png
 from ipcverify.data import atomic_write
 from ipcverify.decision import LandingRule, landing_decision
 from ipcverify.decision.containment import (

@@ -36,12 +36,11 @@ from scipy.spatial import cKDTree
 
 from benchmarks.common import machine_info, write_json
 from ipcverify.calibration import marginal_conformal_index
-from ipcverify.certification import certify
-from ipcverify.certification._report import figure_to_png
+from ipcverify.certification import certify, figure_to_png
 from ipcverify.contract import calibrate, monitor_log
 from ipcverify.data import PerceptionDataset, atomic_write, make_lagged_perception
 from ipcverify.guard import DEFAULT_ALPHA, DEFAULT_K, DomainModel, plot_monitor
-from ipcverify.training._train import TrainConfig, train
+from ipcverify.training import TrainConfig, train
 
 __all__ = ["EUROC", "load_euroc", "real_log", "synthetic_shifts", "candidates", "query_cost", "main"]
 

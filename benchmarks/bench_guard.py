@@ -50,7 +50,7 @@ from ipcverify.contract import IPCModel, calibrate, predict_sets, write_predicti
 from ipcverify.data import PerceptionInputs, atomic_write
 from ipcverify.guard import DomainModel, DomainSpec
 from ipcverify.io import load_inputs_for_model, load_model, save_model
-from ipcverify.training._train import TrainConfig, train
+from ipcverify.training import TrainConfig, train
 
 __all__ = ["batches", "calibration_sizes", "cli_predict", "main", "plot", "reference_cap"]
 

@@ -38,7 +38,7 @@ from ipcverify.calibration import Global
 from ipcverify.certification import fit_global_mahalanobis
 from ipcverify.contract import calibrate
 from ipcverify.data import PerceptionDataset
-from ipcverify.training._train import TrainConfig, train
+from ipcverify.training import TrainConfig, train
 
 __all__ = ["EUROC", "SHIFTS", "SHIFT_METHODS", "euroc", "euroc_splits", "bench_shift", "main"]
 

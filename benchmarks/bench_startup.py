@@ -57,7 +57,7 @@ def _model_and_queries(folder: Path, n_train: int, epochs: int) -> tuple[Path, P
     from ipcverify.contract import calibrate
     from ipcverify.data import make_lagged_perception, save_dataset
     from ipcverify.io import save_model
-    from ipcverify.training._train import TrainConfig, train
+    from ipcverify.training import TrainConfig, train
 
     config = TrainConfig(epochs=epochs, val_fraction=0.0, patience=None)
     model = train(make_lagged_perception(n_train, seed=0), train_config=config).model

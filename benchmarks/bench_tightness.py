@@ -55,7 +55,7 @@ from ipcverify.contract import IPCModel, calibrate
 from ipcverify.data import PerceptionDataset
 from ipcverify.network import ModelConfig
 from ipcverify.sets import Ellipsoid
-from ipcverify.training._train import HingeSelection, TrainConfig, train
+from ipcverify.training import HingeSelection, TrainConfig, train
 
 __all__ = ["METHODS", "ORACLE_METHODS", "RECIPE_METHODS", "measure", "bench_tightness", "worst_bin_allowance"]
 

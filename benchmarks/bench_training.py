@@ -22,7 +22,7 @@ import torch
 
 from benchmarks.common import blas_single_thread, machine_info, write_json
 from benchmarks.datasets import load_splits
-from ipcverify.training._train import TrainConfig, train
+from ipcverify.training import TrainConfig, train
 
 __all__ = ["TARGET_SECONDS", "main"]
 

@@ -296,7 +296,7 @@ def diagnose_recipes(
 
     from ipcverify.calibration import Global
     from ipcverify.contract import calibrate
-    from ipcverify.training._train import TrainConfig, train
+    from ipcverify.training import TrainConfig, train
 
     torch.set_num_threads(1)
     res: dict[str, Any] = {}

@@ -28,7 +28,7 @@ from benchmarks.datasets import load_splits
 from ipcverify.calibration import Global
 from ipcverify.contract import calibrate
 from ipcverify.network import ModelConfig
-from ipcverify.training._train import TrainConfig, train
+from ipcverify.training import TrainConfig, train
 
 OUT = Path(__file__).with_name("tuning_results.json")
 EPSILON, DELTA = 0.01, 0.001

@@ -46,8 +46,7 @@ from case_studies.quad_landing.settings import (
 from case_studies.quad_landing.sim.camera import BufferSize, check_buffer_size
 from ipcverify.errors import InvalidInputError
 from ipcverify.network import RECIPES
-from ipcverify.training import HingeSelection
-from ipcverify.training._train import TrainConfig
+from ipcverify.training import HingeSelection, TrainConfig
 
 __all__ = [
     "IpcParams",

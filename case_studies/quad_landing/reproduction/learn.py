@@ -139,7 +139,7 @@ def domain_groups(calibration_data: PerceptionDataset, alpha: float) -> str | No
     Examples
     --------
     >>> import numpy as np
-    >>> from ipcverify.data._dataset import PerceptionDataset
+    >>> from ipcverify import PerceptionDataset
     >>> z = np.zeros((200, 1))
     >>> data = PerceptionDataset(z, z, z, extra={"flight": np.arange(200) // 2})
     >>> domain_groups(data, 0.01), domain_groups(data, 0.001)

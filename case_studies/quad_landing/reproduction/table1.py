@@ -175,8 +175,8 @@ def table1(model: IPCModel, tests: Mapping[int, PerceptionDataset], delta: float
 
     Examples
     --------
-    >>> from ipcverify.network._modules import IPCNetwork
-    >>> from ipcverify.network._architecture import ModelConfig
+    >>> from ipcverify.network import IPCNetwork
+    >>> from ipcverify.network import ModelConfig
     >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(4,), param="cholesky")))
     >>> ds = PerceptionDataset(np.zeros((10, 2)), np.ones((10, 3)) * 100, np.zeros((10, 3)))
     >>> table1(m, {1: ds}).row(1).violations
