@@ -92,6 +92,6 @@ def time_calls(fn: Callable[[], Any], repeats: int, warmup: int = 10) -> np.ndar
 
 def write_json(path: Path, data: Any) -> None:
     """Write ``data`` as indented JSON (atomically, with ipcverify's one rule for inf and NaN)."""
-    import ipcverify.data._files as files
+    from ipcverify.data import write_json as write_json_file
 
-    files.write_json(path, data, indent=2)
+    write_json_file(path, data, indent=2)

@@ -319,7 +319,7 @@ def write_dataset(data: pd.DataFrame, out: str | Path, stats: CollectStats | Non
     """Write ``data`` atomically to ``.parquet`` or ``.csv`` (by extension).
 
     The file is written to a temporary file in the same directory and moved into place
-    with :func:`os.replace` (:func:`ipcverify.data._dataset.atomic_write`), so readers never see a
+    with :func:`os.replace` (:func:`ipcverify.data.atomic_write`), so readers never see a
     partial file and a failed write leaves an old file intact. With ``stats``, a
     ``<stem>.stats.json`` sidecar is written the same way.
 

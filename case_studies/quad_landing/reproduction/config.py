@@ -75,7 +75,7 @@ class IpcParams(TomlSection):
     """The IPC recipe: the network, its training and its calibration (``[ipc]``).
 
     The ``[ipc]`` table is flat. Its keys that are fields of
-    :class:`ipcverify.training._train.TrainConfig` (``epochs``, ``lr``, ``batch_size``, ``alpha``,
+    :class:`ipcverify.training.TrainConfig` (``epochs``, ``lr``, ``batch_size``, ``alpha``,
     ``lam``, ``seed``, or any other the library defines) build :attr:`train`; the fields
     the table leaves out keep the values of the library's recipe ``recipe``
     (``TrainConfig.recipe(recipe)``). The other keys are not training:
@@ -88,7 +88,7 @@ class IpcParams(TomlSection):
         Cholesky head with the hinge loss (``case_studies/quad_landing/v1_head.toml``). The
         paper's own network is :class:`PaperParams` (``[paper]``), always run beside it.
     hidden : tuple of int
-        Hidden layer sizes of the network (:class:`ipcverify.contract._model.ModelConfig`).
+        Hidden layer sizes of the network (:class:`ipcverify.network.ModelConfig`).
     train : TrainConfig
         The training settings.
     epsilon, delta : float

@@ -185,7 +185,7 @@ class ContractSummary:
     certified, empirical_vs_certified : optional
         The certified bound on unsafe landings beside the empirical rate (calibrated only).
     selection : mapping or None
-        How the paper's unstated settings were chosen (:mod:`ipcverify.training._selection`).
+        How the paper's unstated settings were chosen (:class:`ipcverify.training.HingeSelection`).
     calibration : CalibrationSummary or None
         The calibration summary (calibrated only).
     certificate : CertificateRecord or None

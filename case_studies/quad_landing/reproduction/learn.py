@@ -79,7 +79,7 @@ def learn_ipc(
     train_data, calibration_data : PerceptionDataset
         Disjoint data (different seeds, so different paths and flights).
     params : IpcParams
-        Network (``hidden``), training (``train``, a :class:`~ipcverify.training._train.TrainConfig`)
+        Network (``hidden``), training (``train``, a :class:`~ipcverify.training.TrainConfig`)
         and calibration (``epsilon``, ``delta``) settings.
     progress : bool
         Show the training progress bar.

@@ -1,6 +1,6 @@
 """The paper's IPC, trained the paper's way: ``[paper]`` of ``reproduce.toml``, learned once, cached.
 
-The network and loss are the library's recipe ``"paper"`` (:mod:`ipcverify.training._selection`): an MLP
+The network and loss are the library's recipe ``"paper"`` (:class:`ipcverify.training.HingeSelection`): an MLP
 on ``concat(x_C, yhat_C)`` with hidden layers (64, 128) and ReLU, 12 outputs (the centre,
 predicted outright, and the nine entries of ``C``), the hinge ``max(0, t / alpha + 1)`` plus
 ``lambda (-log|C^T C|)``, Adam at 1e-3 for 20 epochs on the training set (5,000 samples in
