@@ -138,6 +138,13 @@ def _pattern(n: int, m: int) -> Any:
 def solve_face_sdp(inner: Ellipsoid, outer: FacedSet) -> FaceSolution:
     """Solve the face SDP (see the module docstring) with Clarabel; float, not a proof.
 
+    Parameters
+    ----------
+    inner : Ellipsoid
+        A single ellipsoid (a singular ``C`` gives a solution that did not run).
+    outer : FacedSet
+        A box or polytope of the same dimension.
+
     Examples
     --------
     >>> import numpy as np
