@@ -60,7 +60,8 @@ class QuerySet:
     center : ndarray, shape (n,)
         The set's centre ``c`` (float64, in the units of ``y``).
     shape : ndarray, shape (n, n)
-        Its shape matrix ``C`` after the calibration scale: ``E = {y : ||C (y - c)|| <= 1}``.
+        Its shape matrix ``C``, divided by the calibration scale (the raw network's if the model
+        is not calibrated): ``E = {y : ||C (y - c)|| <= 1}``.
     in_domain : bool
         The query passed the model's domain-of-validity test (always True without one).
     """

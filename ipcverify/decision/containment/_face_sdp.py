@@ -141,7 +141,8 @@ def solve_face_sdp(inner: Ellipsoid, outer: FacedSet) -> FaceSolution:
     Parameters
     ----------
     inner : Ellipsoid
-        A single ellipsoid (a singular ``C`` gives a solution that did not run).
+        A single ellipsoid (a ``C`` singular in float64 gives a solution whose status says it
+        did not run).
     outer : FacedSet
         A box or polytope of the same dimension.
 

@@ -89,7 +89,7 @@ def prove_batch(
     Parameters
     ----------
     inner : Ellipsoid
-        A batch of ellipsoids (an empty batch gives an empty list).
+        A batch of ellipsoids; certificate ``i`` is about ``inner[i]``.
     outer : OuterSet
         The outer set, as for :func:`prove`.
     method : Method or str, optional

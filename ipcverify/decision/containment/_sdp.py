@@ -72,8 +72,8 @@ def normalised(inner: Ellipsoid, outer: Ellipsoid) -> tuple[FloatArray, FloatArr
     Parameters
     ----------
     inner, outer : Ellipsoid
-        Single ellipsoids ``E(c1, C1)`` and ``E(c2, C2)`` of one dimension (a singular ``C1``
-        raises :class:`numpy.linalg.LinAlgError`).
+        Single ellipsoids ``E(c1, C1)`` and ``E(c2, C2)`` of one dimension (a ``C1`` singular in
+        float64 raises :class:`numpy.linalg.LinAlgError`).
     """
     c1, s1 = inner.centers[0], inner.shapes[0]
     c2, s2 = outer.centers[0], outer.shapes[0]
@@ -103,7 +103,7 @@ def trust_region_maximiser(d_mat: FloatArray, d: FloatArray) -> tuple[FloatArray
     d_mat : ndarray, shape (n, n)
         ``D`` (from :func:`normalised`).
     d : ndarray, shape (n,)
-        ``d``. Non-finite data give some unit vector, which the caller checks exactly.
+        ``d``. The result is a float estimate; the caller checks any witness made from it exactly.
     """
     h_mat = d_mat.T @ d_mat
     h, v = np.linalg.eigh(0.5 * (h_mat + h_mat.T))
