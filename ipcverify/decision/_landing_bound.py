@@ -311,6 +311,19 @@ def float_tier(
     ``math.sqrt`` and ``math.nextafter`` on Python floats, so Numba compiles it without
     fast-math to the same numbers (:meth:`ipcverify.decision.LandingRule.decide` runs it
     compiled; a test checks both on every property-test input).
+
+    Parameters
+    ----------
+    cx, cy, cz : float
+        The ellipsoid's centre ``c``.
+    a, b, c, d, e, f, g, h, i : float
+        ``C`` row-major, multiplied by ``scale`` (largest ``|entry|`` in ``[2^-100, 2^100]``).
+    scale : float
+        The exact power of two applied to ``C`` (1.0 when unscaled); half-widths are rescaled by it.
+    top : float
+        The largest ``|C_ij|`` before scaling (for the singularity rule).
+    gl0, gl1, gu0, gu1 : float
+        ``G.lower`` and ``G.upper`` in ``x`` and ``y`` (the ``z`` bounds go to :func:`finish`).
     """
     # cofactors K_rc (row r, column c) and the sums |p| + |q| of their two products
     p, q = e * i, f * h
@@ -379,6 +392,16 @@ def finish(
 
     In floats when ``P_z``'s bracket is one float and the faces clear their bands, in exact
     integers (tier 2, on the unscaled ``shape``) otherwise.
+
+    Parameters
+    ----------
+    tier : tuple
+        :func:`float_tier`'s result; ``ok = 0`` returns None.
+    shape : sequence of 9 floats
+        ``C`` row-major, unscaled (for the exact tier).
+    cz, gl2, gu2 : float
+        The centre's ``z``, and ``G.lower`` and ``G.upper`` in ``z``. Returns None (as
+        :func:`landing_by_bound`) when a face or ``P_z`` stays undecided.
     """
     ok, f0, f1, f2, f3, t_lo, t_hi, hz_lo, hz_hi, nonsingular = tier
     if not ok:
@@ -436,6 +459,15 @@ def landing_by_bound_compiled(
     The compiled :func:`float_tier` runs where the matrix needs no scaling and every value is
     finite (the usual case); anything else goes to :func:`landing_by_bound` itself. The
     continuation (:func:`finish`, exact integers where needed) is the same Python code.
+
+    Parameters
+    ----------
+    center : list of 3 floats
+        The ellipsoid's centre ``c`` (None is returned outside ``[-2^600, 2^600]``).
+    shape : list of 9 floats
+        ``C`` row-major.
+    lower, upper : sequence of 3 floats
+        The target ``G = [lower, upper]``, as for :func:`landing_by_bound`.
 
     Examples
     --------

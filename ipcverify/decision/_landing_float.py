@@ -41,6 +41,16 @@ def landing_slack(centers: FloatArray, half_widths: FloatArray, target: Box) -> 
     involved, so that it can be compared with a relative tolerance. Elementwise: ``centers``
     and ``half_widths`` may be one ellipsoid's ``(3,)`` arrays or a batch's ``(B, 3)``.
 
+    Parameters
+    ----------
+    centers : ndarray, shape (3,) or (B, 3)
+        The ellipsoids' centres ``c``.
+    half_widths : ndarray, shape (3,) or (B, 3)
+        Their bounding boxes' half-widths ``h`` (same shape as ``centers``); an infinite or
+        NaN half-width gives slack ``-inf`` (no fit).
+    target : Box
+        The 3-D target region ``G``.
+
     Returns
     -------
     ndarray, shape (..., 6)
@@ -71,6 +81,18 @@ def landing_accept_float(ellipsoids: Ellipsoid, target: Box) -> NDArray[np.bool_
 
     Not a proof: near-threshold ellipsoids may differ from :func:`landing_decision`, which
     is exact and is what the controller's decision of record (:class:`LandingRule`) uses.
+
+    Parameters
+    ----------
+    ellipsoids : Ellipsoid
+        A batch of 3-D ellipsoids (any other dimension raises :class:`SetError`).
+    target : Box
+        The 3-D target region ``G`` (positive width in every coordinate).
+
+    Returns
+    -------
+    ndarray of bool, shape (B,)
+        True where every face's slack is at least ``-PRECHECK_MARGIN``.
 
     Examples
     --------

@@ -81,6 +81,11 @@ def turnoff_point(ellipsoid: Ellipsoid) -> FloatArray:
     ``mid_x = c_x`` and ``mid_y = c_y`` exactly; ``P_z`` is the smallest float found
     ``>= z_max = c_z + sqrt((C^T C)^{-1}_zz)`` (rounded upward, never below).
 
+    Parameters
+    ----------
+    ellipsoid : Ellipsoid
+        One 3-D ellipsoid ``E(c, C)`` (a batch of 1); anything else raises :class:`SetError`.
+
     Examples
     --------
     >>> import numpy as np
@@ -178,6 +183,13 @@ def check_landing(decision: LandingDecision) -> Verification:
     An accepted decision re-verifies as PROVEN only if :func:`verify` proves the
     certificate and ``box.lower >= P - G.upper``, ``box.upper <= P - G.lower`` hold
     exactly, and the certificate's inner set is the decision's ellipsoid.
+
+    Parameters
+    ----------
+    decision : LandingDecision
+        A decision of :func:`landing_decision` (or one read back from a file). A rejected
+        decision, or one whose certificate's outer set is not a box or not inside
+        ``{P} + (-G)``, re-verifies as what :func:`verify` says or as UNKNOWN, never PROVEN.
 
     Examples
     --------

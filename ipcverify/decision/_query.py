@@ -52,6 +52,16 @@ class QuerySet:
 
     ``in_domain`` is False when the model's domain of validity flags the query: its set is then
     outside what the calibration certificate covers (True without a domain test).
+
+    Attributes
+    ----------
+    center : ndarray, shape (n,)
+        The set's centre ``c`` (float64, in the units of ``y``).
+    shape : ndarray, shape (n, n)
+        Its shape matrix ``C``, divided by the calibration scale (the raw network's if the model
+        is not calibrated): ``E = {y : ||C (y - c)|| <= 1}``.
+    in_domain : bool
+        The query passed the model's domain-of-validity test (always True without one).
     """
 
     center: FloatArray

@@ -38,6 +38,12 @@ def chunk_rows(width: int) -> int:
     products of a chunk then run from cache; larger chunks measured up to 25 % slower in the
     second layer of the ensemble (benchmarks/bench_latency.py, ``float64_layers_only``).
 
+    Parameters
+    ----------
+    width : int
+        Activations per row of the widest layer (members x units for an ensemble); below 1
+        raises :class:`InvalidInputError`, and very wide layers still get 64 rows.
+
     Examples
     --------
     >>> chunk_rows(128), chunk_rows(5 * 64), chunk_rows(10_000)
@@ -57,6 +63,12 @@ FloatArray = NDArray[np.float64]
 def float64_array(t: Any) -> FloatArray:
     """A tensor's or an array's values as a contiguous float64 array (float32 is exact in float64).
 
+    Parameters
+    ----------
+    t : torch.Tensor or array_like
+        A tensor (detached and moved to the CPU first) or anything NumPy converts; a
+        contiguous float64 array is returned as is, not copied.
+
     Examples
     --------
     >>> import torch
@@ -72,6 +84,14 @@ def float64_array(t: Any) -> FloatArray:
 
 def activate(h: FloatArray, activation: str) -> FloatArray:
     """A hidden layer's non-linearity (``ModelConfig.activation``), in place where NumPy allows.
+
+    Parameters
+    ----------
+    h : ndarray
+        Pre-activations (float64, any shape); overwritten by ``relu`` and ``tanh``.
+    activation : str
+        ``"relu"``, ``"tanh"``; anything else is taken as ``"elu"`` (alpha 1) (the config
+        has checked the name).
 
     Examples
     --------
@@ -92,6 +112,26 @@ class InferenceEngine(KindModules):
     Build it with :meth:`from_weights` (or :meth:`from_network`); call :meth:`batch` for (B, ·) arrays,
     :meth:`single` for one query, :meth:`single_values` for one query's values as Python floats
     (lowest latency). It satisfies :class:`ipcverify.network.Engine`.
+
+    Parameters
+    ----------
+    config : ModelConfig
+        The network's architecture (a ``"cholesky"`` or ``"full"`` head).
+    weights, biases : tuple of ndarray
+        The MLP's layers, first to last: weights ``(in, out)`` (transposed from torch, so that
+        ``out = h @ W + b``) and biases ``(out,)``.
+    in_mean, in_scale : ndarray, shape (d + n,)
+        Input standardisation: ``z = (concat(x, yhat) - in_mean) * in_scale`` (``in_scale``
+        is ``1 / in_std``).
+    y_mean : ndarray, shape (n,)
+        The training truths' mean: the centre's base when ``config.center`` is not ``"offset"``.
+    sigma, inv_sigma : ndarray, shape (n,)
+        The per-coordinate output scale and its reciprocal: centre ``base + sigma * o``,
+        shape ``L diag(1 / sigma)``.
+    tril_rows, tril_cols : ndarray of intp
+        Row and column of each packed lower-triangle output (``numpy.tril_indices(n)``).
+    diag_pos : ndarray of intp, shape (n,)
+        Positions of the diagonal within the packed lower triangle.
 
     Examples
     --------

@@ -146,6 +146,12 @@ def is_network(obj: object) -> bool:
 def engine_for(source: Network | NetworkWeights) -> Engine:
     """The float64 engine of record for a network or its weights (the one switch on the network kind).
 
+    Parameters
+    ----------
+    source : Network or NetworkWeights
+        A torch network (its weights are extracted) or its weights; a low-rank config gives a
+        :class:`LowRankEngine`, the paper's heads an :class:`InferenceEngine`.
+
     Examples
     --------
     >>> from ipcverify.network._weights import state_layout

@@ -55,6 +55,11 @@ def compiled(function: Callable[..., Any]) -> Any:
 
     Numba refuses ``cache=True`` when neither the package's ``__pycache__`` nor a user cache
     directory is writable (a read-only install); the kernel is then compiled in each process.
+
+    Parameters
+    ----------
+    function : callable
+        A Python function Numba can compile in nopython mode; compiled lazily, on its first call.
     """
     try:
         return njit(function, cache=True, error_model="numpy", nogil=True)
@@ -273,6 +278,13 @@ def clamped_exp2(log_diag: FloatArray, clamp: float) -> FloatArray:
     In NumPy, whose vectorised ``exp`` is several times faster than a compiled loop of libm's:
     the batch path's exponentials. The one-query kernel computes the same numbers with libm
     (the two may differ in the last bit).
+
+    Parameters
+    ----------
+    log_diag : ndarray
+        The log-diagonal outputs ``h`` (float64, any shape; not modified).
+    clamp : float
+        The bound of the clip (``LOGDIAG_CLAMP``).
 
     Examples
     --------

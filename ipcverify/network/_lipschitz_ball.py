@@ -41,6 +41,17 @@ SVD_MARGIN = 1e-9
 class DataBox:
     """An axis-aligned box for ``X = (x, y, yhat)``: per-coordinate lower and upper bounds.
 
+    Attributes
+    ----------
+    x_lo, x_hi : ndarray, shape (d,)
+        Bounds of the state ``x`` (finite, ``x_lo <= x_hi``; stored flattened and read-only).
+    y_lo, y_hi : ndarray, shape (n,)
+        Bounds of the truth ``y``.
+    yhat_lo, yhat_hi : ndarray, shape (n,)
+        Bounds of the estimate ``yhat`` (the same dimension as ``y``). A bound that is not
+        finite, a lower bound above its upper bound or mismatched shapes raise
+        :class:`InvalidInputError`.
+
     Examples
     --------
     >>> from ipcverify.data._synthetic import make_lagged_perception
@@ -119,6 +130,10 @@ class LipschitzBound:
     hidden_norm_bounds : tuple of float
         Bounds on the Euclidean norm of each layer's input (normalised input first; for an
         ensemble the largest over members).
+    box : DataBox
+        The box of ``X`` over which the bound holds.
+    kind : str
+        What the value is (a sound upper bound, unless a caller says otherwise).
     """
 
     value: float
@@ -161,6 +176,12 @@ def require_kind(network: object, kind: type) -> None:
 def check_radius(radius: float) -> float:
     """``radius`` as a float, or an error unless it is finite and ``>= 0``.
 
+    Parameters
+    ----------
+    radius : float
+        Radius of the parameter ball (0 bounds the trained parameters alone); NaN, infinite or
+        negative raises :class:`InvalidInputError`.
+
     Examples
     --------
     >>> check_radius(0.1)
@@ -173,6 +194,12 @@ def check_radius(radius: float) -> float:
 
 def operator_norm(w: FloatArray) -> float:
     """An upper bound on the spectral norm of ``w`` (LAPACK's value times ``1 + SVD_MARGIN``).
+
+    Parameters
+    ----------
+    w : ndarray, shape (p, q)
+        A weight matrix; an empty one has norm 0. The tiny ``1e-300`` added keeps the bound
+        positive.
 
     Examples
     --------
@@ -196,6 +223,15 @@ def hidden_norm_bounds(
 
         H_l = ||W_l|| H_{l-1} + ||b_l|| + r sqrt(H_{l-1}^2 + 1).
 
+    Parameters
+    ----------
+    layers : list of (ndarray, ndarray)
+        The MLP's ``(W_l, b_l)``, first layer first (the last layer's own bound is not needed).
+    input_bound : float
+        ``H_0``: a bound on the norm of the (normalised) input.
+    radius : float
+        ``r``, the parameter ball's radius (0: the trained weights alone).
+
     Examples
     --------
     >>> hidden_norm_bounds([(np.eye(2), np.zeros(2)), (np.eye(2), np.zeros(2))], 1.0, 0.0)[1] >= 1.0
@@ -216,6 +252,15 @@ def jacobian_bound(layers: list[tuple[FloatArray, FloatArray]], hidden: list[flo
     With ``P_L = 1``, ``P_l = P_{l+1} (||W_{l+1}|| + r)``:
     ``J^2 = sum_l P_l^2 (H_{l-1}^2 + 1)`` (``proofs/lipschitz.md``, step 4; ``hidden`` from
     :func:`hidden_norm_bounds`).
+
+    Parameters
+    ----------
+    layers : list of (ndarray, ndarray)
+        The MLP's ``(W_l, b_l)``, as for :func:`hidden_norm_bounds`.
+    hidden : list of float
+        ``H_0, ..., H_{L-1}`` from :func:`hidden_norm_bounds` (same ``layers`` and ``radius``).
+    radius : float
+        ``r``, the parameter ball's radius.
 
     Examples
     --------

@@ -67,6 +67,15 @@ def ensemble_scores(
     everything after them in float64), with ``C (y - c) = M^-1 (t - o)`` written in
     standardised output units. ``x``, ``y``, ``yhat`` are float64 tensors (B, ·).
 
+    Parameters
+    ----------
+    network : LowRankEnsemble
+        The ensemble; gradients flow to its parameters.
+    x : torch.Tensor, shape (B, d)
+        States.
+    y, yhat : torch.Tensor, shape (B, n)
+        Truths and estimates.
+
     Examples
     --------
     >>> from ipcverify.network._architecture import ModelConfig
@@ -183,6 +192,15 @@ def score_gradient_bound(mu: float, score: float, members: int) -> float:
     (``proofs/lipschitz_lowrank.md``, step 3). ``mu`` must bound ``Sigma``'s smallest
     eigenvalue from below, e.g. ``min_i mean_k exp(2 h_{k,i})``.
 
+    Parameters
+    ----------
+    mu : float
+        A lower bound ``> 0`` on ``Sigma``'s smallest eigenvalue (standardised units).
+    score : float
+        An upper bound ``>= 0`` on the score ``g`` over the box.
+    members : int
+        ``K >= 1``, the ensemble's size. Values out of range raise :class:`InvalidInputError`.
+
     Examples
     --------
     >>> round(score_gradient_bound(1.0, 0.0, 1), 9)  # one member, Sigma >= I, g = 0: |d g / d o| <= 1
@@ -231,6 +249,16 @@ def sound_lipschitz_lowrank(network: LowRankEnsemble, box: DataBox, radius: floa
     ``||theta - theta_hat||_2 <= radius`` and every ``X`` in ``box``; the normalisation,
     the linear centre stage and ``sigma`` are held fixed. Derivation:
     ``proofs/lipschitz_lowrank.md``.
+
+    Parameters
+    ----------
+    network : LowRankEnsemble
+        The trained ensemble (another kind raises :class:`InvalidInputError`).
+    box : DataBox
+        The box of ``X = (x, y, yhat)``, of the network's dimensions.
+    radius : float
+        Radius of the parameter ball, finite and ``>= 0`` (0: the trained parameters alone).
+        A bound that overflows raises :class:`InvalidInputError`.
 
     Examples
     --------

@@ -49,6 +49,14 @@ _OUT_INIT = 0.01
 class StackedLinear(nn.Module):
     """``K`` independent affine maps evaluated together: (B, i) or (K, B, i) -> (K, B, o).
 
+    Parameters
+    ----------
+    members : int
+        ``K``, the number of maps.
+    d_in, d_out : int
+        Input and output widths; weight ``(K, d_in, d_out)`` and bias ``(K, 1, d_out)`` start
+        at zero (:meth:`reset` initialises them).
+
     Examples
     --------
     >>> layer = StackedLinear(members=3, d_in=4, d_out=2)
@@ -81,7 +89,21 @@ class StackedLinear(nn.Module):
 
 
 class StackedMLP(nn.Module):
-    """``K`` MLPs of the same shape evaluated together (one batched matmul per layer)."""
+    """``K`` MLPs of the same shape evaluated together (one batched matmul per layer).
+
+    Parameters
+    ----------
+    members : int
+        ``K``, the number of MLPs.
+    d_in : int
+        Input width.
+    hidden : tuple of int
+        Widths of the hidden layers (empty: one affine map).
+    d_out : int
+        Output width.
+    activation : str
+        The hidden non-linearity: ``"relu"``, ``"tanh"`` or ``"elu"``.
+    """
 
     def __init__(self, members: int, d_in: int, hidden: tuple[int, ...], d_out: int, activation: str) -> None:
         super().__init__()
@@ -102,12 +124,27 @@ class StackedMLP(nn.Module):
 
 
 def member_covariances(log_diag: torch.Tensor, factor: torch.Tensor) -> torch.Tensor:
-    """``diag(exp(2 h)) + V V^T`` for ``h`` (..., n) and ``V`` (..., n, n)."""
+    """``diag(exp(2 h)) + V V^T`` for ``h`` (..., n) and ``V`` (..., n, n).
+
+    Parameters
+    ----------
+    log_diag : torch.Tensor, shape (..., n)
+        ``h``, the log standard deviations of the diagonal part (clamped by the caller).
+    factor : torch.Tensor, shape (..., n, n)
+        ``V``, the low-rank factor.
+    """
     return torch.diag_embed(torch.exp(2.0 * log_diag)) + factor @ factor.transpose(-1, -2)
 
 
 def moment_match(offsets: torch.Tensor, covariances: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     """Combine members (first axis): mean offset, mean covariance plus the spread of the offsets.
+
+    Parameters
+    ----------
+    offsets : torch.Tensor, shape (K, ..., n)
+        Each member's centre offset.
+    covariances : torch.Tensor, shape (K, ..., n, n)
+        Each member's covariance. One member gives its own offset and covariance back.
 
     Examples
     --------
@@ -127,6 +164,17 @@ def fit_linear_stage(
 
     The penalty is ``ridge * N`` on the weights (not the bias). With ``linear=False`` only
     the mean residual is fitted.
+
+    Parameters
+    ----------
+    z : ndarray, shape (N, d)
+        Standardised inputs.
+    r : ndarray, shape (N, n)
+        Residuals to fit.
+    ridge : float
+        Penalty per row (0: plain least squares; a singular system falls back to ``lstsq``).
+    linear : bool
+        Fit the weight; False returns a zero weight and the mean residual.
 
     Examples
     --------

@@ -110,6 +110,24 @@ class LowRankEngine(KindModules):
     ``U_k'`` the member's ``U`` with its centre offset replaced by the deviation from the
     members' mean.
 
+    Parameters
+    ----------
+    config : ModelConfig
+        The ensemble's architecture (``param="lowrank"``, ``K = members``).
+    first_weight, first_bias : ndarray
+        The first layer with the skip paths appended, in the layout of ``U``: ``(K, d + n, h1 +
+        n (n + 1))`` and ``(K, 1, ·)``.
+    weights, biases : tuple of ndarray
+        The later layers stacked over members, ``(K, in, out)`` and ``(K, 1, out)``; the last
+        one's columns in ``[U | h]`` order.
+    in_mean, in_scale : ndarray, shape (d + n,)
+        Input standardisation ``z = (concat(x, yhat) - in_mean) * in_scale``.
+    sigma, inv_sigma : ndarray, shape (n,)
+        The per-coordinate output scale and its reciprocal.
+    lin_weight, lin_bias : ndarray
+        The linear centre stage ``z @ lin_weight + lin_bias``: ``(d + n, n)`` and ``(n,)``
+        (zero weight when ``config.linear_center`` is off).
+
     Examples
     --------
     >>> from ipcverify.network._lowrank import LowRankEnsemble

@@ -42,6 +42,12 @@ class IPCNetwork(ScoredNetwork):
     ``body`` is a plain :class:`torch.nn.Sequential` MLP; normalisation buffers
     ``in_mean``, ``in_std``, ``y_mean`` and ``sigma`` are stored in the state dict.
 
+    Parameters
+    ----------
+    config : ModelConfig
+        The architecture, with a ``"cholesky"`` or ``"full"`` head (a low-rank config raises
+        :class:`InvalidInputError`: use :func:`build_network`).
+
     Examples
     --------
     >>> net = IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(8,), param="cholesky"))
@@ -198,6 +204,11 @@ Network = IPCNetwork | LowRankEnsemble
 def build_network(config: ModelConfig) -> Network:
     """The untrained network of ``config``: a :class:`~ipcverify.network.LowRankEnsemble` for the
     low-rank head, an :class:`IPCNetwork` for the paper's heads.
+
+    Parameters
+    ----------
+    config : ModelConfig
+        The architecture; its ``param`` chooses the class. The weights are freshly initialised.
 
     Examples
     --------

@@ -32,6 +32,11 @@ SINGULAR_RCOND = 1e-12
 def unit_ball_log_volume(n: int) -> float:
     """Log of the volume of the unit Euclidean ball in ``n`` dimensions.
 
+    Parameters
+    ----------
+    n : int
+        The dimension (``n = 0`` gives ``log 1 = 0``).
+
     Examples
     --------
     >>> round(float(np.exp(unit_ball_log_volume(3))), 6)  # 4/3 pi

@@ -40,6 +40,12 @@ def _check_finite(values: np.ndarray, what: str) -> None:
 def exact_vector(values: ArrayLike) -> ExactVector:
     """The exact rationals of a 1-D float array.
 
+    Parameters
+    ----------
+    values : array_like, shape (n,)
+        Finite numbers (converted to float64 first); another shape or a non-finite entry
+        raises :class:`InvalidInputError`.
+
     Examples
     --------
     >>> exact_vector([0.5, 0.1])[1]
@@ -81,6 +87,12 @@ def matvec(m: Sequence[Sequence[Fraction]], v: Sequence[Fraction]) -> ExactVecto
 def matmul(a: Sequence[Sequence[Fraction]], b: Sequence[Sequence[Fraction]]) -> ExactMatrix:
     """Exact ``a @ b``.
 
+    Parameters
+    ----------
+    a, b : sequence of sequences of Fraction
+        Matrices as lists of rows, ``(p, q)`` and ``(q, r)``; mismatched sizes raise
+        :class:`ValueError`.
+
     Examples
     --------
     >>> matmul([[Fraction(2)]], [[Fraction(3)]])
@@ -103,6 +115,11 @@ def sqnorm(v: Iterable[Fraction]) -> Fraction:
 
 def inverse(m: Sequence[Sequence[Fraction]]) -> ExactMatrix:
     """Exact inverse by Gauss-Jordan elimination (any non-zero pivot is exact).
+
+    Parameters
+    ----------
+    m : sequence of sequences of Fraction
+        A square matrix as a list of rows.
 
     Raises
     ------
@@ -233,6 +250,14 @@ def sqrt_lower(q: Fraction, bits: int = 64) -> Fraction:
 def sqrt_upper(q: Fraction, bits: int = 64) -> Fraction:
     """A rational ``r`` with ``r >= sqrt(q)`` and ``r - sqrt(q) <= 2**-bits / den(q)``.
 
+    Parameters
+    ----------
+    q : Fraction
+        A rational ``>= 0`` (negative raises :class:`InvalidInputError`); the square of a
+        rational gives its root exactly.
+    bits : int
+        Accuracy: the bound is within ``2**-bits / den(q)`` of ``sqrt(q)``.
+
     Examples
     --------
     >>> sqrt_upper(Fraction(2)) ** 2 >= 2
@@ -243,6 +268,12 @@ def sqrt_upper(q: Fraction, bits: int = 64) -> Fraction:
 
 def float_up(q: Fraction) -> float:
     """The smallest float ``>= q`` (directed rounding upward).
+
+    Parameters
+    ----------
+    q : Fraction
+        A rational; one that is a float exactly comes back unchanged (beyond the largest
+        float, :class:`OverflowError`).
 
     Examples
     --------
@@ -325,6 +356,12 @@ def dyadic(values: Iterable[float]) -> tuple[list[int], int]:
     :class:`~fractions.Fraction` arithmetic (no gcd after every operation). Floats of
     magnitude ``2^-48 .. 2^900`` take the fast route ``e = -100``, down to ``2^-148`` the route
     ``e = -200``; others the exact ratios (the smallest common power of two).
+
+    Parameters
+    ----------
+    values : iterable of float
+        Finite floats (ints are accepted too, by their exact ratios); an infinite or NaN
+        value raises :class:`InvalidInputError`.
 
     Examples
     --------

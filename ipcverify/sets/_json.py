@@ -25,7 +25,16 @@ from ipcverify.errors import InvalidInputError
 
 
 def json_number(v: Any, where: str) -> float:
-    """A finite JSON number as a float (an integer must be exactly representable)."""
+    """A finite JSON number as a float (an integer must be exactly representable).
+
+    Parameters
+    ----------
+    v : Any
+        The parsed JSON value; a bool, non-number, non-finite float or inexact integer raises
+        :class:`InvalidInputError`.
+    where : str
+        The field's path, for the error message.
+    """
     if isinstance(v, bool) or not isinstance(v, (int, float)):
         raise InvalidInputError(f"field '{where}': expected a number, got {json.dumps(v)[:40]}")
     if isinstance(v, int):
@@ -41,7 +50,17 @@ def json_number(v: Any, where: str) -> float:
 
 
 def json_vector(v: Any, where: str, length: int | None = None) -> list[float]:
-    """A non-empty JSON list of numbers (of ``length`` entries, if given)."""
+    """A non-empty JSON list of numbers (of ``length`` entries, if given).
+
+    Parameters
+    ----------
+    v : Any
+        The parsed JSON value; each entry is read by :func:`json_number`.
+    where : str
+        The field's path, for error messages (entries are ``where[i]``).
+    length : int, optional
+        The required number of entries (any, if None).
+    """
     if not isinstance(v, list) or not v:
         raise InvalidInputError(f"field '{where}': expected a non-empty list of numbers")
     if length is not None and len(v) != length:
@@ -62,7 +81,17 @@ def json_matrix(v: Any, where: str, cols: int | None = None) -> list[list[float]
 
 
 def json_field(d: Mapping[str, Any], key: str, where: str) -> Any:
-    """``d[key]``, or an error naming the missing field ``where + key``."""
+    """``d[key]``, or an error naming the missing field ``where + key``.
+
+    Parameters
+    ----------
+    d : mapping
+        A parsed JSON object.
+    key : str
+        The field's name.
+    where : str
+        The object's path prefix (``""`` at the top, ``"outer."`` inside ``outer``).
+    """
     if key not in d:
         raise InvalidInputError(f"field '{where}{key}' is missing")
     return d[key]

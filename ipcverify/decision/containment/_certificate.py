@@ -177,6 +177,13 @@ _CERT_KEYS = {
 def certificate_from_dict(data: Any) -> ContainmentCertificate:
     """Parse a certificate written by :meth:`ContainmentCertificate.to_dict`.
 
+    Parameters
+    ----------
+    data : mapping
+        The certificate's JSON object (as read by :func:`json.load`); unknown fields, a missing
+        field, a status other than PROVEN / REFUTED / UNKNOWN or a method the outer set does not
+        admit are refused.
+
     Raises
     ------
     InvalidInputError
@@ -237,6 +244,16 @@ class Verification:
 
     ``ok`` is false exactly when the certificate claims PROVEN or REFUTED and the
     exact check does not support that claim.
+
+    Attributes
+    ----------
+    claimed : Status
+        The status the certificate claims.
+    status : Status
+        The status the exact re-check supports: the claim, or UNKNOWN (never PROVEN or REFUTED
+        without exact evidence).
+    reason : str
+        Why, in words (which check held, or the first that failed).
     """
 
     claimed: Status
@@ -261,6 +278,11 @@ def verify(certificate: ContainmentCertificate) -> Verification:
     (:func:`~ipcverify.decision.containment.check_face_lmis`). REFUTED claims: the
     witness must satisfy ``||C1 (w - c1)||^2 <= 1`` and lie outside the outer set,
     exactly. Anything that fails gives UNKNOWN, never PROVEN.
+
+    Parameters
+    ----------
+    certificate : ContainmentCertificate
+        The certificate to re-check; its float data are read as exact rationals.
 
     Examples
     --------

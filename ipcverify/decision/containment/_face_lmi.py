@@ -152,7 +152,15 @@ class FaceSystem:
 
 
 def face_centre(system: FaceSystem, j: int) -> Fraction:
-    """``s_j / 2``: the centre of face ``j``'s interval of feasible multipliers (exact)."""
+    """``s_j / 2``: the centre of face ``j``'s interval of feasible multipliers (exact).
+
+    Parameters
+    ----------
+    system : FaceSystem
+        The exact data of one ellipsoid against the faces of a box or polytope.
+    j : int
+        The face's index, in the order of ``outer.faces()``.
+    """
     return system.slack(j) / 2
 
 

@@ -136,6 +136,14 @@ def _pattern(n: int, m: int) -> Any:
 def solve_face_sdp(inner: Ellipsoid, outer: FacedSet) -> FaceSolution:
     """Solve the face SDP (see the module docstring) with Clarabel; float, not a proof.
 
+    Parameters
+    ----------
+    inner : Ellipsoid
+        A single ellipsoid (a ``C`` singular in float64 gives a solution whose status says it
+        did not run).
+    outer : FacedSet
+        A box or polytope of the same dimension.
+
     Examples
     --------
     >>> import numpy as np

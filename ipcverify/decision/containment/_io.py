@@ -29,6 +29,12 @@ from ipcverify.sets._outer import OuterSet, registered_shapes
 def set_to_dict(s: OuterSet) -> dict[str, Any]:
     """JSON-ready form of a single set (floats round-trip exactly through :mod:`json`).
 
+    Parameters
+    ----------
+    s : OuterSet
+        A Box, Polytope or Ellipsoid (or another registered shape); anything else raises
+        :class:`SetError`.
+
     Examples
     --------
     >>> from ipcverify.sets._box import Box
@@ -76,6 +82,13 @@ def set_from_dict(d: Any, where: str = "") -> OuterSet:
 
 def problem_from_dict(d: Any) -> tuple[Ellipsoid, OuterSet, Method | None]:
     """Parse one problem ``{"inner": ELLIPSOID, "outer": SET, "method"?: str}``.
+
+    Parameters
+    ----------
+    d : mapping
+        The problem's JSON object. The inner set must be an ellipsoid of the outer set's
+        dimension; ``method`` is optional (None is returned without it) and must suit the
+        outer set. Anything else raises :class:`InvalidInputError` naming the field.
 
     Examples
     --------

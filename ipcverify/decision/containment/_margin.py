@@ -27,6 +27,14 @@ def support_slack(inner: Ellipsoid, outer: FacedSet) -> FloatArray:
     the sign decides containment only up to rounding. For a proof use
     :func:`prove` (exact).
 
+    Parameters
+    ----------
+    inner : Ellipsoid
+        A batch of ``B`` ellipsoids of dimension ``n``.
+    outer : FacedSet
+        A Box, Polytope or other set given by ``m`` faces ``a_j^T y <= b_j``, of dimension ``n``
+        (anything else raises :class:`SetError`).
+
     Examples
     --------
     >>> import numpy as np
@@ -57,6 +65,13 @@ def contained_float(inner: Ellipsoid, outer: FacedSet) -> NDArray[np.bool_]:
     Fast but *not* a proof: near-touching sets can be misjudged by rounding.
     Use :func:`prove` / :func:`prove_batch` for exact
     certificates.
+
+    Parameters
+    ----------
+    inner : Ellipsoid
+        A batch of ``B`` ellipsoids.
+    outer : FacedSet
+        A set given by faces, of the same dimension (as :func:`support_slack`).
 
     Examples
     --------

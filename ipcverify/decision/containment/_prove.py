@@ -84,6 +84,15 @@ def prove_batch(
 ) -> list[ContainmentCertificate]:
     """Exact certificates for every ellipsoid of a batch against one outer set.
 
+    Parameters
+    ----------
+    inner : Ellipsoid
+        A batch of ellipsoids; certificate ``i`` is about ``inner[i]``.
+    outer : OuterSet
+        The outer set, as for :func:`prove`.
+    method : Method or str, optional
+        As for :func:`prove` (the same method for every ellipsoid).
+
     Examples
     --------
     >>> import numpy as np

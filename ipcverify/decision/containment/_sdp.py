@@ -39,7 +39,14 @@ _SDP_CACHE: dict[int, Any] = {}
 
 
 def sdp_problem(n: int) -> Any:
-    """``min tau  s.t.  lam Q1n - Q2n + tau e e^T >= 0, lam >= 0`` (compiled once per n)."""
+    """``min tau  s.t.  lam Q1n - Q2n + tau e e^T >= 0, lam >= 0`` (compiled once per n).
+
+    Parameters
+    ----------
+    n : int
+        The ellipsoids' dimension; returns ``(problem, lam, tau, q2)`` with ``q2`` the
+        ``(n + 1, n + 1)`` symmetric parameter to set before solving.
+    """
     import cvxpy as cp  # imported on first use: it takes about a second
 
     if n not in _SDP_CACHE:
@@ -58,7 +65,14 @@ def sdp_problem(n: int) -> Any:
 
 
 def normalised(inner: Ellipsoid, outer: Ellipsoid) -> tuple[FloatArray, FloatArray]:
-    """Float ``D = C2 C1^{-1}``, ``d = C1 (c2 - c1)``: the outer set in unit-ball coordinates."""
+    """Float ``D = C2 C1^{-1}``, ``d = C1 (c2 - c1)``: the outer set in unit-ball coordinates.
+
+    Parameters
+    ----------
+    inner, outer : Ellipsoid
+        Single ellipsoids ``E(c1, C1)`` and ``E(c2, C2)`` of one dimension (a ``C1`` singular in
+        float64 raises :class:`numpy.linalg.LinAlgError`).
+    """
     c1, s1 = inner.centers[0], inner.shapes[0]
     c2, s2 = outer.centers[0], outer.shapes[0]
     d_mat = np.linalg.solve(s1.T, s2.T).T
@@ -81,6 +95,13 @@ def trust_region_maximiser(d_mat: FloatArray, d: FloatArray) -> tuple[FloatArray
     solves ``sum_i a_i^2 / (mu - h_i)^2 = 1`` (bisection); ``mu`` is also the S-lemma
     multiplier ``lambda*``. If the top component of ``a`` vanishes (the "hard case"),
     ``mu = max h`` and the top eigenvector fills ``w`` up to unit length.
+
+    Parameters
+    ----------
+    d_mat : ndarray, shape (n, n)
+        ``D`` (from :func:`normalised`).
+    d : ndarray, shape (n,)
+        ``d``. The result is a float estimate; the caller checks any witness made from it exactly.
     """
     h_mat = d_mat.T @ d_mat
     h, v = np.linalg.eigh(0.5 * (h_mat + h_mat.T))
@@ -166,7 +187,15 @@ def _sdp_candidates(lam: float, tau: float, lift: float) -> list[tuple[Fraction,
 def prove_sdp(
     inner: Ellipsoid, outer: Ellipsoid, exact: ExactEllipsoid | None = None
 ) -> ContainmentCertificate:
-    """Prove or refute ``inner ⊆ outer`` for two single ellipsoids (S-lemma, checked exactly)."""
+    """Prove or refute ``inner ⊆ outer`` for two single ellipsoids (S-lemma, checked exactly).
+
+    Parameters
+    ----------
+    inner, outer : Ellipsoid
+        Single ellipsoids of one dimension.
+    exact : ExactEllipsoid, optional
+        ``inner`` in exact rationals, if the caller has it already (computed otherwise).
+    """
     import cvxpy as cp  # imported on first use: it takes about a second
 
     answer = partial(ContainmentCertificate, inner, outer, Method.SDP)
