@@ -98,6 +98,22 @@ def clopper_pearson_upper(k: int, n: int, delta: float) -> float:
 def clopper_pearson_lower(k: int, n: int, delta: float) -> float:
     """One-sided Clopper--Pearson lower confidence bound (``delta`` quantile of ``Beta(k, n - k + 1)``).
 
+    ``P(p >= lower(K)) >= 1 - delta`` for every ``p``; the bound is 0 when ``k = 0``.
+
+    Parameters
+    ----------
+    k : int
+        Observed violations, ``0 <= k <= n``.
+    n : int
+        Held-out samples (independent of whatever produced the sets), ``n >= 1``.
+    delta : float
+        Allowed probability that the bound is wrong, ``0 < delta < 1``.
+
+    Returns
+    -------
+    float
+        The lower bound, in ``[0, k / n]``.
+
     Examples
     --------
     >>> clopper_pearson_lower(0, 10, 0.05)
@@ -117,6 +133,20 @@ def clopper_pearson_interval(k: int, n: int, delta: float) -> tuple[float, float
     """Two-sided Clopper--Pearson interval with coverage at least ``1 - delta``.
 
     Each side is a one-sided bound at ``delta / 2``.
+
+    Parameters
+    ----------
+    k : int
+        Observed violations, ``0 <= k <= n``.
+    n : int
+        Held-out samples (independent of whatever produced the sets), ``n >= 1``.
+    delta : float
+        Allowed probability that the interval misses ``p``, ``0 < delta < 1``.
+
+    Returns
+    -------
+    tuple of float
+        ``(lower, upper)`` with ``0 <= lower <= k / n <= upper <= 1``.
 
     Examples
     --------
@@ -205,6 +235,20 @@ def pac_epsilon(n: int, k: int, delta: float) -> float:
     Equal to :func:`clopper_pearson_upper` ``(n - k, n, delta)``: the ``epsilon`` at
     which ``P(Binomial(n, epsilon) <= n - k) = delta``.
 
+    Parameters
+    ----------
+    n : int
+        Number of calibration scores, ``n >= 1``.
+    k : int
+        Rank of the score used as threshold, ``1 <= k <= n`` (``k = n``: the largest score).
+    delta : float
+        Allowed probability that the calibration set is unlucky, ``0 < delta < 1``.
+
+    Returns
+    -------
+    float
+        The certified violation rate, in ``(0, 1]``; it shrinks as ``k`` grows.
+
     Examples
     --------
     >>> k = pac_calibration_index(5000, 0.01, 0.001)
@@ -223,6 +267,18 @@ def marginal_conformal_index(n: int, epsilon: float) -> int:
     score with probability at least ``1 - epsilon``, on average over the calibration
     set (marginal coverage). The ceiling is computed exactly on the rational value
     of the float ``epsilon``.
+
+    Parameters
+    ----------
+    n : int
+        Number of calibration scores, ``n >= 1``.
+    epsilon : float
+        Target violation probability, ``0 < epsilon < 1``.
+
+    Returns
+    -------
+    int
+        The order statistic ``k``, ``1 <= k <= n``.
 
     Raises
     ------
@@ -268,6 +324,20 @@ def calibration_index(n: int, epsilon: float, delta: float, mode: CalibrationMod
 def min_calibration_size(epsilon: float, delta: float, mode: CalibrationMode = "pac") -> int:
     """The smallest number of calibration samples for which a calibration exists.
 
+    Parameters
+    ----------
+    epsilon : float
+        Target violation probability, ``0 < epsilon < 1``.
+    delta : float
+        Confidence parameter, ``0 < delta < 1`` (checked but unused in marginal mode).
+    mode : {"pac", "marginal"}
+        PAC: ``n >= ln(delta) / ln(1 - epsilon)``; marginal: ``n >= 1 / epsilon - 1``.
+
+    Returns
+    -------
+    int
+        The minimum ``n``, at least 1.
+
     Examples
     --------
     >>> min_calibration_size(0.01, 0.001, "pac")
@@ -290,6 +360,15 @@ def smallest_epsilon(n: int, delta: float, mode: CalibrationMode = "pac") -> flo
     The inverse of :func:`min_calibration_size`, for messages that say what a small sample
     can certify: about ``1 - delta**(1/n)`` (PAC) or ``1/(n + 1)`` (marginal), rounded up to
     the grid and checked against :func:`min_calibration_size` (1.0 if no grid value works).
+
+    Parameters
+    ----------
+    n : int
+        Number of calibration samples available, ``n >= 1``.
+    delta : float
+        Confidence parameter, ``0 < delta < 1`` (no effect in marginal mode).
+    mode : {"pac", "marginal"}
+        The guarantee, as for :func:`min_calibration_size`.
 
     Examples
     --------

@@ -54,6 +54,15 @@ class GroupViolations:
 
     ``unit="trajectory"``: a group counts if any of its samples violates; ``"sample"``: if one
     sample drawn at random (seeded) from it violates.
+
+    Attributes
+    ----------
+    violations : int
+        Test groups whose statistic is a violation, ``0 <= violations <= n_groups``.
+    n_groups : int
+        Test groups ``G >= 1`` (the binomial sample size of a test on these counts).
+    unit : {"trajectory", "sample"}
+        The statistic of a group, as above.
     """
 
     violations: int
@@ -75,6 +84,28 @@ def group_violation_counts(
     valid; one statistic per group is, if the test groups are i.i.d. For ``unit="trajectory"``
     its mean is the probability that a group leaves its sets somewhere; for ``"sample"`` (one
     random sample per group) it is ``E[V_new]``, the expected violation fraction of a group.
+
+    Parameters
+    ----------
+    violated : array_like of bool, shape (N,)
+        Whether each test sample lies outside its set.
+    groups : array_like, shape (N,)
+        Each sample's group label (flight, run; numbers or strings, none missing).
+    unit : {"trajectory", "sample"}
+        The statistic of a group: any of its samples violates, or one sample drawn uniformly
+        at random from it does.
+    seed : int
+        Seeds the draw of one sample per group (``unit="sample"`` only; ignored otherwise).
+
+    Returns
+    -------
+    GroupViolations
+        Violating groups among the ``G`` distinct labels.
+
+    Raises
+    ------
+    InvalidInputError
+        If ``unit`` is unknown, the lengths differ, or a label is missing.
 
     Examples
     --------

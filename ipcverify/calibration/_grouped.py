@@ -94,7 +94,9 @@ class GroupedCalibration:
     k_groups : int or None
         Order statistic among the ``G`` group statistics (None for risk control).
     order_statistic : float
-        The selected score ``t``; ``scale = t * (1 + SCALE_MARGIN)`` (at least ``MIN_SCALE``).
+        The selected score ``t``.
+    scale : float
+        ``t * (1 + SCALE_MARGIN)`` (at least ``MIN_SCALE``); the sets are ``E(c, C / scale)``.
     risk : float or None
         Risk control only: ``mean_g V_g(t)`` over the calibration groups.
     n_rows, n_used, n_inside : int

@@ -31,6 +31,13 @@ KINDS: dict[str, CalibrationRecord] = {}
 def register_kind(method: M) -> M:
     """Register a calibration kind by its spec class (usable as a class decorator); returns it.
 
+    Parameters
+    ----------
+    method : type of CalibrationMethod
+        The spec class; its ``kind`` names the kind and its ``record`` (a calibration class
+        with the same ``kind`` and a ``from_dict``) reads calibrations of that kind back.
+        Registering the same class twice is a no-op.
+
     Raises
     ------
     InvalidInputError
@@ -87,6 +94,17 @@ def check_registered(method: CalibrationMethod) -> None:
 
 def calibration_from_dict(data: Mapping[str, Any]) -> Calibration:
     """Rebuild a calibration from its ``to_dict()`` form (used by :func:`ipcverify.io.load_model`).
+
+    Parameters
+    ----------
+    data : Mapping
+        A calibration's ``to_dict()`` record; its ``"kind"`` picks the registered class whose
+        ``from_dict`` reads the rest.
+
+    Returns
+    -------
+    Calibration
+        The calibration, equal to the one that wrote ``data``.
 
     Raises
     ------

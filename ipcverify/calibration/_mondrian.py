@@ -53,8 +53,17 @@ FloatArray = NDArray[np.float64]
 class GroupScale:
     """The threshold of one Mondrian group.
 
-    ``value`` is the group's column value (discrete groups); ``lower``/``upper``
-    the bin's edges (continuous column; ``lower <= v < upper``, infinite at the ends).
+    Attributes
+    ----------
+    label : str
+        Readable name, e.g. ``"run=3"`` or ``"0.5 <= speed < 1.2"``.
+    threshold : ScoreThreshold
+        The group's calibrated threshold (its own ``n``, ``k`` and scale).
+    value : float or None
+        The group's column value (discrete groups); None for bins.
+    lower, upper : float or None
+        The bin's edges (continuous column; ``lower <= v < upper``, ``-inf`` / ``inf`` at the
+        ends); None for discrete groups.
     """
 
     label: str

@@ -51,6 +51,18 @@ GROUP_UNITS: tuple[GroupUnit, ...] = ("trajectory", "sample")
 class GroupInfo:
     """One separately calibrated group: its label, calibration samples ``n``, order statistic ``k``, scale.
 
+    Attributes
+    ----------
+    label : str
+        The group's name (``"all"`` for a single scale, e.g. ``"run=3"`` for a Mondrian group).
+    n : int
+        Calibration scores the group's threshold was taken from.
+    k : int
+        Rank of the score used (``1 <= k <= n``); for a grouped calibration, the used rows
+        with score at most the threshold.
+    scale : float
+        The group's calibrated scale ``s``, finite and ``> 0``: its sets are ``E(c, C / s)``.
+
     Examples
     --------
     >>> GroupInfo(label="all", n=100, k=96, scale=1.5).scale
@@ -112,6 +124,15 @@ class TestCounts:
     A per-sample claim over exchangeable samples is tested on rows; a claim over exchangeable
     groups (flights) on one statistic per group, since the rows of a group are correlated and
     a binomial bound on them would not be valid.
+
+    Attributes
+    ----------
+    violations : int
+        Units outside their sets, ``0 <= violations <= n``.
+    n : int
+        Units counted, ``n >= 1`` (the binomial sample size).
+    unit : str
+        What was counted, for reports: ``"samples"`` or a description of the groups.
 
     Examples
     --------

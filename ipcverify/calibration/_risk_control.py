@@ -28,8 +28,28 @@ def risk_control_threshold(scores: ArrayLike, groups: ArrayLike, epsilon: float)
     The candidate is found in floating point and then settled in exact rational arithmetic,
     so the result is the exact infimum (always one of the scores).
 
-    Returns ``(t, mean_g V_g(t))`` for scores (N,) with group labels (N,). Raises
-    :class:`SampleSizeError` if ``G < 1 / epsilon - 1`` (no ``t`` satisfies the condition).
+    Parameters
+    ----------
+    scores : array_like of float, shape (N,)
+        Nonconformity score of every calibration sample.
+    groups : array_like, shape (N,)
+        Each sample's group label (flight, run; numbers or strings, none missing).
+    epsilon : float
+        Allowed expected violation fraction of a new group, ``0 < epsilon < 1``.
+
+    Returns
+    -------
+    t : float
+        The threshold (one of the scores).
+    risk : float
+        ``mean_g V_g(t)`` over the ``G`` calibration groups, in ``[0, 1]``.
+
+    Raises
+    ------
+    SampleSizeError
+        If ``G < 1 / epsilon - 1`` (no ``t`` satisfies the condition).
+    InvalidInputError
+        If ``scores`` and ``groups`` differ in length or a label is missing.
 
     Examples
     --------
