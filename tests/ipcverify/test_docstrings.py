@@ -23,33 +23,6 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 
-#: Undocumented parameters of calibration/, which another helper rewrites in the same step of
-#: issue 28, left alone here so that the merges stay clean: ``"package.name": {"parameter", ...}``.
-#: TO EMPTY after merging, by documenting them; test_the_allow_list_names_only_real_gaps fails once
-#: an entry is documented.
-ALLOWED_UNDOCUMENTED: dict[str, set[str]] = {
-    # ipcverify.calibration
-    "ipcverify.calibration.GroupInfo": {"k", "label", "n", "scale"},
-    "ipcverify.calibration.GroupScale": {"label", "lower", "threshold", "upper", "value"},
-    "ipcverify.calibration.GroupViolations": {"n_groups", "unit", "violations"},
-    "ipcverify.calibration.GroupedCalibration": {"scale"},
-    "ipcverify.calibration.TestCounts": {"n", "unit", "violations"},
-    "ipcverify.calibration.calibration_from_dict": {"data"},
-    "ipcverify.calibration.calibration_index": {"delta", "epsilon", "mode", "n"},
-    "ipcverify.calibration.check_eps_delta": {"delta", "epsilon"},
-    "ipcverify.calibration.check_mode": {"mode"},
-    "ipcverify.calibration.clopper_pearson_interval": {"delta", "k", "n"},
-    "ipcverify.calibration.clopper_pearson_lower": {"delta", "k", "n"},
-    "ipcverify.calibration.group_violation_counts": {"groups", "seed", "unit", "violated"},
-    "ipcverify.calibration.guarantee_sentence": {"t", "who"},
-    "ipcverify.calibration.marginal_conformal_index": {"epsilon", "n"},
-    "ipcverify.calibration.min_calibration_size": {"delta", "epsilon", "mode"},
-    "ipcverify.calibration.pac_epsilon": {"delta", "k", "n"},
-    "ipcverify.calibration.risk_control_threshold": {"epsilon", "groups", "scores"},
-    "ipcverify.calibration.row_counts": {"violated"},
-    "ipcverify.calibration.smallest_epsilon": {"delta", "mode", "n"},
-}
-
 _ENTRY = re.compile(r"^(?P<names>\*{0,2}[A-Za-z_][\w]*(?:\s*,\s*\*{0,2}[A-Za-z_][\w]*)*)\s*(?::.*)?$")
 
 
@@ -215,16 +188,5 @@ def test_public_names_are_found():
 @pytest.mark.parametrize(("package", "name"), PUBLIC, ids=[f"{p}.{n}" for p, n in PUBLIC])
 def test_every_parameter_of_a_public_name_is_documented(package, name):
     obj = getattr(importlib.import_module(package), name)
-    missing = undocumented(obj) - ALLOWED_UNDOCUMENTED.get(f"{package}.{name}", set())
+    missing = undocumented(obj)
     assert not missing, f"{package}.{name}: document {sorted(missing)} under Parameters"
-
-
-def test_the_allow_list_names_only_real_gaps():
-    """An allowed gap that is documented (or a name that is gone) must leave the allow-list."""
-    stale = {}
-    for key, params in ALLOWED_UNDOCUMENTED.items():
-        package, _, name = key.rpartition(".")
-        obj = getattr(importlib.import_module(package), name, None)
-        if obj is None or not params <= undocumented(obj):
-            stale[key] = params if obj is None else params - undocumented(obj)
-    assert not stale, f"remove from ALLOWED_UNDOCUMENTED: {stale}"
