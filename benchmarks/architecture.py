@@ -30,6 +30,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.patches import FancyBboxPatch  # noqa: E402
 
 from benchmarks.common import write_json  # noqa: E402
+from benchmarks.import_graph import import_graph, module_files  # noqa: E402
+from benchmarks.import_graph import package_graph as collapse  # noqa: E402
 
 __all__ = ["STAGES", "layers", "main", "package_graph", "plot", "top_entries"]
 
@@ -49,33 +51,6 @@ STAGES: tuple[tuple[str, str, str], ...] = (
 )
 
 
-def _module_name(path: Path) -> str:
-    parts = list(path.relative_to(ROOT).with_suffix("").parts)
-    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
-
-
-def _imported(path: Path) -> set[str]:
-    """Absolute names of the ipcverify modules or packages a file imports."""
-    name = _module_name(path)
-    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
-    out: set[str] = set()
-    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
-        if isinstance(node, ast.Import):
-            out |= {a.name for a in node.names}
-        elif isinstance(node, ast.ImportFrom):
-            base = node.module or ""
-            if node.level:
-                anchor = package.split(".")[: len(package.split(".")) - node.level + 1]
-                base = ".".join([*anchor, base]) if base else ".".join(anchor)
-            out.add(base)
-    return {m for m in out if m == "ipcverify" or m.startswith("ipcverify.")}
-
-
-def _package_of(module: str) -> str:
-    parts = module.split(".")
-    return parts[1] if len(parts) > 1 else "ipcverify"
-
-
 def top_entries() -> list[str]:
     """The top-level modules and packages of ipcverify (not ``__init__``/``__main__``)."""
     return sorted(
@@ -88,15 +63,10 @@ def top_entries() -> list[str]:
 
 def package_graph() -> dict[str, set[str]]:
     """Edges between ipcverify's top-level packages (and modules), from every import."""
-    graph: dict[str, set[str]] = {e: set() for e in top_entries()}
-    for path in LIBRARY.rglob("*.py"):
-        source = _package_of(_module_name(path))
-        if source not in graph:  # the package top and __main__ sit above everything
-            continue
-        for target in map(_package_of, _imported(path)):
-            if target not in {source, "ipcverify"}:
-                graph[source].add(target)
-    return graph
+    entries = top_entries()
+    graph = import_graph(module_files(ROOT, "ipcverify"))
+    collapsed = collapse(graph, "ipcverify", keep=set(entries).__contains__)
+    return {e: set(collapsed.get(e, {})) for e in entries}
 
 
 def layers(graph: dict[str, set[str]]) -> dict[str, int]:

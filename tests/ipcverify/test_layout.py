@@ -26,6 +26,8 @@ from pathlib import Path
 
 import pytest
 
+from benchmarks.architecture import top_entries
+from benchmarks.import_graph import cycles, import_graph, imports, module_files, package_graph
 from ipcverify._package import exported_names
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -34,101 +36,30 @@ MAX_LINES = 500
 MAX_TOP_LEVEL_ENTRIES = 14
 
 
-def _modules(package: Path) -> dict[str, Path]:
-    out = {}
-    for path in sorted(package.rglob("*.py")):
-        rel = path.relative_to(package.parent).with_suffix("")
-        parts = list(rel.parts)
-        if parts[-1] == "__init__":
-            parts = parts[:-1]
-        out[".".join(parts)] = path
-    return out
+MODULE_FILES = module_files(ROOT, "ipcverify")
+MODULES = {name: path for name, (path, _) in MODULE_FILES.items()}
 
 
-MODULES = _modules(LIBRARY)
-
-
-def _imports(path: Path, name: str) -> list[tuple[str, list[str]]]:
-    """(module imported, names imported from it) for every import statement in the file."""
-    tree = ast.parse(path.read_text(encoding="utf-8"))
-    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
-    out: list[tuple[str, list[str]]] = []
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Import):
-            out += [(a.name, []) for a in node.names]
-        elif isinstance(node, ast.ImportFrom):
-            base = node.module or ""
-            if node.level:
-                anchor = package.split(".")
-                anchor = anchor[: len(anchor) - node.level + 1]
-                base = ".".join([*anchor, base]) if base else ".".join(anchor)
-            out.append((base, [a.name for a in node.names]))
-    return out
-
-
-def _edges() -> dict[str, set[str]]:
-    graph: dict[str, set[str]] = {m: set() for m in MODULES}
-    for name, path in MODULES.items():
-        for module, names in _imports(path, name):
-            if module in MODULES and module != name:  # a package importing its own submodules
-                graph[name].add(module)
-            for n in names:  # "from package import submodule"
-                if f"{module}.{n}" in MODULES:
-                    graph[name].add(f"{module}.{n}")
-    return graph
-
-
-def _cycle(graph: dict[str, set[str]]) -> list[str] | None:
-    state: dict[str, int] = {}
-    stack: list[str] = []
-
-    def visit(node: str) -> list[str] | None:
-        state[node] = 1
-        stack.append(node)
-        for nxt in sorted(graph[node]):
-            if state.get(nxt) == 1:
-                return stack[stack.index(nxt) :] + [nxt]
-            if nxt not in state and (found := visit(nxt)):
-                return found
-        stack.pop()
-        state[node] = 2
-        return None
-
-    for node in sorted(graph):
-        if node not in state and (found := visit(node)):
-            return found
-    return None
+def _imports(path: Path, name: str) -> list[tuple[str, tuple[str, ...]]]:
+    """(module imported, names imported from it) for every import statement of module ``name``."""
+    return imports(path, name if path.name == "__init__.py" else name.rpartition(".")[0])
 
 
 def test_the_cycle_finder_finds_a_planted_cycle():
     graph = {"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": set()}
-    assert _cycle(graph) == ["a", "b", "c", "a"]
-    assert _cycle({"a": {"b"}, "b": set()}) is None
+    assert cycles(graph) == [["a", "b", "c"]]
+    assert cycles({"a": {"b"}, "b": set()}) == []
 
 
 def test_no_import_cycle_inside_ipcverify():
-    cycle = _cycle(_edges())
-    assert cycle is None, " -> ".join(cycle or [])
-
-
-def _layer(module: str) -> str | None:
-    """The top-level package (or module) of ``ipcverify.<layer>...``; None for the package top."""
-    parts = module.split(".")
-    return parts[1] if len(parts) > 1 and parts[1] != "__main__" else None
+    assert cycles(import_graph(MODULE_FILES)) == []
 
 
 def _layers(graph: dict[str, set[str]]) -> dict[str, set[str]]:
-    """The module graph collapsed to top-level packages (an edge between two different layers)."""
-    out: dict[str, set[str]] = {}
-    for module, targets in graph.items():
-        if (layer := _layer(module)) is None:
-            continue
-        out.setdefault(layer, set())
-        out[layer] |= {t for m in targets if (t := _layer(m)) is not None and t != layer}
-    for targets in list(out.values()):
-        for t in targets:
-            out.setdefault(t, set())
-    return out
+    """The module graph collapsed to ipcverify's top-level entries (the package top left out)."""
+    return {
+        a: set(b) for a, b in package_graph(graph, "ipcverify", keep=lambda head: head != "__main__").items()
+    }
 
 
 LAYERS = {
@@ -146,25 +77,20 @@ def test_the_layer_graph_catches_an_import_back_up_a_layer():
         "ipcverify.errors": set(),
     }
     assert _layers(graph) == {"sets": {"errors"}, "network": {"sets"}, "errors": set()}
-    assert _cycle(_layers(graph)) is None
+    assert cycles(_layers(graph)) == []
     graph["ipcverify.sets"].add("ipcverify.network._kernels")  # no module cycle, a layer cycle
-    assert _cycle(graph) is None
-    assert _cycle(_layers(graph)) == ["network", "sets", "network"]
+    assert cycles(graph) == []
+    assert cycles(_layers(graph)) == [["network", "sets"]]
 
 
 def test_no_import_runs_back_up_a_layer():
-    layers = _layers(_edges())
+    layers = _layers(import_graph(MODULE_FILES))
     assert set(layers) == LAYERS, f"top-level packages changed: {sorted(set(layers) ^ LAYERS)}"
-    cycle = _cycle(layers)
-    assert cycle is None, "packages import each other: " + " -> ".join(cycle or [])
+    assert cycles(layers) == [], "packages import each other"
 
 
 def test_ipcverify_has_few_top_level_entries():
-    entries = sorted(
-        p.name
-        for p in LIBRARY.iterdir()
-        if (p.suffix == ".py" and p.stem not in {"__init__", "__main__"}) or (p / "__init__.py").is_file()
-    )
+    entries = top_entries()
     assert len(entries) <= MAX_TOP_LEVEL_ENTRIES, f"{len(entries)} top-level entries: {entries}"
 
 

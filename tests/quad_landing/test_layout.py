@@ -1,20 +1,18 @@
 """The case study's layout rules: no import cycle between modules, no loop between subpackages.
 
-Read from the source with :mod:`ast`, not by importing it: every ``import`` counts, also one
-inside a function or under ``if TYPE_CHECKING:``. An import of ``a.b.c`` is an edge to
-``a.b.c`` (and ``from a.b import c`` to ``a.b`` and, if it is a module, ``a.b.c``); the
-parent packages' ``__init__`` it runs are not edges (every module would otherwise import its
-package's ``__init__``, which imports back). The planted cycles at the end check that the
-checks can fail.
+The graph is read from the source by :mod:`benchmarks.import_graph` (every ``import`` counts,
+also one inside a function or under ``if TYPE_CHECKING:``), the reading the library's layout
+test shares. The planted cycles at the end check that the checks can fail.
 """
 
 from __future__ import annotations
 
-import ast
-from collections.abc import Iterator, Mapping
+from collections.abc import Mapping
 from pathlib import Path
 
 import pytest
+
+from benchmarks.import_graph import cycles, import_graph, module_files, package_graph
 
 ROOT = Path(__file__).resolve().parents[2]
 CASE_STUDY = "case_studies.quad_landing"
@@ -30,108 +28,11 @@ LAYERS: tuple[tuple[str, ...], ...] = (
 )
 
 
-def module_files(root: Path, top: str) -> dict[str, tuple[Path, bool]]:
-    """Every module under package ``top`` (a dotted name below ``root``): name -> (file, is a package)."""
-    base = root.joinpath(*top.split("."))
-    modules = {}
-    for path in sorted(base.rglob("*.py")):
-        parts = list(path.relative_to(root).with_suffix("").parts)
-        is_package = parts[-1] == "__init__"
-        if is_package:
-            parts.pop()
-        modules[".".join(parts)] = (path, is_package)
-    return modules
-
-
-def _imported(node: ast.AST, package: str) -> Iterator[tuple[str, tuple[str, ...]]]:
-    """The modules a node imports: (module, the names taken from it)."""
-    if isinstance(node, ast.Import):
-        for alias in node.names:
-            yield alias.name, ()
-    elif isinstance(node, ast.ImportFrom):
-        if node.level:
-            base = package.split(".")[: len(package.split(".")) - (node.level - 1)]
-            module = ".".join(base + ([node.module] if node.module else []))
-        else:
-            module = node.module or ""
-        yield module, tuple(alias.name for alias in node.names)
-
-
-def import_graph(modules: Mapping[str, tuple[Path, bool]]) -> dict[str, set[str]]:
-    """Module -> the modules of ``modules`` it imports anywhere in its source."""
-    graph: dict[str, set[str]] = {}
-    for name, (path, is_package) in modules.items():
-        package = name if is_package else name.rpartition(".")[0]
-        edges: set[str] = set()
-        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), str(path))):
-            for module, names in _imported(node, package):
-                edges.update(m for m in (module, *(f"{module}.{n}" for n in names)) if m in modules)
-        edges.discard(name)
-        graph[name] = edges
-    return graph
-
-
-def cycles(graph: Mapping[str, set[str]]) -> list[list[str]]:
-    """The strongly connected components with more than one node (Tarjan), each sorted."""
-    index: dict[str, int] = {}
-    low: dict[str, int] = {}
-    stack: list[str] = []
-    on_stack: set[str] = set()
-    found: list[list[str]] = []
-
-    def visit(v: str) -> None:
-        index[v] = low[v] = len(index)
-        stack.append(v)
-        on_stack.add(v)
-        for w in sorted(graph.get(v, ())):
-            if w not in index:
-                visit(w)
-                low[v] = min(low[v], low[w])
-            elif w in on_stack:
-                low[v] = min(low[v], index[w])
-        if low[v] == index[v]:
-            component = []
-            while True:
-                w = stack.pop()
-                on_stack.discard(w)
-                component.append(w)
-                if w == v:
-                    break
-            if len(component) > 1:
-                found.append(sorted(component))
-
-    for v in sorted(graph):
-        if v not in index:
-            visit(v)
-    return found
-
-
-def package_graph(
-    graph: Mapping[str, set[str]], modules: Mapping[str, tuple[Path, bool]], top: str
-) -> dict[str, dict[str, list[str]]]:
-    """Subpackage of ``top`` -> the other subpackages it imports, each with the imports that do it."""
-    prefix = top + "."
-
-    def subpackage(module: str) -> str | None:
-        if not module.startswith(prefix):
-            return None
-        head = prefix + module[len(prefix) :].split(".")[0]
-        return head[len(prefix) :] if modules.get(head, (None, False))[1] else None
-
-    out: dict[str, dict[str, list[str]]] = {}
-    for source, targets in graph.items():
-        a = subpackage(source)
-        for target in targets:
-            b = subpackage(target)
-            if a is not None and b is not None and a != b:
-                out.setdefault(a, {}).setdefault(b, []).append(f"{source} -> {target}")
-    return out
-
-
 def _layout(root: Path, top: str) -> tuple[dict[str, set[str]], dict[str, dict[str, list[str]]]]:
+    """The module graph of ``top`` and the graph of its subpackages (its top-level modules left out)."""
     modules = module_files(root, top)
     graph = import_graph(modules)
-    return graph, package_graph(graph, modules, top)
+    return graph, package_graph(graph, top, keep=lambda head: modules.get(f"{top}.{head}", (root, False))[1])
 
 
 def test_no_module_level_import_cycle_in_case_studies():
