@@ -24,8 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from benchmarks.common import write_json
-from ipcverify.certification import figure_to_png, plot_coverage, plot_projections, plot_scores
-from ipcverify.certification import certify_files
+from ipcverify.certification import certify_files, figure_to_png, plot_coverage, plot_projections, plot_scores
 from ipcverify.cli import main as cli_main
 from ipcverify.data import atomic_write, make_lagged_perception, save_dataset
 
@@ -141,7 +140,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         atomic_write(args.img / name, lambda f, png=png: f.write(png))
     write_json(args.out, numbers)
     print(
-        f"k = {numbers['calibration_k']} of {numbers['calibration_n']}, scale {numbers['calibration_scale']:.5f}; "
+        f"k = {numbers['calibration_k']} of {numbers['calibration_n']}, "
+        f"scale {numbers['calibration_scale']:.5f}; "
         f"{numbers['test_violations']} of {numbers['test_n']} test samples outside, upper bound "
         f"{numbers['test_upper_bound']:.6f}; figures in {args.img}"
     )
