@@ -20,8 +20,9 @@ from __future__ import annotations
 import argparse
 import shlex
 import tempfile
+from functools import partial
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 from benchmarks.common import write_json
 from ipcverify.certification import certify_files, figure_to_png, plot_coverage, plot_projections, plot_scores
@@ -46,6 +47,10 @@ def _cli(argv: list[str]) -> None:
             raise RuntimeError(f"ipcverify {shlex.join(argv)} exited with {done.code}") from None
 
 
+def _write_bytes(data: bytes, f: BinaryIO) -> None:
+    f.write(data)
+
+
 def run_example(work: Path, n: int = 20_000, train_args: tuple[str, ...] = ()) -> dict[str, Any]:
     """The worked example in ``work``: data, train, calibrate, certify; the certificate's numbers.
 
@@ -66,6 +71,7 @@ def run_example(work: Path, n: int = 20_000, train_args: tuple[str, ...] = ()) -
     """
     parts = make_lagged_perception(n, seed=0).split((0.25, 0.25, 0.5), seed=0)
     for name, part in (("train", parts.train), ("calibration", parts.calibration), ("test", parts.test)):
+        assert part is not None  # three fractions given
         save_dataset(part, work / f"{name}.csv")
     _cli(["train", str(work / "train.csv"), "--out", str(work / "model.pt"), *train_args])
     _cli(
@@ -136,8 +142,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     }
     args.img.mkdir(parents=True, exist_ok=True)
     for name, fig in figures.items():
-        png = figure_to_png(fig)
-        atomic_write(args.img / name, lambda f, png=png: f.write(png))
+        atomic_write(args.img / name, partial(_write_bytes, figure_to_png(fig)))
     write_json(args.out, numbers)
     print(
         f"k = {numbers['calibration_k']} of {numbers['calibration_n']}, "
