@@ -341,9 +341,11 @@ class CertifyResult:
     Attributes
     ----------
     certificate : Certificate
-        The certificate.
+        The verdict and every record it rests on (calibration, test, consistency, domain,
+        Theorem 1, summary): what ``certificate.json`` holds.
     evidence : CertifyEvidence or None
-        The per-sample arrays behind it (None without test data).
+        The per-sample arrays behind it (scores, scales, set volumes, violations, example sets),
+        which the report plots and ``certificate.json`` does not hold; None without test data.
     """
 
     certificate: Certificate

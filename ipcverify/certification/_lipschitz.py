@@ -63,7 +63,8 @@ def theorem1_unavailable(model: IPCModel) -> str | None:
     Parameters
     ----------
     model : IPCModel
-        The model.
+        The model whose network is checked; only the network's class matters (its calibration,
+        weights and metadata play no role).
 
     Examples
     --------

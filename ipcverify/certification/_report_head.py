@@ -145,7 +145,9 @@ def display_text(text: str) -> str:
     Parameters
     ----------
     text : str
-        Plain text.
+        A check's detail as the summary writes it, in ASCII; ``<=``, ``>=``, ``epsilon =``,
+        ``delta =`` and ``alpha =`` are replaced where they follow a space or an opening
+        parenthesis and precede a space.
 
     Examples
     --------

@@ -30,7 +30,8 @@ def capitalized(text: str) -> str:
     Parameters
     ----------
     text : str
-        Any text.
+        A sentence to start a line with (a check's name, the reason Theorem 1 was not computed);
+        empty text is returned as it is.
 
     Examples
     --------

@@ -106,9 +106,11 @@ class GroupTestResult:
     Attributes
     ----------
     label : str
-        The group's label.
+        The calibration group's readable name (its Mondrian group's label, e.g. ``"run=3"`` or
+        ``"0.5 <= speed < 1.2"``).
     result : TestResult or None
-        Its test result.
+        The Clopper-Pearson bounds counted on the test rows that fall in the group (rows, not
+        groups of rows); None if no test row falls in it.
 
     Examples
     --------

@@ -192,7 +192,8 @@ class Theorem1Bound:
     Attributes
     ----------
     lipschitz : float
-        The ``L_g`` used.
+        The Lipschitz constant ``L_g`` of the score in ``theta`` that the bound was evaluated
+        with: the sound upper bound (``valid``) or the empirical lower estimate.
     complexity : float
         ``(12 / alpha) L_g sqrt(p / N)``.
     bound : float
