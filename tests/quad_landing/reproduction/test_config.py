@@ -114,6 +114,25 @@ def test_bad_paper_settings_are_config_errors(tmp_path):
             load_reproduce_config(bad)
 
 
+@pytest.mark.parametrize("section", ["ipc", "paper"])
+@pytest.mark.parametrize(
+    ("line", "match"),
+    [
+        ("hidden = []", "hidden must be a list of positive integers"),
+        ("hidden = [64, 0]", "hidden must be a list of positive integers"),
+        ("hidden = [64, true]", "hidden must be a list of positive integers"),
+        ("delta = 1.0", "delta must lie strictly between 0 and 1"),
+        ("coverage_quantile = true", "coverage_quantile must lie strictly between 0 and 1"),
+        ('epsilon = "0.1"', "epsilon must lie strictly between 0 and 1"),
+    ],
+)
+def test_the_network_and_calibration_levels_are_checked_in_both_sections(tmp_path, section, line, match):
+    bad = tmp_path / "bad.toml"
+    bad.write_text(f"[{section}]\n{line}\n")
+    with pytest.raises(ConfigError, match=f"{section}.{match}"):
+        load_reproduce_config(bad)
+
+
 def test_an_unknown_recipe_is_a_config_error(tmp_path):
     bad = tmp_path / "bad.toml"
     bad.write_text('[ipc]\nrecipe = "best"\n')
