@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 import pandas as pd
@@ -147,16 +147,11 @@ class ApproachParams(TomlSection):
             raise ConfigError("approach.transit_speed must allow a positive speed")
 
     def scenario(self) -> ScenarioParams:
-        """The scenario ranges of an approach flight (pad anywhere, any heading)."""
-        return ScenarioParams(
-            pad_region=self.pad_region,
-            start_distance=self.start_distance,
-            start_height=self.start_height,
-            transit_speed=self.transit_speed,
-            prior_radius=self.prior_radius,
-            aligned_margin_deg=self.aligned_margin_deg,
-            deceleration=self.deceleration,
-        )
+        """The scenario ranges of an approach flight (pad anywhere, any heading).
+
+        Every field of :class:`ScenarioParams` is taken from the field of the same name here.
+        """
+        return ScenarioParams(**{f.name: getattr(self, f.name) for f in fields(ScenarioParams)})
 
 
 #: Random stream of approach flights (scenario draw; ``+ 1`` for the hover points).

@@ -70,6 +70,24 @@ def _train_fields() -> dict[str, dataclasses.Field[Any]]:
     return {f.name: f for f in dataclasses.fields(TrainConfig) if f.init}
 
 
+def _hidden_layers(section: str, hidden: Any) -> tuple[int, ...]:
+    """``hidden`` as a tuple of positive integers (layer sizes), else a :class:`ConfigError` naming
+    ``<section>.hidden``."""
+    h = tuple(hidden)
+    if not h or any(isinstance(v, bool) or not isinstance(v, int) or v < 1 for v in h):
+        raise ConfigError(f"{section}.hidden must be a list of positive integers, got {hidden!r}")
+    return h
+
+
+def _check_calibration_levels(section: str, params: Any) -> None:
+    """Raise a :class:`ConfigError` unless ``epsilon``, ``delta`` and ``coverage_quantile`` of
+    ``params`` are numbers strictly between 0 and 1."""
+    for name in ("epsilon", "delta", "coverage_quantile"):
+        v = getattr(params, name)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0.0 < v < 1.0:
+            raise ConfigError(f"{section}.{name} must lie strictly between 0 and 1, got {v!r}")
+
+
 @dataclass(frozen=True, kw_only=True)
 class IpcParams(TomlSection):
     """The IPC recipe: the network, its training and its calibration (``[ipc]``).
@@ -122,16 +140,10 @@ class IpcParams(TomlSection):
 
     def __post_init__(self) -> None:
         _check_recipe(self.recipe)
-        h = tuple(self.hidden)
-        if not h or any(isinstance(v, bool) or not isinstance(v, int) or v < 1 for v in h):
-            raise ConfigError(f"ipc.hidden must be a list of positive integers, got {self.hidden!r}")
-        object.__setattr__(self, "hidden", h)
+        object.__setattr__(self, "hidden", _hidden_layers("ipc", self.hidden))
         if not isinstance(self.train, TrainConfig):
             raise ConfigError(f"IpcParams.train must be a TrainConfig, got {type(self.train).__name__}")
-        for name in ("epsilon", "delta", "coverage_quantile"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and 0.0 < v < 1.0):
-                raise ConfigError(f"ipc.{name} must lie strictly between 0 and 1, got {v!r}")
+        _check_calibration_levels("ipc", self)
 
     @classmethod
     def toml_keys(cls) -> frozenset[str]:
@@ -229,16 +241,10 @@ class PaperParams(TomlSection):
     fly_uncalibrated: bool
 
     def __post_init__(self) -> None:
-        h = tuple(self.hidden)
-        if not h or any(isinstance(v, bool) or not isinstance(v, int) or v < 1 for v in h):
-            raise ConfigError(f"paper.hidden must be a list of positive integers, got {self.hidden!r}")
-        object.__setattr__(self, "hidden", h)
+        object.__setattr__(self, "hidden", _hidden_layers("paper", self.hidden))
         if not isinstance(self.fly_uncalibrated, bool):
             raise ConfigError(f"paper.fly_uncalibrated must be true or false, got {self.fly_uncalibrated!r}")
-        for name in ("epsilon", "delta", "coverage_quantile"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0.0 < v < 1.0:
-                raise ConfigError(f"paper.{name} must lie strictly between 0 and 1, got {v!r}")
+        _check_calibration_levels("paper", self)
         try:
             self.selection()
             self.train_config()

@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from case_studies.quad_landing.reproduction.record import Record
 from ipcverify.calibration import clopper_pearson_interval, clopper_pearson_upper
 from ipcverify.contract import IPCModel
 from ipcverify.data import PerceptionDataset
@@ -37,7 +38,7 @@ PAPER_TABLE1: dict[int, float] = {1: 0.0019, 2: 0.0093, 3: 0.0205, 4: 0.0407, 5:
 
 
 @dataclass(frozen=True, kw_only=True)
-class Table1Row:
+class Table1Row(Record):
     """One row of Table I: the IPC's violations on the test set of one buffer size.
 
     Attributes
@@ -79,24 +80,18 @@ class Table1Row:
             )
 
     def to_dict(self) -> dict[str, Any]:
-        """The row as written to ``summary.json`` (``table1.<buffer size>``)."""
-        out: dict[str, Any] = {
-            "n": self.n,
-            "violations": self.violations,
-            "rate": self.rate,
-            "upper": self.upper,
-            "interval": list(self.interval),
-            "confidence": self.confidence,
-            "paper_rate": self.paper_rate,
-        }
-        if self.paths is not None:
-            out.update(paths=self.paths, paths_with_violations=self.paths_with_violations)
+        """The row as written to ``summary.json`` (``table1.<buffer size>``): the fields but the
+        buffer size (the row's key), and the path counts only when the test set has paths."""
+        out = super().to_dict()
+        del out["buffer_size"]
+        if self.paths is None:
+            del out["paths"], out["paths_with_violations"]
         return out
 
 
 @dataclass(frozen=True)
-class RatesRising:
-    """Whether Table I's rates rise with the buffer size.
+class RatesRising(Record):
+    """Whether Table I's rates rise with the buffer size (``summary.json``'s ``table1_rising``).
 
     ``strict`` — every rate is above the previous one; ``separated`` — every row's
     interval lies entirely above the previous row's (a statement at the rows' simultaneous
@@ -105,10 +100,6 @@ class RatesRising:
 
     strict: bool
     separated: bool
-
-    def to_dict(self) -> dict[str, bool]:
-        """``summary.json``'s ``table1_rising``."""
-        return {"strict": self.strict, "separated": self.separated}
 
 
 @dataclass(frozen=True)

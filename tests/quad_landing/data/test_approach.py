@@ -40,6 +40,18 @@ def test_measuring_a_recording_is_measuring_during_the_flight():
     np.testing.assert_array_equal(live.outcomes, replay.outcomes)
 
 
+def test_the_scenario_of_an_approach_flight_takes_the_approach_ranges():
+    params = ApproachParams.defaults(pad_region=0.7, transit_speed=(0.5, 0.9), deceleration=2.5)
+    sc = params.scenario()
+    assert (sc.pad_region, sc.transit_speed, sc.deceleration) == (0.7, (0.5, 0.9), 2.5)
+    assert (sc.start_distance, sc.start_height, sc.prior_radius, sc.aligned_margin_deg) == (
+        params.start_distance,
+        params.start_height,
+        params.prior_radius,
+        params.aligned_margin_deg,
+    )
+
+
 def test_collect_approach_checks_its_arguments():
     with pytest.raises(InvalidInputError, match="positive integer"):
         collect_approach(0, buffer_size=1, seed=0, params=ApproachParams.defaults())

@@ -8,6 +8,14 @@ from case_studies.quad_landing.reproduction.config import load_reproduce_config
 from case_studies.quad_landing.settings import ConfigError
 
 
+def _refused(tmp_path, text, match):
+    """A settings file holding ``text`` is refused with a :class:`ConfigError` matching ``match``."""
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text)
+    with pytest.raises(ConfigError, match=match):
+        load_reproduce_config(bad)
+
+
 def test_reproduce_config_rejects_unknown_keys_and_bad_values(tmp_path):
     with pytest.raises(ConfigError, match="unknown key landing.cap"):
         load_reproduce_config(overrides={"landing": {"cap": 3}})
@@ -19,10 +27,7 @@ def test_reproduce_config_rejects_unknown_keys_and_bad_values(tmp_path):
         load_reproduce_config(overrides={"sizes": {"buffers": [2, 3]}})
     with pytest.raises(ConfigError, match="two numbers"):
         load_reproduce_config(overrides={"scenario": {"transit_speed": [1.0]}})
-    bad = tmp_path / "bad.toml"
-    bad.write_text("[landing\n")
-    with pytest.raises(ConfigError, match="not valid TOML"):
-        load_reproduce_config(bad)
+    _refused(tmp_path, "[landing\n", "not valid TOML")
     good = tmp_path / "good.toml"
     good.write_text("[landing]\nmax_measurements = 4\n[quick.sizes]\nmc_runs = 3\n")
     assert load_reproduce_config(good).landing.max_measurements == 4
@@ -108,14 +113,24 @@ def test_bad_paper_settings_are_config_errors(tmp_path):
         ("[paper]\nfly_uncalibrated = 1\n", "fly_uncalibrated must be true or false"),
         ("[paper]\nepsilon = 0\n", "paper.epsilon"),
     ]:
-        bad = tmp_path / "bad.toml"
-        bad.write_text(text)
-        with pytest.raises(ConfigError, match=match):
-            load_reproduce_config(bad)
+        _refused(tmp_path, text, match)
+
+
+@pytest.mark.parametrize("section", ["ipc", "paper"])
+@pytest.mark.parametrize(
+    ("line", "match"),
+    [
+        ("hidden = []", "hidden must be a list of positive integers"),
+        ("hidden = [64, 0]", "hidden must be a list of positive integers"),
+        ("hidden = [64, true]", "hidden must be a list of positive integers"),
+        ("delta = 1.0", "delta must lie strictly between 0 and 1"),
+        ("coverage_quantile = true", "coverage_quantile must lie strictly between 0 and 1"),
+        ('epsilon = "0.1"', "epsilon must lie strictly between 0 and 1"),
+    ],
+)
+def test_the_network_and_calibration_levels_are_checked_in_both_sections(tmp_path, section, line, match):
+    _refused(tmp_path, f"[{section}]\n{line}\n", f"{section}.{match}")
 
 
 def test_an_unknown_recipe_is_a_config_error(tmp_path):
-    bad = tmp_path / "bad.toml"
-    bad.write_text('[ipc]\nrecipe = "best"\n')
-    with pytest.raises(ConfigError, match="ipc.recipe must be one of"):
-        load_reproduce_config(bad)
+    _refused(tmp_path, '[ipc]\nrecipe = "best"\n', "ipc.recipe must be one of")

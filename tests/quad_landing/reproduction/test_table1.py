@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from case_studies.quad_landing.reproduction.table1 import RatesRising, table1
+from case_studies.quad_landing.reproduction.table1 import RatesRising, Table1Row, table1
 from ipcverify.errors import InvalidInputError
 
 
@@ -27,3 +27,16 @@ def test_table1_counts_and_simultaneous_intervals(make_ipc):
         rows.row(3)
     with pytest.raises(InvalidInputError, match="at least one"):
         table1(m, {})
+
+
+def test_a_row_in_summary_json_is_keyed_by_buffer_size_and_has_path_counts_only_with_paths():
+    kw = dict(buffer_size=3, n=10, violations=2, rate=0.2, upper=0.5, interval=(0.03, 0.56),
+              confidence=0.95, paper_rate=0.0205)  # fmt: skip
+    bare = Table1Row(**kw, paths=None, paths_with_violations=None).to_dict()
+    assert bare == {"n": 10, "violations": 2, "rate": 0.2, "upper": 0.5, "interval": [0.03, 0.56],
+                    "confidence": 0.95, "paper_rate": 0.0205}  # fmt: skip
+    assert list(bare) == ["n", "violations", "rate", "upper", "interval", "confidence", "paper_rate"]
+    paths = Table1Row(**kw, paths=4, paths_with_violations=1).to_dict()
+    assert list(paths) == [*bare, "paths", "paths_with_violations"]
+    assert (paths["paths"], paths["paths_with_violations"]) == (4, 1)
+    assert RatesRising(strict=True, separated=False).to_dict() == {"strict": True, "separated": False}
