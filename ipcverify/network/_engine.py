@@ -23,7 +23,7 @@ from ipcverify.network._kind import Engine
 from ipcverify.network._weights import NetworkWeights
 
 if TYPE_CHECKING:
-    from ipcverify.network._modules import IPCNetwork
+    pass
 
 #: Bytes of one layer's activations per chunk of a batch: half a megabyte, so that a layer's input
 #: and output stay in a core's L2 cache (1 MB and up on current x86 and ARM server cores).
@@ -198,11 +198,6 @@ class InferenceEngine(Engine):
             tril_cols=cols,
             diag_pos=np.flatnonzero(rows == cols),
         )
-
-    @classmethod
-    def from_network(cls, network: IPCNetwork) -> InferenceEngine:
-        """Extract the weights and normalisation of a trained network."""
-        return cls.from_weights(NetworkWeights.from_network(network))
 
     def mlp(self, z: FloatArray) -> FloatArray:
         """The network's raw outputs for standardised inputs ``z`` ((B, d + n) or one (d + n,) row)."""

@@ -18,10 +18,12 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping
 from importlib import import_module
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar, Self
 
 import numpy as np
 from numpy.typing import NDArray
+
+from ipcverify.network._weights import NetworkWeights
 
 if TYPE_CHECKING:
     from ipcverify.network._architecture import ModelConfig
@@ -71,6 +73,16 @@ class Engine(ABC):
     in_scale: FloatArray
     #: Rows :meth:`batch` evaluates together by default (they stay in cache).
     chunk: int
+
+    @classmethod
+    @abstractmethod
+    def from_weights(cls, weights: NetworkWeights) -> Self:
+        """The engine of a network's weights (:class:`~ipcverify.network.NetworkWeights`, of this kind)."""
+
+    @classmethod
+    def from_network(cls, network: Network) -> Self:
+        """The engine of a torch network of this kind (:meth:`from_weights` of its weights)."""
+        return cls.from_weights(NetworkWeights.from_network(network))
 
     @abstractmethod
     def batch(

@@ -39,7 +39,7 @@ from ipcverify.network._kind import Engine
 from ipcverify.network._weights import NetworkWeights
 
 if TYPE_CHECKING:
-    from ipcverify.network._lowrank import LowRankEnsemble
+    pass
 
 FloatArray = NDArray[np.float64]
 
@@ -256,11 +256,6 @@ class LowRankEngine(Engine):
             lin_weight=float64_array(state["lin_weight"]),
             lin_bias=float64_array(state["lin_bias"]),
         )
-
-    @classmethod
-    def from_network(cls, network: LowRankEnsemble) -> LowRankEngine:
-        """The engine of a torch ensemble (:meth:`from_weights` of its weights)."""
-        return cls.from_weights(NetworkWeights.from_network(network))
 
     def _moments(self, out: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Moment-matched offset (B, n) and covariance (B, n, n) from every member's ``[U | h]`` (K, ·, B)."""
