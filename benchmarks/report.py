@@ -6,6 +6,7 @@ from pathlib import Path
 from typing import Any
 
 from benchmarks.bench_tightness import worst_bin_allowance
+from benchmarks.common import save_figure
 from benchmarks.report_tables import (
     CM3,
     LABELS,
@@ -394,10 +395,7 @@ def plot_tightness(results: dict[str, Any], path: Path) -> None:
         eps = res["ipc"]["epsilon"]
         ax.set_title(f"{name}: mean set volume at PAC ε = {eps:g} (test coverage on bars)", fontsize=9)
         ax.set_ylabel("mean volume (cm³, log scale)")
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 def plot_throughput(results: dict[str, Any], path: Path) -> None:
@@ -446,7 +444,4 @@ def plot_throughput(results: dict[str, Any], path: Path) -> None:
     )
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
