@@ -1,4 +1,4 @@
-"""Each network kind's float64 engine satisfies the one engine interface (ipcverify.network.Engine)."""
+"""Each network kind's float64 engine implements the one engine interface (ipcverify.network.Engine)."""
 
 from __future__ import annotations
 
@@ -12,7 +12,8 @@ from ipcverify.data._synthetic import make_lagged_perception
 from ipcverify.errors import InvalidInputError
 from ipcverify.network._architecture import ModelConfig
 from ipcverify.network._engine import InferenceEngine
-from ipcverify.network._interface import Engine, engine_for, is_network
+from ipcverify.network._interface import engine_for, is_network
+from ipcverify.network._kind import Engine
 from ipcverify.network._lipschitz_ball import DataBox
 from ipcverify.network._lowrank_engine import LowRankEngine
 from ipcverify.network._modules import build_network
