@@ -29,7 +29,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.patches import FancyBboxPatch  # noqa: E402
 
-from benchmarks.common import write_json  # noqa: E402
+from benchmarks.common import save_figure, write_json  # noqa: E402
 from benchmarks.import_graph import import_graph, module_files  # noqa: E402
 from benchmarks.import_graph import package_graph as collapse  # noqa: E402
 
@@ -196,10 +196,7 @@ def plot(result: dict[str, Any], path: Path) -> None:
         f"largest module {result['largest_module']['lines']} lines)",
         fontsize=10,
     )
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 def main(argv: list[str] | None = None) -> dict[str, Any]:

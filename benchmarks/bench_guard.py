@@ -41,7 +41,7 @@ import numpy as np
 import pandas as pd
 import torch
 
-from benchmarks.common import blas_single_thread, machine_info, write_json
+from benchmarks.common import blas_single_thread, machine_info, save_figure, write_json
 from benchmarks.datasets import load_splits, quad_flights
 from benchmarks.oracle_data import make_hetlag
 from benchmarks.timing import run_child
@@ -334,10 +334,7 @@ def plot(results: dict[str, Any], path: Path) -> None:
     ax.set_title("Throughput against batch size (quad, 15 inputs)", fontsize=9)
     ax.legend(fontsize=7)
     ax.grid(True, which="both", alpha=0.3)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 def main(argv: list[str] | None = None) -> dict[str, Any]:

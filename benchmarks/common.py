@@ -13,7 +13,15 @@ from typing import Any
 import numpy as np
 import torch
 
-__all__ = ["blas_single_thread", "blas_threads", "machine_info", "spread", "time_calls", "write_json"]
+__all__ = [
+    "blas_single_thread",
+    "blas_threads",
+    "machine_info",
+    "save_figure",
+    "spread",
+    "time_calls",
+    "write_json",
+]
 
 
 def blas_single_thread() -> bool:
@@ -88,6 +96,16 @@ def time_calls(fn: Callable[[], Any], repeats: int, warmup: int = 10) -> np.ndar
         fn()
         out[i] = clock() - t0
     return out
+
+
+def save_figure(fig: Any, path: Path) -> None:
+    """Lay out a matplotlib figure, write it to ``path`` as a 110-dpi PNG (making its folder) and close it."""
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
 
 
 def write_json(path: Path, data: Any) -> None:

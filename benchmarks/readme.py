@@ -33,6 +33,7 @@ from benchmarks.report_tables import (
     guard_latency_tables,
     guard_methods_table,
     shift_table,
+    table_head,
     targets_table,
 )
 
@@ -55,10 +56,8 @@ def _load(name: str) -> Any:
 
 def _readme_table(tight: dict[str, Any]) -> list[str]:
     names = [n for n in ("synthetic", "quad_landing") if n in tight]
-    head = "| method (PAC ε = 0.01, δ = 0.001) | " + " | ".join(
-        f"{n}: mean vol. (cm³) | × MAPIE | coverage / worst bin" for n in names
-    )
-    lines = [head + " |", "|---" * (1 + 3 * len(names)) + "|"]
+    heads = [h for n in names for h in (f"{n}: mean vol. (cm³)", "× MAPIE", "coverage / worst bin")]
+    lines = table_head("method (PAC ε = 0.01, δ = 0.001)", *heads)
     rows = (
         "ipc",
         "ipc_v1",
@@ -107,10 +106,7 @@ def _latency_table(lat: dict[str, Any]) -> list[str]:
         "decide_without_domain_test": "  … the same model with its domain dropped (no domain test)",
         "onnx_float32": "ONNX Runtime float32, (1, d) input",
     }
-    lines = [
-        "| one query (x, ŷ), 1 thread | p50 µs | p99 µs | p50 / bare torch forward |",
-        "|---|---|---|---|",
-    ]
+    lines = table_head("one query (x, ŷ), 1 thread", "p50 µs", "p99 µs", "p50 / bare torch forward")
     for key, label in labels.items():
         r = paths.get(key)
         if r is not None:
@@ -130,10 +126,9 @@ def _guard_block(lat: dict[str, Any] | None) -> list[str]:
 
 
 def _training_table(training: dict[str, Any]) -> list[str]:
-    lines = [
-        "| data (N = 5,000) | recipe | wall s, median [min–max] of 3 | CPU s | epochs run | ≤ 10 s |",
-        "|---|---|---|---|---|---|",
-    ]
+    lines = table_head(
+        "data (N = 5,000)", "recipe", "wall s, median [min–max] of 3", "CPU s", "epochs run", "≤ 10 s"
+    )
     for key, r in training.items():
         if "/" not in key:
             continue

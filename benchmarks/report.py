@@ -6,6 +6,7 @@ from pathlib import Path
 from typing import Any
 
 from benchmarks.bench_tightness import worst_bin_allowance
+from benchmarks.common import save_figure
 from benchmarks.report_tables import (
     CM3,
     LABELS,
@@ -14,6 +15,7 @@ from benchmarks.report_tables import (
     guard_latency_tables,
     guard_methods_table,
     shift_table,
+    table_head,
     targets_table,
     tightness_table,
 )
@@ -236,8 +238,7 @@ def render_markdown(results: dict[str, Any]) -> str:
             f"{100 * sq['accept_fraction']:.1f} % are accepted for landing). µs per query, median over "
             "rounds of the per-round p50 / p99; torch and ONNX Runtime with 1 thread.",
             "",
-            "| path | p50 µs | p99 µs | p50 / bare forward | p99 / bare forward |",
-            "|---|---|---|---|---|",
+            *table_head("path", "p50 µs", "p99 µs", "p50 / bare forward", "p99 / bare forward"),
         ]
         for path, r in sq["paths"].items():
             p99_ratio = r.get("p99_ratio_to_bare_forward")
@@ -257,8 +258,9 @@ def render_markdown(results: dict[str, Any]) -> str:
             ]
         if "fast_path" in sq:
             lines += ["", "How the landing decisions were reached (shares of queries):", ""]
-            lines += ["| queries | n | float bound | exact integer height | exact rational (fallback) |"]
-            lines += ["|---|---|---|---|---|"]
+            lines += table_head(
+                "queries", "n", "float bound", "exact integer height", "exact rational (fallback)"
+            )
             for key in ("all_queries", "in_domain_queries"):
                 f = sq["fast_path"][key]
                 if not f["queries"]:
@@ -273,8 +275,7 @@ def render_markdown(results: dict[str, Any]) -> str:
             "",
             "## Batch throughput (queries per second)",
             "",
-            "| batch | " + " | ".join(names) + " |",
-            "|---" * (len(names) + 1) + "|",
+            *table_head("batch", *names),
         ]
         for b in bt["sizes"]:
             lines.append(
@@ -310,7 +311,7 @@ def render_markdown(results: dict[str, Any]) -> str:
                 f"float32 graph vs engine {worst('float32', 'engine'):.1e}. ONNX Runtime is faster than "
                 f"the NumPy engine at batch sizes {bt['onnx_faster_than_engine_at']}.",
             ]
-    lines += ["", "## Cost", "", "| step | dataset | seconds (median [min–max]) |", "|---|---|---|"]
+    lines += ["", "## Cost", "", *table_head("step", "dataset", "seconds (median [min–max])")]
     for name, c in results["cost"].items():
         for key, label in (
             ("data_seconds", "load / fly the three splits"),
@@ -394,10 +395,7 @@ def plot_tightness(results: dict[str, Any], path: Path) -> None:
         eps = res["ipc"]["epsilon"]
         ax.set_title(f"{name}: mean set volume at PAC ε = {eps:g} (test coverage on bars)", fontsize=9)
         ax.set_ylabel("mean volume (cm³, log scale)")
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 def plot_throughput(results: dict[str, Any], path: Path) -> None:
@@ -446,7 +444,4 @@ def plot_throughput(results: dict[str, Any], path: Path) -> None:
     )
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)

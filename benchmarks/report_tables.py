@@ -13,6 +13,7 @@ __all__ = [
     "LABELS",
     "CM3",
     "fmt",
+    "table_head",
     "tightness_table",
     "before_after_table",
     "diagnosis_table",
@@ -45,6 +46,17 @@ def fmt(v: float | None, digits: int = 3) -> str:
     return "–" if v is None else f"{v:.{digits}g}"
 
 
+def table_head(*columns: str) -> list[str]:
+    """A markdown table's header row and the separator row under it (one ``---`` per column).
+
+    Examples
+    --------
+    >>> table_head("a", "b")
+    ['| a | b |', '|---|---|']
+    """
+    return ["| " + " | ".join(columns) + " |", "|---" * len(columns) + "|"]
+
+
 def _vol(r: dict[str, Any], key: str) -> str:
     s = r["spread"][key]
     if s["n"] == 1:
@@ -65,6 +77,11 @@ def _ratio_cells(r: dict[str, Any]) -> str:
     return " | ".join(_ratio(r, f"mean_volume_ratio_to_{ref}") for ref in _RATIO_REFERENCES)
 
 
+#: The column heads of :func:`_factor_cells`'s two groups of cells.
+_FACTOR_HEADS = ("centre", "shape", "calibration", "PAC margin")
+_STAT_HEADS = ("RMS whitened centre bias", "sd log size", "aspect misfit")
+
+
 def _factor_cells(d: dict[str, Any]) -> tuple[str, str]:
     """A diagnosis's symmetric factors (centre, shape, calibration, PAC margin) and its statistics
     (RMS whitened centre bias, sd of log size, aspect misfit), each as ``" | "``-joined cells."""
@@ -82,10 +99,20 @@ def tightness_table(name: str, res: dict[str, Any]) -> list[str]:
         f"{ipc['calibration_n']:,} samples; test split of {ipc['test_n']:,}. Volumes in cm³: median over "
         "training seeds [min–max]. Ratios are of mean volumes.",
         "",
-        "| method | calibrated | mean volume | median volume | test coverage | worst-bin coverage "
-        "| × MAPIE | × oracle (PAC) | × oracle (same coverage) | × oracle (exact 1 − ε) | × global "
-        "| train s |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+        *table_head(
+            "method",
+            "calibrated",
+            "mean volume",
+            "median volume",
+            "test coverage",
+            "worst-bin coverage",
+            "× MAPIE",
+            "× oracle (PAC)",
+            "× oracle (same coverage)",
+            "× oracle (exact 1 − ε)",
+            "× global",
+            "train s",
+        ),
     ]
     for method, r in res.items():
         label = LABELS.get(method, method)
@@ -103,11 +130,18 @@ def tightness_table(name: str, res: dict[str, Any]) -> list[str]:
 
 def before_after_table(tightness: dict[str, Any]) -> list[str]:
     """Old default (``v1``) against the new default (``tight``), MAPIE and the oracle, per dataset."""
-    lines = [
-        "| dataset | method | mean vol. (cm³) | × MAPIE | × oracle (PAC) | × oracle (same coverage) "
-        "| × oracle (exact) | × global | coverage | worst-bin coverage |",
-        "|---|---|---|---|---|---|---|---|---|---|",
-    ]
+    lines = table_head(
+        "dataset",
+        "method",
+        "mean vol. (cm³)",
+        "× MAPIE",
+        "× oracle (PAC)",
+        "× oracle (same coverage)",
+        "× oracle (exact)",
+        "× global",
+        "coverage",
+        "worst-bin coverage",
+    )
     for name, res in tightness.items():
         for method in ("ipc_v1", "ipc", "mapie_multivariate", "oracle"):
             r = res.get(method)
@@ -123,12 +157,16 @@ def before_after_table(tightness: dict[str, Any]) -> list[str]:
 
 def diagnosis_table(tightness: dict[str, Any]) -> list[str]:
     """The volume-excess diagnosis of every ellipsoidal method (first training seed) on the oracle data."""
-    lines = [
-        "| dataset | method | × oracle (1 − ε) | centre | shape | calibration | PAC margin "
-        "| shape-first: size / orientation / centre | RMS whitened centre bias | sd log size "
-        "| aspect misfit | population coverage | × oracle at that coverage |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
-    ]
+    lines = table_head(
+        "dataset",
+        "method",
+        "× oracle (1 − ε)",
+        *_FACTOR_HEADS,
+        "shape-first: size / orientation / centre",
+        *_STAT_HEADS,
+        "population coverage",
+        "× oracle at that coverage",
+    )
     for name, res in tightness.items():
         for method in ("ipc_v1", "ipc", "mapie_multivariate", "global_mahalanobis", "oracle"):
             d = res.get(method, {}).get("diagnosis")
@@ -150,11 +188,7 @@ def diagnosis_table(tightness: dict[str, Any]) -> list[str]:
 
 def diagnosis_runs_table(diagnosis: dict[str, Any]) -> list[str]:
     """``benchmarks/diagnosis_results.json``: each recipe's diagnosis per law and training seed."""
-    lines = [
-        "| law | recipe | seed | × oracle (1 − ε) | centre | shape | calibration | PAC margin "
-        "| RMS whitened centre bias | sd log size | aspect misfit | coverage |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|",
-    ]
+    lines = table_head("law", "recipe", "seed", "× oracle (1 − ε)", *_FACTOR_HEADS, *_STAT_HEADS, "coverage")
     for law, recipes in diagnosis.items():
         if law == "settings":
             continue
@@ -176,12 +210,7 @@ def shift_table(shift: dict[str, Any]) -> list[str]:
         "ipc": "default `tight`",
         "global_mahalanobis": "global Mahalanobis",
     }
-    lines = [
-        "| setting | "
-        + " | ".join(f"{heads[m]}: violation mean [worst] (mean vol. m³)" for m in methods)
-        + " |",
-        "|---" * (len(methods) + 1) + "|",
-    ]
+    lines = table_head("setting", *(f"{heads[m]}: violation mean [worst] (mean vol. m³)" for m in methods))
     for setting, rows in shift.items():
         if not isinstance(rows, dict) or "ipc" not in rows:
             continue
@@ -201,7 +230,7 @@ def shift_table(shift: dict[str, Any]) -> list[str]:
 
 def targets_table(targets: dict[str, Any]) -> list[str]:
     """The issue's targets as computed by :func:`benchmarks.report.targets`."""
-    lines = ["| target | measured | limit | met |", "|---|---|---|---|"]
+    lines = table_head("target", "measured", "limit", "met")
     for t in targets.values():
         val = "n/a" if t["value"] is None else f"{t['value']:.3g}"
         met = "n/a" if t["met"] is None else ("yes" if t["met"] else f"**no** ({t['by']:.3g}× the limit)")
@@ -230,10 +259,9 @@ def guard_latency_tables(lat: dict[str, Any]) -> list[str]:
 
     Each workload's header gives the share of its queries outside the domain of validity.
     """
-    lines = [
-        "| one query (x, ŷ), 1 thread | p50 µs | p99 µs | p50 / bare forward | p99 / bare forward |",
-        "|---|---|---|---|---|",
-    ]
+    lines = table_head(
+        "one query (x, ŷ), 1 thread", "p50 µs", "p99 µs", "p50 / bare forward", "p99 / bare forward"
+    )
     for name, w in lat["workloads"].items():
         lines.append(f"| **{name}** ({_share(w)}) | | | | |")
         paths = w["single_query"]["paths"]
@@ -246,9 +274,15 @@ def guard_latency_tables(lat: dict[str, Any]) -> list[str]:
                 )
     lines += [
         "",
-        "| batch, 1 thread | queries | bare torch forward (q/s) | guarded `predict_sets` (q/s) | "
-        "× bare forward | without the domain test, × bare forward | domain test alone (µs / query) |",
-        "|---|---|---|---|---|---|---|",
+        *table_head(
+            "batch, 1 thread",
+            "queries",
+            "bare torch forward (q/s)",
+            "guarded `predict_sets` (q/s)",
+            "× bare forward",
+            "without the domain test, × bare forward",
+            "domain test alone (µs / query)",
+        ),
     ]
     for name, w in lat["workloads"].items():
         paths = w["batch_throughput"]["paths"]
@@ -268,12 +302,16 @@ def guard_latency_tables(lat: dict[str, Any]) -> list[str]:
 
 def guard_methods_table(lat: dict[str, Any]) -> list[str]:
     """The exact threshold test three ways, and the exact distances, per workload (µs per query)."""
-    lines = [
-        "| workload | queries / references / inputs | SciPy k-d tree (exact) | float32 BLAS product | "
-        "compiled tree search (ships) | exact distances | same answers | decided by the search / "
-        "product / exact test |",
-        "|---|---|---|---|---|---|---|---|",
-    ]
+    lines = table_head(
+        "workload",
+        "queries / references / inputs",
+        "SciPy k-d tree (exact)",
+        "float32 BLAS product",
+        "compiled tree search (ships)",
+        "exact distances",
+        "same answers",
+        "decided by the search / product / exact test",
+    )
     for name, w in lat["workloads"].items():
         m = w.get("domain_methods")
         if not m:

@@ -117,6 +117,13 @@ def latency_workloads(models: dict[str, tuple[Any, Splits, float]], cfg: RunConf
     default, so the decision of record runs its domain test.
     """
     eps, delta = cfg.epsilon, cfg.delta
+
+    def on_splits(key: str, name: str, what: str) -> Workload:
+        """Model ``key`` calibrated on its calibration split (row-level domain), queried on its test split."""
+        ipc, splits, _ = models[key]
+        calibrated = calibrate(ipc, splits.calibration, eps, delta, Global(mode="pac"), recalibrate=True)
+        return Workload(name, calibrated, splits.test, what)
+
     out = []
     if "quad_landing" in models:
         ipc, splits, _ = models["quad_landing"]
@@ -139,38 +146,27 @@ def latency_workloads(models: dict[str, tuple[Any, Splits, float]], cfg: RunConf
             )
         )
     if "synthetic" in models:
-        ipc, splits, _ = models["synthetic"]
         out.append(
-            Workload(
+            on_splits(
                 "synthetic",
-                calibrate(ipc, splits.calibration, eps, delta, Global(mode="pac"), recalibrate=True),
-                splits.test,
+                "synthetic",
                 "synthetic (hetlag): calibrated on its calibration split, row-level domain; queries: the "
                 "test split (an independent draw of the same law)",
             )
         )
     if "quad_landing" in models:
-        ipc, splits, _ = models["quad_landing"]
         out.append(
-            Workload(
+            on_splits(
+                "quad_landing",
                 "quad_out_of_domain",
-                calibrate(ipc, splits.calibration, eps, delta, Global(mode="pac"), recalibrate=True),
-                splits.test,
                 "quad landing, out of domain: calibrated on the 12 flights of the calibration split (every "
                 "2nd frame), row-level domain; queries: the 12 unseen flights of the test split",
             )
         )
     if not out:  # another dataset alone: its own test split
         name = next(iter(models))
-        ipc, splits, _ = models[name]
-        out.append(
-            Workload(
-                name,
-                calibrate(ipc, splits.calibration, eps, delta, Global(mode="pac"), recalibrate=True),
-                splits.test,
-                f"{name}: calibrated on its calibration split; queries: its test split",
-            )  # fmt: skip
-        )
+        what = f"{name}: calibrated on its calibration split; queries: its test split"
+        out.append(on_splits(name, name, what))
     return out
 
 

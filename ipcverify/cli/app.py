@@ -37,6 +37,8 @@ __all__ = [
     "EXIT_VERDICT",
     "EXIT_USER",
     "EXIT_INTERNAL",
+    "EXISTING_FILE",
+    "OUTPUT_FILE",
 ]
 
 #: A verdict against the model (CONTRADICTED, ALARM, a failed re-check).
@@ -46,6 +48,11 @@ EXIT_USER = 2
 #: An internal error (a bug in ipcverify or a library it calls).
 EXIT_INTERNAL = 3
 EXIT_INTERRUPTED = 130
+
+#: The parameter type of an input file: it must exist and not be a folder (a Path is passed on).
+EXISTING_FILE = click.Path(exists=True, dir_okay=False, path_type=Path)
+#: The parameter type of a file the command writes: not a folder (a Path is passed on).
+OUTPUT_FILE = click.Path(dir_okay=False, path_type=Path)
 
 _DEBUG = [False]  # set by the global --debug option of the running command line
 

@@ -14,7 +14,15 @@ from typing import TYPE_CHECKING, cast
 import click
 from rich.table import Table
 
-from ipcverify.cli.app import app, choice_option, console, err_console, out_dir_option
+from ipcverify.cli.app import (
+    EXISTING_FILE,
+    OUTPUT_FILE,
+    app,
+    choice_option,
+    console,
+    err_console,
+    out_dir_option,
+)
 from ipcverify.errors import InvalidInputError
 from ipcverify.network._lipschitz_ball import DEFAULT_RADIUS
 
@@ -25,7 +33,6 @@ if TYPE_CHECKING:
 
 __all__: list[str] = []
 
-_EXISTING = click.Path(exists=True, dir_okay=False, path_type=Path)
 #: ``ipcverify.guard.DEFAULT_ALPHA``, written out so that ``--help`` need not import the domain
 #: test (SciPy, Numba); ``tests/ipcverify/cli/test_startup.py`` checks that the two agree.
 _DOMAIN_ALPHA = 0.01
@@ -70,8 +77,8 @@ def calibration_method(
 
 
 @app.command("calibrate")
-@click.argument("model", type=_EXISTING)
-@click.argument("data", type=_EXISTING)
+@click.argument("model", type=EXISTING_FILE)
+@click.argument("data", type=EXISTING_FILE)
 @click.option("--epsilon", type=float, required=True, help="Target violation probability, e.g. 0.01.")
 @click.option("--delta", type=float, required=True, help="Confidence parameter, e.g. 0.001.")
 @choice_option(
@@ -115,9 +122,7 @@ def calibration_method(
 @click.option(
     "--seed", default=0, show_default=True, type=int, help="Seed for choosing the bin-edge samples."
 )
-@click.option(
-    "--out", type=click.Path(dir_okay=False, path_type=Path), required=True, help="Calibrated model."
-)
+@click.option("--out", type=OUTPUT_FILE, required=True, help="Calibrated model.")
 def calibrate_cmd(
     model: Path,
     data: Path,
@@ -168,15 +173,15 @@ def calibrate_cmd(
 
 
 @app.command("certify")
-@click.argument("model", type=_EXISTING)
+@click.argument("model", type=EXISTING_FILE)
 @click.option(
     "--data",
     "test",
-    type=_EXISTING,
+    type=EXISTING_FILE,
     default=None,
     help="Fresh test data (not used so far). Without it: what the model file alone certifies.",
 )
-@click.option("--train-data", type=_EXISTING, default=None, help="The training data (for Theorem 1).")
+@click.option("--train-data", type=EXISTING_FILE, default=None, help="The training data (for Theorem 1).")
 @out_dir_option("certificate", help="Directory for certificate.json and report.html.")
 @click.option("--delta", type=float, default=None, help="Confidence (default: the calibration's; 0.001).")
 @click.option("--bin-column", default=None, help="Column for conditional coverage (default: first x column).")

@@ -12,7 +12,7 @@ from typing import Any
 
 import click
 
-from ipcverify.cli.app import app, console
+from ipcverify.cli.app import EXISTING_FILE, OUTPUT_FILE, app, console
 from ipcverify.data._files import atomic_write
 from ipcverify.decision.containment import (
     ContainmentCertificate,
@@ -26,8 +26,6 @@ from ipcverify.decision.containment._status import check_method
 from ipcverify.errors import InvalidInputError
 
 __all__ = ["load_json_items"]
-
-_EXISTING = click.Path(exists=True, dir_okay=False, path_type=Path)
 
 
 def load_json_items(path: Path, what: str) -> list[Any]:
@@ -60,10 +58,10 @@ def _fmt_margin(m: float | None) -> str:
 
 
 @app.command("prove-containment")
-@click.argument("problems", type=_EXISTING)
+@click.argument("problems", type=EXISTING_FILE)
 @click.option(
     "--out",
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=OUTPUT_FILE,
     required=True,
     help="Where to write the certificates (JSON list, same order as the problems).",
 )
@@ -120,7 +118,7 @@ def prove_containment_cmd(problems: Path, out: Path, method: str | None) -> None
 
 
 @app.command("check-certificate")
-@click.argument("certificates", type=_EXISTING)
+@click.argument("certificates", type=EXISTING_FILE)
 def check_certificate_cmd(certificates: Path) -> None:
     """Re-verify every certificate in CERTIFICATES in exact rational arithmetic.
 

@@ -16,7 +16,16 @@ import click
 import numpy as np
 from rich.table import Table
 
-from ipcverify.cli.app import EXIT_VERDICT, app, choice_option, console, err_console, out_dir_option
+from ipcverify.cli.app import (
+    EXISTING_FILE,
+    EXIT_VERDICT,
+    OUTPUT_FILE,
+    app,
+    choice_option,
+    console,
+    err_console,
+    out_dir_option,
+)
 from ipcverify.errors import InvalidInputError
 from ipcverify.network._architecture import DEFAULT_RECIPE, RECIPES
 
@@ -25,8 +34,6 @@ if TYPE_CHECKING:
     from ipcverify.guard._domain_report import DomainReport
 
 __all__ = ["parse_hidden"]
-
-_EXISTING = click.Path(exists=True, dir_okay=False, path_type=Path)
 
 
 def parse_hidden(text: str) -> tuple[int, ...]:
@@ -95,8 +102,8 @@ def _given(**values: object) -> dict[str, object]:
 
 
 @app.command("train")
-@click.argument("data", type=_EXISTING)
-@click.option("--out", type=click.Path(dir_okay=False, path_type=Path), required=True, help="Model file.")
+@click.argument("data", type=EXISTING_FILE)
+@click.option("--out", type=OUTPUT_FILE, required=True, help="Model file.")
 @choice_option(
     "--recipe",
     choices=list(RECIPES),
@@ -236,8 +243,8 @@ def train_cmd(
 
 
 @app.command("evaluate")
-@click.argument("model", type=_EXISTING)
-@click.argument("data", type=_EXISTING)
+@click.argument("model", type=EXISTING_FILE)
+@click.argument("data", type=EXISTING_FILE)
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of tables.")
 @click.option("--bin-column", default=None, help="Report the violation rate per bin of this column.")
 @click.option("--bins", default=10, show_default=True, type=int)
@@ -258,9 +265,9 @@ def evaluate_cmd(model: Path, data: Path, as_json: bool, bin_column: str | None,
 
 
 @app.command("predict")
-@click.argument("model", type=_EXISTING)
-@click.argument("data", type=_EXISTING)
-@click.option("--out", type=click.Path(dir_okay=False, path_type=Path), required=True, help="Output .npz.")
+@click.argument("model", type=EXISTING_FILE)
+@click.argument("data", type=EXISTING_FILE)
+@click.option("--out", type=OUTPUT_FILE, required=True, help="Output .npz.")
 def predict_cmd(model: Path, data: Path, out: Path) -> None:
     """Write the IPC's sets for the queries in DATA to an NPZ.
 
@@ -294,8 +301,8 @@ def predict_cmd(model: Path, data: Path, out: Path) -> None:
 
 
 @app.command("monitor")
-@click.argument("model", type=_EXISTING)
-@click.argument("log", type=_EXISTING)
+@click.argument("model", type=EXISTING_FILE)
+@click.argument("log", type=EXISTING_FILE)
 @out_dir_option("monitor", help="Directory for monitor.json and monitor.png.")
 @click.option(
     "--delta", type=float, default=None, help="False-alarm bound (default: the calibration's delta)."

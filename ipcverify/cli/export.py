@@ -11,7 +11,7 @@ from pathlib import Path
 import click
 import numpy as np
 
-from ipcverify.cli.app import app, choice_option, console, err_console
+from ipcverify.cli.app import EXISTING_FILE, OUTPUT_FILE, app, choice_option, console, err_console
 from ipcverify.errors import InvalidInputError
 
 __all__: list[str] = []
@@ -23,11 +23,11 @@ TORCH_TOLERANCE = 1e-4
 
 
 @app.command("export")
-@click.argument("model", type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.argument("model", type=EXISTING_FILE)
 @click.option(
     "--onnx",
     "onnx_path",
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=OUTPUT_FILE,
     required=True,
     help="Write the model's (calibrated) sets as an ONNX graph here.",
 )

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
-from ipcverify.cli.app import app, choice_option, console
+from ipcverify.cli.app import OUTPUT_FILE, app, choice_option, console
 from ipcverify.errors import InvalidInputError
 
 if TYPE_CHECKING:
@@ -40,7 +40,7 @@ def _sampling(f: Callable[..., Any]) -> Callable[..., Any]:
     opts = [
         click.option(
             "--out",
-            type=click.Path(dir_okay=False, path_type=Path),
+            type=OUTPUT_FILE,
             required=True,
             help="Output table (.csv or .parquet); NAME.manifest.json goes beside it.",
         ),

@@ -376,7 +376,9 @@ def save_dataset(dataset: PerceptionDataset, path: str | os.PathLike[str]) -> No
     Parameters
     ----------
     dataset : PerceptionDataset
-        The data.
+        The log to write. A table (CSV, Parquet) gets every column of
+        :meth:`PerceptionDataset.to_frame` (its column names, its extra columns; CSV floats with
+        17 significant digits, so they read back exactly); an NPZ file only ``x``, ``y`` and ``yhat``.
     path : path-like
         A ``.csv``, ``.parquet``/``.pq`` or ``.npz`` path.
     """

@@ -41,7 +41,7 @@ from ipcverify.contract._model import IPCModel
 from ipcverify.errors import InvalidInputError
 from ipcverify.guard._domain import DomainModel
 from ipcverify.network._architecture import ModelConfig
-from ipcverify.network._interface import Engine
+from ipcverify.network._kind import Engine
 
 FloatArray = NDArray[np.float64]
 

@@ -25,7 +25,6 @@ if TYPE_CHECKING:
         chunk_rows,
     )
     from ipcverify.network._interface import (
-        Engine,
         engine_for,
     )
     from ipcverify.network._kernels import (
@@ -35,6 +34,9 @@ if TYPE_CHECKING:
         compiled,
         lowrank_one,
         rcond_lower_3,
+    )
+    from ipcverify.network._kind import (
+        Engine,
     )
     from ipcverify.network._lipschitz_ball import (
         DEFAULT_RADIUS,

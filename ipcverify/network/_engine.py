@@ -19,11 +19,11 @@ from numpy.typing import NDArray
 
 from ipcverify.errors import InvalidInputError
 from ipcverify.network._architecture import LOGDIAG_CLAMP, ModelConfig
-from ipcverify.network._kind import KindModules
+from ipcverify.network._kind import Engine
 from ipcverify.network._weights import NetworkWeights
 
 if TYPE_CHECKING:
-    from ipcverify.network._modules import IPCNetwork
+    pass
 
 #: Bytes of one layer's activations per chunk of a batch: half a megabyte, so that a layer's input
 #: and output stay in a core's L2 cache (1 MB and up on current x86 and ARM server cores).
@@ -106,12 +106,12 @@ def activate(h: FloatArray, activation: str) -> FloatArray:
 
 
 @dataclass(frozen=True, eq=False)
-class InferenceEngine(KindModules):
+class InferenceEngine(Engine):
     """Float64 forward pass of an :class:`~ipcverify.network.IPCNetwork`.
 
     Build it with :meth:`from_weights` (or :meth:`from_network`); call :meth:`batch` for (B, ·) arrays,
     :meth:`single` for one query, :meth:`single_values` for one query's values as Python floats
-    (lowest latency). It satisfies :class:`ipcverify.network.Engine`.
+    (lowest latency). It is an :class:`ipcverify.network.Engine`.
 
     Parameters
     ----------
@@ -166,6 +166,8 @@ class InferenceEngine(KindModules):
     #: n = 3 with the Cholesky head: (sigma, 1 / sigma, y_mean, clamp) as Python floats for
     #: :meth:`_heads3`; None for the other heads
     heads3: tuple[list[float], list[float], list[float], float] | None = field(init=False, repr=False)
+    #: rows :meth:`batch` evaluates together by default (:data:`CHUNK`)
+    chunk: int = field(default=CHUNK, init=False, repr=False)
 
     def __post_init__(self) -> None:
         n = self.config.y_dim
@@ -196,11 +198,6 @@ class InferenceEngine(KindModules):
             tril_cols=cols,
             diag_pos=np.flatnonzero(rows == cols),
         )
-
-    @classmethod
-    def from_network(cls, network: IPCNetwork) -> InferenceEngine:
-        """Extract the weights and normalisation of a trained network."""
-        return cls.from_weights(NetworkWeights.from_network(network))
 
     def mlp(self, z: FloatArray) -> FloatArray:
         """The network's raw outputs for standardised inputs ``z`` ((B, d + n) or one (d + n,) row)."""
@@ -257,11 +254,6 @@ class InferenceEngine(KindModules):
         """Centre (n,) and shape matrix (n, n) for one query given as 1-D float64 arrays."""
         c, C = self.batch(x[None, :], yhat[None, :])
         return c[0], C[0]
-
-    @property
-    def chunk(self) -> int:
-        """Rows :meth:`batch` evaluates together by default (:data:`CHUNK`)."""
-        return CHUNK
 
     def single_values(self, z: FloatArray) -> tuple[list[float], list[float]]:
         """Centre (n floats) and row-major shape matrix (n * n floats) for one input row ``concat(x, yhat)``.

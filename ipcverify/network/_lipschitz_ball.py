@@ -14,6 +14,7 @@ bound the exact real-arithmetic ones.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -143,6 +144,52 @@ class LipschitzBound:
     hidden_norm_bounds: tuple[float, ...]
     box: DataBox = field(repr=False)
     kind: str = "sound (upper bound over the parameter ball and the data box)"
+
+    @classmethod
+    def chain(
+        cls, jacobian: float, output_gradient: float, radius: float, hidden: Iterable[float], box: DataBox
+    ) -> LipschitzBound:
+        """The bound the chain rule gives: ``output_gradient * jacobian``, times ``1 + FLOAT_MARGIN``.
+
+        Both sound bounds end here (``proofs/lipschitz.md``, "Result").
+
+        Parameters
+        ----------
+        jacobian : float
+            Bound on the operator norm of ``d(network output) / d theta`` (see :attr:`jacobian_bound`).
+        output_gradient : float
+            Bound on the norm of the gradient of ``g`` with respect to the network outputs.
+        radius : float
+            Radius of the parameter ball the two bounds hold over.
+        hidden : iterable of float
+            Bounds on the norm of each layer's input, normalised input first.
+        box : DataBox
+            The box of ``X`` the two bounds hold over.
+
+        Returns
+        -------
+        LipschitzBound
+            The bound; a product that overflows raises :class:`InvalidInputError`.
+
+        Examples
+        --------
+        >>> box = DataBox(*(np.zeros(1) for _ in range(6)))
+        >>> round(LipschitzBound.chain(2.0, 3.0, 0.1, [1.0], box).value, 9)
+        6.000006
+        """
+        value = output_gradient * jacobian * (1.0 + FLOAT_MARGIN)
+        if not math.isfinite(value):
+            raise InvalidInputError(
+                "the sound Lipschitz bound overflowed; the box or the weights are too large"
+            )
+        return cls(
+            value=value,
+            radius=radius,
+            jacobian_bound=jacobian,
+            output_gradient_bound=output_gradient,
+            hidden_norm_bounds=tuple(float(v) for v in hidden),
+            box=box,
+        )
 
     def to_dict(self) -> dict[str, Any]:
         """Plain-data form."""

@@ -40,7 +40,6 @@ from numpy.typing import NDArray
 from ipcverify.errors import InvalidInputError
 from ipcverify.network._architecture import LOGDIAG_CLAMP
 from ipcverify.network._lipschitz_ball import (
-    FLOAT_MARGIN,
     ROUND_UP,
     SVD_MARGIN,
     DataBox,
@@ -313,14 +312,4 @@ def sound_lipschitz_lowrank(network: LowRankEnsemble, box: DataBox, radius: floa
         * ROUND_UP**4
     )
     out_grad = score_gradient_bound(mu, math.sqrt(gamma_sq) * ROUND_UP, K)
-    value = jac * out_grad * (1.0 + FLOAT_MARGIN)
-    if not math.isfinite(value):
-        raise InvalidInputError("the sound Lipschitz bound overflowed; the box or the weights are too large")
-    return LipschitzBound(
-        value=value,
-        radius=r,
-        jacobian_bound=jac,
-        output_gradient_bound=out_grad,
-        hidden_norm_bounds=tuple(float(v) for v in hidden),
-        box=box,
-    )
+    return LipschitzBound.chain(jac, out_grad, r, hidden, box)

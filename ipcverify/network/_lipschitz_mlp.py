@@ -32,7 +32,6 @@ from torch.func import functional_call, grad, vmap
 from ipcverify.errors import InvalidInputError
 from ipcverify.network._architecture import LOGDIAG_CLAMP
 from ipcverify.network._lipschitz_ball import (
-    FLOAT_MARGIN,
     SVD_MARGIN,
     DataBox,
     LipschitzBound,
@@ -178,14 +177,4 @@ def sound_lipschitz_mlp(net: IPCNetwork, box: DataBox, radius: float) -> Lipschi
     # 6. Jacobian of the output w.r.t. all parameters: sum_l P_l^2 (||h_{l-1}||^2 + 1)
     jac = jacobian_bound(layers, H, radius)
 
-    value = out_grad * jac * (1.0 + FLOAT_MARGIN)
-    if not math.isfinite(value):
-        raise InvalidInputError("the sound Lipschitz bound overflowed; the box or the weights are too large")
-    return LipschitzBound(
-        value=value,
-        radius=radius,
-        jacobian_bound=jac,
-        output_gradient_bound=out_grad,
-        hidden_norm_bounds=tuple(H),
-        box=box,
-    )
+    return LipschitzBound.chain(jac, out_grad, radius, H, box)

@@ -35,11 +35,11 @@ from ipcverify.network._kernels import (
     lowrank_sets,
     standardise,
 )
-from ipcverify.network._kind import KindModules
+from ipcverify.network._kind import Engine
 from ipcverify.network._weights import NetworkWeights
 
 if TYPE_CHECKING:
-    from ipcverify.network._lowrank import LowRankEnsemble
+    pass
 
 FloatArray = NDArray[np.float64]
 
@@ -99,11 +99,11 @@ def _u_layout(n: int) -> NDArray[np.intp]:
 
 
 @dataclass(frozen=True, eq=False)
-class LowRankEngine(KindModules):
+class LowRankEngine(Engine):
     """Float64 forward pass of a :class:`~ipcverify.network.LowRankEnsemble` (all members at once).
 
     Build it with :meth:`from_weights` (or :meth:`from_network`); :meth:`batch` for (B, ·)
-    arrays, :meth:`single` for one query (it satisfies :class:`ipcverify.network.Engine`). The
+    arrays, :meth:`single` for one query (it is an :class:`ipcverify.network.Engine`). The
     weights are stored so that every member's outputs come out as
     ``[U | h]``: ``U = [V | o]`` (n x (n + 1), row-major) and the log-diagonal ``h``; the
     moment-matched covariance is then ``mean_k U_k' U_k'^T + diag(mean_k exp(2 h_k))`` with
@@ -256,11 +256,6 @@ class LowRankEngine(KindModules):
             lin_weight=float64_array(state["lin_weight"]),
             lin_bias=float64_array(state["lin_bias"]),
         )
-
-    @classmethod
-    def from_network(cls, network: LowRankEnsemble) -> LowRankEngine:
-        """The engine of a torch ensemble (:meth:`from_weights` of its weights)."""
-        return cls.from_weights(NetworkWeights.from_network(network))
 
     def _moments(self, out: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Moment-matched offset (B, n) and covariance (B, n, n) from every member's ``[U | h]`` (K, ·, B)."""

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ipcverify.network._architecture import LOGDIAG_CLAMP
-from ipcverify.network._interface import ConstFn, NodeFn
+from ipcverify.network._kind import ConstFn, NodeFn
 from ipcverify.network._onnx_mlp import ACTIVATION_OPS, layer_nodes, scaled_shape_nodes
 
 if TYPE_CHECKING:

@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ipcverify.network._architecture import LOGDIAG_CLAMP
-from ipcverify.network._interface import ConstFn, NodeFn
+from ipcverify.network._kind import ConstFn, NodeFn
 
 if TYPE_CHECKING:
     from ipcverify.network._engine import InferenceEngine

@@ -83,7 +83,8 @@ class NetworkWeights:
     Parameters
     ----------
     config : ModelConfig
-        The architecture.
+        The architecture the weights belong to: it fixes the entries, shapes and dtypes the state
+        must have (:func:`state_layout`).
     state : mapping of str to array
         Every entry of :func:`state_layout` with its shape, in a floating dtype (the layout's,
         unless the network was converted, e.g. with ``.double()``), nothing else. Stored as

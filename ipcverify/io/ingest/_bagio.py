@@ -69,7 +69,8 @@ class PoseRequest:
     Attributes
     ----------
     topic : str
-        The topic.
+        The name of the topic in the bag, e.g. ``/vicon/body`` or ``/tf``; its message type must
+        be one that holds a pose (``ipcverify.io.ingest._messages.POSE_TYPES``).
     child_frame : str or None
         The body's frame on a ``/tf`` topic (None for a pose topic).
     """

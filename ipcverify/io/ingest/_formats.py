@@ -49,9 +49,9 @@ class FileTrajectory:
     Attributes
     ----------
     trajectory : Trajectory
-        The poses.
+        The file's poses sorted by time, one per stamp (the first of a repeated stamp kept).
     repeated_stamps : int
-        Poses with a repeated stamp dropped.
+        How many poses were dropped because their stamp repeated an earlier one (0 for a clean file).
     """
 
     trajectory: Trajectory

@@ -1,4 +1,4 @@
-"""Each network kind's float64 engine satisfies the one engine interface (ipcverify.network.Engine)."""
+"""Each network kind's float64 engine implements the one engine interface (ipcverify.network.Engine)."""
 
 from __future__ import annotations
 
@@ -12,7 +12,8 @@ from ipcverify.data._synthetic import make_lagged_perception
 from ipcverify.errors import InvalidInputError
 from ipcverify.network._architecture import ModelConfig
 from ipcverify.network._engine import InferenceEngine
-from ipcverify.network._interface import Engine, engine_for, is_network
+from ipcverify.network._interface import engine_for, is_network
+from ipcverify.network._kind import Engine
 from ipcverify.network._lipschitz_ball import DataBox
 from ipcverify.network._lowrank_engine import LowRankEngine
 from ipcverify.network._modules import build_network
@@ -26,12 +27,16 @@ KINDS = [
     (ModelConfig.recipe("paper", x_dim=4, y_dim=3, hidden=(8,)), InferenceEngine),
     (ModelConfig.recipe("v1", x_dim=4, y_dim=2, hidden=(8,)), InferenceEngine),
 ]
-#: The interface's members (methods and read-only properties).
-MEMBERS = [
+#: The interface's attributes (declared, read-only: a field or a property of each engine).
+ATTRIBUTES = [
     name
-    for name, value in vars(Engine).items()
-    if not name.startswith("_") and (callable(value) or isinstance(value, property))
+    for name, kind in Engine.__annotations__.items()
+    if not name.startswith("_") and not str(kind).startswith("ClassVar")
 ]
+#: The interface's members (methods and attributes).
+MEMBERS = [
+    name for name, value in vars(Engine).items() if not name.startswith("_") and callable(value)
+] + ATTRIBUTES
 
 
 def _network(cfg: ModelConfig, seed: int = 0):
@@ -69,11 +74,10 @@ def test_each_engine_satisfies_the_interface(cfg, kind):
     assert type(eng) is kind and isinstance(eng, Engine) and is_network(net)
     assert type(engine_for(NetworkWeights.from_network(net))) is kind
     for name in MEMBERS:  # every member, with the interface's parameters in the same order
-        theirs = getattr(Engine, name)
-        if isinstance(theirs, property):
+        if name in ATTRIBUTES:
             getattr(eng, name)  # readable (a field or a property)
             continue
-        ours = getattr(type(eng), name)
+        theirs, ours = getattr(Engine, name), getattr(type(eng), name)
         assert list(inspect.signature(ours).parameters) == list(inspect.signature(theirs).parameters), name
     assert eng.config == cfg and eng.chunk >= 64
     d, n = cfg.x_dim, cfg.y_dim
