@@ -193,6 +193,29 @@ def row_counts(violated: NDArray[np.bool_]) -> TestCounts:
     return TestCounts(violations=int(v.sum()), n=int(v.size), unit="samples")
 
 
+class RowClaim:
+    """The claim half of :class:`Calibration` for a kind whose claim is about a new sample (a row).
+
+    A kind whose guarantee is per sample over exchangeable rows (one scale, or one per group of
+    a column known at predict time) counts test data by rows and names no group column.
+
+    Examples
+    --------
+    >>> RowClaim().test_counts(np.array([False, True]), None).to_dict()
+    {'violations': 1, 'n': 2, 'unit': 'samples'}
+    >>> RowClaim().group_claim() is None
+    True
+    """
+
+    def test_counts(self, violated: NDArray[np.bool_], test_data: PerceptionDataset) -> TestCounts:
+        """Rows: the claim is about a new sample."""
+        return row_counts(violated)
+
+    def group_claim(self) -> None:
+        """None: the claim is about a new sample (a row), not about groups of rows."""
+        return None
+
+
 @dataclass(frozen=True, kw_only=True)
 class CalibrationSummary:
     """The ``calibration`` block of ``certificate.json``, one typed record for every kind.
