@@ -193,8 +193,8 @@ class SelectionRecord:
     candidates : tuple of Candidate
         Every candidate of the grid, measured on the held-out rows, in the order trained.
     chosen : Candidate
-        The smallest mean log-volume among those within ``target_miss``; if none is, the
-        smallest miss rate (then log-volume).
+        The candidate of smallest mean log-volume among those within ``target_miss``; if none
+        is, the one of smallest miss rate (then log-volume).
     target_met : bool
         Whether any candidate's held-out miss rate was within ``target_miss`` (False: the
         chosen one misses more often than the rule asks).
