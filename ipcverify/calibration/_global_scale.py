@@ -19,22 +19,19 @@ from ipcverify.calibration._method import CalibrationRecord, CalibrationSample, 
 from ipcverify.calibration._protocol import (
     AllowedRate,
     CalibrationSummary,
+    FloatArray,
     GroupInfo,
-    TestCounts,
+    RowClaim,
     one_group,
     one_scale,
-    row_counts,
     summarize,
 )
 from ipcverify.calibration._threshold import ScoreThreshold, guarantee_sentence, threshold_scores
-from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import InvalidInputError
-
-FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True, kw_only=True)
-class GlobalCalibration:
+class GlobalCalibration(RowClaim):
     """One scale factor for every input: the calibrated IPC is ``E(c, C / scale)``.
 
     Attributes
@@ -110,14 +107,6 @@ class GlobalCalibration:
             else "1 - delta quantile of the marginal calibration's Beta(n - k + 1, k) violation rate"
         )
         return AllowedRate(rate=t.allowed_rate(), reason=reason)
-
-    def test_counts(self, violated: NDArray[np.bool_], test_data: PerceptionDataset) -> TestCounts:
-        """Rows: the claim is about a new sample."""
-        return row_counts(violated)
-
-    def group_claim(self) -> None:
-        """None: the claim is about a new sample (a row), not about groups of rows."""
-        return None
 
     def summary(self) -> CalibrationSummary:
         """The typed record (``k``, ``scale`` and ``order_statistic`` as details)."""

@@ -45,6 +45,7 @@ from ipcverify.calibration._method import CalibrationRecord, CalibrationSample, 
 from ipcverify.calibration._protocol import (
     AllowedRate,
     CalibrationSummary,
+    FloatArray,
     GroupClaim,
     GroupInfo,
     TestCounts,
@@ -61,7 +62,6 @@ from ipcverify.calibration._threshold import (
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import InvalidInputError
 
-FloatArray = NDArray[np.float64]
 #: Relative slack when a stored risk-control record is re-checked (its mean risk is a rounded float).
 RISK_RTOL = 1e-9
 _INTS = ("n_groups", "k_groups", "n_rows", "n_used", "n_inside", "size_min", "size_max", "seed")

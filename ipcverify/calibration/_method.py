@@ -14,16 +14,11 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, ClassVar, Protocol
 
-import numpy as np
-from numpy.typing import NDArray
-
 from ipcverify.calibration._bounds import CalibrationMode
-from ipcverify.calibration._protocol import Calibration
+from ipcverify.calibration._protocol import Calibration, FloatArray
 from ipcverify.calibration._threshold import check_mode
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import InvalidInputError
-
-FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -43,6 +38,7 @@ class CalibrationSample:
 
     Examples
     --------
+    >>> import numpy as np
     >>> s = CalibrationSample(scores=np.ones(3), data=None, epsilon=0.1, delta=0.1, data_hash="d",
     ...                       network_hash="h")
     >>> s.ids

@@ -31,9 +31,9 @@ from ipcverify.calibration._mondrian_groups import (
 from ipcverify.calibration._protocol import (
     AllowedRate,
     CalibrationSummary,
+    FloatArray,
     GroupInfo,
-    TestCounts,
-    row_counts,
+    RowClaim,
     summarize,
 )
 from ipcverify.calibration._threshold import (
@@ -43,10 +43,7 @@ from ipcverify.calibration._threshold import (
     check_seed,
     threshold_scores,
 )
-from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import InvalidInputError, SampleSizeError
-
-FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -88,7 +85,7 @@ class GroupScale:
 
 
 @dataclass(frozen=True, kw_only=True)
-class MondrianCalibration:
+class MondrianCalibration(RowClaim):
     """One scale factor per group of a discrete column or per bin of a continuous one.
 
     Attributes
@@ -216,14 +213,6 @@ class MondrianCalibration:
                 reason="with probability 1 - delta every group, hence the whole, violates at most epsilon",
             )
         return AllowedRate(rate=None, reason="marginal Mondrian calibration makes no per-draw claim")
-
-    def test_counts(self, violated: NDArray[np.bool_], test_data: PerceptionDataset) -> TestCounts:
-        """Rows: the claim is about a new sample."""
-        return row_counts(violated)
-
-    def group_claim(self) -> None:
-        """None: the claim is about a new sample (a row), not about groups of rows."""
-        return None
 
     def summary(self) -> CalibrationSummary:
         """The typed record (per-group ``k``, ``scale`` and records as details)."""

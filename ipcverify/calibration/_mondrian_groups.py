@@ -14,10 +14,9 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from ipcverify.calibration._protocol import FloatArray
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import InvalidInputError
-
-FloatArray = NDArray[np.float64]
 
 #: Most distinct values a discrete group column may have (use ``bins`` beyond that).
 MAX_GROUPS = 64

@@ -19,6 +19,10 @@ ONNX export, reports and the case study use only the :class:`Calibration` protoc
   ``calibration`` block of ``certificate.json``;
 * :meth:`~Calibration.guarantee`, :meth:`~Calibration.to_dict`.
 
+A kind with one scale for every query answers ``scale_for`` and ``group_index`` with
+:func:`one_scale` and :func:`one_group`; a kind whose claim is about a new sample (a row)
+inherits ``test_counts`` and ``group_claim`` from :class:`RowClaim`.
+
 What the user chooses is a :class:`~ipcverify.calibration.CalibrationMethod`
 (:mod:`ipcverify.calibration._method`): a frozen spec of a kind's options whose ``fit`` returns
 the kind's calibration. A new kind is one module that implements both protocols and a line that
@@ -349,6 +353,29 @@ def one_scale(x: FloatArray, scale: float) -> FloatArray:
 def one_group(x: FloatArray) -> NDArray[np.intp]:
     """The group index of a kind with one group: zeros, shape (B,)."""
     return np.zeros(len(np.asarray(x)), dtype=np.intp)
+
+
+class RowClaim:
+    """The claim half of :class:`Calibration` for a kind whose claim is about a new sample (a row).
+
+    A kind whose guarantee is per sample over exchangeable rows (one scale, or one per group of
+    a column known at predict time) counts test data by rows and names no group column.
+
+    Examples
+    --------
+    >>> RowClaim().test_counts(np.array([False, True]), None).to_dict()
+    {'violations': 1, 'n': 2, 'unit': 'samples'}
+    >>> RowClaim().group_claim() is None
+    True
+    """
+
+    def test_counts(self, violated: NDArray[np.bool_], test_data: PerceptionDataset) -> TestCounts:
+        """Rows: the claim is about a new sample."""
+        return row_counts(violated)
+
+    def group_claim(self) -> None:
+        """None: the claim is about a new sample (a row), not about groups of rows."""
+        return None
 
 
 def summarize(

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Any
 
 import numpy as np
@@ -123,16 +123,8 @@ class ScoreThreshold:
         return float(stats.beta.ppf(1.0 - self.delta, self.n - self.k + 1, self.k))
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain-data form."""
-        return {
-            "mode": self.mode,
-            "epsilon": self.epsilon,
-            "delta": self.delta,
-            "n": self.n,
-            "k": self.k,
-            "order_statistic": self.order_statistic,
-            "scale": self.scale,
-        }
+        """Plain-data form: every field, in order (``mode``, ``epsilon``, ..., ``scale``)."""
+        return {f.name: getattr(self, f.name) for f in fields(self)}
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> ScoreThreshold:

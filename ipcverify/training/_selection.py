@@ -144,7 +144,7 @@ class Candidate:
     alpha, lam : float
         The hinge width and the weight of the volume term.
     batch_size : int
-        The batch size.
+        Rows per Adam step while the candidate was trained.
     val_n, val_misses : int
         Held-out rows (or groups) and how many fell outside their sets.
     val_log_volume : float
@@ -189,15 +189,18 @@ class SelectionRecord:
     Attributes
     ----------
     rule : HingeSelection
-        The rule.
+        The rule applied: its grid, ``target_miss`` and held-out share.
     candidates : tuple of Candidate
-        Every candidate measured.
+        Every candidate of the grid, measured on the held-out rows, in the order trained.
     chosen : Candidate
-        The one chosen.
+        The candidate of smallest mean log-volume among those within ``target_miss``; if none
+        is, the one of smallest miss rate (then log-volume).
     target_met : bool
-        Whether a candidate met the rule's target.
+        Whether any candidate's held-out miss rate was within ``target_miss`` (False: the
+        chosen one misses more often than the rule asks).
     seconds : float
-        Wall time of the selection.
+        Wall time of the whole selection (every candidate's training and measurement), in
+        seconds; not compared and rounded to 0.01 s in :meth:`to_dict`.
     """
 
     rule: HingeSelection

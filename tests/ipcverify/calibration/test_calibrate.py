@@ -62,6 +62,16 @@ def test_threshold_is_the_kth_order_statistic():
         assert (s <= t.scale).sum() >= k
 
 
+def test_a_threshold_record_is_its_fields_in_order_and_reads_back():
+    t = threshold_scores(np.arange(1.0, 101.0), 0.1, 0.05, "marginal")
+    assert t.to_dict() == {
+        "mode": "marginal", "epsilon": 0.1, "delta": 0.05, "n": 100, "k": 91, "order_statistic": 91.0,
+        "scale": 91.0 * (1 + SCALE_MARGIN),
+    }  # fmt: skip
+    assert list(t.to_dict()) == ["mode", "epsilon", "delta", "n", "k", "order_statistic", "scale"]
+    assert type(t).from_dict(t.to_dict()) == t
+
+
 def test_calibrate_attaches_a_global_scale(model, cal_data):
     cal_model = calibrate(model, cal_data, epsilon=0.05, delta=0.01)
     cal = cal_model.calibration
