@@ -43,6 +43,7 @@ from ipcverify.calibration._threshold import (
     check_seed,
     threshold_scores,
 )
+from ipcverify.data._dataset import query_rows
 from ipcverify.errors import InvalidInputError, SampleSizeError
 
 
@@ -168,9 +169,7 @@ class MondrianCalibration(RowClaim):
         InvalidInputError
             If a sample's value of a discrete column was never seen in calibration.
         """
-        arr = np.asarray(x if self.source == "x" else yhat, dtype=np.float64)
-        if arr.ndim == 1:
-            arr = arr[None]
+        arr = query_rows(x if self.source == "x" else yhat)
         if arr.shape[1] <= self.index:
             raise InvalidInputError(
                 f"Mondrian column {self.column!r} is {self.source}[{self.index}] but {self.source} has "

@@ -24,10 +24,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ipcverify.calibration._protocol import Calibration
+from ipcverify.data._dataset import query_rows
 from ipcverify.errors import InvalidInputError, SetError
 from ipcverify.guard._domain import DomainModel
 from ipcverify.network._architecture import ModelConfig
-from ipcverify.network._interface import Engine, engine_for
+from ipcverify.network._interface import engine_for
+from ipcverify.network._kind import Engine
 from ipcverify.network._nonsingular import checked_ellipsoid
 from ipcverify.network._weights import NetworkWeights, weights_and_network
 from ipcverify.sets._ellipsoid import Ellipsoid
@@ -129,12 +131,7 @@ class IPCModel:
         return self._weights.n_parameters
 
     def _check(self, x: Any, yhat: Any) -> tuple[FloatArray, FloatArray]:
-        xa = np.asarray(x, dtype=np.float64)
-        ya = np.asarray(yhat, dtype=np.float64)
-        if xa.ndim == 1:
-            xa = xa[None]
-        if ya.ndim == 1:
-            ya = ya[None]
+        xa, ya = query_rows(x), query_rows(yhat)
         cfg = self.config
         if xa.shape[1:] != (cfg.x_dim,) or ya.shape[1:] != (cfg.y_dim,) or len(xa) != len(ya):
             raise InvalidInputError(

@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from ipcverify.data._files import atomic_write
 from ipcverify.data._split import split_fractions, split_parts
@@ -441,6 +441,25 @@ class PerceptionInputs:
 
     def __len__(self) -> int:
         return int(self.x.shape[0])
+
+
+def query_rows(a: ArrayLike) -> FloatArray:
+    """Queries as float64 rows: a single query (a 1-D array) becomes one row.
+
+    The caller checks the shapes and values, with its own message.
+
+    Parameters
+    ----------
+    a : array_like
+        One query (1-D) or rows of queries (2-D).
+
+    Examples
+    --------
+    >>> query_rows([1, 2]).shape, query_rows([[1, 2], [3, 4]]).dtype
+    ((1, 2), dtype('float64'))
+    """
+    arr = np.asarray(a, dtype=np.float64)
+    return arr[None] if arr.ndim == 1 else arr
 
 
 def load_inputs(

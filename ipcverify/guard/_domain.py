@@ -54,6 +54,7 @@ from scipy.spatial import cKDTree
 
 from ipcverify.calibration._bounds import marginal_conformal_index
 from ipcverify.calibration._risk_control import risk_control_threshold
+from ipcverify.data._dataset import query_rows
 from ipcverify.data._split import group_codes
 from ipcverify.errors import InvalidInputError, SampleSizeError
 from ipcverify.guard._domain_report import DomainReport
@@ -80,12 +81,7 @@ GROUP_METHOD = (
 
 
 def _stack(x: ArrayLike, yhat: ArrayLike) -> FloatArray:
-    xa = np.asarray(x, dtype=np.float64)
-    ya = np.asarray(yhat, dtype=np.float64)
-    if xa.ndim == 1:
-        xa = xa[None]
-    if ya.ndim == 1:
-        ya = ya[None]
+    xa, ya = query_rows(x), query_rows(yhat)
     if xa.ndim != 2 or ya.ndim != 2 or len(xa) != len(ya):
         raise InvalidInputError(
             f"domain test: x and yhat must be (B, d) and (B, n) with the same B; got {xa.shape}, {ya.shape}"
