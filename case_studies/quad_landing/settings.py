@@ -64,16 +64,45 @@ class ConfigError(InvalidInputError):
 class TomlSection:
     """Base of the dataclasses built from one table of a shipped settings file.
 
-    A subclass (a frozen dataclass) names its file and table (:attr:`toml_file`,
-    :attr:`toml_section`) and carries **no default values**: the file holds them, so a
-    value has one source. The loaders build whole configurations; :meth:`defaults` builds
-    one section from the shipped table, with some keys replaced (for examples and tests).
+    A subclass (a frozen dataclass) names its file and table in its class statement,
+    ``class SimParams(TomlSection, file=DEFAULTS_PATH, section="sim")`` (they become
+    :attr:`toml_file` and :attr:`toml_section`), and carries **no default values**: the
+    file holds them, so a value has one source. The loaders build whole configurations;
+    :meth:`defaults` builds one section from the shipped table, with some keys replaced
+    (for examples and tests).
+
+    Examples
+    --------
+    >>> @dataclasses.dataclass(frozen=True, kw_only=True)
+    ... class Quad(TomlSection, file=DEFAULTS_PATH, section="quad"):
+    ...     mass: float
+    >>> Quad.toml_section, Quad.toml_file.name
+    ('quad', 'defaults.toml')
+    >>> class Half(TomlSection, section="quad"):
+    ...     pass
+    Traceback (most recent call last):
+    ...
+    TypeError: Half: a TomlSection names both its file and its section, or neither
     """
 
     #: The shipped file the section is read from.
     toml_file: ClassVar[Path]
     #: The section's table name in that file.
     toml_section: ClassVar[str]
+
+    def __init_subclass__(
+        cls, *, file: Path | None = None, section: str | None = None, **kwargs: Any
+    ) -> None:
+        """Set :attr:`toml_file` and :attr:`toml_section` from the class keywords.
+
+        A subclass without them (a base for other sections, or a table that is never loaded
+        from a file, as in :func:`merge_sections`'s example) inherits what its base has.
+        """
+        super().__init_subclass__(**kwargs)
+        if (file is None) != (section is None):
+            raise TypeError(f"{cls.__name__}: a TomlSection names both its file and its section, or neither")
+        if file is not None and section is not None:
+            cls.toml_file, cls.toml_section = file, section
 
     @classmethod
     def toml_keys(cls) -> frozenset[str]:

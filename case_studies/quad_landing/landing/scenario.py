@@ -60,7 +60,7 @@ FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True, kw_only=True)
-class ScenarioParams(TomlSection):
+class ScenarioParams(TomlSection, file=REPRODUCE_PATH, section="scenario"):
     """How a landing run starts: a random pad, the vehicle arriving toward a prior guess of it.
 
     Parameters
@@ -84,9 +84,6 @@ class ScenarioParams(TomlSection):
     >>> ScenarioParams.defaults().transit_speed  # [scenario] of reproduce.toml
     (1.2, 1.8)
     """
-
-    toml_file = REPRODUCE_PATH
-    toml_section = "scenario"
 
     pad_region: float
     start_distance: Range

@@ -86,7 +86,7 @@ FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True, kw_only=True)
-class LandingParams(TomlSection):
+class LandingParams(TomlSection, file=REPRODUCE_PATH, section="landing"):
     """The landing state machine (see :mod:`.state_machine`).
 
     Parameters
@@ -117,9 +117,6 @@ class LandingParams(TomlSection):
     >>> LandingParams.defaults().tracking_tolerance  # [landing] of reproduce.toml
     0.005
     """
-
-    toml_file = REPRODUCE_PATH
-    toml_section = "landing"
 
     target_lower: tuple[float, float, float]
     target_upper: tuple[float, float, float]

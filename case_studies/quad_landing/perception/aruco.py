@@ -43,7 +43,7 @@ REFINEMENTS: dict[str, int] = {
 
 
 @dataclass(frozen=True, kw_only=True)
-class DetectorParams(TomlSection):
+class DetectorParams(TomlSection, file=DEFAULTS_PATH, section="detector"):
     """ArUco detector settings.
 
     Parameters
@@ -67,9 +67,6 @@ class DetectorParams(TomlSection):
     >>> DetectorParams.defaults().corner_refinement  # OpenCV's default
     'none'
     """
-
-    toml_file = DEFAULTS_PATH
-    toml_section = "detector"
 
     corner_refinement: str
     april_tag_min_white_black_diff: int

@@ -43,7 +43,7 @@ def aruco_dictionary(name: str) -> cv2.aruco.Dictionary:
 
 
 @dataclass(frozen=True, kw_only=True)
-class MarkerParams(TomlSection):
+class MarkerParams(TomlSection, file=DEFAULTS_PATH, section="marker"):
     """The ArUco marker on the pad.
 
     Parameters
@@ -62,9 +62,6 @@ class MarkerParams(TomlSection):
     >>> round(MarkerParams.defaults(side=0.3).pad_side, 3)
     0.4
     """
-
-    toml_file = DEFAULTS_PATH
-    toml_section = "marker"
 
     dictionary: str
     marker_id: int

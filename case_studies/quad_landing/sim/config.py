@@ -42,7 +42,7 @@ __all__ = ["SimParams", "CollectParams", "SimConfig", "load_config", "SIM_SECTIO
 
 
 @dataclass(frozen=True, kw_only=True)
-class SimParams(TomlSection):
+class SimParams(TomlSection, file=DEFAULTS_PATH, section="sim"):
     """Simulation settings.
 
     Parameters
@@ -59,9 +59,6 @@ class SimParams(TomlSection):
     >>> SimParams.defaults().physics_rate  # [sim] of defaults.toml
     240.0
     """
-
-    toml_file = DEFAULTS_PATH
-    toml_section = "sim"
 
     physics_rate: float
     ground_z: float
@@ -86,7 +83,7 @@ class SimParams(TomlSection):
 
 
 @dataclass(frozen=True, kw_only=True)
-class CollectParams(TomlSection):
+class CollectParams(TomlSection, file=DEFAULTS_PATH, section="collect"):
     """Data-collection settings.
 
     Parameters
@@ -105,9 +102,6 @@ class CollectParams(TomlSection):
     >>> CollectParams.defaults().n
     5000
     """
-
-    toml_file = DEFAULTS_PATH
-    toml_section = "collect"
 
     n: int
     buffer_size: BufferSize

@@ -45,7 +45,7 @@ STATE_NAMES: tuple[str, ...] = (
 
 
 @dataclass(frozen=True, kw_only=True)
-class QuadParams(TomlSection):
+class QuadParams(TomlSection, file=DEFAULTS_PATH, section="quad"):
     """Physical parameters of an F450-class quadrotor.
 
     Parameters
@@ -71,9 +71,6 @@ class QuadParams(TomlSection):
     >>> round(hover_thrust(p), 3)  # 1.5 kg * 9.81 m/s^2 / 4
     3.679
     """
-
-    toml_file = DEFAULTS_PATH
-    toml_section = "quad"
 
     mass: float
     inertia: tuple[float, float, float]

@@ -50,7 +50,7 @@ def _positive_tuple(name: str, values: ArrayLike, n: int) -> tuple[float, ...]:
 
 
 @dataclass(frozen=True, kw_only=True)
-class LqrParams(TomlSection):
+class LqrParams(TomlSection, file=DEFAULTS_PATH, section="lqr"):
     """LQR weights and error clamps.
 
     Parameters
@@ -70,9 +70,6 @@ class LqrParams(TomlSection):
     0.5
     """
 
-    toml_file = DEFAULTS_PATH
-    toml_section = "lqr"
-
     q_position: tuple[float, float, float]
     q_velocity: tuple[float, float, float]
     q_attitude: tuple[float, float, float]
@@ -91,7 +88,7 @@ class LqrParams(TomlSection):
 
 
 @dataclass(frozen=True, kw_only=True)
-class SettleParams(TomlSection):
+class SettleParams(TomlSection, file=DEFAULTS_PATH, section="settle"):
     """When a waypoint counts as reached: within tolerances for ``hold_time`` seconds.
 
     Examples
@@ -99,9 +96,6 @@ class SettleParams(TomlSection):
     >>> SettleParams.defaults().position_tolerance
     0.02
     """
-
-    toml_file = DEFAULTS_PATH
-    toml_section = "settle"
 
     position_tolerance: float
     velocity_tolerance: float

@@ -25,7 +25,7 @@ FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True)
-class Pad(TomlSection):
+class Pad(TomlSection, file=DEFAULTS_PATH, section="pad"):
     """Where the pad lies: centre position in W (m) and heading ``yaw`` (rad) about ``z_W``.
 
     Examples
@@ -35,9 +35,6 @@ class Pad(TomlSection):
     >>> Pad.defaults().yaw  # [pad] of defaults.toml
     0.3
     """
-
-    toml_file = DEFAULTS_PATH
-    toml_section = "pad"
 
     position: FloatArray
     yaw: float

@@ -43,7 +43,7 @@ VIEW_CHECK_DT = 1.0 / 30.0
 
 
 @dataclass(frozen=True, kw_only=True)
-class PathParams(TomlSection):
+class PathParams(TomlSection, file=DEFAULTS_PATH, section="paths"):
     """Limits of the exploration paths.
 
     Parameters
@@ -60,9 +60,6 @@ class PathParams(TomlSection):
     >>> PathParams.defaults().max_height
     2.4
     """
-
-    toml_file = DEFAULTS_PATH
-    toml_section = "paths"
 
     duration: float
     min_height: float

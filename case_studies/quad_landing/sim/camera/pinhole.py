@@ -25,7 +25,7 @@ FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True, kw_only=True)
-class CameraParams(TomlSection):
+class CameraParams(TomlSection, file=DEFAULTS_PATH, section="camera"):
     """Intrinsics and mount of the camera.
 
     Parameters
@@ -49,9 +49,6 @@ class CameraParams(TomlSection):
     >>> CameraParams.defaults(fx=250.0).fx
     250.0
     """
-
-    toml_file = DEFAULTS_PATH
-    toml_section = "camera"
 
     width: int
     height: int

@@ -56,7 +56,7 @@ FLOOR_SEED = 20230
 
 
 @dataclass(frozen=True, kw_only=True)
-class RenderParams(TomlSection):
+class RenderParams(TomlSection, file=DEFAULTS_PATH, section="render"):
     """Image formation settings.
 
     Parameters
@@ -76,9 +76,6 @@ class RenderParams(TomlSection):
     >>> RenderParams.defaults(noise_std=0.0).blur_sigma
     0.5
     """
-
-    toml_file = DEFAULTS_PATH
-    toml_section = "render"
 
     floor: str
     floor_gray: int
