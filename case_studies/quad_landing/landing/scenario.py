@@ -30,8 +30,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from case_studies.quad_landing.arrays import FloatArray
 from case_studies.quad_landing.settings import (
     REPRODUCE_PATH,
     ConfigError,
@@ -55,8 +56,6 @@ __all__ = [
     "stopping_reference",
     "SCENARIO_STREAM",
 ]
-
-FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True, kw_only=True)

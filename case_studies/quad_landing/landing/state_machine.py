@@ -55,8 +55,8 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
+from case_studies.quad_landing.arrays import FloatArray
 from case_studies.quad_landing.landing.contracts import Contract
 from case_studies.quad_landing.landing.runs import INTO_PAD_REASON, LandingRun, Outcome, QueryRecord
 from case_studies.quad_landing.landing.scenario import Scenario, camera_offset_z
@@ -81,8 +81,6 @@ __all__ = [
     "into_pad",
     "run_landing",
 ]
-
-FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -25,13 +25,13 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from case_studies.quad_landing.arrays import FloatArray
 from case_studies.quad_landing.perception.marker import MarkerParams, aruco_dictionary
 from case_studies.quad_landing.settings import DEFAULTS_PATH, TomlSection
 from ipcverify.errors import InvalidInputError
 
 __all__ = ["DetectorParams", "ArucoPerception", "Intrinsics", "REFINEMENTS"]
 
-FloatArray = NDArray[np.float64]
 
 #: Corner refinement names accepted by :class:`DetectorParams` and their OpenCV flags.
 REFINEMENTS: dict[str, int] = {

@@ -14,14 +14,13 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-from numpy.typing import NDArray
 
+from case_studies.quad_landing.arrays import FloatArray
 from case_studies.quad_landing.settings import DEFAULTS_PATH, TomlSection
 from ipcverify.errors import InvalidInputError
 
 __all__ = ["MarkerParams", "aruco_dictionary", "MARKER_CELLS"]
 
-FloatArray = NDArray[np.float64]
 
 #: Cells along one side of a 4x4 ArUco marker including its one-cell black border.
 MARKER_CELLS = 6

@@ -20,8 +20,8 @@ from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
-from numpy.typing import NDArray
 
+from case_studies.quad_landing.arrays import FloatArray
 from case_studies.quad_landing.settings import DEFAULTS_PATH, TomlSection
 from ipcverify.errors import InvalidInputError
 
@@ -36,7 +36,6 @@ __all__ = [
     "linearize_hover",
 ]
 
-FloatArray = NDArray[np.float64]
 
 #: Names of the 12 state components, in order.
 STATE_NAMES: tuple[str, ...] = (

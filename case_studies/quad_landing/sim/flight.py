@@ -32,6 +32,7 @@ import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from case_studies.quad_landing.arrays import FloatArray
 from case_studies.quad_landing.perception.aruco import ArucoPerception
 from case_studies.quad_landing.sim.camera import Camera, Measurement, Renderer, build_camera_stage
 from case_studies.quad_landing.sim.config import SimConfig, load_config
@@ -45,7 +46,6 @@ from ipcverify.errors import InvalidInputError
 
 __all__ = ["Flight", "Measurement", "FlyResult", "LandingResult"]  # Measurement: from .measurement
 
-FloatArray = NDArray[np.float64]
 ReferenceLike = Reference | Callable[[float], Reference] | None
 
 

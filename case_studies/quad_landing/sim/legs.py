@@ -22,15 +22,14 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from case_studies.quad_landing.arrays import FloatArray
 from case_studies.quad_landing.sim.flight import Flight
 from case_studies.quad_landing.sim.lqr import Reference, SettleParams, is_settled
 from ipcverify.errors import InvalidInputError
 
 __all__ = ["LegResult", "fly_leg", "clamp_to_workspace", "is_settled"]
-
-FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True)

@@ -27,8 +27,9 @@ from dataclasses import dataclass, field
 
 import control
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from case_studies.quad_landing.arrays import FloatArray
 from case_studies.quad_landing.settings import DEFAULTS_PATH, TomlSection
 from case_studies.quad_landing.sim.dynamics import QuadParams, hover_thrust, linearize_hover
 from case_studies.quad_landing.sim.frames import wrap_angle
@@ -36,7 +37,6 @@ from ipcverify.errors import InvalidInputError
 
 __all__ = ["LqrParams", "SettleParams", "is_settled", "Reference", "HoverLqr", "MOTORS_OFF"]
 
-FloatArray = NDArray[np.float64]
 
 #: The motors-off command (all rotor thrusts zero).
 MOTORS_OFF: FloatArray = np.zeros(4)

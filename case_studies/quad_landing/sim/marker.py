@@ -13,15 +13,13 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
+from case_studies.quad_landing.arrays import FloatArray
 from case_studies.quad_landing.settings import DEFAULTS_PATH, TomlSection
 from case_studies.quad_landing.sim.frames import Pose, rot_z
 from ipcverify.errors import InvalidInputError
 
 __all__ = ["Pad"]
-
-FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True)

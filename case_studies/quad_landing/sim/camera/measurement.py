@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
+from case_studies.quad_landing.arrays import FloatArray
 from case_studies.quad_landing.sim.camera.features import camera_frame_state
 from case_studies.quad_landing.sim.camera.pinhole import Camera
 from case_studies.quad_landing.sim.frames import Pose
@@ -36,8 +37,6 @@ if TYPE_CHECKING:
     from case_studies.quad_landing.sim.history import StateHistory
 
 __all__ = ["Measurement", "CameraStage", "StageParts", "pair"]
-
-FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True, eq=False)
