@@ -37,6 +37,7 @@ __all__ = [
     "TomlSection",
     "Range",
     "read_toml",
+    "sections_by_name",
     "merge_sections",
     "build_sections",
     "toml_default",
@@ -148,6 +149,35 @@ def read_toml(path: str | Path) -> dict[str, Any]:
 def toml_default(path: str | Path, section: str, key: str) -> Any:
     """The value of ``[section] key`` in a shipped settings file (e.g. for ``--help`` texts)."""
     return read_toml(path)[section][key]
+
+
+def sections_by_name(*classes: type[TomlSection]) -> dict[str, type[TomlSection]]:
+    """``{toml_section: class}`` of the sections of one file, in the order given.
+
+    A class that names no section, or two that name the same one, is an error (the table
+    would be read by no class, or by one of them unseen).
+
+    Examples
+    --------
+    >>> @dataclasses.dataclass(frozen=True, kw_only=True)
+    ... class Quad(TomlSection, file=DEFAULTS_PATH, section="quad"):
+    ...     mass: float
+    >>> sections_by_name(Quad)
+    {'quad': <class 'case_studies.quad_landing.settings.Quad'>}
+    >>> sections_by_name(Quad, Quad)
+    Traceback (most recent call last):
+    ...
+    ValueError: Quad and Quad both read [quad]
+    """
+    out: dict[str, type[TomlSection]] = {}
+    for cls in classes:
+        name = getattr(cls, "toml_section", None)
+        if name is None:
+            raise ValueError(f"{cls.__name__} names no section (class keywords file=..., section=...)")
+        if name in out:
+            raise ValueError(f"{out[name].__name__} and {cls.__name__} both read [{name}]")
+        out[name] = cls
+    return out
 
 
 def merge_sections(

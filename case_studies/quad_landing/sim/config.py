@@ -25,6 +25,7 @@ from case_studies.quad_landing.settings import (
     build_sections,
     merge_sections,
     read_toml,
+    sections_by_name,
 )
 from case_studies.quad_landing.sim.camera import (
     BufferSize,
@@ -179,23 +180,20 @@ class SimConfig:
 
 
 #: The sections of ``defaults.toml`` and their dataclasses, in the order of :class:`SimConfig`.
-SIM_SECTIONS: dict[str, type[TomlSection]] = {
-    cls.toml_section: cls
-    for cls in (
-        QuadParams,
-        SimParams,
-        LqrParams,
-        SettleParams,
-        CameraParams,
-        MarkerParams,
-        Pad,
-        RenderParams,
-        DetectorParams,
-        CameraTimingParams,
-        PathParams,
-        CollectParams,
-    )
-}
+SIM_SECTIONS: dict[str, type[TomlSection]] = sections_by_name(
+    QuadParams,
+    SimParams,
+    LqrParams,
+    SettleParams,
+    CameraParams,
+    MarkerParams,
+    Pad,
+    RenderParams,
+    DetectorParams,
+    CameraTimingParams,
+    PathParams,
+    CollectParams,
+)
 
 
 def load_config(
