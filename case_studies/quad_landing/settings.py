@@ -37,6 +37,7 @@ __all__ = [
     "TomlSection",
     "Range",
     "read_toml",
+    "sections_by_name",
     "merge_sections",
     "build_sections",
     "toml_default",
@@ -64,16 +65,45 @@ class ConfigError(InvalidInputError):
 class TomlSection:
     """Base of the dataclasses built from one table of a shipped settings file.
 
-    A subclass (a frozen dataclass) names its file and table (:attr:`toml_file`,
-    :attr:`toml_section`) and carries **no default values**: the file holds them, so a
-    value has one source. The loaders build whole configurations; :meth:`defaults` builds
-    one section from the shipped table, with some keys replaced (for examples and tests).
+    A subclass (a frozen dataclass) names its file and table in its class statement,
+    ``class SimParams(TomlSection, file=DEFAULTS_PATH, section="sim")`` (they become
+    :attr:`toml_file` and :attr:`toml_section`), and carries **no default values**: the
+    file holds them, so a value has one source. The loaders build whole configurations;
+    :meth:`defaults` builds one section from the shipped table, with some keys replaced
+    (for examples and tests).
+
+    Examples
+    --------
+    >>> @dataclasses.dataclass(frozen=True, kw_only=True)
+    ... class Quad(TomlSection, file=DEFAULTS_PATH, section="quad"):
+    ...     mass: float
+    >>> Quad.toml_section, Quad.toml_file.name
+    ('quad', 'defaults.toml')
+    >>> class Half(TomlSection, section="quad"):
+    ...     pass
+    Traceback (most recent call last):
+    ...
+    TypeError: Half: a TomlSection names both its file and its section, or neither
     """
 
     #: The shipped file the section is read from.
     toml_file: ClassVar[Path]
     #: The section's table name in that file.
     toml_section: ClassVar[str]
+
+    def __init_subclass__(
+        cls, *, file: Path | None = None, section: str | None = None, **kwargs: Any
+    ) -> None:
+        """Set :attr:`toml_file` and :attr:`toml_section` from the class keywords.
+
+        A subclass without them (a base for other sections, or a table that is never loaded
+        from a file, as in :func:`merge_sections`'s example) inherits what its base has.
+        """
+        super().__init_subclass__(**kwargs)
+        if (file is None) != (section is None):
+            raise TypeError(f"{cls.__name__}: a TomlSection names both its file and its section, or neither")
+        if file is not None and section is not None:
+            cls.toml_file, cls.toml_section = file, section
 
     @classmethod
     def toml_keys(cls) -> frozenset[str]:
@@ -119,6 +149,35 @@ def read_toml(path: str | Path) -> dict[str, Any]:
 def toml_default(path: str | Path, section: str, key: str) -> Any:
     """The value of ``[section] key`` in a shipped settings file (e.g. for ``--help`` texts)."""
     return read_toml(path)[section][key]
+
+
+def sections_by_name(*classes: type[TomlSection]) -> dict[str, type[TomlSection]]:
+    """``{toml_section: class}`` of the sections of one file, in the order given.
+
+    A class that names no section, or two that name the same one, is an error (the table
+    would be read by no class, or by one of them unseen).
+
+    Examples
+    --------
+    >>> @dataclasses.dataclass(frozen=True, kw_only=True)
+    ... class Quad(TomlSection, file=DEFAULTS_PATH, section="quad"):
+    ...     mass: float
+    >>> sections_by_name(Quad)
+    {'quad': <class 'case_studies.quad_landing.settings.Quad'>}
+    >>> sections_by_name(Quad, Quad)
+    Traceback (most recent call last):
+    ...
+    ValueError: Quad and Quad both read [quad]
+    """
+    out: dict[str, type[TomlSection]] = {}
+    for cls in classes:
+        name = getattr(cls, "toml_section", None)
+        if name is None:
+            raise ValueError(f"{cls.__name__} names no section (class keywords file=..., section=...)")
+        if name in out:
+            raise ValueError(f"{out[name].__name__} and {cls.__name__} both read [{name}]")
+        out[name] = cls
+    return out
 
 
 def merge_sections(

@@ -9,7 +9,7 @@ import pytest
 
 #: Every module of the case study with examples, by subpackage.
 MODULES = [
-    "settings",
+    "arrays", "settings",
     "sim.camera.buffer", "sim.camera.driver_queue", "sim.camera.exposure", "sim.camera.features",
     "sim.camera.framebuffer", "sim.camera.measurement", "sim.camera.pinhole", "sim.camera.render",
     "sim.camera.stage", "sim.camera.timed", "sim.camera.timing",

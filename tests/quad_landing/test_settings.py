@@ -14,6 +14,7 @@ from case_studies.quad_landing.settings import (
     ConfigError,
     TomlSection,
     read_toml,
+    sections_by_name,
 )
 from case_studies.quad_landing.sim.config import SIM_SECTIONS, load_config
 from case_studies.quad_landing.sim.dynamics import QuadParams
@@ -67,6 +68,22 @@ def test_section_dataclasses_have_no_default_values(path, name, cls):
         if f.init and (f.default is not dataclasses.MISSING or f.default_factory is not dataclasses.MISSING)
     ]
     assert with_default == [], f"{cls.__name__} duplicates the values of [{name}] in {path.name}"
+
+
+def test_a_section_names_its_file_and_table_in_its_class_statement():
+    @dataclasses.dataclass(frozen=True, kw_only=True)
+    class Box(TomlSection, file=REPRODUCE_PATH, section="box"):
+        side: float
+
+    assert (Box.toml_file, Box.toml_section) == (REPRODUCE_PATH, "box")
+    assert "toml_section" not in vars(TomlSection)  # the base names no table
+    with pytest.raises(TypeError, match="both its file and its section"):
+        type("Half", (TomlSection,), {}, file=DEFAULTS_PATH)
+    with pytest.raises(ValueError, match="names no section"):
+        sections_by_name(Box, type("Bare", (TomlSection,), {}))
+    with pytest.raises(ValueError, match=r"QuadParams and Twin both read \[quad\]"):
+        sections_by_name(QuadParams, type("Twin", (TomlSection,), {}, file=DEFAULTS_PATH, section="quad"))
+    assert list(SIM_SECTIONS) == list(read_toml(DEFAULTS_PATH))  # one class a table, in the file's order
 
 
 @pytest.mark.parametrize(("path", "name", "cls"), SECTIONS, ids=IDS)

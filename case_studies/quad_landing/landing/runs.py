@@ -16,13 +16,11 @@ from enum import Enum
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
+from case_studies.quad_landing.arrays import FloatArray
 from case_studies.quad_landing.landing.scenario import Scenario
 
 __all__ = ["INTO_PAD_REASON", "Outcome", "QueryRecord", "LandingRun"]
-
-FloatArray = NDArray[np.float64]
 
 
 #: Why a run that drove the vehicle into the pad is unsafe (``state_machine.into_pad``).

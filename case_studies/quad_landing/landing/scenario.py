@@ -30,8 +30,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from case_studies.quad_landing.arrays import FloatArray
 from case_studies.quad_landing.settings import (
     REPRODUCE_PATH,
     ConfigError,
@@ -56,11 +57,9 @@ __all__ = [
     "SCENARIO_STREAM",
 ]
 
-FloatArray = NDArray[np.float64]
-
 
 @dataclass(frozen=True, kw_only=True)
-class ScenarioParams(TomlSection):
+class ScenarioParams(TomlSection, file=REPRODUCE_PATH, section="scenario"):
     """How a landing run starts: a random pad, the vehicle arriving toward a prior guess of it.
 
     Parameters
@@ -84,9 +83,6 @@ class ScenarioParams(TomlSection):
     >>> ScenarioParams.defaults().transit_speed  # [scenario] of reproduce.toml
     (1.2, 1.8)
     """
-
-    toml_file = REPRODUCE_PATH
-    toml_section = "scenario"
 
     pad_region: float
     start_distance: Range

@@ -55,8 +55,8 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
+from case_studies.quad_landing.arrays import FloatArray
 from case_studies.quad_landing.landing.contracts import Contract
 from case_studies.quad_landing.landing.runs import INTO_PAD_REASON, LandingRun, Outcome, QueryRecord
 from case_studies.quad_landing.landing.scenario import Scenario, camera_offset_z
@@ -82,11 +82,9 @@ __all__ = [
     "run_landing",
 ]
 
-FloatArray = NDArray[np.float64]
-
 
 @dataclass(frozen=True, kw_only=True)
-class LandingParams(TomlSection):
+class LandingParams(TomlSection, file=REPRODUCE_PATH, section="landing"):
     """The landing state machine (see :mod:`.state_machine`).
 
     Parameters
@@ -117,9 +115,6 @@ class LandingParams(TomlSection):
     >>> LandingParams.defaults().tracking_tolerance  # [landing] of reproduce.toml
     0.005
     """
-
-    toml_file = REPRODUCE_PATH
-    toml_section = "landing"
 
     target_lower: tuple[float, float, float]
     target_upper: tuple[float, float, float]

@@ -25,13 +25,13 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from case_studies.quad_landing.arrays import FloatArray
 from case_studies.quad_landing.perception.marker import MarkerParams, aruco_dictionary
 from case_studies.quad_landing.settings import DEFAULTS_PATH, TomlSection
 from ipcverify.errors import InvalidInputError
 
 __all__ = ["DetectorParams", "ArucoPerception", "Intrinsics", "REFINEMENTS"]
 
-FloatArray = NDArray[np.float64]
 
 #: Corner refinement names accepted by :class:`DetectorParams` and their OpenCV flags.
 REFINEMENTS: dict[str, int] = {
@@ -43,7 +43,7 @@ REFINEMENTS: dict[str, int] = {
 
 
 @dataclass(frozen=True, kw_only=True)
-class DetectorParams(TomlSection):
+class DetectorParams(TomlSection, file=DEFAULTS_PATH, section="detector"):
     """ArUco detector settings.
 
     Parameters
@@ -67,9 +67,6 @@ class DetectorParams(TomlSection):
     >>> DetectorParams.defaults().corner_refinement  # OpenCV's default
     'none'
     """
-
-    toml_file = DEFAULTS_PATH
-    toml_section = "detector"
 
     corner_refinement: str
     april_tag_min_white_black_diff: int

@@ -14,14 +14,13 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-from numpy.typing import NDArray
 
+from case_studies.quad_landing.arrays import FloatArray
 from case_studies.quad_landing.settings import DEFAULTS_PATH, TomlSection
 from ipcverify.errors import InvalidInputError
 
 __all__ = ["MarkerParams", "aruco_dictionary", "MARKER_CELLS"]
 
-FloatArray = NDArray[np.float64]
 
 #: Cells along one side of a 4x4 ArUco marker including its one-cell black border.
 MARKER_CELLS = 6
@@ -43,7 +42,7 @@ def aruco_dictionary(name: str) -> cv2.aruco.Dictionary:
 
 
 @dataclass(frozen=True, kw_only=True)
-class MarkerParams(TomlSection):
+class MarkerParams(TomlSection, file=DEFAULTS_PATH, section="marker"):
     """The ArUco marker on the pad.
 
     Parameters
@@ -62,9 +61,6 @@ class MarkerParams(TomlSection):
     >>> round(MarkerParams.defaults(side=0.3).pad_side, 3)
     0.4
     """
-
-    toml_file = DEFAULTS_PATH
-    toml_section = "marker"
 
     dictionary: str
     marker_id: int

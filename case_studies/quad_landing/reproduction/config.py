@@ -42,6 +42,7 @@ from case_studies.quad_landing.settings import (
     check_positive,
     merge_sections,
     read_toml,
+    sections_by_name,
 )
 from case_studies.quad_landing.sim.camera import BufferSize, check_buffer_size
 from ipcverify.errors import InvalidInputError
@@ -396,19 +397,16 @@ class ReproduceConfig:
 
 
 #: The sections of ``reproduce.toml`` and their dataclasses.
-REPRODUCE_SECTIONS: dict[str, type[TomlSection]] = {
-    cls.toml_section: cls
-    for cls in (
-        ScenarioParams,
-        ApproachParams,
-        PilotParams,
-        LandingParams,
-        IpcParams,
-        PaperParams,
-        Sizes,
-        AblationSizes,
-    )
-}
+REPRODUCE_SECTIONS: dict[str, type[TomlSection]] = sections_by_name(
+    ScenarioParams,
+    ApproachParams,
+    PilotParams,
+    LandingParams,
+    IpcParams,
+    PaperParams,
+    Sizes,
+    AblationSizes,
+)
 
 
 def load_reproduce_config(

@@ -25,6 +25,7 @@ from case_studies.quad_landing.settings import (
     build_sections,
     merge_sections,
     read_toml,
+    sections_by_name,
 )
 from case_studies.quad_landing.sim.camera import (
     BufferSize,
@@ -42,7 +43,7 @@ __all__ = ["SimParams", "CollectParams", "SimConfig", "load_config", "SIM_SECTIO
 
 
 @dataclass(frozen=True, kw_only=True)
-class SimParams(TomlSection):
+class SimParams(TomlSection, file=DEFAULTS_PATH, section="sim"):
     """Simulation settings.
 
     Parameters
@@ -59,9 +60,6 @@ class SimParams(TomlSection):
     >>> SimParams.defaults().physics_rate  # [sim] of defaults.toml
     240.0
     """
-
-    toml_file = DEFAULTS_PATH
-    toml_section = "sim"
 
     physics_rate: float
     ground_z: float
@@ -86,7 +84,7 @@ class SimParams(TomlSection):
 
 
 @dataclass(frozen=True, kw_only=True)
-class CollectParams(TomlSection):
+class CollectParams(TomlSection, file=DEFAULTS_PATH, section="collect"):
     """Data-collection settings.
 
     Parameters
@@ -105,9 +103,6 @@ class CollectParams(TomlSection):
     >>> CollectParams.defaults().n
     5000
     """
-
-    toml_file = DEFAULTS_PATH
-    toml_section = "collect"
 
     n: int
     buffer_size: BufferSize
@@ -185,23 +180,20 @@ class SimConfig:
 
 
 #: The sections of ``defaults.toml`` and their dataclasses, in the order of :class:`SimConfig`.
-SIM_SECTIONS: dict[str, type[TomlSection]] = {
-    cls.toml_section: cls
-    for cls in (
-        QuadParams,
-        SimParams,
-        LqrParams,
-        SettleParams,
-        CameraParams,
-        MarkerParams,
-        Pad,
-        RenderParams,
-        DetectorParams,
-        CameraTimingParams,
-        PathParams,
-        CollectParams,
-    )
-}
+SIM_SECTIONS: dict[str, type[TomlSection]] = sections_by_name(
+    QuadParams,
+    SimParams,
+    LqrParams,
+    SettleParams,
+    CameraParams,
+    MarkerParams,
+    Pad,
+    RenderParams,
+    DetectorParams,
+    CameraTimingParams,
+    PathParams,
+    CollectParams,
+)
 
 
 def load_config(

@@ -20,8 +20,8 @@ from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
-from numpy.typing import NDArray
 
+from case_studies.quad_landing.arrays import FloatArray
 from case_studies.quad_landing.settings import DEFAULTS_PATH, TomlSection
 from ipcverify.errors import InvalidInputError
 
@@ -36,7 +36,6 @@ __all__ = [
     "linearize_hover",
 ]
 
-FloatArray = NDArray[np.float64]
 
 #: Names of the 12 state components, in order.
 STATE_NAMES: tuple[str, ...] = (
@@ -45,7 +44,7 @@ STATE_NAMES: tuple[str, ...] = (
 
 
 @dataclass(frozen=True, kw_only=True)
-class QuadParams(TomlSection):
+class QuadParams(TomlSection, file=DEFAULTS_PATH, section="quad"):
     """Physical parameters of an F450-class quadrotor.
 
     Parameters
@@ -71,9 +70,6 @@ class QuadParams(TomlSection):
     >>> round(hover_thrust(p), 3)  # 1.5 kg * 9.81 m/s^2 / 4
     3.679
     """
-
-    toml_file = DEFAULTS_PATH
-    toml_section = "quad"
 
     mass: float
     inertia: tuple[float, float, float]

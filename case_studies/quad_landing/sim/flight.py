@@ -32,20 +32,20 @@ import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from case_studies.quad_landing.arrays import FloatArray
 from case_studies.quad_landing.perception.aruco import ArucoPerception
 from case_studies.quad_landing.sim.camera import Camera, Measurement, Renderer, build_camera_stage
 from case_studies.quad_landing.sim.config import SimConfig, load_config
 from case_studies.quad_landing.sim.dynamics import rk4_step
-from case_studies.quad_landing.sim.frames import Pose, wrap_angle
+from case_studies.quad_landing.sim.frames import Pose
 from case_studies.quad_landing.sim.history import StateHistory
-from case_studies.quad_landing.sim.lqr import HoverLqr, Reference, SettleParams
+from case_studies.quad_landing.sim.lqr import HoverLqr, Reference, SettleParams, is_settled
 from case_studies.quad_landing.sim.marker import Pad
 from case_studies.quad_landing.sim.paths import ExplorationPath
 from ipcverify.errors import InvalidInputError
 
 __all__ = ["Flight", "Measurement", "FlyResult", "LandingResult"]  # Measurement: from .measurement
 
-FloatArray = NDArray[np.float64]
 ReferenceLike = Reference | Callable[[float], Reference] | None
 
 
@@ -298,14 +298,6 @@ class Flight:
         if n_frames:
             self._reference = path.reference(float(t[-1]))
 
-    def _settled(self, ref: Reference, settle: SettleParams) -> bool:
-        x = self._require_state()
-        return bool(
-            np.linalg.norm(x[:3] - ref.position) <= settle.position_tolerance
-            and np.linalg.norm(x[3:6]) <= settle.velocity_tolerance
-            and abs(float(wrap_angle(x[8] - ref.yaw))) <= settle.yaw_tolerance
-        )
-
     def fly_to(
         self,
         position: ArrayLike,
@@ -342,7 +334,8 @@ class Flight:
         start, held = self._time, 0.0
         while self._time - start < max_time - 1e-9:
             self.step(ref)
-            held = held + 1.0 / self.config.camera.fps if self._settled(ref, crit) else 0.0
+            settled = is_settled(self._require_state(), ref.position, ref.yaw, crit)
+            held = held + 1.0 / self.config.camera.fps if settled else 0.0
             if held >= crit.hold_time - 1e-9:
                 break
         err = float(np.linalg.norm(self._require_state()[:3] - p))

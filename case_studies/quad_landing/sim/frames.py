@@ -20,8 +20,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from case_studies.quad_landing.arrays import FloatArray
 from ipcverify.errors import InvalidInputError
 
 __all__ = [
@@ -37,7 +38,6 @@ __all__ = [
     "transform_ellipsoid",
 ]
 
-FloatArray = NDArray[np.float64]
 
 #: Tolerance on ``||R^T R - I||`` and ``|det R - 1|`` for a matrix to count as a rotation.
 ROTATION_TOL = 1e-6

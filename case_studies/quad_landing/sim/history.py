@@ -31,14 +31,13 @@ from __future__ import annotations
 import bisect
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from case_studies.quad_landing.arrays import FloatArray
 from case_studies.quad_landing.sim.frames import wrap_angle
 from ipcverify.errors import InvalidInputError
 
 __all__ = ["StateHistory", "euler_rates"]
-
-FloatArray = NDArray[np.float64]
 
 
 def euler_rates(x: FloatArray) -> FloatArray:

@@ -22,16 +22,14 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from case_studies.quad_landing.arrays import FloatArray
 from case_studies.quad_landing.sim.flight import Flight
-from case_studies.quad_landing.sim.frames import wrap_angle
-from case_studies.quad_landing.sim.lqr import Reference, SettleParams
+from case_studies.quad_landing.sim.lqr import Reference, SettleParams, is_settled
 from ipcverify.errors import InvalidInputError
 
 __all__ = ["LegResult", "fly_leg", "clamp_to_workspace", "is_settled"]
-
-FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True)
@@ -56,15 +54,6 @@ def clamp_to_workspace(point: ArrayLike, flight: Flight) -> FloatArray:
     lo = np.asarray(flight.config.sim.workspace_min)
     hi = np.asarray(flight.config.sim.workspace_max)
     return np.minimum(np.maximum(p, lo), hi)
-
-
-def is_settled(state: FloatArray, target: FloatArray, yaw: float, settle: SettleParams) -> bool:
-    """Within ``settle``'s position (Euclidean), speed and heading tolerances of ``target``."""
-    return bool(
-        np.linalg.norm(state[:3] - target) <= settle.position_tolerance
-        and np.linalg.norm(state[3:6]) <= settle.velocity_tolerance
-        and abs(float(wrap_angle(state[8] - yaw))) <= settle.yaw_tolerance
-    )
 
 
 def fly_leg(

@@ -27,15 +27,16 @@ from dataclasses import dataclass, field
 
 import control
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from case_studies.quad_landing.arrays import FloatArray
 from case_studies.quad_landing.settings import DEFAULTS_PATH, TomlSection
 from case_studies.quad_landing.sim.dynamics import QuadParams, hover_thrust, linearize_hover
+from case_studies.quad_landing.sim.frames import wrap_angle
 from ipcverify.errors import InvalidInputError
 
-__all__ = ["LqrParams", "SettleParams", "Reference", "HoverLqr", "MOTORS_OFF"]
+__all__ = ["LqrParams", "SettleParams", "is_settled", "Reference", "HoverLqr", "MOTORS_OFF"]
 
-FloatArray = NDArray[np.float64]
 
 #: The motors-off command (all rotor thrusts zero).
 MOTORS_OFF: FloatArray = np.zeros(4)
@@ -50,7 +51,7 @@ def _positive_tuple(name: str, values: ArrayLike, n: int) -> tuple[float, ...]:
 
 
 @dataclass(frozen=True, kw_only=True)
-class LqrParams(TomlSection):
+class LqrParams(TomlSection, file=DEFAULTS_PATH, section="lqr"):
     """LQR weights and error clamps.
 
     Parameters
@@ -70,9 +71,6 @@ class LqrParams(TomlSection):
     0.5
     """
 
-    toml_file = DEFAULTS_PATH
-    toml_section = "lqr"
-
     q_position: tuple[float, float, float]
     q_velocity: tuple[float, float, float]
     q_attitude: tuple[float, float, float]
@@ -91,17 +89,25 @@ class LqrParams(TomlSection):
 
 
 @dataclass(frozen=True, kw_only=True)
-class SettleParams(TomlSection):
+class SettleParams(TomlSection, file=DEFAULTS_PATH, section="settle"):
     """When a waypoint counts as reached: within tolerances for ``hold_time`` seconds.
+
+    Parameters
+    ----------
+    position_tolerance : float
+        Largest distance from the waypoint (m, Euclidean norm in W).
+    velocity_tolerance : float
+        Largest speed (m/s, norm of the velocity in W).
+    yaw_tolerance : float
+        Largest yaw error, wrapped to ``[-pi, pi)`` (rad).
+    hold_time : float
+        How long all three must hold without a break (s).
 
     Examples
     --------
     >>> SettleParams.defaults().position_tolerance
     0.02
     """
-
-    toml_file = DEFAULTS_PATH
-    toml_section = "settle"
 
     position_tolerance: float
     velocity_tolerance: float
@@ -113,6 +119,23 @@ class SettleParams(TomlSection):
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):
                 raise InvalidInputError(f"settle.{name} must be a positive number, got {value}")
+
+
+def is_settled(state: FloatArray, target: FloatArray, yaw: float, settle: SettleParams) -> bool:
+    """Within ``settle``'s position (Euclidean), speed and heading tolerances of ``target``.
+
+    Examples
+    --------
+    >>> state = np.zeros(12)
+    >>> state[:3] = (0.01, 0.0, 1.2)
+    >>> is_settled(state, np.array([0.0, 0.0, 1.2]), 0.0, SettleParams.defaults())
+    True
+    """
+    return bool(
+        np.linalg.norm(state[:3] - target) <= settle.position_tolerance
+        and np.linalg.norm(state[3:6]) <= settle.velocity_tolerance
+        and abs(float(wrap_angle(state[8] - yaw))) <= settle.yaw_tolerance
+    )
 
 
 @dataclass(frozen=True)

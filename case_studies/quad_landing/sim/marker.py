@@ -13,19 +13,17 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
+from case_studies.quad_landing.arrays import FloatArray
 from case_studies.quad_landing.settings import DEFAULTS_PATH, TomlSection
 from case_studies.quad_landing.sim.frames import Pose, rot_z
 from ipcverify.errors import InvalidInputError
 
 __all__ = ["Pad"]
 
-FloatArray = NDArray[np.float64]
-
 
 @dataclass(frozen=True)
-class Pad(TomlSection):
+class Pad(TomlSection, file=DEFAULTS_PATH, section="pad"):
     """Where the pad lies: centre position in W (m) and heading ``yaw`` (rad) about ``z_W``.
 
     Examples
@@ -35,9 +33,6 @@ class Pad(TomlSection):
     >>> Pad.defaults().yaw  # [pad] of defaults.toml
     0.3
     """
-
-    toml_file = DEFAULTS_PATH
-    toml_section = "pad"
 
     position: FloatArray
     yaw: float

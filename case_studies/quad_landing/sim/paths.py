@@ -22,8 +22,9 @@ from dataclasses import dataclass, replace
 from typing import NamedTuple
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from case_studies.quad_landing.arrays import FloatArray
 from case_studies.quad_landing.settings import DEFAULTS_PATH, TomlSection
 from case_studies.quad_landing.sim.camera import Camera
 from case_studies.quad_landing.sim.frames import mount_rotation
@@ -33,7 +34,6 @@ from ipcverify.errors import InvalidInputError
 __all__ = ["PathParams", "PathSample", "ExplorationPath", "TEMPLATES", "make_path", "exploration_paths",
            "fit_to_view"]  # fmt: skip
 
-FloatArray = NDArray[np.float64]
 
 #: Template names, in the order :func:`exploration_paths` cycles through them.
 TEMPLATES: tuple[str, ...] = ("orbit", "figure8", "bob", "dash", "lissajous")
@@ -43,7 +43,7 @@ VIEW_CHECK_DT = 1.0 / 30.0
 
 
 @dataclass(frozen=True, kw_only=True)
-class PathParams(TomlSection):
+class PathParams(TomlSection, file=DEFAULTS_PATH, section="paths"):
     """Limits of the exploration paths.
 
     Parameters
@@ -60,9 +60,6 @@ class PathParams(TomlSection):
     >>> PathParams.defaults().max_height
     2.4
     """
-
-    toml_file = DEFAULTS_PATH
-    toml_section = "paths"
 
     duration: float
     min_height: float

@@ -29,14 +29,13 @@ lag error is predicted by ``v_C``, ``omega_C`` and ``yhat_C``.
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from case_studies.quad_landing.arrays import FloatArray
 from case_studies.quad_landing.sim.camera.pinhole import Camera
 from case_studies.quad_landing.sim.frames import Pose, world_from_quad
 
 __all__ = ["camera_frame_state", "camera_velocity_world"]
-
-FloatArray = NDArray[np.float64]
 
 
 def camera_velocity_world(state: ArrayLike, camera: Camera) -> FloatArray:

@@ -27,11 +27,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from case_studies.quad_landing.perception.aruco import ArucoPerception
-from case_studies.quad_landing.sim.camera.buffer import check_buffer_size
 from case_studies.quad_landing.sim.camera.measurement import Measurement, StageParts, pair
-from case_studies.quad_landing.sim.camera.pinhole import Camera
-from case_studies.quad_landing.sim.camera.render import Renderer
 from case_studies.quad_landing.sim.history import StateHistory
 from case_studies.quad_landing.sim.marker import Pad
 from ipcverify.errors import InvalidInputError
@@ -61,22 +57,8 @@ class FrameLagCamera(StageParts):
         As for :class:`.measurement.StageParts`.
     """
 
-    def __init__(
-        self,
-        buffer_size: int,
-        camera: Camera,
-        renderer: Renderer,
-        perception: ArucoPerception,
-        ground_z: float,
-    ) -> None:
-        self._k = check_buffer_size(buffer_size)
-        super().__init__(camera, renderer, perception, ground_z)
-        self._cache: tuple[int, float, Measurement, NDArray[np.uint8]] | None = None
-
-    @property
-    def buffer_size(self) -> int:
-        """``k``."""
-        return self._k
+    #: The last measurement: its tick, time, result and image (None before the first).
+    _cache: tuple[int, float, Measurement, NDArray[np.uint8]] | None = None
 
     def begin(self, history: StateHistory, pad: Pad, seed: int) -> None:
         """Start a flight (the buffer holds the start state's frame)."""
@@ -96,10 +78,10 @@ class FrameLagCamera(StageParts):
         """The frame captured ``k`` ticks before ``now``, paired with the state at ``now``."""
         history, pad = self._require()
         fps = self.camera.params.fps
-        tick = int(round(now * fps)) - self._k
+        tick = int(round(now * fps)) - self.buffer_size
         if self._cache is not None and self._cache[0] == tick and self._cache[1] == now:
             return self._cache[2]
-        t_cap = now - self._k / fps if tick >= 0 else history.start
+        t_cap = now - self.buffer_size / fps if tick >= 0 else history.start
         image = self._tick_image(tick, t_cap)
         shown = self.camera.world_from_camera(history.state_at(t_cap)).inverse()
         m = pair(history.state_at(now), now, t_cap, self.perception.estimate(image), shown,

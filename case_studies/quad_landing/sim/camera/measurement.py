@@ -25,6 +25,8 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
+from case_studies.quad_landing.arrays import FloatArray
+from case_studies.quad_landing.sim.camera.buffer import check_buffer_size
 from case_studies.quad_landing.sim.camera.features import camera_frame_state
 from case_studies.quad_landing.sim.camera.pinhole import Camera
 from case_studies.quad_landing.sim.frames import Pose
@@ -36,8 +38,6 @@ if TYPE_CHECKING:
     from case_studies.quad_landing.sim.history import StateHistory
 
 __all__ = ["Measurement", "CameraStage", "StageParts", "pair"]
-
-FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True, eq=False)
@@ -137,6 +137,9 @@ class StageParts:
 
     Parameters
     ----------
+    buffer_size : int
+        The camera buffer size the stage models (:func:`.buffer.check_buffer_size`): ``k``
+        frames of lag, or the timing model's V4L2 buffers.
     camera, renderer, perception
         The simulator's camera, renderer (its noise already switched by the noise source)
         and detector.
@@ -145,12 +148,23 @@ class StageParts:
     """
 
     def __init__(
-        self, camera: Camera, renderer: Renderer, perception: ArucoPerception, ground_z: float
+        self,
+        buffer_size: int,
+        camera: Camera,
+        renderer: Renderer,
+        perception: ArucoPerception,
+        ground_z: float,
     ) -> None:
+        self._buffer_size = check_buffer_size(buffer_size)
         self.camera, self.renderer, self.perception, self.ground_z = camera, renderer, perception, ground_z
         self._history: StateHistory | None = None
         self._pad: Pad | None = None
         self._seed = 0
+
+    @property
+    def buffer_size(self) -> int:
+        """The camera buffer size this stage models."""
+        return self._buffer_size
 
 
 def pair(

@@ -13,19 +13,18 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from case_studies.quad_landing.arrays import FloatArray
 from case_studies.quad_landing.settings import DEFAULTS_PATH, TomlSection
 from case_studies.quad_landing.sim.frames import Pose, mount_rotation, world_from_quad
 from ipcverify.errors import InvalidInputError
 
 __all__ = ["CameraParams", "Camera"]
 
-FloatArray = NDArray[np.float64]
-
 
 @dataclass(frozen=True, kw_only=True)
-class CameraParams(TomlSection):
+class CameraParams(TomlSection, file=DEFAULTS_PATH, section="camera"):
     """Intrinsics and mount of the camera.
 
     Parameters
@@ -49,9 +48,6 @@ class CameraParams(TomlSection):
     >>> CameraParams.defaults(fx=250.0).fx
     250.0
     """
-
-    toml_file = DEFAULTS_PATH
-    toml_section = "camera"
 
     width: int
     height: int

@@ -33,6 +33,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from case_studies.quad_landing.arrays import FloatArray
 from case_studies.quad_landing.perception.marker import MARKER_CELLS, MarkerParams, aruco_dictionary
 from case_studies.quad_landing.settings import DEFAULTS_PATH, TomlSection
 from case_studies.quad_landing.sim.camera.pinhole import Camera
@@ -42,7 +43,6 @@ from ipcverify.errors import InvalidInputError
 
 __all__ = ["RenderParams", "Renderer", "FLOORS"]
 
-FloatArray = NDArray[np.float64]
 UInt8Image = NDArray[np.uint8]
 
 #: Largest pad texture level, in pixels per cell.
@@ -56,7 +56,7 @@ FLOOR_SEED = 20230
 
 
 @dataclass(frozen=True, kw_only=True)
-class RenderParams(TomlSection):
+class RenderParams(TomlSection, file=DEFAULTS_PATH, section="render"):
     """Image formation settings.
 
     Parameters
@@ -76,9 +76,6 @@ class RenderParams(TomlSection):
     >>> RenderParams.defaults(noise_std=0.0).blur_sigma
     0.5
     """
-
-    toml_file = DEFAULTS_PATH
-    toml_section = "render"
 
     floor: str
     floor_gray: int

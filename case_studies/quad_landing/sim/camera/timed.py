@@ -36,7 +36,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from case_studies.quad_landing.perception.aruco import ArucoPerception
-from case_studies.quad_landing.sim.camera.buffer import check_buffer_size
 from case_studies.quad_landing.sim.camera.driver_queue import DriverQueue, FlightTiming, ReaderIteration
 from case_studies.quad_landing.sim.camera.exposure import render_exposed
 from case_studies.quad_landing.sim.camera.framebuffer import noise_key
@@ -122,21 +121,15 @@ class TimedCamera(StageParts):
         perception: ArucoPerception,
         ground_z: float,
     ) -> None:
-        b = check_buffer_size(buffer_size)
-        if b < 1:
+        super().__init__(buffer_size, camera, renderer, perception, ground_z)
+        if self.buffer_size < 1:
             raise InvalidInputError("the timed camera needs a buffer size >= 1 (0 is the ideal camera)")
-        self.params, self._b = params, b
-        super().__init__(camera, renderer, perception, ground_z)
+        self.params = params
         self._queue: DriverQueue | None = None
         self._cache: (
             tuple[int, Measurement, NDArray[np.uint8] | None, Callable[[], NDArray[np.uint8]]] | None
         ) = None
         self.last_iteration: ReaderIteration | None = None
-
-    @property
-    def buffer_size(self) -> int:
-        """The number of V4L2 buffers."""
-        return self._b
 
     @property
     def timing(self) -> FlightTiming:
@@ -148,7 +141,7 @@ class TimedCamera(StageParts):
         self._history, self._pad, self._seed, self._cache = history, pad, int(seed), None
         p, cam = self.params, self.camera.params
         streams = {name: np.random.default_rng([int(seed), s]) for name, s in STREAMS.items()}
-        timing = flight_timing(p, self._b, cam.fps, cam.height, streams["clock"])
+        timing = flight_timing(p, self.buffer_size, cam.fps, cam.height, streams["clock"])
         self._queue = DriverQueue(timing, p.process_sampler(), streams["reader"], streams["delivery"],
                                   t_start=history.start - p.preroll)  # fmt: skip
         self.last_iteration = None

@@ -60,7 +60,7 @@ POLICIES: tuple[str, ...] = ("latest_slot", "drop_newest", "drop_oldest")
 
 
 @dataclass(frozen=True, kw_only=True)
-class CameraTimingParams(TomlSection):
+class CameraTimingParams(TomlSection, file=DEFAULTS_PATH, section="camera_timing"):
     """Camera, driver queue, reader loop and motion capture timing (``[camera_timing]``).
 
     Times in seconds unless the name says ``_ms``.
@@ -113,9 +113,6 @@ class CameraTimingParams(TomlSection):
     >>> CameraTimingParams.defaults(policy="drop_newest").policy
     'drop_newest'
     """
-
-    toml_file = DEFAULTS_PATH
-    toml_section = "camera_timing"
 
     model: str
     disabled: tuple[str, ...]

@@ -9,7 +9,13 @@ from case_studies.quad_landing.data.datasets import DatasetSpec
 from case_studies.quad_landing.landing.state_machine import LandingParams
 from case_studies.quad_landing.reproduction.config import Sizes
 from case_studies.quad_landing.settings import ConfigError
-from case_studies.quad_landing.sim.camera import MAX_BUFFER_SIZE, build_camera_stage, check_buffer_size
+from case_studies.quad_landing.sim.camera import (
+    MAX_BUFFER_SIZE,
+    FrameLagCamera,
+    TimedCamera,
+    build_camera_stage,
+    check_buffer_size,
+)
 from case_studies.quad_landing.sim.config import CollectParams, load_config
 from ipcverify.errors import InvalidInputError
 
@@ -56,3 +62,19 @@ def test_carriers_keep_a_whole_float_as_an_int():
     assert CollectParams.defaults(buffer_size=2.0).buffer_size == 2
     assert type(LandingParams.defaults(buffer_size=3.0).buffer_size) is int
     assert Sizes.defaults(buffers=(3, 1.0), extra_landing_buffer=3.0).buffers == (1, 3)
+
+
+@pytest.mark.parametrize("bad", [-1, MAX_BUFFER_SIZE + 1, 1.5, True])
+def test_both_camera_stages_check_their_buffer_size_themselves(bad):
+    """Built directly (not by ``build_camera_stage``), the stages apply the rule through ``StageParts``."""
+    cfg = load_config()
+    stage = build_camera_stage(cfg, 2)
+    parts = (stage.camera, stage.renderer, stage.perception, cfg.sim.ground_z)
+    for make in (lambda b: FrameLagCamera(b, *parts), lambda b: TimedCamera(cfg.camera_timing, b, *parts)):
+        with pytest.raises(InvalidInputError, match="buffer size must be an integer"):
+            make(bad)
+        size = make(2.0).buffer_size
+        assert size == 2 and type(size) is int
+    assert FrameLagCamera(0, *parts).buffer_size == 0
+    with pytest.raises(InvalidInputError, match="the timed camera needs a buffer size >= 1"):
+        TimedCamera(cfg.camera_timing, 0, *parts)

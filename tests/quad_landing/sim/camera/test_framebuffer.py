@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from case_studies.quad_landing import Flight, hover_state, load_config
-from case_studies.quad_landing.sim.camera.framebuffer import FrameLagCamera, check_buffer_size, noise_key
+from case_studies.quad_landing.sim.camera.buffer import check_buffer_size
+from case_studies.quad_landing.sim.camera.framebuffer import FrameLagCamera, noise_key
 from ipcverify.errors import InvalidInputError
 
 FRAMES = load_config(overrides={"camera_timing": {"model": "frames"}})
