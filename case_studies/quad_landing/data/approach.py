@@ -67,7 +67,7 @@ __all__ = ["ApproachParams", "APPROACH_STREAM", "fly_approach", "record_approach
 
 
 @dataclass(frozen=True, kw_only=True)
-class ApproachParams(TomlSection):
+class ApproachParams(TomlSection, file=REPRODUCE_PATH, section="approach"):
     """Approach flights: data whose states look like a landing run's (see :mod:`.approach`).
 
     Parameters
@@ -99,9 +99,6 @@ class ApproachParams(TomlSection):
     >>> ApproachParams.defaults().hover_points  # [approach] of reproduce.toml
     2
     """
-
-    toml_file = REPRODUCE_PATH
-    toml_section = "approach"
 
     fraction: float
     pad_region: float

@@ -33,8 +33,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
+from case_studies.quad_landing.arrays import FloatArray
 from case_studies.quad_landing.data.recording import FlightRecording, recording_of
 from case_studies.quad_landing.landing.scenario import camera_offset_z
 from case_studies.quad_landing.settings import REPRODUCE_PATH, Range, TomlSection, check_positive, check_range
@@ -44,7 +44,6 @@ from case_studies.quad_landing.sim.marker import Pad
 
 __all__ = ["PilotParams", "PILOT_STREAM", "pilot_reference", "record_pilot"]
 
-FloatArray = NDArray[np.float64]
 
 #: Random stream of pilot flights (separate from paths, approach flights and scenarios).
 PILOT_STREAM = 97
@@ -53,7 +52,7 @@ REFERENCE_DT = 1.0 / 240.0
 
 
 @dataclass(frozen=True, kw_only=True)
-class PilotParams(TomlSection):
+class PilotParams(TomlSection, file=REPRODUCE_PATH, section="pilot"):
     """The pilot model of the test flights (``[pilot]``; see :mod:`.pilot`).
 
     Parameters
@@ -81,9 +80,6 @@ class PilotParams(TomlSection):
     >>> PilotParams.defaults().sample_every  # [pilot] of reproduce.toml
     12
     """
-
-    toml_file = REPRODUCE_PATH
-    toml_section = "pilot"
 
     duration: float
     warmup: float

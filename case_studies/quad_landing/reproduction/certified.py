@@ -44,7 +44,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
 from case_studies.quad_landing.landing.runs import LandingRun, Outcome
 from ipcverify.calibration import (
@@ -66,7 +65,6 @@ __all__ = [
     "unsafe_vs_certified",
 ]
 
-FloatArray = NDArray[np.float64]
 
 #: The assumption under which the certified bound holds, in words.
 ASSUMPTION_A = (

@@ -90,7 +90,7 @@ def _check_calibration_levels(section: str, params: Any) -> None:
 
 
 @dataclass(frozen=True, kw_only=True)
-class IpcParams(TomlSection):
+class IpcParams(TomlSection, file=REPRODUCE_PATH, section="ipc"):
     """The IPC recipe: the network, its training and its calibration (``[ipc]``).
 
     The ``[ipc]`` table is flat. Its keys that are fields of
@@ -128,9 +128,6 @@ class IpcParams(TomlSection):
     >>> IpcParams.defaults(epochs=2).train.epochs
     2
     """
-
-    toml_file = REPRODUCE_PATH
-    toml_section = "ipc"
 
     recipe: str
     hidden: tuple[int, ...]
@@ -186,7 +183,7 @@ class IpcParams(TomlSection):
 
 
 @dataclass(frozen=True, kw_only=True)
-class PaperParams(TomlSection):
+class PaperParams(TomlSection, file=REPRODUCE_PATH, section="paper"):
     """The paper's IPC in the reproduction (``[paper]`` of ``reproduce.toml``; :mod:`.paper_ipc`).
 
     Parameters
@@ -222,9 +219,6 @@ class PaperParams(TomlSection):
     >>> PaperParams.defaults().selection().target_miss
     0.002
     """
-
-    toml_file = REPRODUCE_PATH
-    toml_section = "paper"
 
     hidden: tuple[int, ...]
     epochs: int
@@ -269,7 +263,7 @@ class PaperParams(TomlSection):
 
 
 @dataclass(frozen=True, kw_only=True)
-class Sizes(TomlSection):
+class Sizes(TomlSection, file=REPRODUCE_PATH, section="sizes"):
     """Sizes of the reproduction.
 
     Parameters
@@ -292,9 +286,6 @@ class Sizes(TomlSection):
     >>> Sizes.defaults().buffers  # [sizes] of reproduce.toml
     (1, 2, 3, 4, 5)
     """
-
-    toml_file = REPRODUCE_PATH
-    toml_section = "sizes"
 
     n_train: int
     n_calibration: int
@@ -325,7 +316,7 @@ class Sizes(TomlSection):
 
 
 @dataclass(frozen=True, kw_only=True)
-class AblationSizes(TomlSection):
+class AblationSizes(TomlSection, file=REPRODUCE_PATH, section="ablation"):
     """Sizes of the per-configuration Table I (ablation of the error sources, sensitivity).
 
     Every configuration learns its own buffer-1 IPC with the ``[ipc]`` recipe, PAC-calibrated at
@@ -345,9 +336,6 @@ class AblationSizes(TomlSection):
     >>> AblationSizes.defaults().epsilon  # [ablation] of reproduce.toml
     0.01
     """
-
-    toml_file = REPRODUCE_PATH
-    toml_section = "ablation"
 
     n_train: int
     n_calibration: int

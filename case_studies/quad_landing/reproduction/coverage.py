@@ -21,8 +21,8 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
+from case_studies.quad_landing.arrays import FloatArray
 from case_studies.quad_landing.landing.runs import LandingRun
 from case_studies.quad_landing.reproduction.record import Record
 from ipcverify.calibration import clopper_pearson_interval, clopper_pearson_lower
@@ -31,8 +31,6 @@ from ipcverify.data import PerceptionDataset
 from ipcverify.errors import InvalidInputError
 
 __all__ = ["HeldOutFlags", "CoverageGroup", "CoverageCheck", "coverage_check"]
-
-FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True)
