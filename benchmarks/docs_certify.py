@@ -104,6 +104,8 @@ def run_example(work: Path, n: int = 20_000, train_args: tuple[str, ...] = ()) -
         "test_violations": test.violations,
         "test_upper_bound": test.upper_bound,
         "status": cert.status.value,
+        "mean_log_volume": None if cert.volume is None else cert.volume.mean_log,
+        "domain_outside": None if cert.domain is None else cert.domain.outside,
     }
     return {"result": result, "numbers": numbers}
 
@@ -127,9 +129,12 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     ap.add_argument("--img", type=Path, default=IMG)
     ap.add_argument("--out", type=Path, default=OUT)
     ap.add_argument("--train-args", default="", help="extra options for `ipcverify train`, quoted")
+    ap.add_argument("--work", type=Path, default=None, help="keep the data and model files here")
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
-        run = run_example(Path(tmp), args.n, tuple(shlex.split(args.train_args)))
+        work = Path(tmp) if args.work is None else args.work
+        work.mkdir(parents=True, exist_ok=True)
+        run = run_example(work, args.n, tuple(shlex.split(args.train_args)))
     result, numbers = run["result"], run["numbers"]
     cert, ev = result.certificate, result.evidence
     assert ev is not None and cert.test is not None and cert.coverage is not None and cert.summary is not None

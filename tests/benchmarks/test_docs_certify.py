@@ -43,3 +43,21 @@ def test_main_writes_the_three_figures_and_the_numbers(tmp_path):
     assert json.loads((tmp_path / "n.json").read_text()) == numbers
     for name in FIGURES:
         assert (tmp_path / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_the_numbers_docs_certify_quotes_are_those_of_the_committed_run():
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    page = (root / "docs" / "certify.md").read_text()
+    r = json.loads((root / "benchmarks" / "docs_certify_results.json").read_text())
+    assert r["n_samples"] == 20_000 and r["train_args"] == []  # the page's example, as written
+    quoted = [
+        f"│ {r['calibration_n']} │ {r['calibration_k']} │ {r['calibration_scale']:>7.5g} │",
+        f"is at most {r['certified_epsilon']:.3g}",
+        f"{r['test_violations']} of {r['test_n']} fresh test samples",
+        f"is at most {r['test_upper_bound']:.4g}",
+        f"│ mean log-volume    │ {r['mean_log_volume']:.2f}",
+        f"│ domain of validity │ {r['domain_outside']}/{r['test_n']} test queries outside",
+    ]
+    assert [q for q in quoted if q not in page] == []
