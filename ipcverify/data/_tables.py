@@ -51,6 +51,7 @@ def numbered_columns(prefix: str, columns: Sequence[str]) -> list[str]:
         raise DataError(
             f"columns {prefix}_0..{prefix}_{max(idx)} are not contiguous: missing "
             + ", ".join(f"{prefix}_{i}" for i in missing)
+            + f" -- number them from {prefix}_0 without gaps, or name them (CLI: --{prefix}-columns)"
         )
     return names
 
@@ -169,7 +170,10 @@ def frame_blocks(
         raise DataError(f"{p}: the table has no rows")
     df = df.rename(columns=str)
     cols = list(df.columns)
-    chosen = {k: list(v) if v else numbered_columns(k, cols) for k, v in names.items()}
+    try:
+        chosen = {k: list(v) if v else numbered_columns(k, cols) for k, v in names.items()}
+    except DataError as exc:  # the numbering's message, with the table it is about
+        raise DataError(f"{p}: {exc}") from None
     for kind, ks in chosen.items():
         if not ks:
             raise DataError(

@@ -224,3 +224,13 @@ def test_group_split_refuses_missing_labels():
     with pytest.raises(DataError, match=r"row 3 has no group label \(it is empty\); every") as info:
         bad.split(group_column="run")
     assert "np." not in str(info.value) and "nan" not in str(info.value)
+
+
+def test_gapped_columns_name_the_file_the_gap_and_what_to_do(tmp_path):
+    path = tmp_path / "gap.csv"
+    pd.DataFrame({"x_0": [0.0], "x_2": [1.0], "y_0": [0.0], "yhat_0": [0.1]}).to_csv(path, index=False)
+    with pytest.raises(
+        DataError, match=r"gap\.csv: columns x_0\.\.x_2 are not contiguous: missing x_1 -- number"
+    ) as e:
+        load_dataset(path)
+    assert "--x-columns" in str(e.value) and "\n" not in str(e.value)
