@@ -6,7 +6,7 @@ recorded: the library call :func:`ipcverify.certification.certify_files` in a wa
 (load files, certify with Theorem 1 and both Lipschitz constants, write JSON and HTML)
 and the full CLI command in a fresh process (interpreter start and imports included).
 
-It also records, on the bundled synthetic data (recipe "v1", the paper's head: N = 5000
+It also records, on the bundled synthetic data (recipe "v1", ipcverify's earlier Cholesky head: N = 5000
 training samples, (64, 128) network, 20 epochs; n_cal = 5000, epsilon = 0.01, delta = 0.001;
 the default ensemble's Theorem 1 is measured by :mod:`benchmarks.bench_theorem1`):
 the calibrated IPC's violation rate on 200,000 fresh samples, its mean log-volume next
