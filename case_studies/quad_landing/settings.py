@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
 import tomllib
 from collections.abc import Mapping
 from pathlib import Path
@@ -255,7 +256,7 @@ def check_positive(where: str, value: Any, *, integer: bool = False, allow_zero:
     ...
     case_studies.quad_landing.settings.ConfigError: sizes.mc_runs must be an integer > 0, got 0
     """
-    bad = isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value)
+    bad = isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value)
     if not bad:
         bad = value < 0 or (value == 0 and not allow_zero) or (integer and int(value) != value)
     if bad:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 
+import numpy as np
 import pytest
 
 from case_studies.quad_landing.cli import main
@@ -13,11 +14,14 @@ from case_studies.quad_landing.settings import (
     REPRODUCE_PATH,
     ConfigError,
     TomlSection,
+    check_positive,
     read_toml,
     sections_by_name,
 )
+from case_studies.quad_landing.sim.camera.pinhole import CameraParams
 from case_studies.quad_landing.sim.config import SIM_SECTIONS, load_config
 from case_studies.quad_landing.sim.dynamics import QuadParams
+from case_studies.quad_landing.sim.lqr import LqrParams, SettleParams
 from ipcverify.training._train import TrainConfig
 
 SECTIONS = [(DEFAULTS_PATH, name, cls) for name, cls in SIM_SECTIONS.items()] + [
@@ -179,3 +183,25 @@ def test_cli_help_shows_the_defaults_of_the_toml_files(capsys):
         text = " ".join(capsys.readouterr().out.split())
         for piece in expected:
             assert piece in text
+
+
+@pytest.mark.parametrize(
+    ("cls", "field", "value"),
+    [
+        (QuadParams, "mass", 0.0),
+        (QuadParams, "gravity", float("nan")),
+        (CameraParams, "fx", -1.0),
+        (LqrParams, "r_thrust", float("inf")),
+        (SettleParams, "hold_time", 0),
+    ],
+)
+def test_a_section_field_that_must_be_positive_is_checked_by_the_one_rule(cls, field, value):
+    with pytest.raises(ConfigError, match=rf"^{cls.toml_section}\.{field} must be a number > 0, got "):
+        dataclasses.replace(cls.defaults(), **{field: value})
+
+
+def test_the_positive_rule_accepts_numpy_scalars_and_rejects_text():
+    check_positive("quad.mass", np.float32(0.5))
+    check_positive("sizes.mc_runs", np.int64(3), integer=True)
+    with pytest.raises(ConfigError, match="quad.mass must be a number > 0, got '1'"):
+        check_positive("quad.mass", "1")

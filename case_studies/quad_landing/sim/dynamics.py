@@ -22,7 +22,7 @@ import casadi as ca
 import numpy as np
 
 from case_studies.quad_landing.arrays import FloatArray
-from case_studies.quad_landing.settings import DEFAULTS_PATH, TomlSection
+from case_studies.quad_landing.settings import DEFAULTS_PATH, TomlSection, check_positive
 from ipcverify.errors import InvalidInputError
 
 __all__ = [
@@ -82,16 +82,8 @@ class QuadParams(TomlSection, file=DEFAULTS_PATH, section="quad"):
     def __post_init__(self) -> None:
         inertia = tuple(float(v) for v in self.inertia)
         object.__setattr__(self, "inertia", inertia)
-        positive = {
-            "mass": self.mass,
-            "arm_length": self.arm_length,
-            "yaw_moment_coefficient": self.yaw_moment_coefficient,
-            "max_rotor_thrust": self.max_rotor_thrust,
-            "gravity": self.gravity,
-        }
-        for name, value in positive.items():
-            if not (np.isfinite(value) and value > 0):
-                raise InvalidInputError(f"quad.{name} must be a positive number, got {value}")
+        for name in ("mass", "arm_length", "yaw_moment_coefficient", "max_rotor_thrust", "gravity"):
+            check_positive(f"quad.{name}", getattr(self, name))
         if len(inertia) != 3 or not all(np.isfinite(v) and v > 0 for v in inertia):
             raise InvalidInputError(
                 f"quad.inertia must be three positive moments (Ixx, Iyy, Izz), got {self.inertia}"

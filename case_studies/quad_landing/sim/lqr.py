@@ -30,7 +30,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from case_studies.quad_landing.arrays import FloatArray
-from case_studies.quad_landing.settings import DEFAULTS_PATH, TomlSection
+from case_studies.quad_landing.settings import DEFAULTS_PATH, TomlSection, check_positive
 from case_studies.quad_landing.sim.dynamics import QuadParams, hover_thrust, linearize_hover
 from case_studies.quad_landing.sim.frames import wrap_angle
 from ipcverify.errors import InvalidInputError
@@ -83,9 +83,7 @@ class LqrParams(TomlSection, file=DEFAULTS_PATH, section="lqr"):
         for name in ("q_position", "q_velocity", "q_attitude", "q_rate"):
             object.__setattr__(self, name, _positive_tuple(f"lqr.{name}", getattr(self, name), 3))
         for name in ("r_thrust", "max_position_error_xy", "max_position_error_z"):
-            value = getattr(self, name)
-            if not (np.isfinite(value) and value > 0):
-                raise InvalidInputError(f"lqr.{name} must be a positive number, got {value}")
+            check_positive(f"lqr.{name}", getattr(self, name))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -116,9 +114,7 @@ class SettleParams(TomlSection, file=DEFAULTS_PATH, section="settle"):
 
     def __post_init__(self) -> None:
         for name in ("position_tolerance", "velocity_tolerance", "yaw_tolerance", "hold_time"):
-            value = getattr(self, name)
-            if not (np.isfinite(value) and value > 0):
-                raise InvalidInputError(f"settle.{name} must be a positive number, got {value}")
+            check_positive(f"settle.{name}", getattr(self, name))
 
 
 def is_settled(state: FloatArray, target: FloatArray, yaw: float, settle: SettleParams) -> bool:

@@ -105,7 +105,7 @@ def test_f450_parameters_are_the_defaults():
 @pytest.mark.parametrize(
     ("kwargs", "match"),
     [
-        ({"mass": -1.0}, "quad.mass must be a positive"),
+        ({"mass": -1.0}, "quad.mass must be a number > 0, got -1.0"),
         ({"inertia": (0.029, 0.0, 0.055)}, "three positive moments"),
         ({"max_rotor_thrust": 3.0}, "too small to hover"),
         ({"linear_drag": -0.1}, "linear_drag must be >= 0"),

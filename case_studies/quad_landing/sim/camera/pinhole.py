@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from case_studies.quad_landing.arrays import FloatArray
-from case_studies.quad_landing.settings import DEFAULTS_PATH, TomlSection
+from case_studies.quad_landing.settings import DEFAULTS_PATH, TomlSection, check_positive
 from case_studies.quad_landing.sim.frames import Pose, mount_rotation, world_from_quad
 from ipcverify.errors import InvalidInputError
 
@@ -67,8 +67,7 @@ class CameraParams(TomlSection, file=DEFAULTS_PATH, section="camera"):
             object.__setattr__(self, name, int(value))
         for name in ("fps", "fx", "fy"):
             value = float(getattr(self, name))
-            if not (np.isfinite(value) and value > 0):
-                raise InvalidInputError(f"camera.{name} must be a positive number, got {value}")
+            check_positive(f"camera.{name}", value)
             object.__setattr__(self, name, value)
         if not (0 <= self.cx <= self.width - 1 and 0 <= self.cy <= self.height - 1):
             raise InvalidInputError(
