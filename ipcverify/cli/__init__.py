@@ -9,6 +9,7 @@ from __future__ import annotations
 from ipcverify.cli import certify as _certify  # noqa: F401  (registers commands)
 from ipcverify.cli import containment as _containment  # noqa: F401
 from ipcverify.cli import core as _core  # noqa: F401
+from ipcverify.cli import data as _data  # noqa: F401
 from ipcverify.cli import export as _export  # noqa: F401
 from ipcverify.cli import ingest as _ingest  # noqa: F401
 from ipcverify.cli.app import app, run_group

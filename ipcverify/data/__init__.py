@@ -25,6 +25,11 @@ if TYPE_CHECKING:
         json_data,
         write_json,
     )
+    from ipcverify.data._split_files import (
+        SplitFiles,
+        SplitPart,
+        split_file,
+    )
     from ipcverify.data._synthetic import (
         make_lagged_perception,
     )
@@ -33,6 +38,8 @@ __all__ = [
     "DatasetSplits",
     "PerceptionDataset",
     "PerceptionInputs",
+    "SplitFiles",
+    "SplitPart",
     "atomic_write",
     "file_sha256",
     "json_data",
@@ -40,6 +47,7 @@ __all__ = [
     "load_inputs",
     "make_lagged_perception",
     "save_dataset",
+    "split_file",
     "write_json",
 ]
 

@@ -297,6 +297,16 @@ prove-out-is-directory       | 2 | is a directory                   | prove-cont
 check-bad-json               | 2 | not valid JSON                   | check-certificate {bad_json}
 check-problems-as-certs      | 2 | certificate 0                    | check-certificate {problems}
 check-csv-file               | 2 | not valid JSON                   | check-certificate {test}
+split-missing-data           | 2 | does not exist                   | split {tmp}/none.csv --out {tmp}/s
+split-fractions-two          | 2 | --fractions must be three        | split {train} --out {tmp}/s --fractions 0.5,0.5
+split-fractions-text         | 2 | --fractions must be three        | split {train} --out {tmp}/s --fractions a,b,c
+split-fractions-sum          | 2 | summing to 1                     | split {train} --out {tmp}/s --fractions 0.5,0.6,0
+split-unknown-group          | 2 | no column 'nope'                 | split {train} --out {tmp}/s --by nope
+split-too-few-groups         | 2 | too few for split                | split {flights} --by flight --out {tmp}/s --fractions 0.8,0.1,0.1
+split-over-the-input         | 2 | written over the input           | split {train} --out {dir}/..
+split-out-is-file            | 2 | train.csv                        | split {test} --out {train}
+split-bad-format             | 2 | 'xlsx' is not one of             | split {test} --out {tmp}/s --format xlsx
+split-npz-by-flight          | 0 | -                                | split {flights} --by flight --format npz --out {tmp}/s
 """  # noqa: E501 (one case per line)
 
 

@@ -1,0 +1,250 @@
+"""A log file split into train, calibration and test files, with a record of the split.
+
+:func:`split_file` is what ``ipcverify split`` runs: it reads a log, splits it with
+:meth:`~ipcverify.data.PerceptionDataset.split` (of rows, or of whole groups such as flights or
+runs), writes one file per part and ``split.json`` beside them. The record names the source
+and every part by SHA-256, so a reviewer can check that the data a certificate was computed on
+is the held-out part of this split (``certificate.json`` records its data's SHA-256 too).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ipcverify.data._dataset import PerceptionDataset, load_dataset, save_dataset
+from ipcverify.data._files import file_sha256, write_json
+from ipcverify.data._split import group_codes, split_fractions, split_parts
+from ipcverify.data._tables import SUFFIXES
+from ipcverify.errors import DataError, InvalidInputError
+
+#: The parts of a split, in order (their files are ``<name><suffix>``).
+PART_NAMES: tuple[str, str, str] = ("train", "calibration", "test")
+#: The record written beside the parts.
+RECORD_NAME = "split.json"
+
+
+@dataclass(frozen=True)
+class SplitPart:
+    """One part of a split written to disk.
+
+    Attributes
+    ----------
+    name : str
+        ``"train"``, ``"calibration"`` or ``"test"``.
+    path : Path or None
+        The file written (None for a part whose share is 0).
+    rows : int
+        Samples in the part.
+    groups : int or None
+        Distinct values of the group column in the part (None for a split of rows).
+    sha256 : str or None
+        SHA-256 of the file written.
+    """
+
+    name: str
+    path: Path | None
+    rows: int
+    groups: int | None
+    sha256: str | None
+
+    def __post_init__(self) -> None:
+        if self.name not in PART_NAMES:
+            raise InvalidInputError(f"a split part is one of {', '.join(PART_NAMES)}; got {self.name!r}")
+        if self.rows < 0 or (self.groups is not None and self.groups < 0):
+            raise InvalidInputError(f"part {self.name}: rows and groups must be >= 0")
+        if (self.path is None) != (self.rows == 0):
+            raise InvalidInputError(f"part {self.name}: a file is written exactly when the part has rows")
+
+
+@dataclass(frozen=True)
+class SplitFiles:
+    """What :func:`split_file` wrote: the parts, how they were drawn, and the record's path.
+
+    Attributes
+    ----------
+    source : Path
+        The log that was split.
+    source_sha256 : str
+        Its SHA-256.
+    parts : tuple of SplitPart
+        Train, calibration and test, in that order.
+    fractions : tuple of float
+        The shares of the parts (of rows, or of groups with ``group_column``).
+    seed : int
+        The seed of the draw (the same seed splits the same file the same way).
+    group_columns : tuple of str
+        The column(s) whose groups were kept whole (empty: rows were split at random).
+    dropped_columns : tuple of str
+        Columns of the source not written to the parts (an NPZ part holds only x, y and yhat).
+    other_columns : tuple of str
+        The source's columns other than x, y and yhat (candidates for ``group_column``).
+    record : Path
+        ``split.json``, this object as JSON.
+    """
+
+    source: Path
+    source_sha256: str
+    parts: tuple[SplitPart, ...]
+    fractions: tuple[float, ...]
+    seed: int
+    group_columns: tuple[str, ...]
+    dropped_columns: tuple[str, ...]
+    other_columns: tuple[str, ...]
+    record: Path
+
+    def __post_init__(self) -> None:
+        if tuple(p.name for p in self.parts) != PART_NAMES:
+            raise InvalidInputError(f"a split has the parts {', '.join(PART_NAMES)}, in that order")
+        if len(self.fractions) != len(PART_NAMES):
+            raise InvalidInputError("a split has one share per part")
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data for ``split.json`` (paths as given, relative to the working folder)."""
+        return {
+            "source": str(self.source),
+            "source_sha256": self.source_sha256,
+            "fractions": list(self.fractions),
+            "seed": self.seed,
+            "group_columns": list(self.group_columns),
+            "parts": {
+                p.name: {
+                    "path": None if p.path is None else str(p.path),
+                    "rows": p.rows,
+                    "groups": p.groups,
+                    "sha256": p.sha256,
+                }
+                for p in self.parts
+            },
+            "dropped_columns": list(self.dropped_columns),
+        }
+
+
+def _part_paths(out_dir: Path, suffix: str) -> dict[str, Path]:
+    return {name: out_dir / f"{name}{suffix}" for name in PART_NAMES}
+
+
+def _check_targets(source: Path, paths: dict[str, Path], empty: Sequence[str]) -> None:
+    """Refuse to overwrite the source, and to leave a stale file where this split has no part."""
+    for name, p in paths.items():
+        if p.exists() and p.resolve() == source.resolve():
+            raise InvalidInputError(
+                f"the {name} part would be written over the input {source}; choose another --out folder"
+            )
+    for name in empty:
+        if paths[name].exists():
+            raise InvalidInputError(
+                f"{paths[name]} exists, but this split has no {name} part (its share is 0); "
+                "remove the file or choose another --out folder"
+            )
+
+
+def _group_labels(data: PerceptionDataset, columns: tuple[str, ...]) -> NDArray[Any] | None:
+    """One label per row: the column's values, or a number per combination of several (None: no groups)."""
+    if not columns:
+        return None
+    if len(columns) == 1:
+        return data.column(columns[0])
+    codes = [group_codes(data.column(c), f"{data.source}: group column {c!r}")[0] for c in columns]
+    return np.unique(np.stack(codes, axis=1), axis=0, return_inverse=True)[1].reshape(-1)
+
+
+def split_file(
+    path: str | os.PathLike[str],
+    out_dir: str | os.PathLike[str],
+    fractions: Sequence[float] = (0.6, 0.2, 0.2),
+    seed: int = 0,
+    group_column: str | Sequence[str] | None = None,
+    suffix: str | None = None,
+) -> SplitFiles:
+    """Split a log file into train, calibration and test files, and record the split.
+
+    Parameters
+    ----------
+    path : path-like
+        The log: CSV, Parquet or NPZ with columns ``x_i``, ``y_i``, ``yhat_i`` and any others.
+    out_dir : path-like
+        The folder for ``train``, ``calibration`` and ``test`` files and ``split.json``
+        (created if missing; files of the same names are replaced, atomically).
+    fractions : three floats summing to 1
+        Shares of the parts: of rows, or of groups with ``group_column``. A share may be 0
+        (that part is not written).
+    seed : int
+        The seed of the random draw.
+    group_column : str or sequence of str, optional
+        A column naming the unit whose rows are correlated (a flight, run or sequence): whole
+        groups go to one part each, as the guarantees for correlated rows need. Several
+        columns name a group together (``["method", "run"]``: one group per pair).
+    suffix : str, optional
+        The parts' format: ``".csv"``, ``".parquet"`` or ``".npz"`` (default: the input's).
+
+    Returns
+    -------
+    SplitFiles
+        The parts written, their sizes and SHA-256, and the record's path.
+
+    Raises
+    ------
+    DataError
+        If the log cannot be read, the group column is missing, or there are too few groups.
+    InvalidInputError
+        If a part would overwrite the input, or a stale part file would be left beside the split.
+
+    Examples
+    --------
+    >>> import tempfile, numpy as np
+    >>> from ipcverify.data import PerceptionDataset, save_dataset
+    >>> d = Path(tempfile.mkdtemp())
+    >>> z = np.zeros((8, 1))
+    >>> save_dataset(PerceptionDataset(z, z, z, extra={"run": np.arange(8) // 2}), d / "log.csv")
+    >>> s = split_file(d / "log.csv", d / "parts", (0.5, 0.25, 0.25), group_column="run")
+    >>> [(p.name, p.rows, p.groups) for p in s.parts]
+    [('train', 4, 2), ('calibration', 2, 1), ('test', 2, 1)]
+    """
+    source = Path(path)
+    data = load_dataset(source)
+    fr = tuple(float(f) for f in split_fractions(fractions))
+    ext = (suffix or source.suffix).lower()
+    ext = ".parquet" if ext == ".pq" else ext
+    if ext not in SUFFIXES:
+        raise DataError(f"unknown data format {ext!r} for the parts; use one of .csv, .parquet, .npz")
+    columns = (group_column,) if isinstance(group_column, str) else tuple(group_column or ())
+    labels = _group_labels(data, columns)
+    what = f"{source}: group column(s) {', '.join(columns)}"
+    index = split_parts(len(data), fr, seed, labels, what)
+    parts_data: list[PerceptionDataset | None] = [
+        data.subset(np.sort(i), name) if len(i) else None for i, name in zip(index, PART_NAMES, strict=True)
+    ]
+    out = Path(out_dir)
+    paths = _part_paths(out, ext)
+    empty = [name for name, d in zip(PART_NAMES, parts_data, strict=True) if d is None]
+    _check_targets(source, paths, empty)
+    out.mkdir(parents=True, exist_ok=True)
+    parts = []
+    for name, part in zip(PART_NAMES, parts_data, strict=True):
+        if part is None:
+            parts.append(SplitPart(name, None, 0, None if labels is None else 0, None))
+            continue
+        save_dataset(part, paths[name])
+        groups = None if labels is None else len(np.unique(labels[index[len(parts)]]))
+        parts.append(SplitPart(name, paths[name], len(part), groups, file_sha256(paths[name])))
+    other = tuple(data.extra)
+    result = SplitFiles(
+        source=source,
+        source_sha256=file_sha256(source),
+        parts=tuple(parts),
+        fractions=fr,
+        seed=int(seed),
+        group_columns=columns,
+        dropped_columns=other if ext == ".npz" else (),
+        other_columns=other,
+        record=out / RECORD_NAME,
+    )
+    write_json(result.record, result.to_dict())
+    return result
