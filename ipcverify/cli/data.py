@@ -94,7 +94,6 @@ def split_cmd(data: Path, out: Path, group_column: str | None, fractions: str, s
         )
         err_console.print(f"hint: rows were split at random, which assumes independent rows{hint}")
     if result.dropped_columns:
-        err_console.print(
-            f"warning: the npz parts hold x, y and yhat only; not written: {', '.join(result.dropped_columns)}"
-        )
+        dropped = ", ".join(result.dropped_columns)
+        err_console.print(f"warning: the npz parts hold x, y and yhat only; not written: {dropped}")
     console.print(f"record: {result.record}")

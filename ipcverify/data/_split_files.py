@@ -3,8 +3,10 @@
 :func:`split_file` is what ``ipcverify split`` runs: it reads a log, splits it with
 :meth:`~ipcverify.data.PerceptionDataset.split` (of rows, or of whole groups such as flights or
 runs), writes one file per part and ``split.json`` beside them. The record names the source
-and every part by SHA-256, so a reviewer can check that the data a certificate was computed on
-is the held-out part of this split (``certificate.json`` records its data's SHA-256 too).
+and every part by SHA-256, of the file and of its numbers, so a reviewer can check that a model
+was trained on the train part (its file's ``train_data_hash``), calibrated on the calibration
+part (``calibration.data_hash``) and certified on the test part (``certificate.json``'s test
+``content_sha256``).
 """
 
 from __future__ import annotations
@@ -46,6 +48,10 @@ class SplitPart:
         Distinct values of the group column in the part (None for a split of rows).
     sha256 : str or None
         SHA-256 of the file written.
+    content_sha256 : str or None
+        :meth:`~ipcverify.data.PerceptionDataset.content_hash` of the part: what a model file
+        records of its training data (``train_data_hash``) and its calibration data
+        (``calibration.data_hash``), and ``certificate.json`` of its test data.
     """
 
     name: str
@@ -53,6 +59,7 @@ class SplitPart:
     rows: int
     groups: int | None
     sha256: str | None
+    content_sha256: str | None = None
 
     def __post_init__(self) -> None:
         if self.name not in PART_NAMES:
@@ -119,6 +126,7 @@ class SplitFiles:
                     "rows": p.rows,
                     "groups": p.groups,
                     "sha256": p.sha256,
+                    "content_sha256": p.content_sha256,
                 }
                 for p in self.parts
             },
@@ -233,7 +241,9 @@ def split_file(
             continue
         save_dataset(part, paths[name])
         groups = None if labels is None else len(np.unique(labels[index[len(parts)]]))
-        parts.append(SplitPart(name, paths[name], len(part), groups, file_sha256(paths[name])))
+        parts.append(
+            SplitPart(name, paths[name], len(part), groups, file_sha256(paths[name]), part.content_hash())
+        )
     other = tuple(data.extra)
     result = SplitFiles(
         source=source,

@@ -51,6 +51,26 @@ def test_the_record_names_the_source_and_every_part_by_sha256(tmp_path):
     for p in s.parts:
         assert record["parts"][p.name]["sha256"] == file_sha256(p.path)
         assert record["parts"][p.name]["rows"] == len(load_dataset(p.path))
+        assert record["parts"][p.name]["content_sha256"] == load_dataset(p.path).content_hash()
+
+
+def test_the_record_matches_what_train_calibrate_and_certify_record_of_their_data(tmp_path):
+    from ipcverify import calibrate, certify, train
+    from ipcverify.network import ModelConfig
+    from ipcverify.training import TrainConfig
+
+    s = split_file(LOG, tmp_path, (0.5, 0.3, 0.2), group_column=["method", "run"], seed=1)
+    train_part, cal_part, test_part = (load_dataset(p.path) for p in s.parts)
+    config = ModelConfig(x_dim=5, y_dim=3, hidden=(8,), param="cholesky")
+    model = train(train_part, config, TrainConfig(epochs=1, seed=0)).model
+    model = calibrate(model, cal_part, epsilon=0.2, delta=0.05)
+    cert = certify(model, test_part).certificate
+    hashes = [p.content_sha256 for p in s.parts]
+    assert hashes == [
+        model.metadata["train_data_hash"],
+        model.calibration.data_hash,
+        cert.test_data.content_sha256,
+    ]
 
 
 def test_the_same_seed_gives_the_same_files_and_another_seed_other_ones(tmp_path):
