@@ -60,7 +60,7 @@ def _calibration_section(cal: CalibrationSummary | None) -> list[str]:
         ("mode", cal.mode + (" (training-conditional)" if cal.mode == "pac" else " (split conformal)")),
         ("epsilon (target violation rate)", cal.epsilon),
         ("delta", cal.delta),
-        ("calibration samples n", cal.n),
+        ("calibration samples used n", cal.n),
         ("calibrated per", cal.grouping),
         ("certified violation rate", cal.certified_epsilon),
     ]
