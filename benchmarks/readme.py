@@ -37,7 +37,16 @@ from benchmarks.report_tables import (
     targets_table,
 )
 
-__all__ = ["BLOCK", "DOCUMENTS", "load_results", "render_blocks", "replace_blocks", "demo_block", "console_block", "main"]
+__all__ = [
+    "BLOCK",
+    "DOCUMENTS",
+    "load_results",
+    "render_blocks",
+    "replace_blocks",
+    "demo_block",
+    "console_block",
+    "main",
+]
 
 ROOT = Path(__file__).resolve().parent.parent
 HERE = Path(__file__).resolve().parent
