@@ -87,6 +87,7 @@ def test_page_says_what_is_guaranteed(written):
     # the calibration's n is the rows its threshold used (one per flight for a flight-level one)
     n = res.certificate.calibration.n
     assert f"<th>calibration samples used n</th><td>{n:,}</td>" in page
+    assert "counts its rows as independent samples" not in page  # no group column: nothing to caveat
 
 
 def test_report_without_calibration_or_training_data(tmp_path):
