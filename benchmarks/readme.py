@@ -37,7 +37,16 @@ from benchmarks.report_tables import (
     targets_table,
 )
 
-__all__ = ["BLOCK", "DOCUMENTS", "load_results", "render_blocks", "replace_blocks", "demo_block", "main"]
+__all__ = [
+    "BLOCK",
+    "DOCUMENTS",
+    "load_results",
+    "render_blocks",
+    "replace_blocks",
+    "demo_block",
+    "console_block",
+    "main",
+]
 
 ROOT = Path(__file__).resolve().parent.parent
 HERE = Path(__file__).resolve().parent
@@ -212,20 +221,38 @@ def demo_block(figure: Path | None = ROOT / "docs" / "img" / "demo_sets.png") ->
     """The console output of a real ``ipcverify demo`` run (80 columns), as a code block.
 
     The run's ``sets.png`` is copied to ``figure`` (the README's picture) unless it is None.
+    It runs in a temporary directory with the default ``--out`` (``ipcverify-demo``), so that the
+    last line, which lists the files, reads as a user's does.
     """
     with tempfile.TemporaryDirectory() as tmp:
-        env = {**os.environ, "COLUMNS": "80", "TERM": "dumb", "NO_COLOR": "1"}
-        out_dir = Path(tmp) / "ipcverify-demo"
+        path = os.pathsep.join(p for p in (str(ROOT), os.environ.get("PYTHONPATH", "")) if p)
+        env = {**os.environ, "COLUMNS": "80", "TERM": "dumb", "NO_COLOR": "1", "PYTHONPATH": path}
         out = subprocess.run(
-            [sys.executable, "-m", "ipcverify", "demo", "--out", str(out_dir)],
+            [sys.executable, "-m", "ipcverify", "demo", "--out", "ipcverify-demo"],
             capture_output=True,
             text=True,
             env=env,
+            cwd=tmp,
             check=True,
         ).stdout
         if figure is not None:
-            figure.write_bytes((out_dir / "sets.png").read_bytes())
-    lines = [ln.rstrip() for ln in out.splitlines() if not ln.startswith("files in ")]
+            figure.write_bytes((Path(tmp) / "ipcverify-demo" / "sets.png").read_bytes())
+    return console_block(out)
+
+
+def console_block(out: str) -> str:
+    r"""A command's console output as a fenced code block: every line as printed, right-stripped.
+
+    Examples
+    --------
+    >>> print(console_block("table  \nfiles in ipcverify-demo/: a.csv, \nsets.png\n"), end="")
+    ```
+    table
+    files in ipcverify-demo/: a.csv,
+    sets.png
+    ```
+    """
+    lines = [ln.rstrip() for ln in out.splitlines()]
     return "```\n" + "\n".join(lines).strip("\n") + "\n```\n"
 
 

@@ -62,6 +62,12 @@ from ipcverify.calibration._threshold import (
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import InvalidInputError
 
+#: Which calibration rows a method's threshold uses (the ``n`` of its summary), in words.
+_USED = {
+    "one-per-group": "one seeded random row of each group used",
+    "group-max": "every row used, through each group's largest score",
+    "risk-control": "every row used, by risk control over the groups",
+}
 #: Relative slack when a stored risk-control record is re-checked (its mean risk is a rounded float).
 RISK_RTOL = 1e-9
 _INTS = ("n_groups", "k_groups", "n_rows", "n_used", "n_inside", "size_min", "size_max", "seed")
@@ -284,7 +290,10 @@ class GroupedCalibration:
         return summarize(
             self,
             certified_epsilon=self.certified_epsilon,
-            grouping=f"all samples, one scale; {self.n_groups} groups of {self.column} as exchangeable units",
+            grouping=(
+                f"all samples, one scale; {self.n_groups} groups of {self.column} ({self.n_rows:,} rows) as "
+                f"exchangeable units; {_USED[self.method]}"
+            ),
             details={
                 "group_column": self.column,
                 "guarantee_kind": self.guarantee_kind,

@@ -60,7 +60,7 @@ def _calibration_section(cal: CalibrationSummary | None) -> list[str]:
         ("mode", cal.mode + (" (training-conditional)" if cal.mode == "pac" else " (split conformal)")),
         ("epsilon (target violation rate)", cal.epsilon),
         ("delta", cal.delta),
-        ("calibration samples n", cal.n),
+        ("calibration samples used n", cal.n),
         ("calibrated per", cal.grouping),
         ("certified violation rate", cal.certified_epsilon),
     ]
@@ -132,10 +132,17 @@ def _test_section(cert: Certificate, ev: CertifyEvidence | None, s: CertificateS
     parts.append(_img(plot_scores(ev, cert.calibration is not None), "histogram of normalised test scores"))
     if cert.coverage is not None:
         parts.append("<h2>Conditional coverage</h2>")
+        correlated = (
+            ""
+            if cert.group_test is None
+            else " Each bin's interval counts its rows as independent samples; rows of one group of "
+            f"<code>{html.escape(cert.group_test.column)}</code> are correlated, so the intervals are "
+            "too narrow: read them as descriptive only."
+        )
         parts.append(
             "<p>The guarantee above is marginal (averaged over all inputs), not per region of the state "
             "space. This plot shows how the violation rate varies across bins of "
-            f"<code>{html.escape(cert.coverage.column)}</code>.</p>"
+            f"<code>{html.escape(cert.coverage.column)}</code>.{correlated}</p>"
         )
         eps = None if cert.calibration is None else cert.calibration.epsilon
         parts.append(_img(plot_coverage(cert.coverage, t.delta, eps), "violation rate per bin"))

@@ -120,7 +120,12 @@ def calibration_method(
     "--recalibrate", is_flag=True, help="Replace an existing calibration (calibrates the raw network)."
 )
 @click.option(
-    "--seed", default=0, show_default=True, type=int, help="Seed for choosing the bin-edge samples."
+    "--seed",
+    default=0,
+    show_default=True,
+    type=int,
+    help="Seed for the bin-edge samples (--bins), the one random row per group (--group-column) "
+    "and the domain test's reference subsample of large data.",
 )
 @click.option("--out", type=OUTPUT_FILE, required=True, help="Calibrated model.")
 def calibrate_cmd(

@@ -52,7 +52,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
-from ipcverify.calibration._bounds import marginal_conformal_index
+from ipcverify.calibration._bounds import marginal_conformal_index, smallest_epsilon
 from ipcverify.calibration._risk_control import risk_control_threshold
 from ipcverify.data._dataset import query_rows
 from ipcverify.data._split import group_codes
@@ -250,7 +250,8 @@ class DomainModel:
                 raise SampleSizeError(
                     f"the group-aware domain test at alpha={alpha:g} needs at least "
                     f"{math.ceil(1 / alpha - 1)} groups; got {len(distinct)} -- use more groups "
-                    "(flights, runs) or a larger --domain-alpha"
+                    f"(flights, runs) or a larger --domain-alpha (with {len(distinct)} groups the "
+                    f"smallest is {smallest_epsilon(len(distinct), 0.5, 'marginal'):g})"
                 ) from None
             return cls(mean=mean, whitening=whitening, reference=ref, k=int(k), alpha=float(alpha),
                        threshold=threshold, n=n, method=GROUP_METHOD, n_groups=len(distinct))  # fmt: skip

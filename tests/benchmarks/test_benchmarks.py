@@ -11,7 +11,7 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from benchmarks.bench_tightness import METHODS  # noqa: E402
-from benchmarks.readme import DOCUMENTS, load_results, render_blocks, replace_blocks  # noqa: E402
+from benchmarks.readme import DOCUMENTS, console_block, load_results, render_blocks, replace_blocks  # noqa: E402
 from benchmarks.report import targets  # noqa: E402
 from benchmarks.run import RunConfig, run  # noqa: E402
 
@@ -156,6 +156,20 @@ def test_targets_are_computed_from_the_numbers():
     missing = targets(_fake(ipc=1.0, gm=1.5, mapie=None, ratio=2.0, float_ratio=1.0))
     assert missing["quad_ipc_vs_mapie"]["met"] is None
     assert not missing["quad_ipc_vs_global_mahalanobis"]["met"]
+
+
+def test_the_demo_block_is_the_console_output_with_its_wrapped_last_line():
+    """The README's demo block keeps every line the user sees: the files line wraps at 80 columns,
+    and dropping only its first part once left a stray 'model.pt, calibrated.pt, sets.png'."""
+    out = (
+        "table  \n"
+        "files in ipcverify-demo/: train.csv, calibration.csv, test.csv, model.pt, calibrated.pt, \n"
+        "sets.png\n"
+    )
+    assert console_block(out) == (
+        "```\ntable\nfiles in ipcverify-demo/: train.csv, calibration.csv, test.csv, model.pt, "
+        "calibrated.pt,\nsets.png\n```\n"
+    )
 
 
 def test_the_documents_numbers_are_the_committed_results():

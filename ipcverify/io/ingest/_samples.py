@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, Literal
@@ -26,7 +27,7 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
-from ipcverify.errors import DataError
+from ipcverify.errors import DataError, Hint
 from ipcverify.io.ingest._align import Alignment, fit_alignment
 from ipcverify.io.ingest._bagio import StateSeries
 from ipcverify.io.ingest._quantity import QUANTITIES, STATE_COLUMNS, Quantity, quantity_pair, state_features
@@ -196,18 +197,42 @@ def _fit(prepared: Sequence[_Prepared], options: IngestOptions) -> Alignment:
     return fit_alignment(np.vstack(est), np.vstack(tru), kind, options.align_runs)
 
 
+def _gap(p: _Prepared, reason: str, options: IngestOptions) -> tuple[str, int, float]:
+    """For ``truth_gap`` / ``estimate_gap``: whose stamps, how many lie within the estimate's span,
+    and the largest gap between consecutive stamps there."""
+    run = p.run
+    tr = run.truth.shifted(options.t_offset) if reason == "truth_gap" else run.estimate
+    c, d = run.estimate.span
+    inside = tr.t[(tr.t >= c) & (tr.t <= d)]
+    around = tr.t[max(0, np.searchsorted(tr.t, c) - 1) : np.searchsorted(tr.t, d) + 1]
+    largest = float(np.diff(around).max()) if around.shape[0] > 1 else math.inf
+    return ("truth" if reason == "truth_gap" else "estimate"), int(inside.shape[0]), largest
+
+
+def _warn_gaps(p: _Prepared, counts: dict[str, int], starts: int, options: IngestOptions) -> None:
+    """A :class:`~ipcverify.errors.Hint` when gaps wider than ``max_gap`` drop most of a run's samples."""
+    reason = max(("estimate_gap", "truth_gap"), key=lambda r: counts[r])
+    if 2 * counts[reason] <= starts:
+        return
+    who, _, largest = _gap(p, reason, options)
+    warnings.warn(
+        Hint(
+            f"run {p.run.name}: {counts[reason]} of {starts} samples dropped as {reason}: the {who}'s "
+            f"stamps are up to {largest:.6g} s apart, above --max-gap {options.max_gap:g} s; to keep "
+            f"them, raise --max-gap above {largest:.6g} (poses are then interpolated across such "
+            f"gaps), or check the {who} topic's rate and stamps"
+        ),
+        stacklevel=4,
+    )
+
+
 def _no_rows_error(p: _Prepared, counts: dict[str, int], options: IngestOptions) -> DataError:
     run, gap = p.run, options.max_gap
     worst = max(REASONS, key=lambda r: counts[r])
     if worst in ("truth_gap", "estimate_gap"):
-        tr = run.truth.shifted(options.t_offset) if worst == "truth_gap" else run.estimate
-        c, d = run.estimate.span
-        inside = tr.t[(tr.t >= c) & (tr.t <= d)]
-        around = tr.t[max(0, np.searchsorted(tr.t, c) - 1) : np.searchsorted(tr.t, d) + 1]
-        largest = float(np.diff(around).max()) if around.shape[0] > 1 else math.inf
-        who = "truth" if worst == "truth_gap" else "estimate"
+        who, inside, largest = _gap(p, worst, options)
         return DataError(
-            f"run {run.name}: no sample kept: the {who} has {inside.shape[0]} stamps within the "
+            f"run {run.name}: no sample kept: the {who} has {inside} stamps within the "
             f"estimate's span and its largest gap there is {largest:.6g} s, above --max-gap {gap:g} s; "
             f"raise --max-gap, or check the {who} topic's rate and stamps"
         )
@@ -252,6 +277,7 @@ def _rows(p: _Prepared, options: IngestOptions, state_width: int) -> tuple[pd.Da
     keep = ~dropped
     if not keep.any():
         raise _no_rows_error(p, counts, options)
+    _warn_gaps(p, counts, int(p.t0.shape[0]), options)
     y, yhat = quantity_pair(options.quantity, g0, g1, e0, e1)
     cols: dict[str, Any] = {f"x_{i}": x[keep, i] for i in range(x.shape[1])}
     cols.update({f"y_{i}": y[keep, i] for i in range(y.shape[1])})

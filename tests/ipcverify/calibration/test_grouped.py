@@ -305,6 +305,11 @@ def test_record_round_trips_and_protocol(mode, guarantee):
         assert allowed.rate is not None and "per test group" in allowed.reason
     if mode == "pac":
         assert allowed.rate == cal.certified_epsilon <= 0.1
+    # the summary says what its n counts: the rows used of how many, which differ by method
+    rows_used = {"one-per-group": (60, "one seeded random row of each group used")}
+    n, used = rows_used.get(d["method"], (d["n_rows"], "every row used"))
+    assert d["n"] == n and used in d["grouping"]
+    assert f"60 groups of run ({d['n_rows']:,} rows)" in d["grouping"]
     sentence = cal.guarantee()
     assert "60 calibration groups (by 'run')" in sentence
     assert ("i.i.d." if mode == "pac" else "exchangeable") in sentence

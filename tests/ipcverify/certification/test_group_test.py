@@ -309,7 +309,10 @@ def test_real_log_end_to_end_with_group_column(run_cli, tmp_path):
         pd.Series(violated).groupby(test["flight"].to_numpy()).any().sum()
     )
     assert g["sample"]["violations"] <= g["trajectory"]["violations"]
-    assert "Counted per group of" in (tmp_path / "cert" / "report.html").read_text()
+    page = (tmp_path / "cert" / "report.html").read_text()
+    assert "Counted per group of" in page
+    # the per-bin coverage intervals count rows as independent: the page says so when rows are grouped
+    assert "counts its rows as independent samples; rows of one group of <code>flight</code>" in page
     # the log holds one sequence (MH_04): as a group column it has one group only
     res = run_cli("certify", tmp_path / "cal.pt", "--data", tmp_path / "test.csv",
                   "--group-column", "sequence", "--out", tmp_path / "x")  # fmt: skip

@@ -84,6 +84,10 @@ def test_page_says_what_is_guaranteed(written):
     assert "What is guaranteed" in page and "exchangeable" in page
     assert "Theorem 1 is vacuous" in page and "NOT a guarantee" in page
     assert f"{res.certificate.test.violations:,}" in page
+    # the calibration's n is the rows its threshold used (one per flight for a flight-level one)
+    n = res.certificate.calibration.n
+    assert f"<th>calibration samples used n</th><td>{n:,}</td>" in page
+    assert "counts its rows as independent samples" not in page  # no group column: nothing to caveat
 
 
 def test_report_without_calibration_or_training_data(tmp_path):

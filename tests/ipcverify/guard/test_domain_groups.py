@@ -10,6 +10,7 @@ over the flights, so a new flight's expected share of flagged queries is at most
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pandas as pd
@@ -85,6 +86,20 @@ def test_too_few_groups_and_bad_labels_are_refused():
         DomainModel.fit(z[:, :3], z[:, 3:], alpha=ALPHA, groups=labels)
     with pytest.raises(InvalidInputError, match="groups of shape"):
         DomainModel.fit(z[:, :3], z[:, 3:], alpha=ALPHA, groups=labels[:-1])
+
+
+def test_too_few_groups_names_the_smallest_alpha_they_allow_and_it_fits():
+    """The refusal says how large --domain-alpha must be, and that value is accepted."""
+    rng = np.random.default_rng(4)
+    z, labels = correlated_flights(rng, 6)
+    with pytest.raises(SampleSizeError, match=r"with 6 groups the smallest is ([0-9.]+)\)") as info:
+        DomainModel.fit(z[:, :3], z[:, 3:], alpha=ALPHA, groups=labels)
+    smallest = float(re.search(r"the smallest is ([0-9.]+)\)", str(info.value)).group(1))
+    assert 1 / 7 <= smallest < 1 / 7 + 0.001  # eps (G + 1) >= 1, on the 0.001 grid
+    dom = DomainModel.fit(z[:, :3], z[:, 3:], alpha=smallest, groups=labels)
+    assert dom.n_groups == 6
+    with pytest.raises(SampleSizeError, match="at least 7 groups"):
+        DomainModel.fit(z[:, :3], z[:, 3:], alpha=smallest - 0.001, groups=labels)
 
 
 def _dataset(z: np.ndarray, labels: np.ndarray, rng: np.random.Generator) -> PerceptionDataset:

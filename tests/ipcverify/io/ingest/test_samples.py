@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
 from ipcverify.data._dataset import PerceptionDataset
-from ipcverify.errors import DataError
+from ipcverify.errors import DataError, Hint
 from ipcverify.io.ingest._bagio import StateSeries
 from ipcverify.io.ingest._samples import MANIFEST_KEY, IngestOptions, RunData, build_samples
 from ipcverify.io.ingest._trajectory import Trajectory
@@ -149,6 +151,33 @@ def test_too_few_truth_samples_gives_the_count_and_the_largest_gap(motions):
             [RunData("r", truth.trajectory(t_truth), est.trajectory(np.arange(0.2, 4.3, 0.05)))],
             IngestOptions(),
         )
+
+
+def test_gaps_that_drop_most_samples_give_a_hint_with_the_largest_gap(motions):
+    """Keyframe-rate estimates (bundle adjustment): the run is kept, and the hint says how far to
+    raise --max-gap; with that --max-gap every sample is kept and nothing is hinted."""
+    truth, est = motions
+    t_truth = np.arange(0.0, 10.0, 0.01)
+    t_est = np.concatenate([np.arange(0.0, 1.0, 0.05), np.arange(1.0, 8.0, 0.4)])  # 0.4 s keyframes
+    run = RunData("kf", truth.trajectory(t_truth), est.trajectory(t_est))
+    with pytest.warns(
+        Hint,
+        match=r"run kf: \d+ of \d+ samples dropped as estimate_gap: the estimate's stamps "
+        r"are up to 0\.4 s apart, above --max-gap 0\.2 s; to keep them, raise --max-gap above 0\.4",
+    ):
+        df = build_samples([run], IngestOptions())
+    account = df.attrs[MANIFEST_KEY]["runs"][0]
+    assert 0 < account["rows"] and 2 * account["dropped"]["estimate_gap"] > account["sample_starts"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", Hint)
+        wide = build_samples([run], IngestOptions(max_gap=0.41))
+        assert wide.attrs[MANIFEST_KEY]["runs"][0]["rows"] == account["sample_starts"]
+        # a few samples dropped (under half) are counted, not hinted
+        holed = t_truth[(t_truth < 3.0) | (t_truth > 3.6)]
+        few = build_samples(
+            [RunData("r", truth.trajectory(holed), est.trajectory(t_est))], IngestOptions(max_gap=0.41)
+        )
+        assert 0 < few.attrs[MANIFEST_KEY]["runs"][0]["dropped"]["truth_gap"] < len(few)
 
 
 @pytest.mark.parametrize(
