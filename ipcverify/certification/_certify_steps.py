@@ -258,7 +258,7 @@ def _statement(cal: Calibration | None, test: TestResult | None, status: Certifi
         f"Independently, the ground truth fell outside its set for {test.violations} of {test.n} fresh "
         f"test {test.unit}, so with "
         f"confidence {1 - test.delta:.6g} the violation rate of this contract is at most "
-        f"{test.upper_bound:.4g} (Clopper-Pearson; valid if the test {test.unit} are i.i.d. from "
+        f"{test.bound_text()} (Clopper-Pearson; valid if the test {test.unit} are i.i.d. from "
         "deployment and unused in training and calibration)."
     )
     if cal is None:

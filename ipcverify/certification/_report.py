@@ -120,7 +120,7 @@ def _test_section(cert: Certificate, ev: CertifyEvidence | None, s: CertificateS
         (f"test {_unit_words(t.unit)}", t.n),
         ("violations", t.violations),
         ("empirical violation rate", t.empirical_rate),
-        (f"upper bound (Clopper-Pearson, confidence {1 - t.delta:.6g})", t.upper_bound),
+        (f"upper bound (Clopper-Pearson, confidence {1 - t.delta:.6g})", t.bound_text()),
         (f"two-sided interval ({1 - t.delta:.6g})", f"[{t.interval[0]:.4g}, {t.interval[1]:.4g}]"),
         (f"mean log-volume of the sets ({volume})", cert.volume.mean_log),
         (f"median log-volume ({volume})", cert.volume.median_log),
@@ -199,7 +199,7 @@ def _group_test_part(cert: Certificate) -> list[str]:
         mark = "compared with the calibration" if g.compared_unit == unit else "reported"
         rows += (
             f"<tr><td>{html.escape(label)}</td><td>{html_value(res.violations)} / {html_value(res.n)}</td>"
-            f"<td>{html_value(res.empirical_rate)}</td><td>{html_value(res.upper_bound)}</td>"
+            f"<td>{html_value(res.empirical_rate)}</td><td>{html.escape(res.bound_text())}</td>"
             f"<td>[{res.interval[0]:.4g}, {res.interval[1]:.4g}]</td><td>{mark}</td></tr>"
         )
     conf = f"{1 - g.trajectory.delta:.6g}"

@@ -54,7 +54,7 @@ def _claim(cert: Certificate) -> str:
         return "Nothing is claimed: the model is not calibrated and no test data was given."
     return (
         "No calibration certificate; the held-out test alone says that, with confidence "
-        f"{1 - test.delta:.6g}, the violation rate is at most {test.upper_bound:.4g} "
+        f"{1 - test.delta:.6g}, the violation rate is at most {test.bound_text()} "
         f"({test.violations} of {test.n} test {test.unit} outside their sets; valid if they are i.i.d. "
         "from deployment)."
     )
@@ -90,7 +90,7 @@ def _calibration_check(cert: Certificate) -> Check:
 def _counted(t: TestResult) -> str:
     return (
         f"{t.violations:,} of {t.n:,} test {t.unit} outside ({100 * t.empirical_rate:.3g} %); upper bound "
-        f"{t.upper_bound:.4g} at confidence {1 - t.delta:.6g}"
+        f"{t.bound_text()} at confidence {1 - t.delta:.6g}"
     )
 
 
@@ -133,7 +133,7 @@ def _group_checks(g: GroupTest) -> list[Check]:
         counted = (
             f"{res.violations:,} of {res.n:,} groups ({100 * res.empirical_rate:.3g} %)"
             + (" have a truth outside its set somewhere" if unit == "trajectory" else " outside")
-            + f"; upper bound {res.upper_bound:.4g} at confidence {1 - res.delta:.6g}"
+            + f"; upper bound {res.bound_text()} at confidence {1 - res.delta:.6g}"
         )
         level: CheckLevel
         if g.compared_unit == unit and c.checked:

@@ -84,6 +84,23 @@ class TestResult:
         """``violations / n``."""
         return self.violations / self.n
 
+    @property
+    def vacuous(self) -> bool:
+        """The upper bound is 1: the test bounds nothing (too few test units, or all outside)."""
+        return self.upper_bound >= 1.0
+
+    def bound_text(self) -> str:
+        """The upper bound as the reports write it, saying so when it is vacuous.
+
+        Examples
+        --------
+        >>> TestResult.from_counts(3, 1000, 0.001).bound_text()
+        '0.013'
+        >>> TestResult.from_counts(2, 2, 0.05).bound_text()
+        '1 (vacuous: it bounds nothing)'
+        """
+        return f"{self.upper_bound:.4g}" + (" (vacuous: it bounds nothing)" if self.vacuous else "")
+
     def to_dict(self) -> dict[str, Any]:
         """Plain-data form."""
         return {
@@ -91,6 +108,7 @@ class TestResult:
             "violations": self.violations,
             "empirical_rate": self.empirical_rate,
             "upper_bound": self.upper_bound,
+            "vacuous": self.vacuous,
             "lower_bound": self.lower_bound,
             "interval": list(self.interval),
             "delta": self.delta,
@@ -272,9 +290,9 @@ class GroupTest:
         text = (
             f"Counted per group of {self.column!r} ({self.n_groups} test groups, {self.n_rows} rows; "
             "valid if the test groups are i.i.d., whatever the correlation within a group): with confidence "
-            f"{conf}, a random sample of a new group violates with probability at most {s.upper_bound:.4g} "
+            f"{conf}, a random sample of a new group violates with probability at most {s.bound_text()} "
             f"({s.violations} of {s.n} randomly chosen samples outside), and a new group leaves its sets "
-            f"somewhere with probability at most {t.upper_bound:.4g} ({t.violations} of {t.n} groups)."
+            f"somewhere with probability at most {t.bound_text()} ({t.violations} of {t.n} groups)."
         )
         c = self.consistency
         if c.checked and not c.consistent:

@@ -17,6 +17,7 @@ import ipcverify
 from ipcverify.calibration import Grouped
 from ipcverify.certification._certificate import CertificateStatus
 from ipcverify.certification._certify import certify, write_certificate
+from ipcverify.certification._report import render_report
 from ipcverify.certification._report_plots import plot_coverage, plot_projections, plot_scores
 from ipcverify.certification._summary import WEAK_EPSILON, CertificateSummary, target_strength
 from ipcverify.contract._calibrate import calibrate
@@ -306,3 +307,23 @@ def test_every_plot_axis_says_what_it_measures_and_in_which_units(net, monkeypat
     m1 = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=1, hidden=(4,), param="cholesky")))
     ev1 = certify(m1, one_d).evidence
     assert _labels(plot_projections(ev1, ("range [m]",))) == ["range [m]"] * len(ev1.example_index)
+
+
+def test_a_test_bound_of_one_is_reported_as_vacuous_everywhere_it_is_written():
+    torch = pytest.importorskip("torch")
+    torch.manual_seed(0)
+    model = IPCModel(IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(8,), param="cholesky")))
+    d = make_lagged_perception(3, seed=2)
+    far = PerceptionDataset(d.x, d.y + 100.0, d.yhat)  # every truth far outside its set
+    result = certify(model, far)
+    t = result.certificate.test
+    assert (t.violations, t.n, t.upper_bound, t.vacuous) == (3, 3, 1.0, True)
+    summary = result.certificate.summary
+    held_out = next(c for c in summary.checks if c.name == "held-out test")
+    assert "upper bound 1 (vacuous: it bounds nothing)" in held_out.detail
+    assert "at most 1 (vacuous: it bounds nothing)" in summary.claim
+    assert t.to_dict()["vacuous"] is True
+    assert "1 (vacuous: it bounds nothing)" in render_report(result)
+    # a bound below 1 is not called vacuous
+    near = certify(model, d).certificate.test
+    assert not near.vacuous and "vacuous" not in near.bound_text()
