@@ -214,6 +214,10 @@ class Certificate:
         The test counted per group (flights, runs).
     group_claim : GroupClaim or None
         The groups a claim about groups counts (None: rows).
+    test_group_columns : mapping of str to int
+        The test data's columns that look like runs or flights (named like ``run`` or
+        ``flight_id``; :func:`ipcverify.data._checks.group_like_counts`) and their numbers of
+        groups; empty without such columns.
     summary : CertificateSummary or None
         The executive summary.
     """
@@ -236,6 +240,7 @@ class Certificate:
     worst_bin: WorstBin | None = None
     group_test: GroupTest | None = None
     group_claim: GroupClaim | None = None
+    test_group_columns: Mapping[str, int] = field(default_factory=dict)
     summary: CertificateSummary | None = None
 
     def to_dict(self) -> dict[str, Any]:
@@ -275,6 +280,7 @@ class Certificate:
             "conditional_coverage": None if self.worst_bin is None else self.worst_bin.to_dict(),
             "domain": None if self.domain is None else self.domain.to_dict(),
             "group_test": None if self.group_test is None else self.group_test.to_dict(),
+            "test_group_like_columns": dict(self.test_group_columns),
             "data": {
                 "test": None if self.test_data is None else self.test_data.to_dict(),
                 "train": None if self.train_data is None else self.train_data.to_dict(),

@@ -58,6 +58,7 @@ from ipcverify.certification._report import render_report
 from ipcverify.certification._summarize import output_labels, summarize
 from ipcverify.certification._test_result import Consistency, GroupTest, GroupTestResult, TestResult
 from ipcverify.contract._model import IPCModel
+from ipcverify.data._checks import group_like_counts
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.data._files import atomic_write, file_sha256, write_json
 from ipcverify.errors import InvalidInputError
@@ -239,6 +240,7 @@ def certify(
         test_data=None if test_data is None else _identity(test_data, test_path),
         train_data=None if train_data is None else _identity(train_data, train_path, model),
         group_claim=None if cal is None else cal.group_claim(),
+        test_group_columns={} if test_data is None else group_like_counts(test_data),
     )
     rows_outside = (
         None if tested is None else (int(tested.scores.violated.sum()), len(tested.scores.violated))

@@ -94,6 +94,28 @@ def _counted(t: TestResult) -> str:
     )
 
 
+def _independence_check(cert: Certificate) -> Check:
+    """A row-level claim tested on rows that come in runs or flights: its assumption is in doubt."""
+    col, groups = next(iter(cert.test_group_columns.items()))
+    rows = f"{cert.test.n:,} test rows" if cert.test is not None else "the test rows"
+    counted = (
+        f"the test is also counted per group of {cert.group_test.column!r} above"
+        if cert.group_test is not None
+        else f"certify with --group-column {col} to also count the test per {col}"
+    )
+    return Check(
+        name="independent rows",
+        verdict="assumed, in doubt",
+        level="warn",
+        detail=(
+            f"the test data has a {col!r} column ({groups} groups in {rows}): rows of one {col} are "
+            "usually correlated, but the row-level claim, and the calibration behind it, count every "
+            "row as an independent sample, which their exact bounds need; "
+            f"{counted}, and recalibrate with --group-column {col} for a claim about whole {col}s"
+        ),
+    )
+
+
 def _test_check(cert: Certificate, rows_outside: tuple[int, int] | None) -> Check:
     t, c = cert.test, cert.consistency
     name = "held-out test"
@@ -315,6 +337,8 @@ def summarize(
     checks = [_calibration_check(cert), _test_check(cert, rows_outside)]
     if cert.group_test is not None:
         checks += _group_checks(cert.group_test)
+    if claim_of is None and cert.test_group_columns:
+        checks.append(_independence_check(cert))
     checks += [_domain_check(cert.domain), _theorem1_check(cert)]
     y_dim = int(cert.model.architecture.get("y_dim", len(labels) or 1))
     delta = cal.delta if cal is not None else (None if cert.test is None else cert.test.delta)

@@ -200,6 +200,26 @@ def warn_outside_training(metadata: Mapping[str, Any], data: PerceptionDataset) 
     return share
 
 
+def group_like_counts(data: PerceptionDataset) -> dict[str, int]:
+    """:func:`group_like_columns` with the number of groups of each, in the same order.
+
+    Parameters
+    ----------
+    data : PerceptionDataset
+        The data.
+
+    Examples
+    --------
+    >>> d = PerceptionDataset(np.zeros((6, 1)), np.zeros((6, 1)), np.zeros((6, 1)),
+    ...                       extra={"flight_id": np.arange(6) // 2, "run": np.arange(6) // 3})
+    >>> group_like_counts(d)
+    {'flight_id': 3, 'run': 2}
+    """
+    return {
+        name: len(np.unique(np.asarray(data.extra[name]).astype(str))) for name in group_like_columns(data)
+    }
+
+
 def group_like_columns(data: PerceptionDataset) -> list[str]:
     """Extra columns that look like a group of correlated rows: named like ``run`` or ``flight_id``,
     with at least 2 groups and fewer groups than rows; the one with the most groups first.
@@ -247,11 +267,11 @@ def warn_correlated_rows(
         The Python spelling of that option, formatted with the column as ``col``
         (``"group_column={col!r}"``; ``calibrate`` takes ``"Grouped(column={col!r})"``).
     """
-    columns = group_like_columns(data)
-    if not columns:
+    counts = group_like_counts(data)
+    if not counts:
         return
-    col = columns[0]
-    groups = len(np.unique(np.asarray(data.extra[col]).astype(str)))
+    columns = list(counts)
+    col, groups = columns[0], counts[columns[0]]
     others = "".join(f" (or --group-column {c})" for c in columns[1:])
     warnings.warn(
         Hint(

@@ -124,7 +124,7 @@ def test_certificate_json_adds_the_summary_and_keeps_every_key(files, tmp_path):
     )
     write_certificate(res, tmp_path)
     d = json.loads((tmp_path / "certificate.json").read_text())
-    assert OLD_KEYS | {"summary"} == set(d)
+    assert OLD_KEYS | {"summary", "test_group_like_columns"} == set(d)
     s = d["summary"]
     assert s == json.loads(json.dumps(res.certificate.summary.to_dict()))
     assert s["verdict"].startswith(
@@ -210,13 +210,17 @@ def test_per_flight_result_is_a_row_of_its_own(net):
     test = _flights(make_lagged_perception(2000, seed=82), 50)
     cert = certify(model, test, group_column="flight").certificate
     g, rows = cert.group_test, cert.summary.checks
-    assert [c.name for c in rows] == [
-        NAMES[0],
-        NAMES[1],
-        "per-flight test ('flight'): one random row per group",
-        "per-flight test ('flight'): any violation in a group",
-        *NAMES[2:],
-    ]
+    assert (
+        [c.name for c in rows]
+        == [
+            NAMES[0],
+            NAMES[1],
+            "per-flight test ('flight'): one random row per group",
+            "per-flight test ('flight'): any violation in a group",
+            "independent rows",  # the claim is about rows, and the test rows come in flights
+            *NAMES[2:],
+        ]
+    )
     sample, trajectory = rows[2], rows[3]
     assert g.compared_unit == "sample" and g.consistency.checked
     assert sample.verdict == (
@@ -327,3 +331,29 @@ def test_a_test_bound_of_one_is_reported_as_vacuous_everywhere_it_is_written():
     # a bound below 1 is not called vacuous
     near = certify(model, d).certificate.test
     assert not near.vacuous and "vacuous" not in near.bound_text()
+
+
+def test_a_row_level_claim_on_test_rows_grouped_by_flight_is_flagged_as_an_assumption_in_doubt(net):
+    row_level = calibrate(net, make_lagged_perception(1500, seed=81), 0.1, 0.01)
+    test = _flights(make_lagged_perception(600, seed=82), 50)  # 12 flights
+    cert = certify(row_level, test).certificate
+    assert dict(cert.test_group_columns) == {"flight": 12}
+    assert cert.to_dict()["test_group_like_columns"] == {"flight": 12}
+    check = next(c for c in cert.summary.checks if c.name == "independent rows")
+    assert (check.verdict, check.level) == ("assumed, in doubt", "warn")
+    assert "'flight' column (12 groups in 600 test rows)" in check.detail
+    assert "certify with --group-column flight" in check.detail
+    assert "recalibrate with --group-column flight" in check.detail
+    # counted per flight as well: the row says so instead of asking for it
+    counted = certify(row_level, test, group_column="flight").certificate
+    check = next(c for c in counted.summary.checks if c.name == "independent rows")
+    assert "counted per group of 'flight' above" in check.detail
+    # no such row for a claim about flights, nor for test data without a run or flight column
+    by_flight = calibrate(
+        net, _flights(make_lagged_perception(3000, seed=83), 10), 0.2, 0.05, Grouped(column="flight"),
+        domain=DomainSpec(alpha=0.05),
+    )  # fmt: skip
+    names = [c.name for c in certify(by_flight, test).certificate.summary.checks]
+    assert "independent rows" not in names
+    plain = certify(row_level, make_lagged_perception(600, seed=82)).certificate
+    assert "independent rows" not in [c.name for c in plain.summary.checks] and not plain.test_group_columns
