@@ -144,8 +144,12 @@ def _test_check(cert: Certificate, rows_outside: tuple[int, int] | None) -> Chec
     return Check(name=name, verdict=verdict, level=level, detail=detail)
 
 
-def _group_checks(g: GroupTest) -> list[Check]:
-    """Two rows (one random row per group; any violation per group); the compared one has the verdict."""
+def _group_checks(g: GroupTest, test: TestResult | None = None) -> list[Check]:
+    """Two rows (one random row per group; any violation per group); the compared one has the verdict.
+
+    A row whose counts are the held-out test's own (a claim about groups counts the test per
+    group already) says so, so that a reader does not take it for a second, independent test.
+    """
     rows = []
     c = g.consistency
     for unit, what, res in (
@@ -174,6 +178,13 @@ def _group_checks(g: GroupTest) -> list[Check]:
                 why = "the claim is about whole groups (the row below)"
             verdict, level = "reported only", "info"
             counted += f"; not compared: {why}"
+        if (
+            test is not None
+            and test.unit != "samples"  # the held-out test counted the claim's groups ...
+            and g.compared_unit == unit  # ... by this row's statistic
+            and (test.violations, test.n) == (res.violations, res.n)
+        ):
+            counted += "; the same count as the held-out test above, not a second test"
         name = f"per-flight test ({g.column!r}): {what}"
         rows.append(Check(name=name, verdict=verdict, level=level, detail=counted))
     return rows
@@ -336,7 +347,7 @@ def summarize(
     claim_of = cert.group_claim
     checks = [_calibration_check(cert), _test_check(cert, rows_outside)]
     if cert.group_test is not None:
-        checks += _group_checks(cert.group_test)
+        checks += _group_checks(cert.group_test, cert.test)
     if claim_of is None and cert.test_group_columns:
         checks.append(_independence_check(cert))
     checks += [_domain_check(cert.domain), _theorem1_check(cert)]

@@ -249,6 +249,16 @@ def test_a_claim_about_flights_has_flights_as_its_unit(net):
     held = s.checks[1].detail
     k = int(res.evidence.violated.sum())
     assert f"all test rows: {k:,} of 1,000 outside" in held and "descriptive only" in held
+    # the per-flight row that repeats the held-out test's own count says so; the other does not
+    same = "the same count as the held-out test above, not a second test"
+    rows = {c.name: c.detail for c in s.checks if c.name.startswith("per-flight test")}
+    sample_row = rows["per-flight test ('flight'): one random row per group"]
+    assert (cert.test.violations, cert.test.n) == (
+        cert.group_test.sample.violations,
+        cert.group_test.sample.n,
+    )
+    assert same in sample_row
+    assert same not in rows["per-flight test ('flight'): any violation in a group"]
     # flights are not called samples; no internal function name reaches the user
     assert "test samples" not in cert.test_bound_note
     text = json.dumps(cert.to_dict())
