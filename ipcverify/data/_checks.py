@@ -201,7 +201,11 @@ def warn_outside_training(metadata: Mapping[str, Any], data: PerceptionDataset) 
 
 
 def group_like_counts(data: PerceptionDataset) -> dict[str, int]:
-    """:func:`group_like_columns` with the number of groups of each, in the same order.
+    """Extra columns that look like a group of correlated rows, with their numbers of groups.
+
+    A column counts when it is named like ``run`` or ``flight_id`` (a name of
+    :data:`GROUP_NAMES`, maybe with ``_id``, ``id``, ``_name`` or ``s`` after it) and has at least
+    2 groups and fewer groups than rows; the one with the most groups comes first.
 
     Parameters
     ----------
@@ -211,30 +215,10 @@ def group_like_counts(data: PerceptionDataset) -> dict[str, int]:
     Examples
     --------
     >>> d = PerceptionDataset(np.zeros((6, 1)), np.zeros((6, 1)), np.zeros((6, 1)),
-    ...                       extra={"flight_id": np.arange(6) // 2, "run": np.arange(6) // 3})
+    ...                       extra={"Run": np.arange(6) // 3, "flight_id": np.arange(6) // 2,
+    ...                              "t": np.arange(6.0)})
     >>> group_like_counts(d)
-    {'flight_id': 3, 'run': 2}
-    """
-    return {
-        name: len(np.unique(np.asarray(data.extra[name]).astype(str))) for name in group_like_columns(data)
-    }
-
-
-def group_like_columns(data: PerceptionDataset) -> list[str]:
-    """Extra columns that look like a group of correlated rows: named like ``run`` or ``flight_id``,
-    with at least 2 groups and fewer groups than rows; the one with the most groups first.
-
-    Parameters
-    ----------
-    data : PerceptionDataset
-        The data.
-
-    Examples
-    --------
-    >>> d = PerceptionDataset(np.zeros((4, 1)), np.zeros((4, 1)), np.zeros((4, 1)),
-    ...                       extra={"Run": np.array([1, 1, 2, 2]), "t": np.arange(4.0)})
-    >>> group_like_columns(d)
-    ['Run']
+    {'flight_id': 3, 'Run': 2}
     """
     found: list[tuple[int, str]] = []
     for name in data.extra:
@@ -246,7 +230,7 @@ def group_like_columns(data: PerceptionDataset) -> list[str]:
             groups = len(np.unique(np.asarray(data.extra[name]).astype(str)))
             if 2 <= groups < len(data):
                 found.append((groups, name))
-    return [name for _, name in sorted(found, key=lambda t: -t[0])]
+    return {name: groups for groups, name in sorted(found, key=lambda t: -t[0])}
 
 
 def warn_correlated_rows(

@@ -12,7 +12,7 @@ from ipcverify.contract._calibrate import calibrate
 from ipcverify.contract._model import IPCModel, IPCNetwork
 from ipcverify.data._checks import (
     check_informative,
-    group_like_columns,
+    group_like_counts,
     input_ranges,
     warn_correlated_rows,
     warn_outside_training,
@@ -115,7 +115,7 @@ def test_calibrate_warns_far_from_training_and_hints_at_runs(recwarn):
     assert not [w for w in recwarn if w.category is Hint]  # grouped: no hint
 
 
-def test_group_like_columns_need_a_fitting_name_and_more_than_one_group():
+def test_group_like_counts_need_a_fitting_name_and_more_than_one_group():
     n = 12
     ds = _ds(
         np.arange(n),
@@ -124,9 +124,9 @@ def test_group_like_columns_need_a_fitting_name_and_more_than_one_group():
         run=np.arange(n),  # one row per run: not a group
         t=np.arange(n),
     )
-    assert group_like_columns(ds) == ["Flight_ID"]
+    assert group_like_counts(ds) == {"Flight_ID": 3}
     two = _ds(np.arange(n), run=np.tile([0, 1], 6), flight=np.repeat(["a", "b", "c"], 4))
-    assert group_like_columns(two) == ["flight", "run"]  # the most groups first
+    assert list(group_like_counts(two).items()) == [("flight", 3), ("run", 2)]  # the most groups first
     with pytest.warns(Hint, match=r"--group-column flight \(or --group-column run\)"):
         warn_correlated_rows(two, "calibrating", "to calibrate by group")
     with pytest.warns(Hint, match=r"log.csv has a 'Flight_ID' column \(3 groups\).*certifying row by row"):
