@@ -13,7 +13,7 @@ from typing import Any
 import click
 
 from ipcverify.cli.app import EXISTING_FILE, OUTPUT_FILE, app, console
-from ipcverify.data._files import atomic_write
+from ipcverify.data._files import atomic_write, refuse_overwriting_input
 from ipcverify.decision.containment import (
     ContainmentCertificate,
     Method,
@@ -80,6 +80,7 @@ def prove_containment_cmd(problems: Path, out: Path, method: str | None) -> None
     outer set is a box, a polytope or an ellipsoid. Each certificate says PROVEN,
     REFUTED (with a witness point) or UNKNOWN; re-check them with check-certificate.
     """
+    refuse_overwriting_input(out, {"PROBLEMS": problems})
     items = load_json_items(problems, "problem")
     parsed = []
     for i, item in enumerate(items):

@@ -187,10 +187,12 @@ def train_cmd(
     needs in the model file.
     """
     from ipcverify.data._dataset import load_dataset
+    from ipcverify.data._files import refuse_overwriting_input
     from ipcverify.io._modelio import save_model
     from ipcverify.network._architecture import ModelConfig
     from ipcverify.training._train import HingeSelection, TrainConfig, train
 
+    refuse_overwriting_input(out, {"DATA": data})
     ds = load_dataset(data, _columns(x_columns), _columns(y_columns), _columns(yhat_columns))
     mc = ModelConfig.recipe(
         recipe,
@@ -276,10 +278,12 @@ def predict_cmd(model: Path, data: Path, out: Path) -> None:
     `domain_distance` (B,) and `singular` (B,). DATA needs only the state and estimate columns.
     """
     from ipcverify.contract._prediction import predict_sets, write_predictions
+    from ipcverify.data._files import refuse_overwriting_input
     from ipcverify.io._modelio import load_inputs_for_model, load_model
 
     if out.suffix.lower() != ".npz":
         raise InvalidInputError(f"--out must end in .npz; got {out.name}")
+    refuse_overwriting_input(out, {"MODEL": model, "DATA": data})
     m = load_model(model)
     pred = predict_sets(m, load_inputs_for_model(data, m))
     write_predictions(pred, out)
