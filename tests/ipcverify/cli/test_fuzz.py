@@ -165,6 +165,10 @@ def files(tmp_path_factory) -> dict[str, Path]:
         "json_unknown_type": json.dumps({"inner": ball, "outer": {"type": "sphere"}}),
         "json_empty_list": "[]",
         "json_huge": json.dumps({"inner": {**ball, "shape": [[1e308, 0.0], [0.0, 1e308]]}, "outer": box}),
+        "json_deep": "[" * 100_000 + "]" * 100_000,
+        "json_deep_object": '{"a": ' * 100_000 + "1" + "}" * 100_000,
+        "json_5000_digits": json.dumps({"inner": ball, "outer": box}).replace("-2.0", "-" + "9" * 5000, 1),
+        "json_1000_digits": json.dumps({"inner": ball, "outer": box}).replace("-2.0", "-" + "9" * 1000, 1),
     }
     for name, text in json_files.items():
         f[name] = d / f"{name}.json"
@@ -317,6 +321,10 @@ prove-out-is-directory       | 2 | is a directory                   | prove-cont
 check-bad-json               | 2 | not valid JSON                   | check-certificate {bad_json}
 check-problems-as-certs      | 2 | certificate 0                    | check-certificate {problems}
 check-csv-file               | 2 | not valid JSON                   | check-certificate {test}
+prove-deeply-nested          | 2 | nested too deeply to read        | prove-containment {json_deep} --out {tmp}/c.json
+check-deeply-nested          | 2 | nested too deeply to read        | check-certificate {json_deep_object}
+prove-5000-digit-integer     | 2 | more digits than can be read     | prove-containment {json_5000_digits} --out {tmp}/c.json
+prove-1000-digit-integer     | 2 | (1000 digits) is not exactly a f | prove-containment {json_1000_digits} --out {tmp}/c.json
 check-certify-certificate    | 2 | `ipcverify certify` writes       | check-certificate {certify_json}
 train-x-column-twice         | 2 | 'x_0' is twice among the x       | train {train} --out {tmp}/m.pt --x-columns x_0,x_0
 train-truth-as-state         | 2 | 'y_0' is both an x and a y       | train {train} --out {tmp}/m.pt --x-columns y_0,x_1
