@@ -351,7 +351,14 @@ def monitor_cmd(model: Path, log: Path, out: Path, delta: float | None, group_co
 
 @app.command("demo")
 @out_dir_option("ipcverify-demo", help="Directory for the example data and model.")
-@click.option("--n", "n_samples", default=5000, show_default=True, type=int, help="Training samples.")
+@click.option(
+    "--n",
+    "n_samples",
+    default=5000,
+    show_default=True,
+    type=int,
+    help="Training samples (100 to 10,000,000).",
+)
 @click.option("--seed", default=0, show_default=True, type=int)
 def demo_cmd(out: Path, n_samples: int, seed: int) -> None:
     """Generate synthetic lagged-perception data, train an IPC, calibrate it, evaluate it."""
