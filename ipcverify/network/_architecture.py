@@ -170,6 +170,11 @@ linear_center=False, members=1)
         """
         if name not in _RECIPE_MODEL:
             raise InvalidInputError(f"unknown recipe {name!r}; choose one of {', '.join(RECIPES)}")
+        if overrides.get("members", 1) == 0:  # 0 means "the head's default" to the constructor only
+            raise InvalidInputError(
+                f"members must be in [1, {MAX_MEMBERS}] (--members); got 0 -- leave it out for the recipe's "
+                "ensemble size"
+            )
         return cls(x_dim=x_dim, y_dim=y_dim, **{**_RECIPE_MODEL[name], **overrides})
 
     @property

@@ -329,6 +329,7 @@ check-certify-certificate    | 2 | `ipcverify certify` writes       | check-cert
 train-x-column-twice         | 2 | 'x_0' is twice among the x       | train {train} --out {tmp}/m.pt --x-columns x_0,x_0
 train-truth-as-state         | 2 | 'y_0' is both an x and a y       | train {train} --out {tmp}/m.pt --x-columns y_0,x_1
 train-seed-negative          | 2 | seed must be an integer in [0,   | train {train} --out {tmp}/m.pt --seed -1
+train-members-0              | 2 | got 0 -- leave it out for the re | train {train} --out {tmp}/m.pt --members 0
 train-hidden-enormous        | 2 | choose narrower layers           | train {train} --out {tmp}/m.pt --hidden 100000000000
 train-complex-npz            | 2 | is complex (dtype complex128)    | train {complex_npz} --out {tmp}/m.pt
 train-numbers-as-text        | 2 | 'x_1' holds numbers stored as te | train {text_parquet} --out {tmp}/m.pt

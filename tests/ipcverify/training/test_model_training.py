@@ -252,6 +252,10 @@ def test_unknown_recipe_is_refused_with_the_names():
         TrainConfig.recipe("best")
     with pytest.raises(InvalidInputError, match="unknown recipe 'best'"):
         ModelConfig.recipe("best", x_dim=1, y_dim=1)
+    with pytest.raises(
+        InvalidInputError, match=r"members must be in \[1, 32\] \(--members\); got 0 -- leave it out"
+    ):
+        ModelConfig.recipe("tight", x_dim=1, y_dim=1, members=0)  # was silently the recipe's 5
     with pytest.raises(InvalidInputError, match="unknown recipe 'best'"):
         train(_heteroscedastic(50, 0)[0], recipe="best")
 
