@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numbers
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -9,6 +10,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
+from ipcverify.calibration._bounds import min_calibration_size
 from ipcverify.calibration._global_scale import Global
 from ipcverify.certification._baselines import fit_global_mahalanobis
 from ipcverify.certification._evaluation import Evaluation, evaluate
@@ -18,6 +20,7 @@ from ipcverify.contract._calibrate import calibrate
 from ipcverify.data._dataset import PerceptionDataset, save_dataset
 from ipcverify.data._files import atomic_write
 from ipcverify.data._synthetic import make_lagged_perception
+from ipcverify.errors import InvalidInputError
 from ipcverify.io._modelio import save_model
 from ipcverify.sets._ellipsoid import Ellipsoid
 from ipcverify.training._train import TrainConfig, train
@@ -27,6 +30,10 @@ __all__ = ["DemoSummary", "run_demo", "plot_demo_sets"]
 #: Calibration target of the demo: PAC, at most 1 % violations with confidence 99.9 %.
 DEMO_EPSILON = 0.01
 DEMO_DELTA = 0.001
+#: Fewest training samples the demo accepts (the default recipe holds 15 % out for early stopping).
+DEMO_MIN_TRAIN = 100
+#: Most samples of one kind the demo generates (its data are made and trained on in memory).
+DEMO_MAX_SAMPLES = 10_000_000
 
 
 @dataclass(frozen=True)
@@ -75,11 +82,19 @@ def run_demo(
     Parameters
     ----------
     out_dir : path-like
-        Created if missing; receives the three CSV files and the two model files.
+        Created if missing; receives the three CSV files, the two model files and the picture,
+        all written once every step has succeeded (a failed run leaves no partial output).
     n_train, n_calibration : int
-        Training and calibration samples (the test set has 20,000).
+        Training samples (:data:`DEMO_MIN_TRAIN` to :data:`DEMO_MAX_SAMPLES`) and calibration
+        samples (at least the minimum for the demo's ``(epsilon, delta)``, 688); the test set
+        has 20,000.
     seed : int
-        Seed for data and training.
+        Seed for data and training, ``>= 0``.
+
+    Raises
+    ------
+    InvalidInputError
+        For a sample count or seed out of range (before anything is computed or written).
 
     Examples
     --------
@@ -88,21 +103,23 @@ def run_demo(
     >>> s.calibrated.n, s.calibrated.calibrated
     (20000, True)
     """
+    _check_demo_sizes(n_train, n_calibration, seed)
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     train_data = make_lagged_perception(n_train, seed=seed)
     cal_data = make_lagged_perception(n_calibration, seed=seed + 500_009)
     test_data = make_lagged_perception(20_000, seed=seed + 1_000_003)
-    for name, ds in (("train", train_data), ("calibration", cal_data), ("test", test_data)):
-        save_dataset(ds, out / f"{name}.csv")
     model = train(train_data, train_config=TrainConfig(seed=seed), progress=progress).model
-    save_model(model, out / "model.pt")
     calibrated = calibrate(model, cal_data, DEMO_EPSILON, DEMO_DELTA, Global(mode="pac"))
-    save_model(calibrated, out / "calibrated.pt")
     base = fit_global_mahalanobis(train_data).calibrate(cal_data, DEMO_EPSILON, DEMO_DELTA, mode="pac")
     base_sets = base.predict(test_data.x, test_data.yhat)
     ipc_sets = calibrated.predict(test_data.x, test_data.yhat)
     png = figure_to_png(plot_demo_sets(test_data, ipc_sets, base_sets), dpi=110)
+    # every step succeeded: only now write (a failed run leaves no partial set of files)
+    out.mkdir(parents=True, exist_ok=True)
+    for name, ds in (("train", train_data), ("calibration", cal_data), ("test", test_data)):
+        save_dataset(ds, out / f"{name}.csv")
+    save_model(model, out / "model.pt")
+    save_model(calibrated, out / "calibrated.pt")
     atomic_write(out / "sets.png", lambda f: f.write(png))
     return DemoSummary(
         out_dir=out,
@@ -112,6 +129,26 @@ def run_demo(
         global_log_volume=float(np.median(base_sets.log_volume())),
         global_violations=int((~base_sets.contains(test_data.y)).sum()),
     )
+
+
+def _check_demo_sizes(n_train: int, n_calibration: int, seed: int) -> None:
+    """Refuse sample counts and a seed the demo cannot run with, before it computes anything."""
+    need_cal = min_calibration_size(DEMO_EPSILON, DEMO_DELTA, "pac")
+    for name, value, low, option in (
+        ("n_train", n_train, DEMO_MIN_TRAIN, "--n"),
+        ("n_calibration", n_calibration, need_cal, None),
+    ):
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, numbers.Integral)
+            or not low <= value <= DEMO_MAX_SAMPLES
+        ):
+            where = f" ({option})" if option else ""
+            raise InvalidInputError(
+                f"the demo needs {name}{where} between {low:,} and {DEMO_MAX_SAMPLES:,}; got {value!r}"
+            )
+    if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0:
+        raise InvalidInputError(f"the demo's seed (--seed) must be a non-negative integer; got {seed!r}")
 
 
 def plot_demo_sets(data: PerceptionDataset, ipc: Ellipsoid, base: Ellipsoid) -> Figure:

@@ -36,6 +36,29 @@ CalibrationMode = Literal["pac", "marginal"]
 #: Relative safety margin on binomial tail comparisons (guards against rounding in
 #: the incomplete beta function; it only ever makes a bound more conservative).
 TAIL_MARGIN = 1e-9
+#: Largest sample count whose binomial tail is evaluated (larger minimums are quoted in closed form).
+_EXACT_N_LIMIT = 2**53
+
+
+def count_text(n: int) -> str:
+    """A sample count for a message: in full up to 15 digits, else rounded down to two digits.
+
+    Rounded down, "at least ``count_text(n)`` are needed" stays true.
+
+    Parameters
+    ----------
+    n : int
+        The count.
+
+    Examples
+    --------
+    >>> count_text(688), count_text(2995732273553990730853740629023464908749630263792079183)
+    ('688', '2.9e+54')
+    """
+    digits = str(n)
+    if len(digits) <= 15:
+        return digits
+    return f"{digits[0]}.{digits[1]}e+{len(digits) - 1}"
 
 
 def _check_probability(name: str, value: float, *, open_interval: bool = True) -> float:
@@ -163,12 +186,35 @@ def _binom_cdf(m: int, n: int, p: float) -> float:
 
 @lru_cache(maxsize=256)
 def _pac_min_n(epsilon: float, delta: float) -> int:
-    """Smallest n with (1 - epsilon)^n <= delta (with the rounding margin)."""
-    guess = max(1, math.ceil(math.log(delta) / math.log1p(-epsilon)))
+    """Smallest n with (1 - epsilon)^n <= delta (with the rounding margin).
+
+    Beyond 2**53 samples (an epsilon of about 1e-15 or less) the closed form ``ln(delta) /
+    ln(1 - epsilon)`` is returned as it is: the binomial tail cannot be evaluated at such an ``n``,
+    and no calibration set comes near it, so only the message quoting it uses the value.
+    """
+    ratio = math.log(delta) / math.log1p(-epsilon)
+    if not ratio <= _EXACT_N_LIMIT:  # also an infinite ratio (epsilon below 1e-308): -ln(1 - e) >= e
+        return (
+            math.ceil(ratio)
+            if math.isfinite(ratio)
+            else math.ceil(-Fraction(math.log(delta)) / Fraction(epsilon))
+        )
+    guess = max(1, math.ceil(ratio))
+    threshold = delta * (1.0 - TAIL_MARGIN)
     n = max(1, guess - 2)
-    while _binom_cdf(0, n, epsilon) > delta * (1.0 - TAIL_MARGIN):
+    for _ in range(64):  # the usual case: a few steps up from the closed form
+        if _binom_cdf(0, n, epsilon) <= threshold:
+            return n
         n += 1
-    return n
+    # a tiny epsilon: the margin moves the answer by about TAIL_MARGIN / epsilon, too many single
+    # steps; (1 - epsilon)^n decreases in n, so gallop to an n that works and bisect back
+    lo, hi, step = n - 1, n, 1
+    while _binom_cdf(0, hi, epsilon) > threshold:
+        lo, hi, step = hi, hi + step, 2 * step
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        lo, hi = (lo, mid) if _binom_cdf(0, mid, epsilon) <= threshold else (mid, hi)
+    return hi
 
 
 def pac_calibration_index(n: int, epsilon: float, delta: float) -> int:
@@ -215,7 +261,7 @@ def _pac_index(n: int, epsilon: float, delta: float) -> int:
         need = _pac_min_n(epsilon, delta)
         raise SampleSizeError(
             f"{n} calibration samples are too few for a PAC calibration at epsilon={epsilon:g}, "
-            f"delta={delta:g}: at least {need} are needed (n >= ln(delta) / ln(1 - epsilon)); "
+            f"delta={delta:g}: at least {count_text(need)} are needed (n >= ln(delta) / ln(1 - epsilon)); "
             "use more calibration data, a larger --epsilon or --delta, or --mode marginal"
         )
     # largest m in [0, n - 1] with cdf(m) <= threshold; cdf is increasing in m
@@ -301,7 +347,8 @@ def marginal_conformal_index(n: int, epsilon: float) -> int:
         need = math.ceil(1 / Fraction(epsilon) - 1)
         raise SampleSizeError(
             f"{n} calibration samples are too few for marginal calibration at epsilon={epsilon:g}: "
-            f"at least {need} are needed (n >= 1/epsilon - 1); use more calibration data or a larger epsilon"
+            f"at least {count_text(need)} are needed (n >= 1/epsilon - 1); use more calibration data or a "
+            "larger epsilon"
         )
     return max(k, 1)
 

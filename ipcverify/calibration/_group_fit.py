@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ipcverify.calibration._bounds import CalibrationMode, min_calibration_size, smallest_epsilon
+from ipcverify.calibration._bounds import CalibrationMode, count_text, min_calibration_size, smallest_epsilon
 from ipcverify.calibration._group_counts import GuaranteeKind, check_guarantee, group_layout, one_per_group
 from ipcverify.calibration._risk_control import risk_control_threshold
 from ipcverify.calibration._threshold import (
@@ -35,14 +35,16 @@ def too_few_groups(
     need = min_calibration_size(epsilon, delta, mode)
     text = (
         f"{G} groups of column {column!r} are too few for a {mode} {what} calibration at "
-        f"epsilon={epsilon:g}, delta={delta:g}: at least {need} groups are needed. The groups (flights, "
-        "runs), not the rows, are the exchangeable units, so more rows per group do not help; collect "
-        f"more independent groups, or raise --epsilon (with {G} groups the smallest is "
+        f"epsilon={epsilon:g}, delta={delta:g}: at least {count_text(need)} groups are needed. The groups "
+        "(flights, runs), not the rows, are the exchangeable units, so more rows per group do not help; "
+        f"collect more independent groups, or raise --epsilon (with {G} groups the smallest is "
         f"{smallest_epsilon(G, delta, mode):g}"
     )
     if mode == "pac":
         marginal = min_calibration_size(epsilon, delta, "marginal")
-        return text + f" at this delta) or --delta, or use --mode marginal (needs {marginal} groups)"
+        return (
+            text + f" at this delta) or --delta, or use --mode marginal (needs {count_text(marginal)} groups)"
+        )
     return text + ")"
 
 

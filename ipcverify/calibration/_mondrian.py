@@ -18,7 +18,7 @@ from typing import Any, ClassVar, Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from ipcverify.calibration._bounds import CalibrationMode, min_calibration_size
+from ipcverify.calibration._bounds import CalibrationMode, count_text, min_calibration_size
 from ipcverify.calibration._method import CalibrationRecord, CalibrationSample, CalibrationSpec
 from ipcverify.calibration._mondrian_groups import (
     EDGE_FRACTION,
@@ -334,7 +334,8 @@ class MondrianCalibration(RowClaim):
                 raise SampleSizeError(
                     f"Mondrian group {spec['label']!r} has {n_g} calibration samples but {mode} "
                     f"calibration at epsilon={epsilon:g}, delta={group_delta:g} (delta/{G} per group) "
-                    f"needs at least {need}; use more calibration data, fewer bins, or a global calibration"
+                    f"needs at least {count_text(need)}; use more calibration data, fewer bins, or a global "
+                    "calibration"
                 )
             groups.append(
                 GroupScale(threshold=threshold_scores(scores[mask], epsilon, group_delta, mode), **spec)

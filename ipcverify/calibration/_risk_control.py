@@ -14,7 +14,7 @@ from fractions import Fraction
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ipcverify.calibration._bounds import min_calibration_size
+from ipcverify.calibration._bounds import count_text, min_calibration_size
 from ipcverify.data._split import group_codes
 from ipcverify.errors import InvalidInputError, SampleSizeError
 
@@ -66,8 +66,8 @@ def risk_control_threshold(scores: ArrayLike, groups: ArrayLike, epsilon: float)
     if eps * (G + 1) < 1:
         need = min_calibration_size(epsilon, 0.5, "marginal")
         raise SampleSizeError(
-            f"{G} groups are too few for conformal risk control at epsilon={epsilon:g}: at least {need} "
-            "groups are needed (G >= 1/epsilon - 1)"
+            f"{G} groups are too few for conformal risk control at epsilon={epsilon:g}: at least "
+            f"{count_text(need)} groups are needed (G >= 1/epsilon - 1)"
         )
     sizes = np.bincount(codes, minlength=G)
     order = np.argsort(s, kind="stable")

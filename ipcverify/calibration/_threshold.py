@@ -48,10 +48,13 @@ def check_mode(mode: str) -> None:
 
 
 def check_seed(seed: int) -> None:
-    """Refuse a seed that is not an integer (a bool is not one)."""
+    """Refuse a seed that is not a non-negative integer (a bool is not one; NumPy's generators
+    take no negative seed)."""
     whole = isinstance(seed, (int, np.integer)) or (isinstance(seed, float) and seed.is_integer())
     if isinstance(seed, bool) or not whole:
         raise InvalidInputError(f"seed must be an integer; got {seed!r}")
+    if seed < 0:
+        raise InvalidInputError(f"seed must be a non-negative integer (--seed); got {seed!r}")
 
 
 @dataclass(frozen=True, kw_only=True)

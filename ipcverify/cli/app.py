@@ -9,7 +9,7 @@ Exit status (every command, ``docs/cli.md``):
 * 0 -- success (``certify``: CERTIFIED, or any status but CONTRADICTED);
 * 1 -- a verdict against the model: ``certify`` CONTRADICTED, a ``monitor`` ALARM, a
   ``check-certificate`` failure;
-* 2 -- a user error: bad option, missing or unreadable file, bad data; one ``error:`` line;
+* 2 -- a user error: bad option, missing or unreadable file, bad data, out of memory; one ``error:`` line;
 * 3 -- an internal error (a bug): one ``error:`` line, and the traceback with ``--debug``;
 * 130 -- interrupted (Ctrl-C).
 """
@@ -140,7 +140,8 @@ def run_group(group: click.Group, argv: list[str] | None, prog_name: str) -> NoR
     Shared by ``ipcverify`` and ``python -m case_studies.quad_landing``. A user error -- an
     :class:`~ipcverify.errors.InvalidInputError`, a usage error (bad option or value), a file
     that is missing, a directory, unreadable or unwritable -- prints one ``error:`` line on
-    stderr and exits with 2. Anything else is a bug: one ``error:`` line naming it, exit 3,
+    stderr and exits with 2; so does running out of memory (a ``MemoryError``: the input or an option
+    asks for more than the machine has). Anything else is a bug: one ``error:`` line naming it, exit 3,
     and the traceback only with the global ``--debug`` flag. Python warnings are printed as one
     ``warning:`` line each. Ctrl-C exits 130.
     """
@@ -166,6 +167,8 @@ def run_group(group: click.Group, argv: list[str] | None, prog_name: str) -> NoR
             if exc.filename is None:
                 _fail(_internal(exc), EXIT_INTERNAL, exc)
             _fail(_os_message(exc), EXIT_USER, exc)
+        except MemoryError as exc:  # the input or an option asks for more than the machine has
+            _fail(_memory_message(exc), EXIT_USER, exc)
         except Exception as exc:  # noqa: BLE001 -- the last resort of the exit-status contract
             _fail(_internal(exc), EXIT_INTERNAL, exc)
     sys.exit(rc if isinstance(rc, int) else 0)
@@ -184,6 +187,14 @@ def _os_message(exc: OSError) -> str:
     if isinstance(exc, PermissionError):
         return f"permission denied: {name} (choose a path you can read and write)"
     return f"{name}: {exc.strerror or exc}"
+
+
+def _memory_message(exc: MemoryError) -> str:
+    what = f" ({exc})" if str(exc) else ""
+    return (
+        f"out of memory{what}: the data or an option (a sample count, --hidden, --batch-size, --bins, "
+        "--stride) asks for more memory than this machine has; use smaller inputs or settings"
+    )
 
 
 def _internal(exc: BaseException) -> str:

@@ -151,9 +151,11 @@ def calibrate_cmd(
     test is fitted on its inputs and stored with the model.
     """
     from ipcverify.contract._calibrate import calibrate
+    from ipcverify.data._files import refuse_overwriting_input
     from ipcverify.guard._domain_spec import DomainSpec
     from ipcverify.io._modelio import load_data_for_model, load_model, save_model
 
+    refuse_overwriting_input(out, {"MODEL": model, "DATA": data})
     method = calibration_method(mode, mondrian_column, bins, group_column, guarantee, seed)
     domain = DomainSpec(alpha=domain_alpha, group_column=domain_group_column, seed=seed)
     m = load_model(model)

@@ -7,13 +7,14 @@ write or print the result. The JSON formats are described in ``docs/containment.
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 from typing import Any
 
 import click
 
 from ipcverify.cli.app import EXISTING_FILE, OUTPUT_FILE, app, console
-from ipcverify.data._files import atomic_write
+from ipcverify.data._files import atomic_write, refuse_overwriting_input
 from ipcverify.decision.containment import (
     ContainmentCertificate,
     Method,
@@ -45,6 +46,13 @@ def load_json_items(path: Path, what: str) -> list[Any]:
     except json.JSONDecodeError as exc:
         raise InvalidInputError(
             f"{path}: not valid JSON ({exc.msg} at line {exc.lineno}, column {exc.colno})"
+        ) from None
+    except RecursionError:
+        raise InvalidInputError(f"{path}: JSON nested too deeply to read; expected {what} objects") from None
+    except ValueError:  # an integer literal longer than Python converts (4300 digits)
+        raise InvalidInputError(
+            f"{path}: a number in it has more digits than can be read (over {sys.get_int_max_str_digits()}); "
+            "write numbers as ordinary floats such as 1.5e3"
         ) from None
     if isinstance(data, dict):
         return [data]
@@ -80,6 +88,7 @@ def prove_containment_cmd(problems: Path, out: Path, method: str | None) -> None
     outer set is a box, a polytope or an ellipsoid. Each certificate says PROVEN,
     REFUTED (with a witness point) or UNKNOWN; re-check them with check-certificate.
     """
+    refuse_overwriting_input(out, {"PROBLEMS": problems})
     items = load_json_items(problems, "problem")
     parsed = []
     for i, item in enumerate(items):

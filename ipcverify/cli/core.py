@@ -187,10 +187,12 @@ def train_cmd(
     needs in the model file.
     """
     from ipcverify.data._dataset import load_dataset
+    from ipcverify.data._files import refuse_overwriting_input
     from ipcverify.io._modelio import save_model
     from ipcverify.network._architecture import ModelConfig
     from ipcverify.training._train import HingeSelection, TrainConfig, train
 
+    refuse_overwriting_input(out, {"DATA": data})
     ds = load_dataset(data, _columns(x_columns), _columns(y_columns), _columns(yhat_columns))
     mc = ModelConfig.recipe(
         recipe,
@@ -276,10 +278,12 @@ def predict_cmd(model: Path, data: Path, out: Path) -> None:
     `domain_distance` (B,) and `singular` (B,). DATA needs only the state and estimate columns.
     """
     from ipcverify.contract._prediction import predict_sets, write_predictions
+    from ipcverify.data._files import refuse_overwriting_input
     from ipcverify.io._modelio import load_inputs_for_model, load_model
 
     if out.suffix.lower() != ".npz":
         raise InvalidInputError(f"--out must end in .npz; got {out.name}")
+    refuse_overwriting_input(out, {"MODEL": model, "DATA": data})
     m = load_model(model)
     pred = predict_sets(m, load_inputs_for_model(data, m))
     write_predictions(pred, out)
@@ -347,7 +351,14 @@ def monitor_cmd(model: Path, log: Path, out: Path, delta: float | None, group_co
 
 @app.command("demo")
 @out_dir_option("ipcverify-demo", help="Directory for the example data and model.")
-@click.option("--n", "n_samples", default=5000, show_default=True, type=int, help="Training samples.")
+@click.option(
+    "--n",
+    "n_samples",
+    default=5000,
+    show_default=True,
+    type=int,
+    help="Training samples (100 to 10,000,000).",
+)
 @click.option("--seed", default=0, show_default=True, type=int)
 def demo_cmd(out: Path, n_samples: int, seed: int) -> None:
     """Generate synthetic lagged-perception data, train an IPC, calibrate it, evaluate it."""

@@ -49,9 +49,11 @@ def export_cmd(model: Path, onnx_path: Path, dtype: str, no_domain: bool) -> Non
     A global calibration is included (shape = C / scale); a Mondrian calibration is refused. The
     domain-of-validity test is not in the graph: a model with one needs --no-domain.
     """
+    from ipcverify.data._files import refuse_overwriting_input
     from ipcverify.io._modelio import load_model
     from ipcverify.io._onnx import check_onnx, export_onnx
 
+    refuse_overwriting_input(onnx_path, {"MODEL": model}, option="--onnx")
     m = load_model(model)
     info = export_onnx(m, onnx_path, dtype=dtype, without_domain=no_domain)  # type: ignore[arg-type]
     what = f"calibrated (scale {info.scale:.6g})" if info.calibrated else "UNCALIBRATED raw network sets"

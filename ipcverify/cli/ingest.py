@@ -102,6 +102,18 @@ def _common(sampling: dict[str, Any]) -> tuple[Path, IngestOptions, list[str] | 
     return sampling["out"], options, list(sampling["runs"]) or None, _tags(sampling["tags"])
 
 
+def _refuse_overwriting(out: Path, **inputs: tuple[Path, ...] | Path | None) -> None:
+    """Refuse an --out that is one of the input files (``--truth``, ``--estimate``, a bag ...)."""
+    from ipcverify.data._files import refuse_overwriting_input
+
+    named: dict[str, Path | None] = {}
+    for label, given in inputs.items():
+        paths = given if isinstance(given, tuple) else (given,)
+        for i, path in enumerate(paths):
+            named[label if len(paths) == 1 else f"{label} #{i + 1}"] = path
+    refuse_overwriting_input(out, named)
+
+
 def _tags(items: tuple[str, ...]) -> dict[str, str]:
     out = {}
     for item in items:
@@ -196,6 +208,7 @@ def bag_cmd(
     from ipcverify.io.ingest import ingest_bags, write_ingested
 
     out, options, runs, tags = _common(sampling)
+    _refuse_overwriting(out, PATH=paths)
     frame = ingest_bags(
         list(paths),
         truth_topic=truth_topic,
@@ -249,6 +262,7 @@ def trajectories_cmd(
     from ipcverify.io.ingest import ingest_trajectories, write_ingested
 
     out, options, runs, tags = _common(sampling)
+    _refuse_overwriting(out, **{"--truth": truth, "--estimate": estimates, "--times": times})
     frame = ingest_trajectories(
         list(truth),
         list(estimates),

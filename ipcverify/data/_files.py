@@ -37,6 +37,8 @@ from typing import IO, Any
 
 import numpy as np
 
+from ipcverify.errors import InvalidInputError
+
 
 def _umask() -> int:
     """The process umask (read by setting and restoring it)."""
@@ -71,7 +73,10 @@ def atomic_write(path: str | os.PathLike[str], write: Callable[[IO[Any]], Any], 
     """
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
+    except OSError as exc:  # name the file the caller asked for, not the temporary one
+        raise type(exc)(exc.errno, exc.strerror, str(p)) from None
     try:
         os.fchmod(fd, 0o666 & ~_umask())
         with os.fdopen(fd, mode) as f:
@@ -83,6 +88,56 @@ def atomic_write(path: str | os.PathLike[str], write: Callable[[IO[Any]], Any], 
         if os.path.exists(tmp):
             os.unlink(tmp)
         raise
+
+
+def refuse_overwriting_input(
+    out: str | os.PathLike[str], inputs: Mapping[str, str | os.PathLike[str] | None], option: str = "--out"
+) -> None:
+    """Refuse an output path that is one of the command's input files (writing would destroy it).
+
+    Two paths are the same file if they name one existing file (hard links and symbolic links
+    included) or, for a file not written yet, resolve to the same absolute path.
+
+    Parameters
+    ----------
+    out : path-like
+        The file about to be written.
+    inputs : mapping of str to path-like or None
+        The inputs by the name the user knows them by (``"DATA"``, ``"--truth"``); None is skipped.
+    option : str
+        The output's option name, for the message.
+
+    Raises
+    ------
+    InvalidInputError
+        Naming the input and the option.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> d = tempfile.mkdtemp()
+    >>> data = os.path.join(d, "log.csv")
+    >>> atomic_write(data, lambda f: f.write("x_0\\n1\\n"), mode="w")
+    >>> refuse_overwriting_input(os.path.join(d, "model.pt"), {"DATA": data})  # a different file: fine
+    >>> refuse_overwriting_input(os.path.join(d, ".", "log.csv"), {"DATA": data})  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    ipcverify.errors.InvalidInputError: --out .../log.csv is also the input DATA; writing it would destroy ...
+    """
+    o = Path(out)
+    for name, given in inputs.items():
+        if given is None:
+            continue
+        i = Path(given)
+        try:
+            same = os.path.samefile(o, i)
+        except OSError:  # one of them does not exist (yet)
+            same = o.resolve() == i.resolve()
+        if same:
+            raise InvalidInputError(
+                f"{option} {o} is also the input {name}; writing it would destroy that input -- "
+                f"choose another path for {option}"
+            )
 
 
 def file_sha256(path: str | os.PathLike[str]) -> str:

@@ -117,6 +117,11 @@ def _read_npz(p: Path, kinds: Sequence[str]) -> dict[str, NDArray[Any]]:
     for k, a in arrs.items():
         if not np.issubdtype(a.dtype, np.number):
             raise DataError(f"{p}: array {k!r} is not numeric (dtype {a.dtype})")
+        if np.issubdtype(a.dtype, np.complexfloating):
+            raise DataError(
+                f"{p}: array {k!r} is complex (dtype {a.dtype}); store real numbers (its real part, if "
+                "that is what was meant)"
+            )
     return arrs
 
 
@@ -178,11 +183,12 @@ def frame_blocks(
         if not ks:
             raise DataError(
                 f"{p}: no {kind} columns (expected {kind}_0, {kind}_1, ...; "
-                f"found: {', '.join(cols[:12])}{' ...' if len(cols) > 12 else ''})"
+                f"found: {', '.join(cols[:12])}{' ...' if len(cols) > 12 else ''}){_spaced_hint(cols)}"
             )
         missing = [c for c in ks if c not in cols]
         if missing:
-            raise DataError(f"{p}: missing column(s) {', '.join(missing)}")
+            raise DataError(f"{p}: missing column(s) {', '.join(missing)}{_spaced_hint(cols)}")
+    _refuse_shared_columns(chosen, p)
     if "y" in chosen and "yhat" in chosen and len(chosen["y"]) != len(chosen["yhat"]):
         raise DataError(
             f"{p}: y has {len(chosen['y'])} columns but yhat has {len(chosen['yhat'])}; they must describe "
@@ -195,12 +201,48 @@ def frame_blocks(
             if not pd.api.types.is_numeric_dtype(block[c]):
                 conv = pd.to_numeric(block[c], errors="coerce")
                 bad = conv.isna() & block[c].notna()
-                r = int(np.flatnonzero(bad.to_numpy())[0]) if bad.any() else 0
+                if not bad.any():
+                    raise DataError(
+                        f"{p}: column {c!r} holds numbers stored as text (dtype {block[c].dtype}); store it "
+                        "as a numeric (float) column"
+                    )
+                r = int(np.flatnonzero(bad.to_numpy())[0])
                 raise DataError(f"{p}: row {r}, column {c!r}: not a number ({block[c].iloc[r]!r})")
         arrays[kind] = block.to_numpy(dtype=np.float64)
     used = {c for ks in chosen.values() for c in ks}
     extra = {c: df[c].to_numpy() for c in cols if c not in used}
     return arrays, {k: tuple(v) for k, v in chosen.items()}, extra
+
+
+def _spaced_hint(cols: Sequence[str]) -> str:
+    """A hint naming column names with spaces around them (`` y_0`` is not ``y_0``), or ''."""
+    spaced = [c for c in cols if c != c.strip()]
+    if not spaced:
+        return ""
+    shown = ", ".join(repr(c) for c in spaced[:4]) + (" ..." if len(spaced) > 4 else "")
+    return f"; the column names {shown} have spaces around them: remove the spaces from the header"
+
+
+def _a(kind: str) -> str:
+    return f"an {kind}" if kind == "x" else f"a {kind}"
+
+
+def _refuse_shared_columns(chosen: Mapping[str, Sequence[str]], source: str) -> None:
+    """Refuse a column named twice, in one role or in two (x and y: the truth as an input)."""
+    role: dict[str, str] = {}
+    for kind, ks in chosen.items():
+        for c in ks:
+            if c in role:
+                where = (
+                    f"twice among the {kind} columns"
+                    if role[c] == kind
+                    else f"both {_a(role[c])} and {_a(kind)} column"
+                )
+                raise DataError(
+                    f"{source}: column {c!r} is {where}; every column plays one role once -- fix the "
+                    "column lists (CLI: --x-columns, --y-columns, --yhat-columns)"
+                )
+            role[c] = kind
 
 
 def refuse_unknown_columns(source: str, extra: Mapping[str, Any], known: Mapping[str, Sequence[str]]) -> None:

@@ -19,6 +19,10 @@ LOGDIAG_CLAMP = 12.0
 ACTIVATIONS = ("relu", "tanh", "elu")
 #: Largest ensemble accepted (members are evaluated together; more only costs time).
 MAX_MEMBERS = 32
+#: Largest network accepted, in weights of its hidden layers over all members (4e8 bytes in float32,
+#: several times that while training): a typo such as ``--hidden 6400000`` is refused before torch
+#: tries to allocate it.
+MAX_HIDDEN_WEIGHTS = 10**8
 Param = Literal["cholesky", "full", "lowrank"]
 Center = Literal["offset", "raw"]
 #: Training recipes by name, with what each one is (the model part is :meth:`ModelConfig.recipe`,
@@ -136,6 +140,14 @@ class ModelConfig:
             raise InvalidInputError(f"members must be an integer; got {self.members!r}")
         if not 1 <= self.members <= MAX_MEMBERS:
             raise InvalidInputError(f"members must be in [1, {MAX_MEMBERS}]; got {self.members}")
+        widths = (self.x_dim + self.y_dim, *self.hidden)
+        weights = self.members * sum(a * b for a, b in zip(widths[:-1], widths[1:], strict=True))
+        if weights > MAX_HIDDEN_WEIGHTS:
+            raise InvalidInputError(
+                f"hidden sizes {','.join(map(str, self.hidden))} make a network of more than {weights:.3g} "
+                f"weights ({self.members} member(s)), above the {MAX_HIDDEN_WEIGHTS:.0e} ipcverify trains; "
+                "choose narrower layers, e.g. --hidden 64,64"
+            )
         if self.param == "lowrank" and self.center != "offset":
             raise InvalidInputError("the low-rank head predicts an offset from yhat: use center='offset'")
         if self.param != "lowrank" and (self.linear_center or self.members != 1):
@@ -158,6 +170,11 @@ linear_center=False, members=1)
         """
         if name not in _RECIPE_MODEL:
             raise InvalidInputError(f"unknown recipe {name!r}; choose one of {', '.join(RECIPES)}")
+        if overrides.get("members", 1) == 0:  # 0 means "the head's default" to the constructor only
+            raise InvalidInputError(
+                f"members must be in [1, {MAX_MEMBERS}] (--members); got 0 -- leave it out for the recipe's "
+                "ensemble size"
+            )
         return cls(x_dim=x_dim, y_dim=y_dim, **{**_RECIPE_MODEL[name], **overrides})
 
     @property

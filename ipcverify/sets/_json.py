@@ -40,8 +40,14 @@ def json_number(v: Any, where: str) -> float:
     if isinstance(v, int):
         f = float(v) if abs(v) < 2**1024 else math.inf
         if not math.isfinite(f) or int(f) != v:
+            digits = str(abs(v))
+            shown = (
+                str(v)
+                if len(digits) <= 40
+                else f"{'-' if v < 0 else ''}{digits[:12]}... ({len(digits)} digits)"
+            )
             raise InvalidInputError(
-                f"field '{where}': integer {v} is not exactly a float; write it as a float"
+                f"field '{where}': integer {shown} is not exactly a float; write it as a float"
             )
         return f
     if not math.isfinite(v):

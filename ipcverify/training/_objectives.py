@@ -17,6 +17,7 @@ ensemble).
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass
@@ -178,6 +179,10 @@ class TrainConfig:
             )
         checks = [
             (self.epochs >= 1, f"epochs must be >= 1 (--epochs); got {self.epochs}"),
+            (
+                isinstance(self.seed, numbers.Integral) and 0 <= self.seed < 2**64,
+                f"seed must be an integer in [0, 2**64) (--seed); got {self.seed!r}",
+            ),
             (self.lr > 0 and math.isfinite(self.lr), f"lr must be > 0 (--lr); got {self.lr}"),
             (self.batch_size >= 1, f"batch size must be >= 1 (--batch-size); got {self.batch_size}"),
             (self.alpha > 0 and math.isfinite(self.alpha), f"alpha must be > 0 (--alpha); got {self.alpha}"),

@@ -161,6 +161,9 @@ class ContainmentCertificate:
         return certificate_from_dict(data)
 
 
+#: The ``format`` of ``certify``'s certificate.json (ipcverify.certification), a file users hand to
+#: check-certificate by mistake.
+_CERTIFY_FORMAT = "ipcverify-certificate"
 _CERT_KEYS = {
     "status",
     "advice",
@@ -191,6 +194,12 @@ def certificate_from_dict(data: Any) -> ContainmentCertificate:
     """
     if not isinstance(data, Mapping):
         raise InvalidInputError("a certificate must be a JSON object")
+    if data.get("format") == _CERTIFY_FORMAT:
+        raise InvalidInputError(
+            "this is the calibration certificate `ipcverify certify` writes (certificate.json), not a "
+            "containment certificate; check-certificate re-verifies the certificates `ipcverify "
+            "prove-containment` writes (to check a model's certificate, run `ipcverify certify` again)"
+        )
     unknown = sorted(set(data) - _CERT_KEYS)
     if unknown:
         raise InvalidInputError(f"field '{unknown[0]}' is not part of a certificate")

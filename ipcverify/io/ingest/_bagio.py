@@ -17,6 +17,7 @@ rosbags is an optional dependency (``pip install 'ipcverify[ros]'``), imported o
 from __future__ import annotations
 
 import os
+import struct
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -165,6 +166,11 @@ def _open(path: str | os.PathLike[str], typestore: str | None) -> Iterator[Any]:
                 "recorded with, e.g. --typestore ros2_humble (or ros1_noetic, ros2_foxy, ...)"
             ) from None
         raise DataError(f"{p}: cannot read as a bag: {text}") from None
+    except (ValueError, EOFError, struct.error) as exc:  # the reader meets bytes it cannot parse
+        raise DataError(
+            f"{p}: cannot read as a bag: its content is not a ROS bag's ({type(exc).__name__}: "
+            f"{str(exc)[:120]}); check that the file is a complete, uncorrupted recording"
+        ) from None
     try:
         yield reader
     finally:

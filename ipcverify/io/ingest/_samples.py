@@ -36,6 +36,10 @@ from ipcverify.io.ingest._trajectory import PosesAt, Trajectory
 REASONS = ("estimate_gap", "truth_outside", "truth_gap", "no_state")
 #: Where :func:`build_samples` leaves its account of the rows in ``DataFrame.attrs``.
 MANIFEST_KEY = "ipcverify.io.ingest"
+#: A run may have up to this many sample starts per estimated pose (or :data:`MIN_STARTS_LIMIT`):
+#: far more means stamps in other units than seconds or a mistyped --stride, and would fill memory.
+MAX_STARTS_PER_POSE = 1000
+MIN_STARTS_LIMIT = 10**6
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -156,13 +160,29 @@ def _overlap_error(run: RunData, options: IngestOptions, hint: str) -> DataError
     )
 
 
+def _too_many_starts(run: RunData, span: float, starts: int, options: IngestOptions) -> DataError:
+    looks_ns = span > 1e7  # 116 days of seconds; a nanosecond clock reaches it in 0.01 s
+    why = (
+        "the stamps look like nanoseconds: this --format reads seconds (a EuRoC file is --format euroc)"
+        if looks_ns
+        else "use a larger --stride"
+    )
+    return DataError(
+        f"run {run.name}: the estimate spans {span:.6g} s, which at --stride {options.stride:g} s makes "
+        f"{starts:.3g} sample starts for its {len(run.estimate)} poses; {why}"
+    )
+
+
 def _prepare(run: RunData, options: IngestOptions, hint: str) -> _Prepared:
     e0 = float(run.estimate.t[0])
     est = run.estimate.shifted(-e0)
     truth = run.truth.shifted(options.t_offset - e0)
     if truth.span[1] <= 0.0 or truth.span[0] >= est.span[1]:
         raise _overlap_error(run, options, hint)
-    k = np.arange(int(math.floor((est.span[1] - options.horizon) / options.stride)) + 2)
+    starts = math.floor((est.span[1] - options.horizon) / options.stride) + 2
+    if starts > max(MAX_STARTS_PER_POSE * len(run.estimate), MIN_STARTS_LIMIT):
+        raise _too_many_starts(run, est.span[1], starts, options)
+    k = np.arange(int(starts))
     t0 = np.asarray(options.stride * k, dtype=np.float64)
     t0 = t0[t0 + options.horizon < est.span[1]]
     if t0.shape[0] == 0:

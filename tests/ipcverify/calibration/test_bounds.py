@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import math
+import re
+from fractions import Fraction
 
 import numpy as np
 import pytest
@@ -15,6 +17,7 @@ from ipcverify.calibration._bounds import (
     clopper_pearson_interval,
     clopper_pearson_lower,
     clopper_pearson_upper,
+    count_text,
     marginal_conformal_index,
     min_calibration_size,
     pac_calibration_index,
@@ -130,6 +133,25 @@ def test_pac_minimum_sample_size(eps, delta):
     assert pac_calibration_index(need, eps, delta) == need
     with pytest.raises(SampleSizeError, match=rf"at least {need} are needed"):
         pac_calibration_index(need - 1, eps, delta)
+
+
+@pytest.mark.parametrize("eps", [1e-12, 1e-15, 1e-16, 1e-300, 5e-324])
+def test_an_epsilon_too_small_for_any_sample_is_a_sample_size_error_not_a_crash(eps):
+    """A tiny epsilon needs about ln(1/delta) / epsilon samples: found quickly (bisection below 2**53,
+    the closed form above it), quoted in the message, never a crash or a hang."""
+    need = min_calibration_size(eps, 0.05, "pac")
+    assert isinstance(need, int)
+    assert Fraction(need) * Fraction(eps) == pytest.approx(-math.log(0.05), rel=1e-6)
+    with pytest.raises(SampleSizeError, match=rf"at least {re.escape(count_text(need))} are needed"):
+        pac_calibration_index(5000, eps, 0.05)
+    with pytest.raises(SampleSizeError, match=r"at least \d[.\d]*(e\+\d+)? are needed"):
+        marginal_conformal_index(5000, eps)
+
+
+def test_counts_in_messages_are_full_up_to_15_digits_then_rounded_down():
+    assert count_text(688) == "688" and count_text(10**15 - 1) == "999999999999999"
+    assert count_text(10**15) == "1.0e+15"
+    assert count_text(2999 * 10**297) == "2.9e+300"  # rounded down: "at least 2.9e+300" stays true
 
 
 def test_marginal_index_and_minimum():

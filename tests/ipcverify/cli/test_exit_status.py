@@ -59,6 +59,20 @@ def test_an_os_error_without_a_file_is_internal_and_with_a_file_is_the_users(run
     assert run_cli("demo", "--out", tmp_path / "d").code == 3
 
 
+def test_running_out_of_memory_is_the_users_with_what_to_shrink(run_cli, monkeypatch, tmp_path):
+    def too_big(*args, **kwargs):
+        raise MemoryError("Unable to allocate 728. TiB for an array with shape (100000000000000,)")
+
+    monkeypatch.setattr(demo, "run_demo", too_big)
+    res = run_cli("demo", "--out", tmp_path / "d")
+    assert res.code == EXIT_USER == 2 and "Traceback" not in res.stderr
+    assert (
+        res.stderr.startswith("error: out of memory (Unable to allocate 728. TiB")
+        and res.stderr.count("\n") == 1
+    )
+    assert "use smaller inputs or settings" in res.stderr
+
+
 def _group_with(body) -> click.Group:
     @click.group()
     def g() -> None:

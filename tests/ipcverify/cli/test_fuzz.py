@@ -165,12 +165,36 @@ def files(tmp_path_factory) -> dict[str, Path]:
         "json_unknown_type": json.dumps({"inner": ball, "outer": {"type": "sphere"}}),
         "json_empty_list": "[]",
         "json_huge": json.dumps({"inner": {**ball, "shape": [[1e308, 0.0], [0.0, 1e308]]}, "outer": box}),
+        "json_deep": "[" * 100_000 + "]" * 100_000,
+        "json_deep_object": '{"a": ' * 100_000 + "1" + "}" * 100_000,
+        "json_5000_digits": json.dumps({"inner": ball, "outer": box}).replace("-2.0", "-" + "9" * 5000, 1),
+        "json_1000_digits": json.dumps({"inner": ball, "outer": box}).replace("-2.0", "-" + "9" * 1000, 1),
     }
     for name, text in json_files.items():
         f[name] = d / f"{name}.json"
         f[name].write_text(text, encoding="utf-8")
     f["latin1"] = d / "latin1.json"
     f["latin1"].write_bytes('{"inner": "é"}'.encode("latin-1"))
+
+    f["complex_npz"] = d / "complex.npz"
+    np.savez(f["complex_npz"], x=test_ds.x.astype(complex), y=test_ds.y, yhat=test_ds.yhat)
+    f["text_parquet"] = d / "text_numbers.parquet"
+    frame = test_ds.to_frame()
+    frame.astype({"x_1": str}).to_parquet(f["text_parquet"], index=False)
+    f["spaced"] = d / "spaced.csv"
+    _csv(f["spaced"], ", ".join(header.split(",")), good)
+    f["certify_json"] = d / "certificate.json"  # what `certify` writes, handed to check-certificate
+    f["certify_json"].write_text(json.dumps({"format": "ipcverify-certificate", "status": "CERTIFIED"}))
+    f["ros1_garbage"] = d / "garbage.bag"
+    f["ros1_garbage"].write_bytes(bytes(range(200, 256)) * 50)
+    stamps = [0.05 * i for i in range(400)]
+    for name, lines in (
+        ("tum_ns", [f"{1.4e18 + t * 1e9:.0f} {t} 0 0 0 0 0 1" for t in stamps]),
+        ("tum", [f"{t:.2f} {t} 0 0 0 0 0 1" for t in stamps]),
+        ("euroc", ["#timestamp,x,y,z,qw,qx,qy,qz"] + [f"{int(t * 1e9)},{t},0,0,1,0,0,0" for t in stamps]),
+    ):
+        f[name] = d / f"{name}.{'csv' if name == 'euroc' else 'txt'}"
+        f[name].write_text("\n".join(lines) + "\n", encoding="utf-8")
     return f
 
 
@@ -307,6 +331,30 @@ split-over-the-input         | 2 | written over the input           | split {tra
 split-out-is-file            | 2 | train.csv                        | split {test} --out {train}
 split-bad-format             | 2 | 'xlsx' is not one of             | split {test} --out {tmp}/s --format xlsx
 split-npz-by-flight          | 0 | -                                | split {flights} --by flight --format npz --out {tmp}/s
+prove-deeply-nested          | 2 | nested too deeply to read        | prove-containment {json_deep} --out {tmp}/c.json
+check-deeply-nested          | 2 | nested too deeply to read        | check-certificate {json_deep_object}
+prove-5000-digit-integer     | 2 | more digits than can be read     | prove-containment {json_5000_digits} --out {tmp}/c.json
+prove-1000-digit-integer     | 2 | (1000 digits) is not exactly a f | prove-containment {json_1000_digits} --out {tmp}/c.json
+check-certify-certificate    | 2 | `ipcverify certify` writes       | check-certificate {certify_json}
+train-x-column-twice         | 2 | 'x_0' is twice among the x       | train {train} --out {tmp}/m.pt --x-columns x_0,x_0
+train-truth-as-state         | 2 | 'y_0' is both an x and a y       | train {train} --out {tmp}/m.pt --x-columns y_0,x_1
+train-seed-negative          | 2 | seed must be an integer in [0,   | train {train} --out {tmp}/m.pt --seed -1
+train-members-0              | 2 | got 0 -- leave it out for the re | train {train} --out {tmp}/m.pt --members 0
+train-hidden-enormous        | 2 | choose narrower layers           | train {train} --out {tmp}/m.pt --hidden 100000000000
+train-complex-npz            | 2 | is complex (dtype complex128)    | train {complex_npz} --out {tmp}/m.pt
+train-numbers-as-text        | 2 | 'x_1' holds numbers stored as te | train {text_parquet} --out {tmp}/m.pt
+train-spaces-in-header       | 2 | have spaces around them          | train {spaced} --out {tmp}/m.pt
+calibrate-epsilon-1e-300     | 2 | at least 4.6e+300 are needed     | calibrate {model} {cal} {cal_ok} --epsilon 1e-300
+calibrate-epsilon-1e-15      | 2 | at least 4.6e+15 are needed      | calibrate {model} {cal} {cal_ok} --epsilon 1e-15
+calibrate-seed-negative      | 2 | seed must be a non-negative      | calibrate {model} {cal} {cal_ok} --seed -1 --mondrian-column x_0 --bins 2
+demo-n-too-small             | 2 | between 100 and 10,000,000       | demo --n 3 --out {tmp}/demo
+demo-n-enormous              | 2 | between 100 and 10,000,000       | demo --n 100000000000000 --out {tmp}/demo
+demo-seed-negative           | 2 | seed (--seed) must be a non-neg  | demo --seed -1 --out {tmp}/demo
+ingest-topics-corrupt-ros1   | 2 | its content is not a ROS bag's   | ingest topics {ros1_garbage}
+ingest-bag-corrupt-ros1      | 2 | its content is not a ROS bag's   | ingest bag {ros1_garbage} --truth /gt --estimate /est --out {tmp}/o.csv
+ingest-traj-nanoseconds      | 2 | look like nanoseconds            | ingest trajectories --truth {tum_ns} --estimate {tum_ns} --format tum --out {tmp}/o.csv
+ingest-traj-euroc-as-tum     | 2 | a EuRoC file is --format euroc   | ingest trajectories --truth {euroc} --estimate {euroc} --format tum --out {tmp}/o.csv
+ingest-traj-stride-tiny      | 2 | use a larger --stride            | ingest trajectories --truth {tum} --estimate {tum} --stride 1e-9 --out {tmp}/o.csv
 """  # noqa: E501 (one case per line)
 
 

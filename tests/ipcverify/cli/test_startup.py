@@ -117,3 +117,6 @@ def test_the_defaults_written_out_in_the_cli_are_the_librarys():
     for name in ("fmt", "truth_format", "estimate_format"):
         fmt = option(("ingest", "trajectories"), name).type
         assert isinstance(fmt, click.Choice) and tuple(fmt.choices) == FORMATS
+    from ipcverify.demo import DEMO_MAX_SAMPLES, DEMO_MIN_TRAIN
+
+    assert f"({DEMO_MIN_TRAIN:,} to {DEMO_MAX_SAMPLES:,})" in (option(("demo",), "n_samples").help or "")

@@ -82,6 +82,15 @@ BAD_FILES = [
     pytest.param("h.csv", "x_0,y_0,yhat_0\n", {}, r"h\.csv: the file has a header but no samples",
                  id="header-only"),
     pytest.param("d.json", "{}", {}, r"unknown data format '\.json'", id="unknown-suffix"),
+    pytest.param("s.csv", "x_0, y_0, yhat_0\n1,2,3\n", {},
+                 r"s\.csv: no y columns .*the column names ' y_0', ' yhat_0' have spaces around them",
+                 id="spaces-in-header"),
+    pytest.param("tw.csv", "x_0,x_1,y_0,yhat_0\n1,2,3,4\n", {"x_columns": ["x_0", "x_0"]},
+                 r"tw\.csv: column 'x_0' is twice among the x columns", id="column-listed-twice"),
+    pytest.param("ty.csv", "x_0,y_0,yhat_0\n1,2,3\n", {"x_columns": ["x_0", "y_0"]},
+                 r"ty\.csv: column 'y_0' is both an x and a y column", id="truth-as-state"),
+    pytest.param("te.csv", "x_0,y_0,yhat_0\n1,2,3\n", {"y_columns": ["yhat_0"]},
+                 r"te\.csv: column 'yhat_0' is both a y and a yhat column", id="estimate-as-truth"),
 ]  # fmt: skip
 
 
@@ -107,6 +116,23 @@ def test_npz_dimension_mismatch(tmp_path):
     p = tmp_path / "b.npz"
     np.savez(p, x=np.zeros((2, 1)), y=np.zeros((2, 3)), yhat=np.zeros((2, 2)))
     with pytest.raises(DataError, match=r"y has dimension 3 but yhat has 2"):
+        load_dataset(p)
+
+
+def test_complex_npz_is_refused_not_cut_to_its_real_part(tmp_path):
+    p = tmp_path / "c.npz"
+    np.savez(p, x=np.ones((2, 1)) * (1 + 2j), y=np.zeros((2, 1)), yhat=np.zeros((2, 1)))
+    with pytest.raises(
+        DataError, match=r"c\.npz: array 'x' is complex \(dtype complex128\); store real numbers"
+    ):
+        load_dataset(p)
+
+
+def test_numbers_stored_as_text_in_parquet_name_the_column_not_a_row(tmp_path):
+    p = tmp_path / "t.parquet"
+    frame = pd.DataFrame({"x_0": ["0.5", "1.5"], "y_0": [1.0, 2.0], "yhat_0": [1.0, 2.0]})
+    frame.astype({"x_0": object}).to_parquet(p, index=False)
+    with pytest.raises(DataError, match=r"t\.parquet: column 'x_0' holds numbers stored as text .*numeric"):
         load_dataset(p)
 
 

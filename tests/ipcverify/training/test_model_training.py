@@ -237,6 +237,9 @@ def test_early_stopping_and_history(recipe):
         ({"warmup_epochs": -1}, r"warmup_epochs must be in \[0, epochs=60\)"),
         ({"epochs": 5, "warmup_epochs": 5}, r"warmup_epochs must be in \[0, epochs=5\)"),
         ({"loss": "likelihood", "warmup_epochs": 2}, "only applies to loss='hinge'"),
+        ({"seed": -1}, r"seed must be an integer in \[0, 2\*\*64\) \(--seed\); got -1"),
+        ({"seed": 2**64}, r"seed must be an integer in \[0, 2\*\*64\)"),
+        ({"seed": 1.5}, r"seed must be an integer .*got 1\.5"),
     ],
 )
 def test_bad_train_config(kwargs, match):
@@ -249,6 +252,10 @@ def test_unknown_recipe_is_refused_with_the_names():
         TrainConfig.recipe("best")
     with pytest.raises(InvalidInputError, match="unknown recipe 'best'"):
         ModelConfig.recipe("best", x_dim=1, y_dim=1)
+    with pytest.raises(
+        InvalidInputError, match=r"members must be in \[1, 32\] \(--members\); got 0 -- leave it out"
+    ):
+        ModelConfig.recipe("tight", x_dim=1, y_dim=1, members=0)  # was silently the recipe's 5
     with pytest.raises(InvalidInputError, match="unknown recipe 'best'"):
         train(_heteroscedastic(50, 0)[0], recipe="best")
 
@@ -266,6 +273,14 @@ def test_bad_model_config_and_inputs():
         ModelConfig(x_dim=1, y_dim=1, center="raw")
     with pytest.raises(InvalidInputError, match=r"members must be in \[1, 32\]"):
         ModelConfig(x_dim=1, y_dim=1, members=33)
+    with pytest.raises(
+        InvalidInputError, match=r"hidden sizes 100000000000 make a network of more than 1e\+12"
+    ):
+        ModelConfig(x_dim=3, y_dim=2, hidden=(10**11,), members=2)  # a typo; torch would try to allocate it
+    assert ModelConfig(x_dim=3, y_dim=2, hidden=(4000, 2495), members=10).hidden == (
+        4000,
+        2495,
+    )  # 1e8: the limit
     with pytest.raises(InvalidInputError, match="members must be an integer"):
         ModelConfig(x_dim=1, y_dim=1, members=2.5)  # type: ignore[arg-type]
     with pytest.raises(InvalidInputError, match="linear_center must be True or False"):

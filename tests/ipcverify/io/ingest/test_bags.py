@@ -236,6 +236,11 @@ def test_not_a_bag(tmp_path):
     (tmp_path / "x.txt").write_text("")
     with pytest.raises(DataError, match="not a bag: use a ROS 1 .bag file"):
         list_topics(tmp_path / "x.txt")
+    (tmp_path / "r.bag").write_bytes(bytes(range(200, 256)) * 50)  # not even a text first line
+    with pytest.raises(
+        DataError, match=r"r\.bag: cannot read as a bag: its content is not a ROS bag's \(Unicode"
+    ):
+        list_topics(tmp_path / "r.bag")
 
 
 def test_without_rosbags_the_error_says_what_to_install(tmp_path, monkeypatch):

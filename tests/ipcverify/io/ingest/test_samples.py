@@ -140,6 +140,27 @@ def test_no_overlap_prints_both_spans_and_hints_at_units_or_offset(motions):
         build_samples([RunData("r", ns, est.trajectory(t + 1.4e9))], IngestOptions())
 
 
+def test_a_grid_far_denser_than_the_poses_is_refused_before_it_is_allocated(motions):
+    """Nanosecond stamps read as seconds (both files, e.g. EuRoC as TUM) or a mistyped --stride."""
+    truth, est = motions
+    t = np.arange(0.0, 20.0, 0.05)  # 400 poses
+    ns = t * 1e9 + 1.4e18
+    run = RunData("r", truth.trajectory(ns), est.trajectory(ns + 1e6))
+    ns_match = (
+        r"run r: the estimate spans 1\.995e\+10 s, .*7\.98e\+10 sample starts for its 400 poses; the stamps "
+        r"look like nanoseconds: this --format reads seconds"
+    )
+    with pytest.raises(DataError, match=ns_match):
+        build_samples([run], IngestOptions())
+    run = RunData("r", truth.trajectory(t), est.trajectory(t))
+    with pytest.raises(
+        DataError, match=r"at --stride 1e-09 s makes 1\.95e\+10 sample starts .*use a larger --stride"
+    ):
+        build_samples([run], IngestOptions(stride=1e-9))
+    fine = build_samples([run], IngestOptions(stride=0.05 / 1000))  # 1000 starts a pose: still accepted
+    assert len(fine) > 100_000
+
+
 def test_too_few_truth_samples_gives_the_count_and_the_largest_gap(motions):
     truth, est = motions
     t_truth = np.arange(0.0, 10.0, 0.5)
