@@ -89,8 +89,13 @@ class TestResult:
         """The upper bound is 1: the test bounds nothing (too few test units, or all outside)."""
         return self.upper_bound >= 1.0
 
-    def bound_text(self) -> str:
+    def bound_text(self, spec: str = ".4g") -> str:
         """The upper bound as the reports write it, saying so when it is vacuous.
+
+        Parameters
+        ----------
+        spec : str
+            The format specification of the number (``".4%"`` for a percentage).
 
         Examples
         --------
@@ -98,8 +103,10 @@ class TestResult:
         '0.013'
         >>> TestResult.from_counts(2, 2, 0.05).bound_text()
         '1 (vacuous: it bounds nothing)'
+        >>> TestResult.from_counts(2, 2, 0.05).bound_text(".1%")
+        '100.0% (vacuous: it bounds nothing)'
         """
-        return f"{self.upper_bound:.4g}" + (" (vacuous: it bounds nothing)" if self.vacuous else "")
+        return f"{self.upper_bound:{spec}}" + (" (vacuous: it bounds nothing)" if self.vacuous else "")
 
     def to_dict(self) -> dict[str, Any]:
         """Plain-data form."""

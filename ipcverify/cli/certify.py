@@ -285,14 +285,14 @@ def certify_cmd(
         table.add_row(
             "test violations",
             f"{t.violations}/{t.n} {t.unit} = {t.empirical_rate:.4%}; "
-            f"upper bound {t.upper_bound:.4%} (confidence {1 - t.delta:g})",
+            f"upper bound {t.bound_text('.4%')} (confidence {1 - t.delta:g})",
         )
     g = cert.group_test
     if g is not None:
         for label, r in (("per group: one random row", g.sample), ("per group: any violation", g.trajectory)):
             table.add_row(
                 f"{label} ({g.column})",
-                f"{r.violations}/{r.n} groups = {r.empirical_rate:.4%}; upper bound {r.upper_bound:.4%}",
+                f"{r.violations}/{r.n} groups = {r.empirical_rate:.4%}; upper bound {r.bound_text('.4%')}",
             )
     if cert.volume is not None:
         table.add_row("mean log-volume", f"{cert.volume.mean_log:.4g}")

@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ipcverify.data._dataset import PerceptionDataset, load_dataset, save_dataset
-from ipcverify.data._files import file_sha256, write_json
+from ipcverify.data._files import file_sha256, refuse_overwriting_input, write_json
 from ipcverify.data._split import group_codes, split_fractions, split_parts
 from ipcverify.data._tables import SUFFIXES
 from ipcverify.errors import DataError, InvalidInputError
@@ -141,10 +141,7 @@ def _part_paths(out_dir: Path, suffix: str) -> dict[str, Path]:
 def _check_targets(source: Path, paths: dict[str, Path], empty: Sequence[str]) -> None:
     """Refuse to overwrite the source, and to leave a stale file where this split has no part."""
     for name, p in paths.items():
-        if p.exists() and p.resolve() == source.resolve():
-            raise InvalidInputError(
-                f"the {name} part would be written over the input {source}; choose another --out folder"
-            )
+        refuse_overwriting_input(p, {"DATA": source}, option=f"--out's {name} part")
     for name in empty:
         if paths[name].exists():
             raise InvalidInputError(

@@ -327,7 +327,7 @@ split-fractions-text         | 2 | --fractions must be three        | split {tra
 split-fractions-sum          | 2 | summing to 1                     | split {train} --out {tmp}/s --fractions 0.5,0.6,0
 split-unknown-group          | 2 | no column 'nope'                 | split {train} --out {tmp}/s --by nope
 split-too-few-groups         | 2 | too few for split                | split {flights} --by flight --out {tmp}/s --fractions 0.8,0.1,0.1
-split-over-the-input         | 2 | written over the input           | split {train} --out {dir}/..
+split-over-the-input         | 2 | is also the input DATA           | split {train} --out {dir}/..
 split-out-is-file            | 2 | train.csv                        | split {test} --out {train}
 split-bad-format             | 2 | 'xlsx' is not one of             | split {test} --out {tmp}/s --format xlsx
 split-npz-by-flight          | 0 | -                                | split {flights} --by flight --format npz --out {tmp}/s

@@ -100,7 +100,7 @@ def test_npz_parts_say_which_columns_they_cannot_hold(tmp_path):
 def test_a_part_is_never_written_over_the_input_nor_a_stale_part_left_beside_the_split(tmp_path):
     save_dataset(load_dataset(LOG).subset(np.arange(200)), tmp_path / "train.csv")
     before = (tmp_path / "train.csv").read_bytes()
-    with pytest.raises(InvalidInputError, match="would be written over the input"):
+    with pytest.raises(InvalidInputError, match="train part .* is also the input DATA"):
         split_file(tmp_path / "train.csv", tmp_path)
     assert (tmp_path / "train.csv").read_bytes() == before
     (tmp_path / "out").mkdir()
