@@ -246,6 +246,34 @@ def _warn_gaps(p: _Prepared, counts: dict[str, int], starts: int, options: Inges
     )
 
 
+def _warn_frames(frame: pd.DataFrame, options: IngestOptions) -> None:
+    """A :class:`~ipcverify.errors.Hint` that positions are compared in the frames as given.
+
+    Without ``--align`` the position (or pose) quantity compares the estimate's and the truth's
+    positions in their own world frames; a VIO or SLAM estimate starts at its own origin, and
+    its errors would then be the frames' offset. The hint quotes the measured median error of
+    every run's position so that the user, who knows the frames, can judge.
+    """
+    if options.quantity == "displacement" or options.align != "none" or frame.empty:
+        return
+    err = np.linalg.norm(
+        frame[[f"y_{i}" for i in range(3)]].to_numpy() - frame[[f"yhat_{i}" for i in range(3)]].to_numpy(),
+        axis=1,
+    )
+    medians = pd.Series(err).groupby(frame["run"].to_numpy()).median()
+    run = str(medians.idxmax())
+    warnings.warn(
+        Hint(
+            f"--quantity {options.quantity} without --align compares positions in the truth's and the "
+            f"estimate's world frames as they are (median position error up to {medians.max():.4g} in "
+            f"run {run}); if the estimator's frame is not the truth's (a VIO or SLAM map starts at its "
+            "own origin), fit it with --align se3 --align-runs RUN on runs you then keep out of "
+            "calibration and test, or use --quantity displacement, which needs no common frame"
+        ),
+        stacklevel=3,
+    )
+
+
 def _no_rows_error(p: _Prepared, counts: dict[str, int], options: IngestOptions) -> DataError:
     run, gap = p.run, options.max_gap
     worst = max(REASONS, key=lambda r: counts[r])
@@ -379,4 +407,5 @@ def build_samples(runs: Sequence[RunData], options: IngestOptions, hint: str = "
         "rows": len(frame),
         "alignment": None if alignment is None else alignment.to_dict(),
     }
+    _warn_frames(frame, options)
     return frame

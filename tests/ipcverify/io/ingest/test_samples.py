@@ -112,8 +112,19 @@ def test_se3_alignment_fitted_on_named_runs_recovers_the_frame():
     np.testing.assert_allclose(
         pose[[f"yhat_{i}" for i in range(6)]], pose[[f"y_{i}" for i in range(6)]], atol=1e-8
     )
-    # unaligned, the estimate is off by the frame change
-    raw = build_samples([RunData("fit", truth, other)], IngestOptions(quantity="position"))
+    # unaligned, the estimate is off by the frame change, and a hint quotes the error it makes
+    with pytest.warns(
+        Hint, match=r"--quantity position without --align .*median position error up to 3\."
+    ) as w:
+        raw = build_samples([RunData("fit", truth, other)], IngestOptions(quantity="position"))
+    err = np.linalg.norm(
+        raw[["yhat_0", "yhat_1", "yhat_2"]].to_numpy() - raw[["y_0", "y_1", "y_2"]].to_numpy(), axis=1
+    )
+    assert f"{np.median(err):.4g} in run fit" in str(w[0].message)
+    with warnings.catch_warnings():  # aligned, or displacements: no hint
+        warnings.simplefilter("error", Hint)
+        build_samples([RunData("fit", truth, other)], opts)
+        build_samples([RunData("fit", truth, other)], IngestOptions())
     assert (
         np.abs(raw[["yhat_0", "yhat_1", "yhat_2"]].to_numpy() - raw[["y_0", "y_1", "y_2"]].to_numpy()).max()
         > 1
