@@ -65,10 +65,19 @@ def check_inputs(
     ------
     InvalidInputError
         If dimensions disagree, the test data is the calibration or training data, the
+        training data is not the data the model file records it was trained on, the
         calibration belongs to a different network, or ``delta`` is not in ``(0, 1)``.
     """
     if train_data is not None:
         _check_dims(model, train_data, "training")
+        recorded = model.metadata.get("train_data_hash")
+        if recorded is not None and recorded != train_data.content_hash():
+            raise InvalidInputError(
+                f"{train_data.source}: this is not the data the model was trained on (its content SHA-256 "
+                "differs from the one the model file recorded at training), and Theorem 1 is a statement "
+                "about the training set itself; pass the training file, or leave --train-data out to use "
+                "the statistics the model file stored at training"
+            )
     cal = model.calibration
     if cal is not None and cal.network_hash != model.weights.fingerprint():
         raise InvalidInputError(

@@ -138,6 +138,14 @@ def test_refusals(setup):
         certify(other, setup["test"])
     with pytest.raises(InvalidInputError, match=r"delta must lie strictly between 0 and 1"):
         certify(setup["model"], setup["test"], delta=2.0)
+    # Theorem 1 from data the model was not trained on would be a bound about other data
+    half = setup["train"].subset(np.arange(750))
+    with pytest.raises(InvalidInputError, match=r"this is not the data the model was trained on"):
+        certify(setup["cal_model"], setup["test"], train_data=half)
+    # a model file that records no training data cannot tell: the data given is taken as it
+    meta = {k: v for k, v in setup["cal_model"].metadata.items() if k != "train_data_hash"}
+    unrecorded = IPCModel(setup["model"].network, setup["cal_model"].calibration, meta)
+    assert certify(unrecorded, setup["test"], train_data=half).certificate.theorem1 is not None
 
 
 # --------------------------------------------------------------------------------- CLI

@@ -305,6 +305,7 @@ certify-radius-negative      | 2 | --lipschitz-radius               | certify {c
 certify-calibration-as-test  | 2 | calibration data                 | certify {calibrated} --data {cal} --out {tmp}/cert
 certify-wrong-dimensions     | 2 | missing column(s) x_5            | certify {calibrated} --data {wrong_dims} --out {tmp}/cert
 certify-out-is-file          | 2 | train.csv                        | certify {calibrated} --out {train}
+certify-other-train-data     | 2 | not the data the model was train | certify {calibrated} --data {test} --train-data {cal} --out {tmp}/cert
 certify-garbage-model        | 2 | garbage.pt                       | certify {garbage} --out {tmp}/cert
 prove-bad-json               | 2 | not valid JSON                   | prove-containment {bad_json} --out {tmp}/c.json
 prove-json-scalar            | 2 | expected one problem             | prove-containment {json_scalar} --out {tmp}/c.json
