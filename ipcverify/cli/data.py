@@ -54,6 +54,13 @@ def parse_fractions(text: str) -> tuple[float, float, float]:
     show_default=True,
     help="Shares of train, calibration and test (of groups with --by); a share may be 0.",
 )
+@click.option(
+    "--name-groups",
+    "group_name",
+    default=None,
+    help="Add a column of this name to the parts holding each row's group (the --by values "
+    "joined by ':'), for calibrate and certify --group-column.",
+)
 @click.option("--seed", default=0, show_default=True, type=int, help="Seed of the random draw.")
 @choice_option(
     "--format",
@@ -62,7 +69,15 @@ def parse_fractions(text: str) -> tuple[float, float, float]:
     default="same",
     help="Format of the parts: the input's, or csv, parquet or npz (npz keeps only x, y, yhat).",
 )
-def split_cmd(data: Path, out: Path, group_column: str | None, fractions: str, seed: int, fmt: str) -> None:
+def split_cmd(
+    data: Path,
+    out: Path,
+    group_column: str | None,
+    group_name: str | None,
+    fractions: str,
+    seed: int,
+    fmt: str,
+) -> None:
     """Split DATA into train, calibration and test files in --out, and record the split.
 
     Calibrate and certify on parts that training never saw. Use --by with the column that
@@ -74,7 +89,7 @@ def split_cmd(data: Path, out: Path, group_column: str | None, fractions: str, s
 
     suffix = None if fmt == "same" else f".{fmt}"
     columns = None if group_column is None else [c.strip() for c in group_column.split(",") if c.strip()]
-    result = split_file(data, out, parse_fractions(fractions), seed, columns, suffix)
+    result = split_file(data, out, parse_fractions(fractions), seed, columns, suffix, group_name)
     by_groups = bool(result.group_columns)
     table = Table(title=f"{data} split (seed {result.seed})")
     table.add_column("part")

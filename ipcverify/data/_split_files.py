@@ -88,6 +88,8 @@ class SplitFiles:
         The seed of the draw (the same seed splits the same file the same way).
     group_columns : tuple of str
         The column(s) whose groups were kept whole (empty: rows were split at random).
+    group_name : str or None
+        The column added to the parts that names each row's group (None: none added).
     dropped_columns : tuple of str
         Columns of the source not written to the parts (an NPZ part holds only x, y and yhat).
     other_columns : tuple of str
@@ -102,6 +104,7 @@ class SplitFiles:
     fractions: tuple[float, ...]
     seed: int
     group_columns: tuple[str, ...]
+    group_name: str | None
     dropped_columns: tuple[str, ...]
     other_columns: tuple[str, ...]
     record: Path
@@ -120,6 +123,7 @@ class SplitFiles:
             "fractions": list(self.fractions),
             "seed": self.seed,
             "group_columns": list(self.group_columns),
+            "group_name": self.group_name,
             "parts": {
                 p.name: {
                     "path": None if p.path is None else str(p.path),
@@ -160,6 +164,31 @@ def _group_labels(data: PerceptionDataset, columns: tuple[str, ...]) -> NDArray[
     return np.unique(np.stack(codes, axis=1), axis=0, return_inverse=True)[1].reshape(-1)
 
 
+def _with_group_column(
+    data: PerceptionDataset, columns: tuple[str, ...], labels: NDArray[Any] | None, name: str
+) -> PerceptionDataset:
+    """``data`` with a column ``name``: each row's group, its ``columns``' values joined by ``":"``."""
+    if labels is None:
+        raise InvalidInputError(f"a group column ({name!r}) needs the columns that name a group (--by)")
+    taken = {*data.x_columns, *data.y_columns, *data.yhat_columns, *data.extra}
+    if name in taken:
+        raise InvalidInputError(
+            f"{data.source} already has a column {name!r}; name the group column otherwise"
+        )
+    text = np.asarray(data.column(columns[0])).astype(str)
+    for c in columns[1:]:
+        text = np.char.add(np.char.add(text, ":"), np.asarray(data.column(c)).astype(str))
+    if len(np.unique(text)) != len(np.unique(labels)):
+        raise InvalidInputError(
+            f"joined by ':', the values of {', '.join(columns)} name fewer groups than they are (a value "
+            "holds ':'); add a group column to the log yourself"
+        )
+    return PerceptionDataset(
+        data.x, data.y, data.yhat, source=data.source, x_columns=data.x_columns, y_columns=data.y_columns,
+        yhat_columns=data.yhat_columns, extra={**data.extra, name: text},
+    )  # fmt: skip
+
+
 def split_file(
     path: str | os.PathLike[str],
     out_dir: str | os.PathLike[str],
@@ -167,6 +196,7 @@ def split_file(
     seed: int = 0,
     group_column: str | Sequence[str] | None = None,
     suffix: str | None = None,
+    group_name: str | None = None,
 ) -> SplitFiles:
     """Split a log file into train, calibration and test files, and record the split.
 
@@ -188,6 +218,10 @@ def split_file(
         columns name a group together (``["method", "run"]``: one group per pair).
     suffix : str, optional
         The parts' format: ``".csv"``, ``".parquet"`` or ``".npz"`` (default: the input's).
+    group_name : str, optional
+        A new column, written to every part, holding each row's group: the values of the
+        ``group_column`` columns joined by ``":"`` (``"vislam_rp:3"``). ``calibrate`` and
+        ``certify`` take one group column; this gives them the groups the split kept whole.
 
     Returns
     -------
@@ -221,6 +255,8 @@ def split_file(
         raise DataError(f"unknown data format {ext!r} for the parts; use one of .csv, .parquet, .npz")
     columns = (group_column,) if isinstance(group_column, str) else tuple(group_column or ())
     labels = _group_labels(data, columns)
+    if group_name is not None:
+        data = _with_group_column(data, columns, labels, group_name)
     what = f"{source}: group column(s) {', '.join(columns)}"
     index = split_parts(len(data), fr, seed, labels, what)
     parts_data: list[PerceptionDataset | None] = [
@@ -249,6 +285,7 @@ def split_file(
         fractions=fr,
         seed=int(seed),
         group_columns=columns,
+        group_name=group_name,
         dropped_columns=other if ext == ".npz" else (),
         other_columns=other,
         record=out / RECORD_NAME,

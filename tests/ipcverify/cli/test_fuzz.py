@@ -331,6 +331,7 @@ split-too-few-groups         | 2 | too few for split                | split {fli
 split-over-the-input         | 2 | is also the input DATA           | split {train} --out {dir}/..
 split-out-is-file            | 2 | train.csv                        | split {test} --out {train}
 split-bad-format             | 2 | 'xlsx' is not one of             | split {test} --out {tmp}/s --format xlsx
+split-name-groups-alone      | 2 | needs the columns that name a gr | split {flights} --name-groups g --out {tmp}/s
 split-npz-by-flight          | 0 | -                                | split {flights} --by flight --format npz --out {tmp}/s
 prove-deeply-nested          | 2 | nested too deeply to read        | prove-containment {json_deep} --out {tmp}/c.json
 check-deeply-nested          | 2 | nested too deeply to read        | check-certificate {json_deep_object}

@@ -153,3 +153,43 @@ def test_the_cli_refuses_bad_options_in_one_line_with_status_2(tmp_path, capsys,
     err = capsys.readouterr().err.strip()
     assert err.startswith("error: ") and message in err and "\n" not in err
     assert not (tmp_path / "o").exists()
+
+
+def test_a_named_group_column_carries_each_rows_group_into_every_part(tmp_path):
+    s = split_file(LOG, tmp_path, group_column=["method", "run"], group_name="flight", seed=3)
+    assert s.group_name == "flight" and json.loads(s.record.read_text())["group_name"] == "flight"
+    for p in s.parts:
+        df = pd.read_csv(p.path)
+        assert (df["flight"] == df["method"] + ":" + df["run"].astype(str)).all()
+        assert df["flight"].nunique() == p.groups
+    # the parts then calibrate and certify by that one column
+    part = load_dataset(s.parts[1].path)
+    assert part.column("flight").dtype.kind in "OUS" and len(np.unique(part.column("flight"))) == 4
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"group_name": "flight"}, "needs the columns that name a group"),
+        ({"group_column": "run", "group_name": "method"}, "already has a column 'method'"),
+        ({"group_column": "run", "group_name": "x_0"}, "already has a column 'x_0'"),
+    ],
+)
+def test_a_group_column_is_named_only_from_groups_and_never_over_a_column(tmp_path, kwargs, match):
+    with pytest.raises(InvalidInputError, match=match):
+        split_file(LOG, tmp_path / "out", **kwargs)
+    assert not (tmp_path / "out").exists()
+
+
+def test_joined_values_that_would_merge_two_groups_are_refused(tmp_path):
+    z = np.zeros((4, 1))
+    a, b = np.array(["p:q", "p:q", "p", "p"]), np.array(["r", "r", "q:r", "q:r"])  # both join to "p:q:r"
+    save_dataset(PerceptionDataset(z, z, z, extra={"run": a, "flight": b}), tmp_path / "log.csv")
+    with pytest.raises(InvalidInputError, match="name fewer groups than they are"):
+        split_file(
+            tmp_path / "log.csv",
+            tmp_path / "out",
+            (0.5, 0.5, 0.0),
+            group_column=["run", "flight"],
+            group_name="g",
+        )
