@@ -59,9 +59,15 @@ def _checked_blocks(
         bad = ~np.isfinite(a)
         if bad.any():
             r, c = np.argwhere(bad)[0]
+            value = float(a[r, c])
+            read_as = (
+                " (an empty cell, or text such as NA or n/a in a table, reads as nan)"
+                if value != value
+                else ""
+            )
             raise DataError(
                 f"{source}: row {int(r)}, column {cols[kind][int(c)]!r}: non-finite value "
-                f"{float(a[r, c])}; drop or repair that row"
+                f"{value}{read_as}; drop or repair that row"
             )
         big = np.abs(a) > MAX_ABS_VALUE
         if big.any():
