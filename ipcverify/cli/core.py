@@ -327,13 +327,14 @@ def monitor_cmd(model: Path, log: Path, out: Path, delta: float | None, group_co
     """
     from ipcverify.certification._report_plots import figure_to_png
     from ipcverify.contract._prediction import monitor_log
-    from ipcverify.data._checks import warn_correlated_rows
+    from ipcverify.data._checks import warn_correlated_rows, warn_out_of_time_order
     from ipcverify.data._files import atomic_write, write_json
     from ipcverify.guard._monitor import plot_monitor
     from ipcverify.io._modelio import load_data_for_model, load_model
 
     m = load_model(model)
     data = load_data_for_model(log, m)
+    warn_out_of_time_order(data, "the monitor replays")
     res = monitor_log(m, data, delta=delta, group_column=group_column)
     if not res.labels:
         warn_correlated_rows(data, "monitoring", "to monitor one observation per group")

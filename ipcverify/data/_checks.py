@@ -265,3 +265,60 @@ def warn_correlated_rows(
         ),
         stacklevel=3,
     )
+
+
+#: Names of a time column, as ``ipcverify ingest`` writes it (``t``) and as logs often name it.
+TIME_NAMES = ("t", "time", "timestamp", "stamp")
+
+
+def warn_out_of_time_order(data: PerceptionDataset, what: str) -> None:
+    """A :class:`~ipcverify.errors.Hint` when a time column goes back within a run (for row-order work).
+
+    The time column is the first extra column named as in :data:`TIME_NAMES` that holds
+    numbers; the run is the first column :func:`group_like_counts` finds. A step back in time
+    between consecutive rows of the same run (or anywhere, without a run column) is reported
+    with its row, since ``what`` follows the file's order, not the clock's.
+
+    Parameters
+    ----------
+    data : PerceptionDataset
+        The log.
+    what : str
+        What follows the rows in file order ("the monitor replays").
+
+    Examples
+    --------
+    >>> import warnings
+    >>> z = np.zeros((4, 1))
+    >>> runs, t = np.array([0, 0, 1, 1]), np.array([0.0, 1.0, 0.0, 1.0])
+    >>> d = PerceptionDataset(z, z, z, extra={"run": runs, "t": t})
+    >>> with warnings.catch_warnings(record=True) as w:
+    ...     warnings.simplefilter("always")
+    ...     warn_out_of_time_order(d, "the monitor replays")  # each run in order: nothing to say
+    >>> len(w)
+    0
+    """
+    names = [n for n in data.extra if n.strip().lower() in TIME_NAMES and data.extra[n].dtype.kind in "iuf"]
+    if not names or len(data) < 2:
+        return
+    col = names[0]
+    t = np.asarray(data.extra[col], dtype=np.float64)
+    back = np.diff(t) < 0
+    runs = list(group_like_counts(data))
+    if runs:
+        labels = np.asarray(data.extra[runs[0]]).astype(str)
+        back &= labels[1:] == labels[:-1]
+    if not back.any():
+        return
+    r = int(np.flatnonzero(back)[0]) + 1
+    where = f" within {runs[0]} {labels[r]}" if runs else ""
+    new_run = (
+        "" if runs else ", or a new run starts there without a column naming the runs (add one, e.g. run)"
+    )
+    warnings.warn(
+        Hint(
+            f"{data.source}: column {col!r} goes back in time at row {r}{where} ({t[r - 1]:g} then "
+            f"{t[r]:g}); {what} the rows in file order, so sort the log by time{new_run}"
+        ),
+        stacklevel=3,
+    )

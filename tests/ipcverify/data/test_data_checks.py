@@ -15,6 +15,7 @@ from ipcverify.data._checks import (
     group_like_counts,
     input_ranges,
     warn_correlated_rows,
+    warn_out_of_time_order,
     warn_outside_training,
 )
 from ipcverify.data._dataset import PerceptionDataset
@@ -134,3 +135,27 @@ def test_group_like_counts_need_a_fitting_name_and_more_than_one_group():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         warn_correlated_rows(_ds(np.arange(n), t=np.arange(n)), "calibrating", "x")
+
+
+def test_a_log_out_of_time_order_within_a_run_gets_a_hint_and_one_in_order_none():
+    from pathlib import Path
+
+    from ipcverify.data._dataset import load_dataset
+    from ipcverify.errors import Hint
+
+    log = load_dataset(Path(__file__).resolve().parents[3] / "data" / "euroc_mh04_vislam.csv")
+    with warnings.catch_warnings():  # 20 runs, each in time order (the clock restarts per run)
+        warnings.simplefilter("error", Hint)
+        warn_out_of_time_order(log, "the monitor replays")
+    swapped = np.arange(len(log))
+    swapped[[10, 11]] = [11, 10]  # two rows of run 0 swapped
+    with pytest.warns(Hint, match=r"column 't' goes back in time at row 11 within run 0 \(2\.75 then 2\.5\)"):
+        warn_out_of_time_order(log.subset(swapped), "the monitor replays")
+    # without a column naming runs, a restart of the clock may be a new run: the hint says so
+    flat = _ds(np.arange(4), t=np.array([0.0, 1.0, 0.0, 1.0]))
+    with pytest.warns(Hint, match=r"at row 2 \(1 then 0\).*or a new run starts there"):
+        warn_out_of_time_order(flat, "the monitor replays")
+    # text in a column called t is not a clock
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", Hint)
+        warn_out_of_time_order(_ds(np.arange(3), t=np.array(["b", "a", "c"])), "the monitor replays")
