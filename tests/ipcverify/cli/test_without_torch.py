@@ -1,4 +1,4 @@
-"""``predict``, ``monitor`` and ``evaluate`` of a model file run without torch, with the same numbers.
+"""``predict``, ``monitor`` and ``evaluate`` of a model file, and ``split``, run without torch, with the same numbers.
 
 Each command runs in a fresh interpreter in which importing torch raises (a ``sys.meta_path``
 blocker), and its output is compared with the model as training made it (built from the torch
@@ -99,3 +99,16 @@ def test_monitor_and_evaluate_run_without_torch(calibrated, tmp_path):
     assert (tmp_path / "m" / "monitor.png").read_bytes()[:4] == b"\x89PNG"
     code, err = _run_without_torch("evaluate", d / "calibrated.pt", d / "log.csv", "--json")
     assert code == 0, err
+
+
+def test_split_runs_without_torch_and_writes_the_parts_split_file_writes(tmp_path):
+    log = ROOT / "data" / "euroc_mh04_vislam.csv"
+    code, err = _run_without_torch(
+        "split", log, "--by", "method,run", "--out", tmp_path / "cli", "--seed", "4"
+    )
+    assert code == 0, err
+    from ipcverify.data import split_file
+
+    lib = split_file(log, tmp_path / "lib", group_column=["method", "run"], seed=4)
+    for p in lib.parts:
+        assert (tmp_path / "cli" / p.path.name).read_bytes() == p.path.read_bytes()
