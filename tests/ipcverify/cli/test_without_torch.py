@@ -1,4 +1,4 @@
-"""``predict``, ``monitor`` and ``evaluate`` of a model file, and ``split``, run without torch, with the same numbers.
+"""``predict``, ``monitor``, ``evaluate`` (of a model file) and ``split`` run without torch, alike.
 
 Each command runs in a fresh interpreter in which importing torch raises (a ``sys.meta_path``
 blocker), and its output is compared with the model as training made it (built from the torch
