@@ -1,4 +1,4 @@
-"""``predict``, ``monitor``, ``evaluate`` (of a model file) and ``split`` run without torch, same output."""
+"""``predict``, ``monitor``, ``evaluate`` (of a model file) and ``split`` run without torch, same output.
 
 Each command runs in a fresh interpreter in which importing torch raises (a ``sys.meta_path``
 blocker), and its output is compared with the model as training made it (built from the torch
