@@ -214,6 +214,9 @@ class Certificate:
         The test counted per group (flights, runs).
     group_claim : GroupClaim or None
         The groups a claim about groups counts (None: rows).
+    calibration_group_columns : mapping of str to int
+        The same for the calibration data of a row-level calibration, as the model file recorded
+        it at calibration; empty without such columns.
     test_group_columns : mapping of str to int
         The test data's columns that look like runs or flights (named like ``run`` or
         ``flight_id``; :func:`ipcverify.data._checks.group_like_counts`) and their numbers of
@@ -241,6 +244,7 @@ class Certificate:
     group_test: GroupTest | None = None
     group_claim: GroupClaim | None = None
     test_group_columns: Mapping[str, int] = field(default_factory=dict)
+    calibration_group_columns: Mapping[str, int] = field(default_factory=dict)
     summary: CertificateSummary | None = None
 
     def to_dict(self) -> dict[str, Any]:
@@ -281,6 +285,7 @@ class Certificate:
             "domain": None if self.domain is None else self.domain.to_dict(),
             "group_test": None if self.group_test is None else self.group_test.to_dict(),
             "test_group_like_columns": dict(self.test_group_columns),
+            "calibration_group_like_columns": dict(self.calibration_group_columns),
             "data": {
                 "test": None if self.test_data is None else self.test_data.to_dict(),
                 "train": None if self.train_data is None else self.train_data.to_dict(),

@@ -57,6 +57,7 @@ from ipcverify.certification._group_check import group_test_step
 from ipcverify.certification._report import render_report
 from ipcverify.certification._summarize import output_labels, summarize
 from ipcverify.certification._test_result import Consistency, GroupTest, GroupTestResult, TestResult
+from ipcverify.contract._calibrate import CALIBRATION_GROUPS_KEY
 from ipcverify.contract._model import IPCModel
 from ipcverify.data._checks import group_like_counts
 from ipcverify.data._dataset import PerceptionDataset
@@ -241,6 +242,7 @@ def certify(
         train_data=None if train_data is None else _identity(train_data, train_path, model),
         group_claim=None if cal is None else cal.group_claim(),
         test_group_columns={} if test_data is None else group_like_counts(test_data),
+        calibration_group_columns=dict(model.metadata.get(CALIBRATION_GROUPS_KEY) or {}) if cal else {},
     )
     rows_outside = (
         None if tested is None else (int(tested.scores.violated.sum()), len(tested.scores.violated))

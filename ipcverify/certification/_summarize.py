@@ -95,23 +95,32 @@ def _counted(t: TestResult) -> str:
 
 
 def _independence_check(cert: Certificate) -> Check:
-    """A row-level claim tested on rows that come in runs or flights: its assumption is in doubt."""
-    col, groups = next(iter(cert.test_group_columns.items()))
-    rows = f"{cert.test.n:,} test rows" if cert.test is not None else "the test rows"
-    counted = (
-        f"the test is also counted per group of {cert.group_test.column!r} above"
-        if cert.group_test is not None
-        else f"certify with --group-column {col} to also count the test per {col}"
-    )
+    """A row-level claim on rows that come in runs or flights: its assumption is in doubt."""
+    found, cal_col, test_col = [], None, None
+    if cert.calibration_group_columns:
+        cal_col, groups = next(iter(cert.calibration_group_columns.items()))
+        n = f" in {cert.calibration.n:,} rows" if cert.calibration is not None else ""
+        found.append(f"the calibration data had a {cal_col!r} column ({groups} groups{n})")
+    if cert.test_group_columns:
+        test_col, groups = next(iter(cert.test_group_columns.items()))
+        rows = f" in {cert.test.n:,} test rows" if cert.test is not None else ""
+        found.append(f"the test data has a {test_col!r} column ({groups} groups{rows})")
+    col = cal_col or test_col
+    if cert.group_test is not None:
+        counted = f"the test is also counted per group of {cert.group_test.column!r} above"
+    elif test_col is not None:
+        counted = f"certify with --group-column {test_col} to also count the test per {test_col}"
+    else:
+        counted = "test data with a column naming its runs could also be counted per run"
     return Check(
         name="independent rows",
         verdict="assumed, in doubt",
         level="warn",
         detail=(
-            f"the test data has a {col!r} column ({groups} groups in {rows}): rows of one {col} are "
-            "usually correlated, but the row-level claim, and the calibration behind it, count every "
-            "row as an independent sample, which their exact bounds need; "
-            f"{counted}, and recalibrate with --group-column {col} for a claim about whole {col}s"
+            f"{' and '.join(found)}: rows of one {col} are usually correlated, but the row-level claim, "
+            "and the calibration behind it, count every row as an independent sample, which their "
+            f"exact bounds need; {counted}, and recalibrate with --group-column {col} for a claim "
+            f"about whole {col}s"
         ),
     )
 
@@ -348,7 +357,7 @@ def summarize(
     checks = [_calibration_check(cert), _test_check(cert, rows_outside)]
     if cert.group_test is not None:
         checks += _group_checks(cert.group_test, cert.test)
-    if claim_of is None and cert.test_group_columns:
+    if claim_of is None and (cert.test_group_columns or cert.calibration_group_columns):
         checks.append(_independence_check(cert))
     checks += [_domain_check(cert.domain), _theorem1_check(cert)]
     y_dim = int(cert.model.architecture.get("y_dim", len(labels) or 1))

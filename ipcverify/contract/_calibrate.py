@@ -18,7 +18,12 @@ from ipcverify.calibration._method import CalibrationMethod, CalibrationSample
 from ipcverify.calibration._protocol import Calibration
 from ipcverify.calibration._threshold import check_eps_delta
 from ipcverify.contract._model import IPCModel
-from ipcverify.data._checks import check_informative, warn_correlated_rows, warn_outside_training
+from ipcverify.data._checks import (
+    check_informative,
+    group_like_counts,
+    warn_correlated_rows,
+    warn_outside_training,
+)
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import InvalidInputError, SampleSizeError
 from ipcverify.guard._domain import DomainModel
@@ -28,6 +33,11 @@ from ipcverify.guard._domain_spec import DomainSpec
 DEFAULT_METHOD = Global()
 #: The default domain test: alpha = ``ipcverify.guard.DEFAULT_ALPHA``, rows as the units.
 DEFAULT_DOMAIN = DomainSpec()
+
+
+#: Model metadata of a row-level calibration whose data had columns naming runs or flights
+#: (:func:`ipcverify.data._checks.group_like_counts`): ``{column: number of groups}``.
+CALIBRATION_GROUPS_KEY = "calibration_group_like_columns"
 
 
 def calibrate(
@@ -141,7 +151,11 @@ def calibrate(
         remedy = "to calibrate with whole groups as the exchangeable units"
         warn_correlated_rows(calibration_data, "calibrating", remedy, python="Grouped(column={col!r})")
     warn_outside_training(model.metadata, calibration_data)
-    return model.with_calibration(cal, dom)
+    # what the certificate's "independent rows" check needs to know of a row-level calibration
+    metadata = {k: v for k, v in model.metadata.items() if k != CALIBRATION_GROUPS_KEY}
+    if method.unit_column is None and (counts := group_like_counts(calibration_data)):
+        metadata[CALIBRATION_GROUPS_KEY] = counts
+    return IPCModel(model.source, cal, metadata, dom)
 
 
 def _check_inputs(

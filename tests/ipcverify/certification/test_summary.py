@@ -25,7 +25,7 @@ from ipcverify.contract._model import IPCModel, IPCNetwork
 from ipcverify.data._dataset import PerceptionDataset, save_dataset
 from ipcverify.data._files import file_sha256
 from ipcverify.data._synthetic import make_lagged_perception
-from ipcverify.errors import InvalidInputError
+from ipcverify.errors import Hint, InvalidInputError
 from ipcverify.guard import DomainSpec
 from ipcverify.io._modelio import save_model
 from ipcverify.network._architecture import ModelConfig
@@ -50,7 +50,14 @@ def _flights(ds: PerceptionDataset, rows_per_flight: int) -> PerceptionDataset:
 
 @pytest.fixture(scope="module")
 def net():
-    """An untrained network: calibration makes its sets honest, which is all a certificate needs."""
+    """An untrained network: calibration makes its sets honest, which is all a certificate needs.
+
+    Seeded: the tests' verdicts come from exact bounds at a fixed confidence, so they hold for
+    most networks, not all; a fixed one makes every run check the same thing.
+    """
+    import torch
+
+    torch.manual_seed(0)
     return IPCModel(IPCNetwork(CFG))
 
 
@@ -124,7 +131,7 @@ def test_certificate_json_adds_the_summary_and_keeps_every_key(files, tmp_path):
     )
     write_certificate(res, tmp_path)
     d = json.loads((tmp_path / "certificate.json").read_text())
-    assert OLD_KEYS | {"summary", "test_group_like_columns"} == set(d)
+    assert OLD_KEYS | {"summary", "test_group_like_columns", "calibration_group_like_columns"} == set(d)
     s = d["summary"]
     assert s == json.loads(json.dumps(res.certificate.summary.to_dict()))
     assert s["verdict"].startswith(
@@ -324,7 +331,8 @@ def test_every_plot_axis_says_what_it_measures_and_in_which_units(net, monkeypat
 
 
 def test_a_test_bound_of_one_is_reported_as_vacuous_everywhere_it_is_written():
-    torch = pytest.importorskip("torch")
+    import torch
+
     torch.manual_seed(0)
     model = IPCModel(IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(8,), param="cholesky")))
     d = make_lagged_perception(3, seed=2)
@@ -367,3 +375,38 @@ def test_a_row_level_claim_on_test_rows_grouped_by_flight_is_flagged_as_an_assum
     assert "independent rows" not in names
     plain = certify(row_level, make_lagged_perception(600, seed=82)).certificate
     assert "independent rows" not in [c.name for c in plain.summary.checks] and not plain.test_group_columns
+
+
+def test_a_row_level_calibration_on_rows_grouped_by_flight_is_recorded_and_flagged(net, tmp_path):
+    cal = _flights(make_lagged_perception(1500, seed=91), 50)  # 30 flights, calibrated row by row
+    with pytest.warns(Hint, match="'flight' column"):
+        model = calibrate(net, cal, 0.1, 0.01)
+    assert model.metadata["calibration_group_like_columns"] == {"flight": 30}
+    save_model(model, tmp_path / "m.pt")  # the record survives the model file
+    from ipcverify.io._modelio import load_model
+
+    model = load_model(tmp_path / "m.pt")
+    # test data without a flight column: the calibration's record alone raises the check
+    cert = certify(model, make_lagged_perception(600, seed=92)).certificate
+    assert cert.to_dict()["calibration_group_like_columns"] == {"flight": 30}
+    check = next(c for c in cert.summary.checks if c.name == "independent rows")
+    assert (
+        check.level == "warn"
+        and "the calibration data had a 'flight' column (30 groups in 1,500 rows)" in check.detail
+    )
+    assert (
+        "could also be counted per run" in check.detail
+        and "recalibrate with --group-column flight" in check.detail
+    )
+    # recalibrated by flight, the record is dropped and the check is gone
+    by_flight = calibrate(
+        model, cal, 0.2, 0.05, Grouped(column="flight"), domain=DomainSpec(alpha=0.05), recalibrate=True
+    )
+    assert "calibration_group_like_columns" not in by_flight.metadata
+    names = [
+        c.name
+        for c in certify(
+            by_flight, _flights(make_lagged_perception(600, seed=92), 50)
+        ).certificate.summary.checks
+    ]
+    assert "independent rows" not in names
