@@ -268,12 +268,12 @@ def split_file(
     _check_targets(source, paths, empty)
     out.mkdir(parents=True, exist_ok=True)
     parts = []
-    for name, part in zip(PART_NAMES, parts_data, strict=True):
+    for name, rows, part in zip(PART_NAMES, index, parts_data, strict=True):
+        groups = None if labels is None else len(np.unique(labels[rows]))
         if part is None:
-            parts.append(SplitPart(name, None, 0, None if labels is None else 0, None))
+            parts.append(SplitPart(name, None, 0, groups, None))
             continue
         save_dataset(part, paths[name])
-        groups = None if labels is None else len(np.unique(labels[index[len(parts)]]))
         parts.append(
             SplitPart(name, paths[name], len(part), groups, file_sha256(paths[name]), part.content_hash())
         )
