@@ -25,7 +25,7 @@ from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import DataError, DataWarning, Hint
 
 #: Column names (case-insensitive, also with ``_id``) that usually name a group of correlated rows.
-GROUP_NAMES = ("run", "flight", "sequence", "group", "episode", "trajectory", "session")
+GROUP_NAMES = ("run", "flight", "sequence", "group", "episode", "trajectory", "session", "segment", "block")
 #: Data with fewer distinct rows than this share of its rows are refused.
 MIN_DISTINCT_SHARE = 0.5
 #: Calibration inputs outside the training ranges above this share are a warning (if surprising).

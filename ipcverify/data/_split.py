@@ -158,3 +158,55 @@ def group_codes(labels: ArrayLike, what: str = "group column") -> tuple[NDArray[
     except TypeError:  # mixed types in an object array: compare as text
         distinct, codes = np.unique(arr.astype(str), return_inverse=True)
     return codes.astype(np.intp).ravel(), distinct
+
+
+def time_blocks(
+    t: ArrayLike, seconds: float, groups: ArrayLike | None = None, what: str = "time column"
+) -> NDArray[np.intp]:
+    """Each sample's contiguous time block: ``floor((t - t0) / seconds)``, ``t0`` its group's first time.
+
+    Whole blocks kept together make a split of one long run in which neighbouring rows (the
+    most correlated ones) stay in one part; only rows at the edge of two blocks are neighbours
+    across parts.
+
+    Parameters
+    ----------
+    t : array_like, shape (N,)
+        Each sample's time, in seconds (any origin; samples need not be in order).
+    seconds : float
+        The length of a block (> 0).
+    groups : array_like, shape (N,), optional
+        A run label per sample: blocks are counted from each run's first time (``t0``), so a
+        run's first block always starts with it. Default: one ``t0`` for all samples.
+    what : str
+        How to name ``t`` in error messages.
+
+    Returns
+    -------
+    ndarray of int, shape (N,)
+        The block of every sample, 0 for the first ``seconds`` of its run.
+
+    Raises
+    ------
+    DataError
+        If ``seconds`` is not a positive finite number or a time is not a finite number.
+
+    Examples
+    --------
+    >>> time_blocks([0.0, 4.9, 5.0, 12.0, 100.0, 103.0], 5.0, groups=[0, 0, 0, 0, 1, 1]).tolist()
+    [0, 0, 1, 2, 0, 0]
+    """
+    if not (isinstance(seconds, int | float) and math.isfinite(seconds) and seconds > 0):
+        raise DataError(f"a time block must last a positive number of seconds; got {seconds!r}")
+    try:
+        times = np.asarray(t, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise DataError(f"{what} must hold numbers (seconds) to cut time blocks") from None
+    bad = ~np.isfinite(times)
+    if times.ndim != 1 or bad.any():
+        r = int(np.flatnonzero(bad)[0]) if times.ndim == 1 else 0
+        raise DataError(f"{what}: row {r} has no finite time; every row needs one to cut time blocks")
+    codes = np.zeros(len(times), dtype=np.intp) if groups is None else group_codes(groups, what)[0]
+    start = np.full(int(codes.max(initial=-1)) + 1, np.inf)
+    np.minimum.at(start, codes, times)
+    return np.floor((times - start[codes]) / seconds).astype(np.intp)

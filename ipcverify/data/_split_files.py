@@ -20,9 +20,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ipcverify.data._checks import TIME_NAMES
 from ipcverify.data._dataset import PerceptionDataset, load_dataset, save_dataset
 from ipcverify.data._files import file_sha256, refuse_overwriting_input, write_json
-from ipcverify.data._split import group_codes, split_fractions, split_parts
+from ipcverify.data._split import group_codes, split_fractions, split_parts, time_blocks
 from ipcverify.data._tables import SUFFIXES
 from ipcverify.errors import DataError, InvalidInputError
 
@@ -96,6 +97,10 @@ class SplitFiles:
         The source's columns other than x, y and yhat (candidates for ``group_column``).
     record : Path
         ``split.json``, this object as JSON.
+    block_seconds : float or None
+        The length of the contiguous time blocks kept whole (None: no blocks).
+    time_column : str or None
+        The column the blocks were cut from.
     """
 
     source: Path
@@ -108,8 +113,12 @@ class SplitFiles:
     dropped_columns: tuple[str, ...]
     other_columns: tuple[str, ...]
     record: Path
+    block_seconds: float | None = None
+    time_column: str | None = None
 
     def __post_init__(self) -> None:
+        if (self.block_seconds is None) != (self.time_column is None):
+            raise InvalidInputError("time blocks have a length and a time column, or neither")
         if tuple(p.name for p in self.parts) != PART_NAMES:
             raise InvalidInputError(f"a split has the parts {', '.join(PART_NAMES)}, in that order")
         if len(self.fractions) != len(PART_NAMES):
@@ -123,6 +132,8 @@ class SplitFiles:
             "fractions": list(self.fractions),
             "seed": self.seed,
             "group_columns": list(self.group_columns),
+            "block_seconds": self.block_seconds,
+            "time_column": self.time_column,
             "group_name": self.group_name,
             "parts": {
                 p.name: {
@@ -154,30 +165,57 @@ def _check_targets(source: Path, paths: dict[str, Path], empty: Sequence[str]) -
             )
 
 
-def _group_labels(data: PerceptionDataset, columns: tuple[str, ...]) -> NDArray[Any] | None:
-    """One label per row: the column's values, or a number per combination of several (None: no groups)."""
-    if not columns:
+def _group_labels(
+    data: PerceptionDataset, columns: tuple[str, ...], blocks: NDArray[np.intp] | None = None
+) -> NDArray[Any] | None:
+    """One label per row: the column's values, or a number per combination of several columns and
+    the time block (None: no groups)."""
+    if not columns and blocks is None:
         return None
-    if len(columns) == 1:
+    if len(columns) == 1 and blocks is None:
         return data.column(columns[0])
     codes = [group_codes(data.column(c), f"{data.source}: group column {c!r}")[0] for c in columns]
+    codes += [] if blocks is None else [blocks]
     return np.unique(np.stack(codes, axis=1), axis=0, return_inverse=True)[1].reshape(-1)
 
 
+def _time_column(data: PerceptionDataset, name: str | None) -> str:
+    """The column time blocks are cut from: ``name``, or the first extra column named like a time."""
+    if name is not None:
+        data.column(name)  # a missing column is refused, naming the available ones
+        return name
+    for col in data.extra:
+        if col.strip().lower() in TIME_NAMES and np.asarray(data.extra[col]).dtype.kind in "iuf":
+            return col
+    raise DataError(
+        f"{data.source}: time blocks need a column of times in seconds ({', '.join(TIME_NAMES)}); "
+        "name yours with --time-column (Python: time_column=...)"
+    )
+
+
 def _with_group_column(
-    data: PerceptionDataset, columns: tuple[str, ...], labels: NDArray[Any] | None, name: str
+    data: PerceptionDataset,
+    columns: tuple[str, ...],
+    labels: NDArray[Any] | None,
+    name: str,
+    blocks: NDArray[np.intp] | None = None,
 ) -> PerceptionDataset:
-    """``data`` with a column ``name``: each row's group, its ``columns``' values joined by ``":"``."""
+    """``data`` with a column ``name``: each row's group, its ``columns``' values (and its time
+    block's number) joined by ``":"``."""
     if labels is None:
-        raise InvalidInputError(f"a group column ({name!r}) needs the columns that name a group (--by)")
+        raise InvalidInputError(
+            f"a group column ({name!r}) needs the columns that name a group (--by) or time blocks (--block)"
+        )
     taken = {*data.x_columns, *data.y_columns, *data.yhat_columns, *data.extra}
     if name in taken:
         raise InvalidInputError(
             f"{data.source} already has a column {name!r}; name the group column otherwise"
         )
-    text = np.asarray(data.column(columns[0])).astype(str)
-    for c in columns[1:]:
-        text = np.char.add(np.char.add(text, ":"), np.asarray(data.column(c)).astype(str))
+    values = [np.asarray(data.column(c)).astype(str) for c in columns]
+    values += [] if blocks is None else [blocks.astype(str)]
+    text = values[0]
+    for v in values[1:]:
+        text = np.char.add(np.char.add(text, ":"), v)
     if len(np.unique(text)) != len(np.unique(labels)):
         raise InvalidInputError(
             f"joined by ':', the values of {', '.join(columns)} name fewer groups than they are (a value "
@@ -197,6 +235,8 @@ def split_file(
     group_column: str | Sequence[str] | None = None,
     suffix: str | None = None,
     group_name: str | None = None,
+    block: float | None = None,
+    time_column: str | None = None,
 ) -> SplitFiles:
     """Split a log file into train, calibration and test files, and record the split.
 
@@ -222,6 +262,16 @@ def split_file(
         A new column, written to every part, holding each row's group: the values of the
         ``group_column`` columns joined by ``":"`` (``"vislam_rp:3"``). ``calibrate`` and
         ``certify`` take one group column; this gives them the groups the split kept whole.
+        With ``block``, the block's number comes last (``"KITTI_00_ORB:3"``).
+    block : float, optional
+        Keep contiguous stretches of time whole: blocks of ``block`` seconds of the time column,
+        counted from each group's first time (from the log's first time without
+        ``group_column``), are the groups (within the ``group_column`` groups, if given). For a
+        log of one or a few long runs; rows next to a block's edge are still neighbours of rows
+        in another part.
+    time_column : str, optional
+        The column of times in seconds that ``block`` cuts (default: the first of ``t``,
+        ``time``, ``timestamp``, ``stamp``).
 
     Returns
     -------
@@ -254,11 +304,26 @@ def split_file(
     if ext not in SUFFIXES:
         raise DataError(f"unknown data format {ext!r} for the parts; use one of .csv, .parquet, .npz")
     columns = (group_column,) if isinstance(group_column, str) else tuple(group_column or ())
-    labels = _group_labels(data, columns)
+    blocks, t_col = None, None
+    if block is not None:
+        t_col = _time_column(data, time_column)
+        runs = _group_labels(data, columns)
+        blocks = time_blocks(data.column(t_col), block, runs, f"{source}: time column {t_col!r}")
+    elif time_column is not None:
+        raise InvalidInputError("a time column (--time-column) is used only to cut time blocks (--block)")
+    labels = _group_labels(data, columns, blocks)
     if group_name is not None:
-        data = _with_group_column(data, columns, labels, group_name)
-    what = f"{source}: group column(s) {', '.join(columns)}"
-    index = split_parts(len(data), fr, seed, labels, what)
+        data = _with_group_column(data, columns, labels, group_name, blocks)
+    units = [f"group column(s) {', '.join(columns)}"] if columns else []
+    if blocks is not None:
+        units.append(f"{block:g} s blocks of {t_col!r}")
+    what = f"{source}: {' and '.join(units)}"
+    try:
+        index = split_parts(len(data), fr, seed, labels, what)
+    except DataError as e:
+        if blocks is None:
+            raise
+        raise DataError(f"{e}; shorter --block gives more blocks") from None
     parts_data: list[PerceptionDataset | None] = [
         data.subset(np.sort(i), name) if len(i) else None for i, name in zip(index, PART_NAMES, strict=True)
     ]
@@ -289,6 +354,8 @@ def split_file(
         dropped_columns=other if ext == ".npz" else (),
         other_columns=other,
         record=out / RECORD_NAME,
+        block_seconds=None if block is None else float(block),
+        time_column=t_col,
     )
     write_json(result.record, result.to_dict())
     return result
