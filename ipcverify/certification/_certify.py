@@ -304,7 +304,12 @@ def _domain(
         return None
     if test_data is None:
         return model.domain.describe()
-    return model.domain.report(test_data.x, test_data.yhat, violated)
+    report = model.domain.report(test_data.x, test_data.yhat, violated)
+    if model.domain.n_groups is not None:
+        return report
+    # a row-level test: name the calibration's run-like column (its record, else the test data's)
+    runs = list(model.metadata.get(CALIBRATION_GROUPS_KEY) or {}) or list(group_like_counts(test_data))
+    return replace(report, row_level_column=runs[0]) if runs else report
 
 
 def write_certificate(result: CertifyResult, out_dir: PathLike) -> tuple[Path, Path]:

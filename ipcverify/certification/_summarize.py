@@ -212,6 +212,17 @@ def _domain_check(d: DomainReport | None) -> Check:
     if d.n == 0:
         return Check(name=name, verdict="not run", level="info", detail=f"{fitted}; {_NOT_RUN}")
     counted = f"{d.outside:,} of {d.n:,} test queries ({100 * d.outside_fraction:.3g} %) outside; {fitted}"
+    if d.well_above_alpha and d.row_level_column is not None:
+        col = d.row_level_column
+        return Check(
+            name=name,
+            verdict="SHIFT, or a row-level test on correlated rows: far more queries outside than "
+            "false alarms explain",
+            level="warn",
+            detail=counted + f"; the certificate promises nothing for them. The test was fitted row by "
+            f"row on calibration data with a column {col!r}: refit it by {col} (calibrate "
+            f"--domain-group-column {col}) to tell a shift from a threshold too short for a new {col}",
+        )
     if d.well_above_alpha:
         return Check(
             name=name,

@@ -77,6 +77,13 @@ def _sampling(f: Callable[..., Any]) -> Callable[..., Any]:
             default=None,
             help="Comma-separated runs to fit --align on; keep them out of calibration and test.",
         ),
+        click.option(
+            "--up",
+            type=click.Choice(["+x", "-x", "+y", "-y", "+z", "-z"]),
+            default=None,
+            help="The world's up axis in the estimate's frame, for the tilt columns x_2..x_4 "
+            "[+z; -y for --format kitti, whose camera frame has y down].",
+        ),
         click.option("--run", "runs", multiple=True, help="Run name, one per input (default: file stems)."),
         click.option("--tag", "tags", multiple=True, help="KEY=VALUE: a constant column (repeatable)."),
     ]
@@ -98,6 +105,7 @@ def _common(sampling: dict[str, Any]) -> tuple[Path, IngestOptions, list[str] | 
         t_offset=sampling["t_offset"],
         align=sampling["align"],
         align_runs=tuple(r.strip() for r in align_runs.split(",") if r.strip()) if align_runs else (),
+        up=sampling["up"],
     )
     return sampling["out"], options, list(sampling["runs"]) or None, _tags(sampling["tags"])
 

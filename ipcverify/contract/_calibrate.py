@@ -148,7 +148,11 @@ def calibrate(
     if cal is None:  # unreachable: the fit above assigns or raises
         raise SampleSizeError("no calibration was fitted")
     if method.unit_column is None and (domain is None or domain.group_column is None):
-        remedy = "to calibrate with whole groups as the exchangeable units"
+        remedy = (
+            "to calibrate with whole groups as the exchangeable units; or keep the row-level claim and "
+            "fit only the domain test by group with --domain-group-column and the same column (fitted "
+            "row by row on correlated rows, it flags the rows of a new run too often)"
+        )
         warn_correlated_rows(calibration_data, "calibrating", remedy, python="Grouped(column={col!r})")
     warn_outside_training(model.metadata, calibration_data)
     # what the certificate's "independent rows" check needs to know of a row-level calibration

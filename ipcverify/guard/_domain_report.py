@@ -31,6 +31,12 @@ class DomainReport:
         Queries checked and queries flagged.
     violations_inside, violations_outside : int or None
         Violations among the queries inside and outside the domain (None: no labels).
+    row_level_column : str or None
+        A column of the calibration data that names runs (flights, segments), when the test was
+        fitted row by row. Rows of one run are near-copies of each other, so a row-level
+        threshold is short, and queries of a new run fall outside more often than ``alpha``
+        even without a shift; a share well above ``alpha`` then has two explanations. None: the
+        test was fitted with whole groups, or no such column is known.
 
     Examples
     --------
@@ -47,6 +53,7 @@ class DomainReport:
     outside: int
     violations_inside: int | None = None
     violations_outside: int | None = None
+    row_level_column: str | None = None
 
     def __post_init__(self) -> None:
         if not (0 <= self.outside <= self.n):
@@ -82,6 +89,12 @@ class DomainReport:
             )
         if self.well_above_alpha:
             text += ". That is far more than false alarms explain: the deployment data have shifted"
+            if (col := self.row_level_column) is not None:
+                text += (
+                    f", or the test, fitted row by row while rows of one {col} are near-copies of each "
+                    f"other, has a threshold too short for a new {col}; refit it with whole groups "
+                    f"(calibrate --domain-group-column {col}) to tell the two apart"
+                )
         return text + "."
 
     @property
@@ -109,5 +122,6 @@ class DomainReport:
             "well_above_alpha": self.well_above_alpha,
             "violations_inside": self.violations_inside,
             "violations_outside": self.violations_outside,
+            "row_level_column": self.row_level_column,
             "statement": self.sentence(),
         }

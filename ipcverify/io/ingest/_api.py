@@ -21,7 +21,7 @@ from ipcverify.errors import DataError
 from ipcverify.io.ingest._bagio import PoseRequest, Stamp, read_bag
 from ipcverify.io.ingest._formats import Format, read_trajectory
 from ipcverify.io.ingest._manifest import input_record
-from ipcverify.io.ingest._samples import MANIFEST_KEY, IngestOptions, RunData, build_samples
+from ipcverify.io.ingest._samples import MANIFEST_KEY, IngestOptions, RunData, build_samples, with_up
 
 PathLike = str | os.PathLike[str]
 
@@ -104,7 +104,7 @@ def ingest_trajectories(
     >>> len(df), df["run"].iloc[0], float(df["y_0"].round(12).iloc[0])
     (6, 'est', 0.5)
     """
-    options = options or IngestOptions()
+    options = with_up(options or IngestOptions(), "-y" if estimate_format == "kitti" else "+z")
     truths = [truth] if isinstance(truth, (str, os.PathLike)) else list(truth)
     if not estimates:
         raise DataError("no estimate file; give at least one --estimate")
@@ -178,7 +178,7 @@ def ingest_bags(
     runs, options, tags
         As for :func:`ingest_trajectories`.
     """
-    options = options or IngestOptions()
+    options = with_up(options or IngestOptions(), "+z")  # REP 103: ROS world frames are z-up
     if not paths:
         raise DataError("no bag given")
     names = run_names(paths, runs)

@@ -14,8 +14,10 @@ estimated poses ``(p_est, R_est)`` interpolated at both times:
 
 The state ``x`` is the same for every quantity, read from the estimate alone:
 ``x_0 = ||R_est(t0)^T (p_est(t1) - p_est(t0))|| / H`` (speed), ``x_1`` = the angle of
-``R_est(t0)^T R_est(t1)`` over ``H`` (rotation rate), ``x_2..x_4 = R_est(t0)^T e_z`` (the world's
-z axis -- gravity's direction where z is up -- in the body frame).
+``R_est(t0)^T R_est(t1)`` over ``H`` (rotation rate), ``x_2..x_4 = R_est(t0)^T u`` (the world's
+up axis ``u`` in the body frame: the direction opposite to gravity, which tells the body's tilt;
+``u = e_z`` where z is up, as in EuRoC, TUM and ROS, ``u = -e_y`` in KITTI's camera frame, whose y
+points down; :data:`UP_AXES`).
 """
 
 from __future__ import annotations
@@ -30,14 +32,35 @@ from ipcverify.io.ingest._trajectory import PosesAt
 Quantity = Literal["displacement", "position", "pose"]
 QUANTITIES: tuple[Quantity, ...] = ("displacement", "position", "pose")
 
-#: What the five state columns hold.
-STATE_COLUMNS = (
-    "estimated speed |yhat_displacement| / H (m/s)",
-    "estimated rotation rate, angle of R_est(t0)^T R_est(t1) / H (rad/s)",
-    "world z axis in the estimated body frame, x",
-    "world z axis in the estimated body frame, y",
-    "world z axis in the estimated body frame, z",
-)
+#: The world's up axis, by name: the unit vector in the estimate's world frame.
+UP_AXES: dict[str, tuple[float, float, float]] = {
+    "+x": (1.0, 0.0, 0.0),
+    "-x": (-1.0, 0.0, 0.0),
+    "+y": (0.0, 1.0, 0.0),
+    "-y": (0.0, -1.0, 0.0),
+    "+z": (0.0, 0.0, 1.0),
+    "-z": (0.0, 0.0, -1.0),
+}
+
+
+def state_columns(up: str = "+z") -> tuple[str, ...]:
+    """What the five state columns hold, with the world's up axis ``up`` (a key of :data:`UP_AXES`).
+
+    Examples
+    --------
+    >>> state_columns()[2], state_columns("-y")[4]
+    ('world z axis in the estimated body frame, x', 'world -y axis in the estimated body frame, z')
+    """
+    axis = "z" if up == "+z" else up  # "+z" keeps the name the manifests have always had
+    return (
+        "estimated speed |yhat_displacement| / H (m/s)",
+        "estimated rotation rate, angle of R_est(t0)^T R_est(t1) / H (rad/s)",
+        *(f"world {axis} axis in the estimated body frame, {c}" for c in "xyz"),
+    )
+
+
+#: What the five state columns hold where z is up.
+STATE_COLUMNS = state_columns()
 
 
 def _body_displacement(at0: PosesAt, at1: PosesAt) -> NDArray[np.float64]:
@@ -68,7 +91,7 @@ def quantity_pair(
     )
 
 
-def state_features(est0: PosesAt, est1: PosesAt, horizon: float) -> NDArray[np.float64]:
+def state_features(est0: PosesAt, est1: PosesAt, horizon: float, up: str = "+z") -> NDArray[np.float64]:
     """The five state columns (see the module docstring) at every sample.
 
     Parameters
@@ -77,9 +100,11 @@ def state_features(est0: PosesAt, est1: PosesAt, horizon: float) -> NDArray[np.f
         Estimated poses at the samples' starts ``t0`` and ends ``t1``.
     horizon : float
         ``H = t1 - t0`` (seconds).
+    up : str
+        The world's up axis in the estimate's frame, a key of :data:`UP_AXES`.
     """
     disp = _body_displacement(est0, est1)
     speed = np.linalg.norm(disp, axis=1) / horizon
     rate = (est0.rotation.inv() * est1.rotation).magnitude().reshape(-1) / horizon
-    up = np.asarray(est0.rotation.inv().apply([0.0, 0.0, 1.0]), dtype=np.float64).reshape(-1, 3)
-    return np.column_stack([speed, rate, up])
+    axis = np.asarray(est0.rotation.inv().apply(UP_AXES[up]), dtype=np.float64).reshape(-1, 3)
+    return np.column_stack([speed, rate, axis])

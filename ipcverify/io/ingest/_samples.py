@@ -30,7 +30,14 @@ from numpy.typing import NDArray
 from ipcverify.errors import DataError, Hint
 from ipcverify.io.ingest._align import Alignment, fit_alignment
 from ipcverify.io.ingest._bagio import StateSeries
-from ipcverify.io.ingest._quantity import QUANTITIES, STATE_COLUMNS, Quantity, quantity_pair, state_features
+from ipcverify.io.ingest._quantity import (
+    QUANTITIES,
+    UP_AXES,
+    Quantity,
+    quantity_pair,
+    state_columns,
+    state_features,
+)
 from ipcverify.io.ingest._trajectory import PosesAt, Trajectory
 
 REASONS = ("estimate_gap", "truth_outside", "truth_gap", "no_state")
@@ -63,6 +70,12 @@ class IngestOptions:
     align_runs : tuple of str
         The runs the alignment is fitted on (required with ``align``); keep them out of
         calibration and test.
+    up : str, optional
+        The world's up axis in the estimate's world frame, for the tilt columns ``x_2..x_4``:
+        ``"+z"`` (EuRoC, TUM, ROS's ENU), ``"-y"`` (KITTI's camera frame) or another signed
+        axis (:data:`~ipcverify.io.ingest._quantity.UP_AXES`). None: the estimate format's
+        convention (``"-y"`` for KITTI poses, ``"+z"`` otherwise), filled in by the ingest
+        functions so that the manifest records the axis used.
 
     Examples
     --------
@@ -81,8 +94,11 @@ class IngestOptions:
     t_offset: float = 0.0
     align: Literal["none", "se3", "sim3"] = "none"
     align_runs: tuple[str, ...] = ()
+    up: str | None = None
 
     def __post_init__(self) -> None:
+        if self.up is not None and self.up not in UP_AXES:
+            raise DataError(f"unknown up axis {self.up!r}; use one of {', '.join(UP_AXES)}")
         if self.quantity not in QUANTITIES:
             raise DataError(f"unknown quantity {self.quantity!r}; use one of {', '.join(QUANTITIES)}")
         for name in ("horizon", "stride", "max_gap"):
@@ -107,6 +123,17 @@ class IngestOptions:
             )
         if self.align == "none" and self.align_runs:
             raise DataError("--align-runs is given but --align is none; choose --align se3 or sim3")
+
+
+def with_up(options: IngestOptions, default: str) -> IngestOptions:
+    """``options`` with its up axis, ``default`` where it names none (the input format's convention).
+
+    Examples
+    --------
+    >>> with_up(IngestOptions(), "-y").up, with_up(IngestOptions(up="+x"), "-y").up
+    ('-y', '+x')
+    """
+    return options if options.up is not None else dataclasses.replace(options, up=default)
 
 
 @dataclass(frozen=True, eq=False)
@@ -308,7 +335,7 @@ def _rows(p: _Prepared, options: IngestOptions, state_width: int) -> tuple[pd.Da
         "truth_outside": ~(g0.inside & g1.inside),
         "truth_gap": ~(g0.ok & g1.ok),
     }
-    x = state_features(e0, e1, options.horizon)
+    x = state_features(e0, e1, options.horizon, options.up or "+z")
     state = p.run.state
     if state is not None:
         st = state.t - float(p.run.estimate.t[0])
@@ -402,7 +429,7 @@ def build_samples(runs: Sequence[RunData], options: IngestOptions, hint: str = "
     frame.attrs[MANIFEST_KEY] = {
         "quantity": options.quantity,
         "options": dataclasses.asdict(options),
-        "x_columns": {f"x_{i}": d for i, d in enumerate([*STATE_COLUMNS, *state_names])},
+        "x_columns": {f"x_{i}": d for i, d in enumerate([*state_columns(options.up or "+z"), *state_names])},
         "runs": [a for _, a in parts],
         "rows": len(frame),
         "alignment": None if alignment is None else alignment.to_dict(),

@@ -208,3 +208,12 @@ def test_trajectory_errors(run_cli, tum, tmp_path, extra, fragment):
         "ingest", "trajectories", "--truth", tum / "gt.txt", "--estimate", tum / "run00.txt", *extra
     )
     _one_line_error(res, fragment)
+
+
+def test_up_names_the_world_axis_of_the_tilt_columns_and_refuses_others(run_cli, tum, tmp_path):
+    base = ["ingest", "trajectories", "--truth", tum / "gt.txt", "--t-offset", "7", *_estimates(tum, [0])]
+    assert run_cli(*base, "--up", "-x", "--out", tmp_path / "a.csv").code == 0
+    m = json.loads((tmp_path / "a.manifest.json").read_text())
+    assert m["options"]["up"] == "-x" and m["x_columns"]["x_2"].startswith("world -x axis")
+    res = run_cli(*base, "--up", "down", "--out", tmp_path / "b.csv")
+    assert res.code == 2 and "'down' is not one of" in res.stderr and not (tmp_path / "b.csv").exists()

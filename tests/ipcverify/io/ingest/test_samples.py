@@ -11,6 +11,7 @@ from scipy.spatial.transform import Rotation
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import DataError, Hint
 from ipcverify.io.ingest._bagio import StateSeries
+from ipcverify.io.ingest._quantity import UP_AXES
 from ipcverify.io.ingest._samples import MANIFEST_KEY, IngestOptions, RunData, build_samples
 from ipcverify.io.ingest._trajectory import Trajectory
 
@@ -220,6 +221,7 @@ def test_gaps_that_drop_most_samples_give_a_hint_with_the_largest_gap(motions):
         ({"quantity": "velocity"}, "unknown quantity 'velocity'"),
         ({"quantity": "position", "align": "se3"}, "name the runs to fit the alignment on with --align-runs"),
         ({"align_runs": ("a",)}, "--align-runs is given but --align is none"),
+        ({"up": "up"}, "unknown up axis 'up'"),
     ],
 )
 def test_bad_options_are_refused(kwargs, match):
@@ -252,3 +254,35 @@ def test_from_frame_validates_like_a_file():
         x_columns=["speed"], y_columns=["gt"], yhat_columns=["est"],
     )  # fmt: skip
     assert named.x_columns == ("speed",) and named.extra["run"].tolist() == ["a"]
+
+
+@pytest.mark.parametrize("up", list(UP_AXES))
+def test_the_tilt_columns_are_the_named_up_axis_in_the_body_frame(motions, up):
+    truth, est = motions
+    t = np.arange(0.0, 6.0, 0.02)
+    df = build_samples([RunData("r", truth.trajectory(t), est.trajectory(t))], IngestOptions(up=up))
+    want = est.rotation(S * np.arange(len(df))).inv().apply(UP_AXES[up])
+    np.testing.assert_allclose(df[["x_2", "x_3", "x_4"]], want, rtol=0, atol=1e-9)
+    names = df.attrs[MANIFEST_KEY]["x_columns"]
+    assert names["x_3"] == f"world {'z' if up == '+z' else up} axis in the estimated body frame, y"
+
+
+def test_kitti_estimates_take_the_camera_frames_up_axis_unless_told(tmp_path):
+    from ipcverify.io.ingest import ingest_trajectories
+
+    # a car driving straight ahead (+z in KITTI's camera frame: x right, y down, z forward), 20 Hz
+    t = np.arange(0.0, 4.0, 0.05)
+    poses = np.zeros((len(t), 12))
+    poses[:, [0, 5, 10]] = 1.0
+    poses[:, 11] = 5.0 * t
+    np.savetxt(tmp_path / "00.txt", poses)
+    np.savetxt(tmp_path / "times.txt", t)
+    kw = {"truth_format": "kitti", "estimate_format": "kitti", "times": tmp_path / "times.txt"}
+    df = ingest_trajectories(tmp_path / "00.txt", [tmp_path / "00.txt"], **kw)
+    np.testing.assert_array_equal(df[["x_2", "x_3", "x_4"]].drop_duplicates().to_numpy(), [[0.0, -1.0, 0.0]])
+    assert df.attrs[MANIFEST_KEY]["options"]["up"] == "-y"
+    told = ingest_trajectories(
+        tmp_path / "00.txt", [tmp_path / "00.txt"], options=IngestOptions(up="+z"), **kw
+    )
+    np.testing.assert_array_equal(told[["x_2", "x_3", "x_4"]].drop_duplicates().to_numpy(), [[0.0, 0.0, 1.0]])
+    assert told.attrs[MANIFEST_KEY]["options"]["up"] == "+z"

@@ -1,0 +1,85 @@
+"""A row-level domain test on correlated rows: the certificate names it as a second explanation of a "shift".
+
+Rows of one run are near-copies of each other, so a domain test fitted row by row has a short
+threshold, and the rows of a new run fall outside it far more often than alpha although the runs
+are exchangeable. The certificate must not call that a shift without saying so: it names the
+run-like column and the remedy (fit the test by group), and the group-aware test on the same
+data flags about alpha of the queries.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from ipcverify.certification._certify import certify
+from ipcverify.certification._summarize import summarize
+from ipcverify.contract import IPCModel
+from ipcverify.data import PerceptionDataset
+from ipcverify.errors import Hint
+from ipcverify.guard import DomainReport, DomainSpec
+from ipcverify.network import IPCNetwork, ModelConfig
+
+ALPHA = 0.05
+#: certify's hint that the test rows have a run column is the subject of other tests
+pytestmark = pytest.mark.filterwarnings("ignore:.*certifying row by row:ipcverify.errors.Hint")
+
+
+def _runs(n_runs: int, rows: int, seed: int) -> PerceptionDataset:
+    """Runs at random places of the state space, each run's rows within 1e-3 of its place."""
+    rng = np.random.default_rng(seed)
+    run = np.repeat(np.arange(n_runs), rows)
+    x = rng.normal(size=(n_runs, 4))[run] + 1e-3 * rng.normal(size=(n_runs * rows, 4))
+    yhat = rng.normal(size=(n_runs, 2))[run] + 1e-3 * rng.normal(size=(n_runs * rows, 2))
+    y = yhat + 0.1 * rng.normal(size=yhat.shape)
+    return PerceptionDataset(x, y, yhat, source=f"runs seed {seed}", extra={"run": run})
+
+
+@pytest.fixture(scope="module")
+def net() -> IPCModel:
+    torch.manual_seed(3)
+    return IPCModel(IPCNetwork(ModelConfig.recipe("v1", x_dim=4, y_dim=2, hidden=(8,))))
+
+
+@pytest.fixture(scope="module")
+def data() -> dict[str, PerceptionDataset]:
+    return {"cal": _runs(60, 10, seed=1), "test": _runs(40, 10, seed=2)}
+
+
+def _calibrated(net: IPCModel, cal: PerceptionDataset, group_column: str | None) -> IPCModel:
+    from ipcverify import calibrate
+
+    domain = DomainSpec(alpha=ALPHA, group_column=group_column)
+    if group_column is not None:
+        return calibrate(net, cal, 0.2, 0.05, domain=domain)
+    with pytest.warns(Hint, match="--domain-group-column"):  # the correlated-rows hint names the remedy
+        return calibrate(net, cal, 0.2, 0.05, domain=domain)
+
+
+def test_a_row_level_test_on_correlated_rows_is_named_beside_the_shift(net, data):
+    model = _calibrated(net, data["cal"], None)
+    d = certify(model, data["test"]).certificate.domain
+    assert d is not None and d.well_above_alpha and d.outside_fraction > 0.5  # nearly every new run
+    assert d.row_level_column == "run" and d.to_dict()["row_level_column"] == "run"
+    assert "refit it with whole groups (calibrate --domain-group-column run)" in d.sentence()
+    cert = certify(model, data["test"]).certificate
+    (check,) = [c for c in summarize(cert).checks if c.name == "domain of validity"]
+    assert check.verdict.startswith("SHIFT, or a row-level test on correlated rows")
+    assert "--domain-group-column run" in check.detail
+
+
+def test_the_same_runs_fitted_by_group_are_not_a_shift(net, data):
+    model = _calibrated(net, data["cal"], "run")
+    d = certify(model, data["test"]).certificate.domain
+    assert d is not None and d.row_level_column is None and not d.well_above_alpha
+    assert "shifted" not in d.sentence()
+
+
+@pytest.mark.parametrize(("outside", "named"), [(40, True), (1, False)])
+def test_the_remedy_is_said_only_for_a_share_well_above_alpha(outside, named):
+    r = DomainReport(method="knn", alpha=0.01, threshold=1.0, n_reference=100, n=100, outside=outside,
+                     row_level_column="segment")  # fmt: skip
+    assert ("--domain-group-column segment" in r.sentence()) is named
+    plain = DomainReport(method="knn", alpha=0.01, threshold=1.0, n_reference=100, n=100, outside=outside)
+    assert "--domain-group-column" not in plain.sentence()
