@@ -308,7 +308,11 @@ def _domain(
     if model.domain.n_groups is not None:
         return report
     # a row-level test: name the calibration's run-like column (its record, else the test data's)
-    runs = list(model.metadata.get(CALIBRATION_GROUPS_KEY) or {}) or list(group_like_counts(test_data))
+    recorded = dict(model.metadata.get(CALIBRATION_GROUPS_KEY) or {})
+    if recorded:
+        column = next(iter(recorded))
+        return replace(report, row_level_column=column, row_level_groups=int(recorded[column]))
+    runs = list(group_like_counts(test_data))
     return replace(report, row_level_column=runs[0]) if runs else report
 
 

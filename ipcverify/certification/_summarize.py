@@ -220,8 +220,8 @@ def _domain_check(d: DomainReport | None) -> Check:
             "false alarms explain",
             level="warn",
             detail=counted + f"; the certificate promises nothing for them. The test was fitted row by "
-            f"row on calibration data with a column {col!r}: refit it by {col} (calibrate "
-            f"--domain-group-column {col}) to tell a shift from a threshold too short for a new {col}",
+            f"row on calibration data with a column {col!r}: refit it by {col} ({d.regroup_command()}) "
+            f"to tell a shift from a threshold too short for a new {col}",
         )
     if d.well_above_alpha:
         return Check(

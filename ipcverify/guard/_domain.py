@@ -89,24 +89,6 @@ def _stack(x: ArrayLike, yhat: ArrayLike) -> FloatArray:
     return np.concatenate([xa, ya], axis=1)
 
 
-def smallest_row_alpha(n: int) -> float:
-    """The smallest false-alarm rate, to 3 significant digits rounded up, that ``n`` inputs allow.
-
-    The row-level test needs ``n >= ceil((1 - alpha) / alpha)``, i.e. ``alpha >= 1 / (n + 1)``.
-
-    Examples
-    --------
-    >>> smallest_row_alpha(57), smallest_row_alpha(99)
-    (0.0173, 0.01)
-    """
-    alpha = 1.0 / (n + 1)
-    digits = 2 - math.floor(math.log10(alpha))
-    rounded = math.ceil(alpha * 10**digits - 1e-9) / 10**digits
-    while math.ceil((1.0 - rounded) / rounded) > n:  # guard the float arithmetic of the rule
-        rounded += 10.0**-digits
-    return rounded
-
-
 @dataclass(frozen=True, eq=False)
 class DomainModel:
     """A fitted domain-of-validity test (build it with :meth:`fit`).
@@ -247,7 +229,7 @@ class DomainModel:
         n = len(z)
         need = math.ceil((1.0 - alpha) / alpha)
         if n < max(need, k + 1):
-            smallest = smallest_row_alpha(n) if n >= k + 1 else None
+            smallest = smallest_epsilon(n, 0.5, "marginal") if n >= k + 1 else None
             raise SampleSizeError(
                 f"the domain test at alpha={alpha:g} needs at least {max(need, k + 1)} calibration inputs; "
                 f"got {n} -- use more calibration data or a larger --domain-alpha"

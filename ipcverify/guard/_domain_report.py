@@ -7,6 +7,7 @@ from typing import Any
 
 from scipy import stats
 
+from ipcverify.calibration._bounds import smallest_epsilon
 from ipcverify.errors import InvalidInputError
 
 #: Level of the one-sided binomial test behind "far more queries outside than false alarms explain".
@@ -37,6 +38,9 @@ class DomainReport:
         threshold is short, and queries of a new run fall outside more often than ``alpha``
         even without a shift; a share well above ``alpha`` then has two explanations. None: the
         test was fitted with whole groups, or no such column is known.
+    row_level_groups : int or None
+        How many groups of ``row_level_column`` the calibration data held (None: not known),
+        for the smallest ``--domain-alpha`` a test fitted by group allows.
 
     Examples
     --------
@@ -54,6 +58,7 @@ class DomainReport:
     violations_inside: int | None = None
     violations_outside: int | None = None
     row_level_column: str | None = None
+    row_level_groups: int | None = None
 
     def __post_init__(self) -> None:
         if not (0 <= self.outside <= self.n):
@@ -93,9 +98,25 @@ class DomainReport:
                 text += (
                     f", or the test, fitted row by row while rows of one {col} are near-copies of each "
                     f"other, has a threshold too short for a new {col}; refit it with whole groups "
-                    f"(calibrate --domain-group-column {col}) to tell the two apart"
+                    f"({self.regroup_command()}) to tell the two apart"
                 )
         return text + "."
+
+    def regroup_command(self) -> str:
+        """The ``calibrate`` options that fit the test by :attr:`row_level_column`, with a large enough alpha.
+
+        Examples
+        --------
+        >>> DomainReport(method="knn", alpha=0.01, threshold=1.0, n_reference=400, n=0, outside=0,
+        ...              row_level_column="run", row_level_groups=10).regroup_command()
+        'calibrate --domain-group-column run --domain-alpha 0.091'
+        """
+        text = f"calibrate --domain-group-column {self.row_level_column}"
+        if self.row_level_groups is not None:
+            smallest = smallest_epsilon(self.row_level_groups, 0.5, "marginal")
+            if smallest > self.alpha:
+                text += f" --domain-alpha {smallest:g}"
+        return text
 
     @property
     def outside_fraction(self) -> float:
@@ -123,5 +144,6 @@ class DomainReport:
             "violations_inside": self.violations_inside,
             "violations_outside": self.violations_outside,
             "row_level_column": self.row_level_column,
+            "row_level_groups": self.row_level_groups,
             "statement": self.sentence(),
         }

@@ -62,7 +62,9 @@ def test_a_row_level_test_on_correlated_rows_is_named_beside_the_shift(net, data
     d = certify(model, data["test"]).certificate.domain
     assert d is not None and d.well_above_alpha and d.outside_fraction > 0.5  # nearly every new run
     assert d.row_level_column == "run" and d.to_dict()["row_level_column"] == "run"
-    assert "refit it with whole groups (calibrate --domain-group-column run)" in d.sentence()
+    # 60 calibration runs allow a test by run at this alpha (0.05) as it is: no --domain-alpha named
+    assert d.row_level_groups == 60
+    assert "refit it with whole groups (calibrate --domain-group-column run) to tell" in d.sentence()
     cert = certify(model, data["test"]).certificate
     (check,) = [c for c in summarize(cert).checks if c.name == "domain of validity"]
     assert check.verdict.startswith("SHIFT, or a row-level test on correlated rows")
@@ -74,6 +76,13 @@ def test_the_same_runs_fitted_by_group_are_not_a_shift(net, data):
     d = certify(model, data["test"]).certificate.domain
     assert d is not None and d.row_level_column is None and not d.well_above_alpha
     assert "shifted" not in d.sentence()
+
+
+def test_the_remedy_names_the_alpha_the_calibration_groups_allow():
+    r = DomainReport(method="knn", alpha=0.01, threshold=1.0, n_reference=800, n=600, outside=180,
+                     row_level_column="segment", row_level_groups=10)  # fmt: skip
+    assert "(calibrate --domain-group-column segment --domain-alpha 0.091) to tell" in r.sentence()
+    assert r.to_dict()["row_level_groups"] == 10
 
 
 @pytest.mark.parametrize(("outside", "named"), [(40, True), (1, False)])
