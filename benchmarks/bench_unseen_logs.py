@@ -368,7 +368,7 @@ def figure(results: dict[str, Any], path: Path = FIGURE) -> None:
     ax.set_xlabel(f"held-out violation rate (rows outside their set), {1 - DELTA:.0%} interval")
     ax.legend(loc="lower right", fontsize=8)
     bx.set_xlim(0, 110)
-    bx.set_xlabel("held-out queries outside the domain of validity (%)")
+    bx.set_xlabel("held-out queries outside the domain (%)")
     title = "The defaults on real logs ipcverify was not developed on, then the steps its messages ask for"
     fig.suptitle(f"{title}\n(red: the certificate is contradicted by the held-out data)", fontsize=10)
     save_figure(fig, path)
