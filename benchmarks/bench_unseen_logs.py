@@ -318,16 +318,26 @@ def cross_room(rpg: Path, folder: Path) -> dict[str, Any]:
     ingest = [a.format(rpg=str(rpg)) for a in _vislam_v102()]
     _cli(["ingest", "trajectories", *ingest, "--out", str(v102 / "test.csv")])
     (v102 / "calibration.csv").symlink_to(parts / "calibration.csv")
-    steps = [
-        _calibrated(folder, v102, options, "run")
-        for options in ([], ["--domain-group-column", "flight", "--domain-alpha", "0.2"])
-    ]
+    steps = [_calibrated(folder, v102, [], "run")]
+    # the online monitor of that contract (the defaults), replaying V1_02 and, as a control,
+    # MH_04's own held-out runs, row by row in the logs' order
+    monitor = {}
+    for name, log in (("v102", v102 / "test.csv"), ("mh04_test", parts / "test.csv")):
+        code, _ = _cli(["monitor", str(folder / "calibrated.pt"), str(log), "--out", str(folder / name)])
+        m = json.loads((folder / name / "monitor.json").read_text())
+        monitor[name] = {k: m[k] for k in ("rows", "alarm", "alarm_index", "in_domain_fraction")} | {
+            "exit": code
+        }
+    steps.append(
+        _calibrated(folder, v102, ["--domain-group-column", "flight", "--domain-alpha", "0.2"], "run")
+    )
     return {
         "name": "MH_04 contract in V1_02",
         "what": "trained and calibrated on MH_04 (data/euroc_mh04_vislam.csv, split by method,run), "
         "certified on all of V1_02",
         "rows": len(pd.read_csv(v102 / "test.csv")),
         "steps": steps,
+        "monitor": monitor,
     }
 
 

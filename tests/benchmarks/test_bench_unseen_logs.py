@@ -28,6 +28,9 @@ def test_the_page_shows_the_records_table():
     assert f"({record['runtime_seconds']:.0f} s on 2 cores)" in page
     statuses = [s["status"] for s in record["cross_room"]["steps"]]
     assert statuses == ["CONTRADICTED", "CONTRADICTED"]  # the other room is never certified
+    monitor = record["cross_room"]["monitor"]
+    assert monitor["v102"]["alarm"] and not monitor["mh04_test"]["alarm"]
+    assert f"raises its alarm at row {monitor['v102']['alarm_index']:,} of" in " ".join(page.split())
 
 
 def test_a_small_real_log_is_refused_then_certified_as_the_refusal_says(tmp_path):
