@@ -61,6 +61,7 @@ if TYPE_CHECKING:
         min_calibration_size,
         pac_calibration_index,
         pac_epsilon,
+        pac_rows_allowing,
         smallest_epsilon,
     )
     from ipcverify.calibration._global_scale import (
@@ -159,6 +160,7 @@ __all__ = [
     "min_calibration_size",
     "pac_calibration_index",
     "pac_epsilon",
+    "pac_rows_allowing",
     "register_kind",
     "risk_control_threshold",
     "smallest_epsilon",

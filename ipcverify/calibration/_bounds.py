@@ -275,6 +275,42 @@ def _pac_index(n: int, epsilon: float, delta: float) -> int:
     return n - lo
 
 
+def pac_rows_allowing(outside: int, epsilon: float, delta: float) -> int:
+    """The fewest calibration samples whose PAC scale lets ``outside`` of them lie outside their sets.
+
+    The smallest ``n`` with ``P(Binomial(n, epsilon) <= outside) <= delta``, so that
+    :func:`pac_calibration_index` gives ``k <= n - outside``. With ``outside = 0`` it is the minimum
+    of :func:`min_calibration_size`; below ``pac_rows_allowing(1, ...)`` the scale is the largest
+    calibration score, set by the single most unusual sample.
+
+    Parameters
+    ----------
+    outside : int
+        Calibration samples allowed outside their sets, ``>= 0``.
+    epsilon, delta : float
+        The target and the confidence parameter, each in ``(0, 1)``.
+
+    Examples
+    --------
+    >>> pac_rows_allowing(0, 0.1, 0.01), pac_rows_allowing(1, 0.1, 0.01)
+    (44, 64)
+    >>> pac_calibration_index(63, 0.1, 0.01), pac_calibration_index(64, 0.1, 0.01)
+    (63, 63)
+    """
+    epsilon = _check_probability("epsilon", epsilon)
+    delta = _check_probability("delta", delta)
+    if int(outside) != outside or outside < 0:
+        raise InvalidInputError(f"outside must be a non-negative integer; got {outside!r}")
+    threshold = delta * (1.0 - TAIL_MARGIN)
+    lo, hi, step = 0, max(1, _pac_min_n(epsilon, delta)), 1  # cdf(outside, n) decreases in n
+    while _binom_cdf(int(outside), hi, epsilon) > threshold:
+        lo, hi, step = hi, hi + step, 2 * step
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        lo, hi = (lo, mid) if _binom_cdf(int(outside), mid, epsilon) <= threshold else (mid, hi)
+    return hi
+
+
 def pac_epsilon(n: int, k: int, delta: float) -> float:
     """The smallest violation rate certified by the ``k``-th of ``n`` scores at confidence ``1 - delta``.
 

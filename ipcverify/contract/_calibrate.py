@@ -12,6 +12,9 @@ proved in ``proofs/pac_calibration.md``.
 
 from __future__ import annotations
 
+import warnings
+
+from ipcverify.calibration._bounds import pac_rows_allowing
 from ipcverify.calibration._global_scale import Global
 from ipcverify.calibration._kinds import check_registered
 from ipcverify.calibration._method import CalibrationMethod, CalibrationSample
@@ -25,7 +28,7 @@ from ipcverify.data._checks import (
     warn_outside_training,
 )
 from ipcverify.data._dataset import PerceptionDataset
-from ipcverify.errors import InvalidInputError, SampleSizeError
+from ipcverify.errors import Hint, InvalidInputError, SampleSizeError
 from ipcverify.guard._domain import DomainModel
 from ipcverify.guard._domain_spec import DomainSpec
 
@@ -154,12 +157,58 @@ def calibrate(
             "row by row on correlated rows, it flags the rows of a new run too often)"
         )
         warn_correlated_rows(calibration_data, "calibrating", remedy, python="Grouped(column={col!r})")
+    if method.unit_column is None and cal.mode == "pac":
+        warn_largest_score(cal, calibration_data.source)
     warn_outside_training(model.metadata, calibration_data)
     # what the certificate's "independent rows" check needs to know of a row-level calibration
     metadata = {k: v for k, v in model.metadata.items() if k != CALIBRATION_GROUPS_KEY}
     if method.unit_column is None and (counts := group_like_counts(calibration_data)):
         metadata[CALIBRATION_GROUPS_KEY] = counts
     return IPCModel(model.source, cal, metadata, dom)
+
+
+def warn_largest_score(cal: Calibration, source: str) -> None:
+    """A :class:`~ipcverify.errors.Hint` for each group whose PAC scale is its largest calibration score.
+
+    Below :func:`~ipcverify.calibration._bounds.pac_rows_allowing` ``(1, ...)`` samples, a PAC
+    calibration lets none of them lie outside its set: the one most unusual sample sets the
+    size of every set of its group. The hint says how many samples would allow one.
+
+    Parameters
+    ----------
+    cal : Calibration
+        A row-level PAC calibration (its groups' ``k`` are ranks of scores).
+    source : str
+        The calibration data's name, for the message.
+
+    Examples
+    --------
+    >>> import warnings
+    >>> import numpy as np
+    >>> from ipcverify.calibration import Global
+    >>> from ipcverify.calibration._method import CalibrationSample
+    >>> sample = CalibrationSample(scores=np.linspace(0.1, 3.0, 50), data=None, epsilon=0.1, delta=0.01,
+    ...                            data_hash="", network_hash="")
+    >>> with warnings.catch_warnings(record=True) as w:
+    ...     warnings.simplefilter("always")
+    ...     warn_largest_score(Global().fit(sample), "cal.csv")
+    >>> print(str(w[0].message)[:77])
+    cal.csv: the calibrated scale is the largest of the 50 calibration scores: at
+    """
+    for g in cal.groups():
+        if g.k != g.n:
+            continue
+        where = "" if g.label == "all" else f" of group {g.label}"
+        need = pac_rows_allowing(1, cal.epsilon, cal.delta)
+        warnings.warn(
+            Hint(
+                f"{source}: the calibrated scale{where} is the largest of the {g.n} calibration scores: at "
+                f"epsilon={cal.epsilon:g}, delta={cal.delta:g}, {g.n} samples allow none of them outside its "
+                f"set, so the single most unusual sample sets the size of every set; {need} samples would "
+                "allow one, and more samples give a tighter scale"
+            ),
+            stacklevel=3,
+        )
 
 
 def _check_inputs(

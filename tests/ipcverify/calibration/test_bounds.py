@@ -22,6 +22,7 @@ from ipcverify.calibration._bounds import (
     min_calibration_size,
     pac_calibration_index,
     pac_epsilon,
+    pac_rows_allowing,
 )
 from ipcverify.errors import InvalidInputError, SampleSizeError
 
@@ -186,3 +187,14 @@ def test_marginal_index_and_minimum():
 def test_bad_inputs_are_refused_with_a_message(call, match):
     with pytest.raises(InvalidInputError, match=match):
         call()
+
+
+@pytest.mark.parametrize(("eps", "delta"), [(0.1, 0.01), (0.01, 0.001), (0.05, 0.1), (0.3, 1e-6)])
+@pytest.mark.parametrize("outside", [0, 1, 5])
+def test_pac_rows_allowing_is_the_fewest_samples_that_let_some_lie_outside(eps, delta, outside):
+    n = pac_rows_allowing(outside, eps, delta)
+    assert pac_calibration_index(n, eps, delta) <= n - outside
+    if outside == 0:
+        assert n == min_calibration_size(eps, delta)
+    else:  # one sample fewer allows fewer outside (or none)
+        assert pac_calibration_index(n - 1, eps, delta) > n - 1 - outside

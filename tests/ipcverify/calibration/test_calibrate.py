@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -251,3 +252,16 @@ def test_end_to_end_pac_through_calibrate(model, pool):
             inside = cm.predict(data.x[:5000], data.yhat[:5000]).contains(data.y[:5000])
             assert (inside == (scores[:5000] <= s)).all()
     assert stats.binom.sf(bad - 1, reps, delta) >= ALPHA_E2E
+
+
+@pytest.mark.parametrize(("n", "hinted"), [(63, True), (64, False)])
+def test_a_scale_set_by_the_largest_score_is_said_with_the_rows_that_would_allow_one(model, n, hinted):
+    data = make_lagged_perception(n, seed=31)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        cal = calibrate(model, data, 0.1, 0.01, domain=None).calibration
+    assert (cal.groups()[0].k == n) is hinted  # 63 samples: k = n; 64: one may lie outside
+    said = [str(w.message) for w in caught if "largest of the" in str(w.message)]
+    assert len(said) == hinted
+    if hinted:
+        assert f"largest of the {n} calibration scores" in said[0] and "64 samples would allow one" in said[0]
