@@ -98,6 +98,11 @@ def _vislam_v102() -> tuple[str, ...]:
     return tuple(args)
 
 
+def _in_blocks(seconds: int) -> tuple[tuple[str, ...], str]:
+    """The split of a log of one or two long runs: blocks of ``seconds``, named ``segment``."""
+    return ("--block", str(seconds), "--name-groups", "segment"), "segment"
+
+
 LOGS: tuple[Log, ...] = (
     Log(
         "EuRoC V1_02, VI-SLAM",
@@ -121,29 +126,25 @@ LOGS: tuple[Log, ...] = (
             "--estimate",
             "{evo}/KITTI_00_SPTAM.txt",
         ),
-        ("--block", "10", "--name-groups", "segment"),
-        "segment",
-    ),  # fmt: skip
+        *_in_blocks(10),
+    ),
     Log(
         "TUM fr2/desk",
         "hand-held RGB-D camera over a desk; ORB-SLAM",
         ("--truth", "{evo}/fr2_desk_groundtruth.txt", "--estimate", "{evo}/fr2_desk_ORB.txt"),
-        ("--block", "5", "--name-groups", "segment"),
-        "segment",
+        *_in_blocks(5),
     ),
     Log(
         "TUM fr1/xyz",
         "hand-held RGB-D camera, 30 s; RGBD-SLAM",
         ("--truth", "{evo}/freiburg1_xyz-groundtruth.txt", "--estimate", "{evo}/freiburg1_xyz-rgbdslam.txt"),
-        ("--block", "2", "--name-groups", "segment"),
-        "segment",
+        *_in_blocks(2),
     ),
     Log(
         "EuRoC V1_02, one estimator",
         "MAV in the Vicon room; one run of another estimator, EuRoC's ground-truth CSV",
         ("--truth-format", "euroc", "--truth", "{evo}/V102_groundtruth.csv", "--estimate", "{evo}/V102.txt"),
-        ("--block", "5", "--name-groups", "segment"),
-        "segment",
+        *_in_blocks(5),
     ),
 )
 
