@@ -63,6 +63,7 @@ if TYPE_CHECKING:
         pac_epsilon,
         pac_rows_allowing,
         smallest_epsilon,
+        smallest_marginal_epsilon,
     )
     from ipcverify.calibration._global_scale import (
         Global,
@@ -164,6 +165,7 @@ __all__ = [
     "register_kind",
     "risk_control_threshold",
     "smallest_epsilon",
+    "smallest_marginal_epsilon",
     "threshold_scores",
 ]
 

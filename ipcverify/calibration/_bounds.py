@@ -437,6 +437,34 @@ def min_calibration_size(epsilon: float, delta: float, mode: CalibrationMode = "
     raise InvalidInputError(f"mode must be 'pac' or 'marginal'; got {mode!r}")
 
 
+def smallest_marginal_epsilon(n: int) -> float:
+    """A rate ``n`` samples allow in marginal mode: the least, ``1/(n + 1)``, rounded up to 3 digits.
+
+    ``1 / (n + 1)`` rounded up to 3 significant digits and checked against
+    :func:`min_calibration_size` (exact rational arithmetic), so that the value a message names
+    is accepted when it is given back: for the domain test's ``--domain-alpha`` with ``n``
+    calibration inputs (or groups).
+
+    Parameters
+    ----------
+    n : int
+        Samples (or groups) available, ``n >= 1``.
+
+    Examples
+    --------
+    >>> smallest_marginal_epsilon(57), smallest_marginal_epsilon(10), smallest_marginal_epsilon(12345)
+    (0.0173, 0.091, 8.1e-05)
+    """
+    if int(n) != n or n < 1:
+        raise InvalidInputError(f"n must be a positive integer; got {n!r}")
+    exact = Fraction(1, int(n) + 1)
+    digits = 3 - math.floor(math.log10(exact)) - 1
+    value = math.ceil(exact * 10**digits) / 10**digits
+    while min_calibration_size(value, 0.5, "marginal") > n:  # guard the float division
+        value = (math.ceil(value * 10**digits) + 1) / 10**digits
+    return value
+
+
 def smallest_epsilon(n: int, delta: float, mode: CalibrationMode = "pac") -> float:
     """The smallest ``epsilon`` on the grid 0.001, 0.002, ... for which ``n`` samples suffice.
 

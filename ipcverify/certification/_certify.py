@@ -307,13 +307,13 @@ def _domain(
     report = model.domain.report(test_data.x, test_data.yhat, violated)
     if model.domain.n_groups is not None:
         return report
-    # a row-level test: name the calibration's run-like column (its record, else the test data's)
+    # a row-level test on calibration data with a run-like column (as the model file records it;
+    # a column of the test data alone says nothing of how the test was fitted)
     recorded = dict(model.metadata.get(CALIBRATION_GROUPS_KEY) or {})
-    if recorded:
-        column = next(iter(recorded))
-        return replace(report, row_level_column=column, row_level_groups=int(recorded[column]))
-    runs = list(group_like_counts(test_data))
-    return replace(report, row_level_column=runs[0]) if runs else report
+    if not recorded:
+        return report
+    column = next(iter(recorded))
+    return replace(report, row_level_column=column, row_level_groups=int(recorded[column]))
 
 
 def write_certificate(result: CertifyResult, out_dir: PathLike) -> tuple[Path, Path]:

@@ -54,6 +54,9 @@ def _row_split_hint(result: SplitFiles) -> str:
     ...     print(part)
     if run names runs or flights, split by it with --by
     or keep stretches of time whole with --block SECONDS (blocks of t)
+    >>> s = SplitFiles(Path("log.csv"), "0", parts, (0.6, 0.2, 0.2), 0, (), None, (), ("t",), Path("s"))
+    >>> _row_split_hint(s)
+    '; keep stretches of time whole with --block SECONDS (blocks of t)'
     """
     from ipcverify.data._checks import TIME_NAMES
 
@@ -64,7 +67,8 @@ def _row_split_hint(result: SplitFiles) -> str:
         which = ("one of " if len(others) > 1 else "") + ", ".join(others)
         hint += f"; if {which} names runs or flights, split by it with --by"
     if times:
-        hint += f"; or keep stretches of time whole with --block SECONDS (blocks of {times[0]})"
+        hint += "; or" if others else ";"
+        hint += f" keep stretches of time whole with --block SECONDS (blocks of {times[0]})"
     return hint
 
 

@@ -153,8 +153,9 @@ def calibrate(
     if method.unit_column is None and (domain is None or domain.group_column is None):
         remedy = (
             "to calibrate with whole groups as the exchangeable units; or keep the row-level claim and "
-            "fit only the domain test by group with --domain-group-column and the same column (fitted "
-            "row by row on correlated rows, it flags the rows of a new run too often)"
+            "fit only the domain test by group with --domain-group-column and the same column (Python: "
+            "domain=DomainSpec(group_column=...); fitted row by row on correlated rows, it flags the "
+            "rows of a new run too often)"
         )
         warn_correlated_rows(calibration_data, "calibrating", remedy, python="Grouped(column={col!r})")
     if method.unit_column is None and cal.mode == "pac":

@@ -8,6 +8,7 @@ groups of a label column (also for calibration, the group test and the domain te
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Sequence
 from typing import Any
 
@@ -160,8 +161,16 @@ def group_codes(labels: ArrayLike, what: str = "group column") -> tuple[NDArray[
     return codes.astype(np.intp).ravel(), distinct
 
 
+#: More time blocks than this is a block length in the wrong units (and would overflow a count).
+MAX_BLOCKS = 2**40
+
+
 def time_blocks(
-    t: ArrayLike, seconds: float, groups: ArrayLike | None = None, what: str = "time column"
+    t: ArrayLike,
+    seconds: float,
+    groups: ArrayLike | None = None,
+    what: str = "time column",
+    group_what: str = "group column",
 ) -> NDArray[np.intp]:
     """Each sample's contiguous time block: ``floor((t - t0) / seconds)``, ``t0`` its group's first time.
 
@@ -180,6 +189,8 @@ def time_blocks(
         run's first block always starts with it. Default: one ``t0`` for all samples.
     what : str
         How to name ``t`` in error messages.
+    group_what : str
+        How to name ``groups`` in error messages.
 
     Returns
     -------
@@ -189,14 +200,18 @@ def time_blocks(
     Raises
     ------
     DataError
-        If ``seconds`` is not a positive finite number or a time is not a finite number.
+        If ``seconds`` is not a positive finite number (a bool is not), a time is not a finite
+        number, a group label is missing, or the blocks would number more than :data:`MAX_BLOCKS`.
 
     Examples
     --------
     >>> time_blocks([0.0, 4.9, 5.0, 12.0, 100.0, 103.0], 5.0, groups=[0, 0, 0, 0, 1, 1]).tolist()
     [0, 0, 1, 2, 0, 0]
     """
-    if not (isinstance(seconds, int | float) and math.isfinite(seconds) and seconds > 0):
+    if isinstance(seconds, bool) or not isinstance(seconds, numbers.Real):
+        raise DataError(f"a time block must last a positive number of seconds; got {seconds!r}")
+    length = float(seconds)
+    if not (math.isfinite(length) and length > 0):
         raise DataError(f"a time block must last a positive number of seconds; got {seconds!r}")
     try:
         times = np.asarray(t, dtype=np.float64)
@@ -206,7 +221,13 @@ def time_blocks(
     if times.ndim != 1 or bad.any():
         r = int(np.flatnonzero(bad)[0]) if times.ndim == 1 else 0
         raise DataError(f"{what}: row {r} has no finite time; every row needs one to cut time blocks")
-    codes = np.zeros(len(times), dtype=np.intp) if groups is None else group_codes(groups, what)[0]
+    codes = np.zeros(len(times), dtype=np.intp) if groups is None else group_codes(groups, group_what)[0]
     start = np.full(int(codes.max(initial=-1)) + 1, np.inf)
     np.minimum.at(start, codes, times)
-    return np.floor((times - start[codes]) / seconds).astype(np.intp)
+    blocks = np.floor((times - start[codes]) / length)
+    if blocks.size and not blocks.max() < MAX_BLOCKS:
+        raise DataError(
+            f"{what}: blocks of {seconds!r} s cut the log into {blocks.max() + 1:.3g} blocks; "
+            "give a block length in seconds of the same order as the runs"
+        )
+    return blocks.astype(np.intp)

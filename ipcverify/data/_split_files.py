@@ -308,7 +308,9 @@ def split_file(
     if block is not None:
         t_col = _time_column(data, time_column)
         runs = _group_labels(data, columns)
-        blocks = time_blocks(data.column(t_col), block, runs, f"{source}: time column {t_col!r}")
+        blocks = time_blocks(
+            data.column(t_col), block, runs, f"{source}: time column {t_col!r}", f"{source}: --by groups"
+        )
     elif time_column is not None:
         raise InvalidInputError("a time column (--time-column) is used only to cut time blocks (--block)")
     labels = _group_labels(data, columns, blocks)

@@ -52,7 +52,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
-from ipcverify.calibration._bounds import marginal_conformal_index, smallest_epsilon
+from ipcverify.calibration._bounds import (
+    marginal_conformal_index,
+    min_calibration_size,
+    smallest_marginal_epsilon,
+)
 from ipcverify.calibration._risk_control import risk_control_threshold
 from ipcverify.data._dataset import query_rows
 from ipcverify.data._split import group_codes
@@ -87,6 +91,20 @@ def _stack(x: ArrayLike, yhat: ArrayLike) -> FloatArray:
             f"domain test: x and yhat must be (B, d) and (B, n) with the same B; got {xa.shape}, {ya.shape}"
         )
     return np.concatenate([xa, ya], axis=1)
+
+
+def alpha_floor_text(n: int, units: str) -> str:
+    """What ``n`` calibration inputs (or groups) allow the domain test's alpha, for a message.
+
+    Examples
+    --------
+    >>> alpha_floor_text(57, "inputs")
+    'with 57 inputs alpha must be at least 1/58: --domain-alpha 0.0173 works'
+    """
+    return (
+        f"with {n} {units} alpha must be at least 1/{n + 1}: --domain-alpha "
+        f"{smallest_marginal_epsilon(n):g} works"
+    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -227,13 +245,12 @@ class DomainModel:
             z = z[keep]
             labels = None if labels is None else labels[keep]
         n = len(z)
-        need = math.ceil((1.0 - alpha) / alpha)
+        need = min_calibration_size(alpha, 0.5, "marginal")  # ceil((1 - alpha) / alpha), exactly
         if n < max(need, k + 1):
-            smallest = smallest_epsilon(n, 0.5, "marginal") if n >= k + 1 else None
             raise SampleSizeError(
                 f"the domain test at alpha={alpha:g} needs at least {max(need, k + 1)} calibration inputs; "
                 f"got {n} -- use more calibration data or a larger --domain-alpha"
-                + ("" if smallest is None else f" (with {n} inputs the smallest is {smallest:g})")
+                + ("" if n < k + 1 else f" ({alpha_floor_text(n, 'inputs')})")
             )
         mean = z.mean(axis=0)
         cov = np.atleast_2d(np.cov(z, rowvar=False))
@@ -252,8 +269,8 @@ class DomainModel:
                 raise SampleSizeError(
                     f"the group-aware domain test at alpha={alpha:g} needs at least "
                     f"{math.ceil(1 / alpha - 1)} groups; got {len(distinct)} -- use more groups "
-                    f"(flights, runs) or a larger --domain-alpha (with {len(distinct)} groups the "
-                    f"smallest is {smallest_epsilon(len(distinct), 0.5, 'marginal'):g})"
+                    f"(flights, runs) or a larger --domain-alpha "
+                    f"({alpha_floor_text(len(distinct), 'groups')})"
                 ) from None
             return cls(mean=mean, whitening=whitening, reference=ref, k=int(k), alpha=float(alpha),
                        threshold=threshold, n=n, method=GROUP_METHOD, n_groups=len(distinct))  # fmt: skip

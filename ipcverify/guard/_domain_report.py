@@ -7,7 +7,7 @@ from typing import Any
 
 from scipy import stats
 
-from ipcverify.calibration._bounds import smallest_epsilon
+from ipcverify.calibration._bounds import smallest_marginal_epsilon
 from ipcverify.errors import InvalidInputError
 
 #: Level of the one-sided binomial test behind "far more queries outside than false alarms explain".
@@ -63,6 +63,12 @@ class DomainReport:
     def __post_init__(self) -> None:
         if not (0 <= self.outside <= self.n):
             raise InvalidInputError(f"need 0 <= outside <= n; got {self.outside}, {self.n}")
+        if self.row_level_column is not None and not self.row_level_column.strip():
+            raise InvalidInputError("a row-level column is named by a non-empty string")
+        if self.row_level_groups is not None and (self.row_level_column is None or self.row_level_groups < 2):
+            raise InvalidInputError(
+                f"row_level_groups counts the groups (>= 2) of row_level_column; got {self.row_level_groups}"
+            )
 
     def sentence(self) -> str:
         """What the domain test found and what the certificate does (not) promise, in words."""
@@ -111,9 +117,11 @@ class DomainReport:
         ...              row_level_column="run", row_level_groups=10).regroup_command()
         'calibrate --domain-group-column run --domain-alpha 0.091'
         """
+        if self.row_level_column is None:
+            raise InvalidInputError("a domain test fitted by group has no row-level column to regroup by")
         text = f"calibrate --domain-group-column {self.row_level_column}"
         if self.row_level_groups is not None:
-            smallest = smallest_epsilon(self.row_level_groups, 0.5, "marginal")
+            smallest = smallest_marginal_epsilon(self.row_level_groups)
             if smallest > self.alpha:
                 text += f" --domain-alpha {smallest:g}"
         return text

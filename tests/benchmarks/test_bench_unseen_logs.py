@@ -12,6 +12,7 @@ from benchmarks.bench_unseen_logs import (
     Log,
     _advice,
     _radius,
+    findings,
     markdown_table,
     run_log,
 )
@@ -25,6 +26,7 @@ def test_the_page_shows_the_records_table():
     record = json.loads(OUT.read_text())
     page = (ROOT / "docs" / "real_logs.md").read_text()
     assert markdown_table(record) in page
+    assert findings(record) in page  # every number of "What the logs show" comes from the record
     assert f"({record['runtime_seconds']:.0f} s on 2 cores)" in page
     statuses = [s["status"] for s in record["cross_room"]["steps"]]
     assert statuses == ["CONTRADICTED", "CONTRADICTED"]  # the other room is never certified
@@ -44,8 +46,8 @@ def test_a_small_real_log_is_refused_then_certified_as_the_refusal_says(tmp_path
     )
     got = run_log(log, {"rpg": tmp_path, "evo": EXCERPT}, tmp_path)
     first, *later = got["steps"]
-    assert first["refused_at"] == "calibrate" and "the smallest is" in first["message"]
-    named = first["message"].rsplit("the smallest is ", 1)[1].split(")")[0]
+    assert first["refused_at"] == "calibrate" and "alpha must be at least" in first["message"]
+    named = first["message"].rsplit("--domain-alpha ", 1)[1].split(" works)")[0]
     assert later and later[0]["options"] == ["--domain-alpha", named]
     done = [s for s in later if "test_rate" in s]
     assert done, later
@@ -60,17 +62,17 @@ def test_advice_follows_only_what_a_message_asks_for():
     domain = "error: the domain test at alpha=0.01 needs at least 99 calibration inputs; got 57"
     refused = {
         "refused_at": "calibrate",
-        "message": f"{domain} -- ... (with 57 inputs the smallest is 0.018)",
+        "message": f"{domain} -- ... (with 57 inputs alpha must be at least 1/58: --domain-alpha 0.0173 works)",  # noqa: E501
     }
-    assert _advice(refused, [], "run") == ["--domain-alpha", "0.018"]
+    assert _advice(refused, []) == ["--domain-alpha", "0.0173"]
     both = {"refused_at": "calibrate", "message": f"error: 2 requirements are not met: (1) ... (2) {domain}"}
-    assert _advice(both, [], "run") is None  # the guarantee itself is out of reach
+    assert _advice(both, []) is None  # the guarantee itself is out of reach
     told = "refit it with whole groups (calibrate --domain-group-column run --domain-alpha 0.091) to tell"
     shifted = {"shift_warning": True, "domain_statement": f"... shifted, or ...; {told} the two apart."}
-    assert _advice(shifted, ["--domain-alpha", "0.018"], "run") == [
+    assert _advice(shifted, ["--domain-alpha", "0.018"]) == [
         "--domain-group-column", "run", "--domain-alpha", "0.091"
     ]  # fmt: skip
-    assert _advice({**shifted, "shift_warning": False}, [], "run") is None
+    assert _advice({**shifted, "shift_warning": False}, []) is None
 
 
 def test_the_radius_is_the_balls_with_that_volume():

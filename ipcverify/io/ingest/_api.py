@@ -21,7 +21,14 @@ from ipcverify.errors import DataError
 from ipcverify.io.ingest._bagio import PoseRequest, Stamp, read_bag
 from ipcverify.io.ingest._formats import Format, read_trajectory
 from ipcverify.io.ingest._manifest import input_record
-from ipcverify.io.ingest._samples import MANIFEST_KEY, IngestOptions, RunData, build_samples, with_up
+from ipcverify.io.ingest._samples import (
+    MANIFEST_KEY,
+    IngestOptions,
+    RunData,
+    build_samples,
+    warn_camera_frame,
+    with_up,
+)
 
 PathLike = str | os.PathLike[str]
 
@@ -104,7 +111,11 @@ def ingest_trajectories(
     >>> len(df), df["run"].iloc[0], float(df["y_0"].round(12).iloc[0])
     (6, 'est', 0.5)
     """
-    options = with_up(options or IngestOptions(), "-y" if estimate_format == "kitti" else "+z")
+    options = options or IngestOptions()
+    told_up = options.up is not None
+    # x is read from the estimate, in the truth's world frame once aligned
+    frame_format = truth_format if options.align != "none" else estimate_format
+    options = with_up(options, "-y" if frame_format == "kitti" else "+z")
     truths = [truth] if isinstance(truth, (str, os.PathLike)) else list(truth)
     if not estimates:
         raise DataError("no estimate file; give at least one --estimate")
@@ -127,6 +138,8 @@ def ingest_trajectories(
         repeated[str(est)] = got.repeated_stamps
         gt = read_truth[str(truths[0] if len(truths) == 1 else truths[i])].trajectory
         run_list.append(RunData(name, gt, got.trajectory))
+    if not told_up and options.up == "+z" and options.align == "none":
+        warn_camera_frame(run_list)
     frame = build_samples(run_list, options)
     inputs = [input_record(p, "truth") for p in truths] + [input_record(p, "estimate") for p in estimates]
     if times is not None:

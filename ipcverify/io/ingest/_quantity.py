@@ -32,6 +32,8 @@ from ipcverify.io.ingest._trajectory import PosesAt
 Quantity = Literal["displacement", "position", "pose"]
 QUANTITIES: tuple[Quantity, ...] = ("displacement", "position", "pose")
 
+#: A signed axis of the estimate's world frame.
+UpAxis = Literal["+x", "-x", "+y", "-y", "+z", "-z"]
 #: The world's up axis, by name: the unit vector in the estimate's world frame.
 UP_AXES: dict[str, tuple[float, float, float]] = {
     "+x": (1.0, 0.0, 0.0),

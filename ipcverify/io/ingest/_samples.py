@@ -34,6 +34,7 @@ from ipcverify.io.ingest._quantity import (
     QUANTITIES,
     UP_AXES,
     Quantity,
+    UpAxis,
     quantity_pair,
     state_columns,
     state_features,
@@ -94,7 +95,7 @@ class IngestOptions:
     t_offset: float = 0.0
     align: Literal["none", "se3", "sim3"] = "none"
     align_runs: tuple[str, ...] = ()
-    up: str | None = None
+    up: UpAxis | None = None
 
     def __post_init__(self) -> None:
         if self.up is not None and self.up not in UP_AXES:
@@ -125,7 +126,7 @@ class IngestOptions:
             raise DataError("--align-runs is given but --align is none; choose --align se3 or sim3")
 
 
-def with_up(options: IngestOptions, default: str) -> IngestOptions:
+def with_up(options: IngestOptions, default: UpAxis) -> IngestOptions:
     """``options`` with its up axis, ``default`` where it names none (the input format's convention).
 
     Examples
@@ -134,6 +135,40 @@ def with_up(options: IngestOptions, default: str) -> IngestOptions:
     ('-y', '+x')
     """
     return options if options.up is not None else dataclasses.replace(options, up=default)
+
+
+def warn_camera_frame(runs: Sequence[RunData]) -> None:
+    """A :class:`~ipcverify.errors.Hint` when estimates start at the identity pose and ``+z`` is taken as up.
+
+    A visual odometry or SLAM system without gravity alignment puts its world frame at its first
+    camera frame, and so starts at the identity; ``+z`` is then the first view's direction, not
+    up, and the tilt columns ``x_2..x_4`` hold the heading. ``--up`` names the right axis.
+
+    Parameters
+    ----------
+    runs : sequence of RunData
+        The runs about to be sampled with ``up = "+z"`` chosen by default.
+    """
+    at_identity = [
+        r.name
+        for r in runs
+        if len(r.estimate.t)
+        and np.allclose(np.abs(r.estimate.q[0]), [0.0, 0.0, 0.0, 1.0], atol=1e-6)
+        and np.allclose(r.estimate.p[0], 0.0, atol=1e-6)
+    ]
+    if not at_identity:
+        return
+    which = at_identity[0] + (f" and {len(at_identity) - 1} more" if len(at_identity) > 1 else "")
+    warnings.warn(
+        Hint(
+            f"the estimate of run {which} starts at the identity pose, as a visual odometry or SLAM "
+            "system's does when its world frame is its first camera frame; the tilt columns x_2..x_4 "
+            "then hold that frame's +z axis (a camera's viewing direction), not up: pass --up with the "
+            "axis that points up in it (-y for a level camera with y down), or --up +z if it is "
+            "gravity-aligned"
+        ),
+        stacklevel=3,
+    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -428,7 +463,7 @@ def build_samples(runs: Sequence[RunData], options: IngestOptions, hint: str = "
     state_names = runs[0].state.fields if runs[0].state is not None else ()
     frame.attrs[MANIFEST_KEY] = {
         "quantity": options.quantity,
-        "options": dataclasses.asdict(options),
+        "options": dataclasses.asdict(with_up(options, "+z")),
         "x_columns": {f"x_{i}": d for i, d in enumerate([*state_columns(options.up or "+z"), *state_names])},
         "runs": [a for _, a in parts],
         "rows": len(frame),

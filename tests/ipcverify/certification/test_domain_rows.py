@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 import torch
 
+from ipcverify import calibrate
 from ipcverify.certification._certify import certify
 from ipcverify.certification._summarize import summarize
 from ipcverify.contract import IPCModel
@@ -92,3 +93,26 @@ def test_the_remedy_is_said_only_for_a_share_well_above_alpha(outside, named):
     assert ("--domain-group-column segment" in r.sentence()) is named
     plain = DomainReport(method="knn", alpha=0.01, threshold=1.0, n_reference=100, n=100, outside=outside)
     assert "--domain-group-column" not in plain.sentence()
+
+
+def test_a_run_column_of_the_test_data_alone_names_no_row_level_test(net, data):
+    # calibration data without a run column (nothing recorded in the model file), test data with one
+    cal = data["cal"]
+    plain = PerceptionDataset(cal.x, cal.y, cal.yhat, source="no runs")
+    model = calibrate(net, plain, 0.2, 0.05, domain=DomainSpec(alpha=ALPHA))
+    d = certify(model, data["test"]).certificate.domain
+    assert d is not None and d.well_above_alpha and d.row_level_column is None
+    assert "--domain-group-column" not in d.sentence()
+
+
+def test_the_cli_warning_names_the_remedy(net, data, tmp_path, run_cli):
+    from ipcverify.data import save_dataset
+    from ipcverify.io import save_model
+
+    save_model(_calibrated(net, data["cal"], None), tmp_path / "m.pt")
+    save_dataset(data["test"], tmp_path / "test.csv")
+    res = run_cli("certify", tmp_path / "m.pt", "--data", tmp_path / "test.csv", "--out", tmp_path / "c")
+    assert res.code in (0, 1), res.stderr
+    err = " ".join(res.stderr.split())
+    assert "warning:" in err and "the deployment data have shifted, or the test, fitted row by row" in err
+    assert "(calibrate --domain-group-column run) to tell the two apart" in err

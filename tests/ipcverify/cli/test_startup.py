@@ -100,7 +100,7 @@ def test_the_defaults_written_out_in_the_cli_are_the_librarys():
     from ipcverify.cli import app
     from ipcverify.guard._domain import DEFAULT_ALPHA
     from ipcverify.io.ingest._formats import FORMATS
-    from ipcverify.io.ingest._quantity import QUANTITIES
+    from ipcverify.io.ingest._quantity import QUANTITIES, UP_AXES
 
     def option(path: tuple[str, ...], name: str) -> click.Parameter:
         cmd: click.Command = app
@@ -114,6 +114,8 @@ def test_the_defaults_written_out_in_the_cli_are_the_librarys():
     for path in (("ingest", "bag"), ("ingest", "trajectories")):
         quantity = option(path, "quantity").type
         assert isinstance(quantity, click.Choice) and tuple(quantity.choices) == QUANTITIES
+        up = option(path, "up").type
+        assert isinstance(up, click.Choice) and tuple(up.choices) == tuple(UP_AXES)
     for name in ("fmt", "truth_format", "estimate_format"):
         fmt = option(("ingest", "trajectories"), name).type
         assert isinstance(fmt, click.Choice) and tuple(fmt.choices) == FORMATS

@@ -130,3 +130,21 @@ def test_the_row_split_hint_offers_blocks_of_time_and_never_time_as_a_run(tmp_pa
     err = " ".join(capsys.readouterr().err.split())
     assert "if one of sequence, method, run names runs or flights" in err
     assert "--block SECONDS (blocks of t)" in err and "run, t names" not in err
+
+
+@pytest.mark.parametrize("seconds", [np.float32(5.0), np.int64(5), 5])
+def test_a_block_length_may_be_any_real_number_type(seconds):
+    assert time_blocks([0.0, 4.0, 6.0], seconds).tolist() == [0, 0, 1]
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"seconds": True}, "positive number of seconds; got True"),
+        ({"seconds": 1e-300}, "give a block length in seconds of the same order"),
+        ({"seconds": 1.0, "groups": [None, "a", "a"]}, "group column: row 0 has no group label"),
+    ],
+)
+def test_block_inputs_that_make_no_sense_are_refused_naming_what_is_wrong(kwargs, match):
+    with pytest.raises(DataError, match=match):
+        time_blocks([0.0, 1.0, 2.0], **kwargs)

@@ -92,10 +92,12 @@ def test_fit_refuses_too_few_inputs_and_bad_settings():
     x, yhat = _draw(np.random.default_rng(4), 50)
     with pytest.raises(SampleSizeError, match=r"needs at least 99 calibration inputs; got 50") as exc:
         DomainModel.fit(x, yhat, alpha=0.01)
-    assert str(exc.value).endswith("(with 50 inputs the smallest is 0.02)")
-    assert DomainModel.fit(x, yhat, alpha=0.02).alpha == 0.02  # the alpha it names is enough
+    assert str(exc.value).endswith(
+        "(with 50 inputs alpha must be at least 1/51: --domain-alpha 0.0197 works)"
+    )
+    assert DomainModel.fit(x, yhat, alpha=0.0197).alpha == 0.0197  # the alpha it names is enough
     with pytest.raises(SampleSizeError, match="needs at least"):
-        DomainModel.fit(x, yhat, alpha=0.019)
+        DomainModel.fit(x, yhat, alpha=0.0196)  # and 1/51 = 0.019607... is the least
     with pytest.raises(InvalidInputError, match="alpha must lie strictly between 0 and 1"):
         DomainModel.fit(x, yhat, alpha=1.5)
     with pytest.raises(InvalidInputError, match="k must be a positive integer"):

@@ -267,18 +267,38 @@ def test_the_tilt_columns_are_the_named_up_axis_in_the_body_frame(motions, up):
     assert names["x_3"] == f"world {'z' if up == '+z' else up} axis in the estimated body frame, y"
 
 
+def _kitti_drive(folder, pitch: float = 0.0):
+    """A car driving straight ahead (+z in KITTI's camera frame: x right, y down, z forward), 20 Hz,
+    its camera pitched down by ``pitch`` radians (a rotation about the camera's x axis)."""
+    t = np.arange(0.0, 4.0, 0.05)
+    c, s_ = np.cos(pitch), np.sin(pitch)
+    rot = np.array([[1.0, 0.0, 0.0], [0.0, c, -s_], [0.0, s_, c]])  # body to world, written out
+    poses = np.zeros((len(t), 12))
+    poses[:, [0, 1, 2, 4, 5, 6, 8, 9, 10]] = rot.reshape(-1)
+    poses[:, 11] = 5.0 * t
+    np.savetxt(folder / "00.txt", poses)
+    np.savetxt(folder / "times.txt", t)
+    return {"truth_format": "kitti", "estimate_format": "kitti", "times": folder / "times.txt"}
+
+
+def test_the_tilt_of_a_pitched_camera_is_the_up_axis_in_its_body_frame(tmp_path):
+    from ipcverify.io.ingest import ingest_trajectories
+
+    theta = 0.3
+    kw = _kitti_drive(tmp_path, theta)
+    df = ingest_trajectories(tmp_path / "00.txt", [tmp_path / "00.txt"], **kw)
+    # R^T (0, -1, 0) for R the rotation about x by theta, by hand: (0, -cos theta, sin theta)
+    want = [0.0, -np.cos(theta), np.sin(theta)]
+    np.testing.assert_allclose(df[["x_2", "x_3", "x_4"]].to_numpy(), np.tile(want, (len(df), 1)), atol=1e-12)
+
+
 def test_kitti_estimates_take_the_camera_frames_up_axis_unless_told(tmp_path):
     from ipcverify.io.ingest import ingest_trajectories
 
-    # a car driving straight ahead (+z in KITTI's camera frame: x right, y down, z forward), 20 Hz
-    t = np.arange(0.0, 4.0, 0.05)
-    poses = np.zeros((len(t), 12))
-    poses[:, [0, 5, 10]] = 1.0
-    poses[:, 11] = 5.0 * t
-    np.savetxt(tmp_path / "00.txt", poses)
-    np.savetxt(tmp_path / "times.txt", t)
-    kw = {"truth_format": "kitti", "estimate_format": "kitti", "times": tmp_path / "times.txt"}
-    df = ingest_trajectories(tmp_path / "00.txt", [tmp_path / "00.txt"], **kw)
+    kw = _kitti_drive(tmp_path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", Hint)  # the KITTI convention is no reason for a hint
+        df = ingest_trajectories(tmp_path / "00.txt", [tmp_path / "00.txt"], **kw)
     np.testing.assert_array_equal(df[["x_2", "x_3", "x_4"]].drop_duplicates().to_numpy(), [[0.0, -1.0, 0.0]])
     assert df.attrs[MANIFEST_KEY]["options"]["up"] == "-y"
     told = ingest_trajectories(
@@ -286,3 +306,36 @@ def test_kitti_estimates_take_the_camera_frames_up_axis_unless_told(tmp_path):
     )
     np.testing.assert_array_equal(told[["x_2", "x_3", "x_4"]].drop_duplicates().to_numpy(), [[0.0, 0.0, 1.0]])
     assert told.attrs[MANIFEST_KEY]["options"]["up"] == "+z"
+
+
+def test_an_estimate_starting_at_the_identity_with_z_taken_as_up_gets_a_hint(tmp_path):
+    from ipcverify.io.ingest import ingest_trajectories
+
+    t = np.arange(0.0, 4.0, 0.05)
+    rows = np.column_stack([t, t, 0 * t, 0 * t, 0 * t, 0 * t, 0 * t, 1 + 0 * t])  # TUM: identity start
+    np.savetxt(tmp_path / "gt.txt", rows)
+    np.savetxt(tmp_path / "vo.txt", rows)
+    with pytest.warns(Hint, match=r"run vo starts at the identity pose.*pass --up"):
+        ingest_trajectories(tmp_path / "gt.txt", [tmp_path / "vo.txt"])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", Hint)  # told: no hint
+        ingest_trajectories(tmp_path / "gt.txt", [tmp_path / "vo.txt"], options=IngestOptions(up="-y"))
+
+
+def test_an_aligned_estimate_takes_the_truths_up_axis(tmp_path):
+    from ipcverify.io.ingest import ingest_trajectories
+
+    t = np.arange(0.0, 4.0, 0.05)
+    path = np.column_stack([np.sin(t), 0.5 * t**2, 5.0 * t])  # a curve, so that se3 is determined
+    poses = np.zeros((len(t), 12))
+    poses[:, [0, 5, 10]] = 1.0
+    poses[:, [3, 7, 11]] = path
+    np.savetxt(tmp_path / "00.txt", poses)
+    np.savetxt(tmp_path / "times.txt", t)
+    kw = {"times": tmp_path / "times.txt"}
+    tum = np.column_stack([t, path, 0 * t, 0 * t, 0 * t, 1 + 0 * t])
+    np.savetxt(tmp_path / "est.txt", tum)
+    options = IngestOptions(quantity="position", align="se3", align_runs=("est",))
+    df = ingest_trajectories(tmp_path / "00.txt", [tmp_path / "est.txt"], truth_format="kitti",
+                             times=kw["times"], options=options)  # fmt: skip
+    assert df.attrs[MANIFEST_KEY]["options"]["up"] == "-y"  # the KITTI truth's frame, after alignment
