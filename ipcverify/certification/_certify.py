@@ -57,7 +57,7 @@ from ipcverify.certification._group_check import group_test_step
 from ipcverify.certification._report import render_report
 from ipcverify.certification._summarize import output_labels, summarize
 from ipcverify.certification._test_result import Consistency, GroupTest, GroupTestResult, TestResult
-from ipcverify.contract._calibrate import CALIBRATION_GROUPS_KEY
+from ipcverify.contract._calibrate import CALIBRATION_GROUPS_KEY, mark_row_level
 from ipcverify.contract._model import IPCModel
 from ipcverify.data._checks import group_like_counts
 from ipcverify.data._dataset import PerceptionDataset
@@ -304,16 +304,7 @@ def _domain(
         return None
     if test_data is None:
         return model.domain.describe()
-    report = model.domain.report(test_data.x, test_data.yhat, violated)
-    if model.domain.n_groups is not None:
-        return report
-    # a row-level test on calibration data with a run-like column (as the model file records it;
-    # a column of the test data alone says nothing of how the test was fitted)
-    recorded = dict(model.metadata.get(CALIBRATION_GROUPS_KEY) or {})
-    if not recorded:
-        return report
-    column = next(iter(recorded))
-    return replace(report, row_level_column=column, row_level_groups=int(recorded[column]))
+    return mark_row_level(model, model.domain.report(test_data.x, test_data.yhat, violated))
 
 
 def write_certificate(result: CertifyResult, out_dir: PathLike) -> tuple[Path, Path]:

@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
+from ipcverify.contract._calibrate import mark_row_level
 from ipcverify.contract._model import IPCModel
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import DataError, InvalidInputError
@@ -313,5 +314,7 @@ def evaluate(
         mean_extent=tuple(float(e) for e in extent.mean(axis=0)),
         calibrated=model.calibration is not None,
         by_bin=by_bin,
-        domain=None if model.domain is None else model.domain.report(data.x, data.yhat, violated),
+        domain=mark_row_level(
+            model, None if model.domain is None else model.domain.report(data.x, data.yhat, violated)
+        ),
     )

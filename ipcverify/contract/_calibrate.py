@@ -13,6 +13,7 @@ proved in ``proofs/pac_calibration.md``.
 from __future__ import annotations
 
 import warnings
+from dataclasses import replace
 
 from ipcverify.calibration._bounds import pac_rows_allowing
 from ipcverify.calibration._global_scale import Global
@@ -30,6 +31,7 @@ from ipcverify.data._checks import (
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import Hint, InvalidInputError, SampleSizeError
 from ipcverify.guard._domain import DomainModel
+from ipcverify.guard._domain_report import DomainReport
 from ipcverify.guard._domain_spec import DomainSpec
 
 #: The default calibration: one scale for every query, PAC.
@@ -166,6 +168,30 @@ def calibrate(
     if method.unit_column is None and (counts := group_like_counts(calibration_data)):
         metadata[CALIBRATION_GROUPS_KEY] = counts
     return IPCModel(model.source, cal, metadata, dom)
+
+
+def mark_row_level(model: IPCModel, report: DomainReport | None) -> DomainReport | None:
+    """``report`` with the run-like column of a row-level domain test's calibration data, if recorded.
+
+    A domain test fitted row by row on calibration data whose model file records a column naming
+    runs (:data:`CALIBRATION_GROUPS_KEY`) flags the rows of a new run too often; the report then
+    names that column and its groups, so that every statement of a shift (certify, evaluate,
+    predict) also gives that explanation and the command that tells the two apart.
+
+    Parameters
+    ----------
+    model : IPCModel
+        The model whose domain test made ``report``.
+    report : DomainReport or None
+        What the test found on a batch (None: the model has no domain test).
+    """
+    if report is None or model.domain is None or model.domain.n_groups is not None:
+        return report
+    recorded = dict(model.metadata.get(CALIBRATION_GROUPS_KEY) or {})
+    if not recorded:
+        return report
+    column = next(iter(recorded))
+    return replace(report, row_level_column=column, row_level_groups=int(recorded[column]))
 
 
 def warn_largest_score(cal: Calibration, source: str) -> None:

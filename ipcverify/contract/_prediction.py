@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ipcverify.contract._calibrate import mark_row_level
 from ipcverify.contract._model import IPCModel
 from ipcverify.data._dataset import PerceptionDataset, PerceptionInputs
 from ipcverify.data._files import atomic_write
@@ -146,7 +147,7 @@ def _predict_sets(model: IPCModel, inputs: PerceptionInputs, chunk: int | None) 
     else:
         inside = domain.contains(inputs.x, inputs.yhat)
         in_domain = np.asarray(inside & ~singular, dtype=np.bool_)
-        report = domain.summarize_outside(~inside)
+        report = mark_row_level(model, domain.summarize_outside(~inside))
     return Predictions(
         centers=centers,
         shapes=shapes,

@@ -116,3 +116,18 @@ def test_the_cli_warning_names_the_remedy(net, data, tmp_path, run_cli):
     err = " ".join(res.stderr.split())
     assert "warning:" in err and "the deployment data have shifted, or the test, fitted row by row" in err
     assert "(calibrate --domain-group-column run) to tell the two apart" in err
+
+
+def test_predict_and_evaluate_give_the_same_second_explanation(net, data):
+    from ipcverify.certification import evaluate
+    from ipcverify.contract import predict_sets
+    from ipcverify.data import PerceptionInputs
+
+    model = _calibrated(net, data["cal"], None)
+    test = data["test"]
+    for report in (
+        predict_sets(model, PerceptionInputs(test.x, test.yhat)).domain,
+        evaluate(model, test).domain,
+    ):
+        assert report is not None and report.well_above_alpha and report.row_level_column == "run"
+        assert "(calibrate --domain-group-column run) to tell the two apart" in report.sentence()
