@@ -342,9 +342,13 @@ def monitor_cmd(model: Path, log: Path, out: Path, delta: float | None, group_co
     png = figure_to_png(plot_monitor(res.result, title=f"{log.name}: anytime-valid test of the certificate"))
     atomic_write(out / "monitor.png", lambda f: f.write(png))
     target, style = (err_console, "bold red") if res.alarm_index is not None else (console, "bold green")
-    target.print(
-        f"[{style}]{'ALARM' if res.alarm_index is not None else 'OK'}[/] {res.sentence()}", soft_wrap=True
+    # the alarm's sentence starts with "ALARM at ..."; "No alarm ..." gets an "OK" in front
+    head, rest = (
+        ("ALARM", res.sentence().removeprefix("ALARM"))
+        if res.alarm_index is not None
+        else ("OK", " " + res.sentence())
     )
+    target.print(f"[{style}]{head}[/]{rest}", soft_wrap=True)
     console.print(f"wrote {out / 'monitor.json'} and {out / 'monitor.png'}", markup=False)
     if res.alarm_index is not None:
         sys.exit(EXIT_VERDICT)

@@ -38,6 +38,7 @@ from ipcverify.data._dataset import PerceptionDataset, PerceptionInputs
 from ipcverify.data._files import atomic_write
 from ipcverify.data._split import group_codes
 from ipcverify.errors import InvalidInputError
+from ipcverify.guard._clustering import ViolationRuns
 from ipcverify.guard._domain import DomainModel, DomainReport
 from ipcverify.guard._index import one_blas_thread
 from ipcverify.guard._monitor import MonitorResult, ViolationMonitor
@@ -215,6 +216,9 @@ class LogMonitoring:
         Rows of the log.
     row_in_domain_fraction : float
         Share of the log's rows inside the domain of validity.
+    runs : ViolationRuns or None
+        For a log monitored row by row: whether its violations come in runs (then an alarm says
+        that correlated rows can raise it; :mod:`ipcverify.guard._clustering`). None per group.
     """
 
     result: MonitorResult
@@ -227,6 +231,7 @@ class LogMonitoring:
     labels: tuple[str, ...] = ()
     n_rows: int = 0
     row_in_domain_fraction: float = 1.0
+    runs: ViolationRuns | None = None
 
     @property
     def alarm_index(self) -> int | None:
@@ -250,12 +255,20 @@ class LogMonitoring:
                 f"{self.epsilon:.4g} (anytime-valid test, false-alarm probability at most {self.delta:g}); "
                 f"{share}."
             )
-        return (
+        text = (
             f"ALARM at {self._where(self.alarm_index)}: the violations up to there refute a violation rate "
             f"of at most {self.epsilon:.4g} (false-alarm probability at most {self.delta:g}, given a "
             f"calibration whose claim holds, which it does with probability at least "
-            f"{1 - self.calibration_delta:g}); {share}."
+            f"{1 - self.calibration_delta:g}"
         )
+        if self.runs is not None and self.runs.clustered:
+            text += (
+                ", and every row violating with probability at most that given the rows before it); "
+                f"but {self.runs.sentence()}"
+            )
+        else:
+            text += ")"
+        return f"{text}; {share}."
 
     def to_dict(self) -> dict[str, Any]:
         """Plain data for ``monitor.json`` (``unit``, ``observations`` and ``groups`` added for groups)."""
@@ -272,6 +285,7 @@ class LogMonitoring:
             "alarm": self.alarm_index is not None,
             "alarm_index": self.alarm_index,
             "in_domain_fraction": self.row_in_domain_fraction,
+            "violation_runs": None if self.runs is None else self.runs.to_dict(),
             "statement": self.sentence(),
             "monitor": self.result.to_dict(),
         }
@@ -360,6 +374,7 @@ def monitor_log(
             calibration_delta=cal.delta,
             n_rows=len(violated),
             row_in_domain_fraction=row_share,
+            runs=ViolationRuns.of(violated),
         )
     obs, inside, labels = _per_group(data, column, statistic, violated, pred.in_domain)
     what = "any violation" if statistic == "trajectory" else "share of rows outside"

@@ -10,6 +10,10 @@ from typing import TYPE_CHECKING
 from ipcverify._package import lazy_exports
 
 if TYPE_CHECKING:
+    from ipcverify.guard._clustering import (
+        RUNS_LEVEL,
+        ViolationRuns,
+    )
     from ipcverify.guard._domain import (
         DEFAULT_ALPHA,
         DEFAULT_K,
@@ -59,6 +63,7 @@ __all__ = [
     "DEFAULT_K",
     "MAX_INPUTS",
     "MAX_REFERENCE",
+    "RUNS_LEVEL",
     "BettingEProcess",
     "DomainIndex",
     "DomainModel",
@@ -68,6 +73,7 @@ __all__ = [
     "MonitorResult",
     "MonitorState",
     "ViolationMonitor",
+    "ViolationRuns",
     "domain_one",
     "domain_rows",
     "kth_rows",

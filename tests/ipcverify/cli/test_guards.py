@@ -166,3 +166,23 @@ def test_monitor_log_per_group_statistics_are_taken_when_each_group_ends(setup):
     for i, g in enumerate(res.labels):
         assert res.violated[i] == pytest.approx(rows.violated[order == g].mean())
     assert res.violated[0] >= 0.1 and res.result.violated.tolist() == res.violated.tolist()
+
+
+def test_a_row_by_row_alarm_says_once_that_it_is_one_and_names_runs_of_violations(setup, run_cli, tmp_path):
+    """Violations in runs (neighbouring rows correlated) get the caveat; spread-out ones do not."""
+    test = make_lagged_perception(600, seed=6)
+    logs = {}
+    for name, rows in (("runs", np.arange(600) % 100 < 20), ("spread", np.arange(600) % 5 == 0)):
+        y = test.y.copy()
+        y[rows] += 10.0  # 20 % of the rows outside: in runs of 20, or every fifth row
+        logs[name] = tmp_path / f"{name}.csv"
+        save_dataset(PerceptionDataset(test.x, y, test.yhat), logs[name])
+    for name, clustered in (("runs", True), ("spread", False)):
+        res = run_cli("monitor", setup["calibrated"], logs[name], "--out", tmp_path / name)
+        assert res.code == 1, res.stderr
+        assert res.stderr.startswith("ALARM at row ") and "ALARM ALARM" not in res.stderr
+        assert ("the violations come in runs" in res.stderr) is clustered
+        record = json.loads((tmp_path / name / "monitor.json").read_text())
+        assert record["violation_runs"]["clustered"] is clustered
+    ok = run_cli("monitor", setup["calibrated"], setup["flights"], "--out", tmp_path / "ok")
+    assert ok.code == 0 and ok.stdout.startswith("OK No alarm over 600 rows")
