@@ -15,6 +15,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pandas as pd
 
 from ipcverify.errors import DataError
@@ -57,6 +58,35 @@ def run_names(paths: Sequence[PathLike], names: Sequence[str] | None) -> list[st
         base = Path(p.stem) if p.suffix.lower() == ".gz" else p
         out.append(p.name if p.is_dir() else base.stem)
     return out
+
+
+def _refuse_the_truth_as_estimate(frame: pd.DataFrame, truth: str, estimate: str) -> None:
+    """Refuse a table whose every estimate equals its truth: the two inputs are the same poses.
+
+    Parameters
+    ----------
+    frame : DataFrame
+        The samples.
+    truth, estimate : str
+        The inputs, in words (topics and frames, or files), for the message.
+
+    Examples
+    --------
+    >>> same = pd.DataFrame({"y_0": [0.1, 0.2], "yhat_0": [0.1, 0.2]})
+    >>> _refuse_the_truth_as_estimate(same, "gt.txt", "gt.txt")
+    Traceback (most recent call last):
+    ...
+    ipcverify.errors.DataError: every one of the 2 samples has its estimate equal to its truth ...
+    """
+    y = frame.filter(regex=r"^y_\d+$").to_numpy()
+    yhat = frame.filter(regex=r"^yhat_\d+$").to_numpy()
+    if len(frame) and y.shape == yhat.shape and np.array_equal(y, yhat):
+        raise DataError(
+            f"every one of the {len(frame)} samples has its estimate equal to its truth (truth: {truth}; "
+            f"estimate: {estimate}): they are the same poses, and the log would hold no error to learn; "
+            "give the ground truth (motion capture, GPS/INS) as --truth and the estimator's output as "
+            "--estimate"
+        )
 
 
 def _finish(frame: pd.DataFrame, tags: Mapping[str, str], extra: Mapping[str, Any]) -> pd.DataFrame:
@@ -106,10 +136,11 @@ def ingest_trajectories(
     >>> t = np.arange(0.0, 2.0, 0.05)
     >>> rows = np.column_stack([t, t, 0 * t, 0 * t, 0 * t, 0 * t, 0 * t, 1 + 0 * t])
     >>> np.savetxt(os.path.join(d, "gt.txt"), rows)
-    >>> np.savetxt(os.path.join(d, "est.txt"), rows[::2])
+    >>> est = rows[::2] * [1, 1.1, 1, 1, 1, 1, 1, 1]  # an estimate 10 % fast along x
+    >>> np.savetxt(os.path.join(d, "est.txt"), est)
     >>> df = ingest_trajectories(os.path.join(d, "gt.txt"), [os.path.join(d, "est.txt")])
-    >>> len(df), df["run"].iloc[0], float(df["y_0"].round(12).iloc[0])
-    (6, 'est', 0.5)
+    >>> len(df), df["run"].iloc[0], float(df["y_0"].round(12).iloc[0]), float(df["yhat_0"].round(12).iloc[0])
+    (6, 'est', 0.5, 0.55)
     """
     options = options or IngestOptions()
     told_up = options.up is not None
@@ -141,6 +172,7 @@ def ingest_trajectories(
     if not told_up and options.up == "+z" and options.align == "none":
         warn_camera_frame(run_list)
     frame = build_samples(run_list, options)
+    _refuse_the_truth_as_estimate(frame, ", ".join(map(str, truths)), ", ".join(map(str, estimates)))
     inputs = [input_record(p, "truth") for p in truths] + [input_record(p, "estimate") for p in estimates]
     if times is not None:
         inputs.append(input_record(times, "times"))
@@ -213,6 +245,15 @@ def ingest_bags(
         run_list.append(RunData(name, got.poses["truth"], got.poses["estimate"], got.state))
     hint = "; or time both by the recorder's clock with --stamp receive" if stamp == "header" else ""
     frame = build_samples(run_list, options, hint)
+    _refuse_the_truth_as_estimate(
+        frame,
+        f"topic {truth_topic}"
+        + (f" (child frame {requests['truth'].child_frame!r})" if requests["truth"].child_frame else ""),
+        f"topic {estimate_topic}"
+        + (
+            f" (child frame {requests['estimate'].child_frame!r})" if requests["estimate"].child_frame else ""
+        ),
+    )
     extra = {
         "source": "bags",
         "inputs": [input_record(p, "bag") for p in paths],

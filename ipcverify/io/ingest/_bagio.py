@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import os
 import struct
+from collections import Counter
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -217,6 +218,33 @@ def _seconds(sec: NDArray[np.int64], nsec: NDArray[np.int64]) -> NDArray[np.floa
     return sec.astype(np.float64) + nsec.astype(np.float64) * 1e-9
 
 
+def _frames_on(transforms: Counter[tuple[str, str, str]], topic: str, most: int = 12) -> str:
+    """The transforms a ``/tf`` topic holds, for an error naming a frame it lacks.
+
+    Parameters
+    ----------
+    transforms : Counter
+        Counts of ``(topic, parent frame, child frame)``.
+    topic : str
+        The topic.
+    most : int
+        How many to list (the most frequent first).
+
+    Examples
+    --------
+    >>> _frames_on(Counter({("/tf", "odom", "base_link"): 5, ("/tf", "map", "odom"): 2}), "/tf")
+    '; its transforms (parent -> child frame): odom -> base_link (5), map -> odom (2)'
+    >>> _frames_on(Counter(), "/tf")
+    '; it holds no transform'
+    """
+    seen = [(n, parent, child) for (t, parent, child), n in transforms.most_common() if t == topic]
+    if not seen:
+        return "; it holds no transform"
+    listed = ", ".join(f"{parent} -> {child} ({n})" for n, parent, child in seen[:most])
+    more = f", and {len(seen) - most} more" if len(seen) > most else ""
+    return f"; its transforms (parent -> child frame): {listed}{more}"
+
+
 def read_bag(
     path: str | os.PathLike[str],
     poses: Mapping[str, PoseRequest],
@@ -269,6 +297,7 @@ def read_bag(
         state_rows: list[list[float]] = []
         state_stamps: list[int] = []
         state_header = stamp == "header"
+        transforms: Counter[tuple[str, str, str]] = Counter()  # (topic, parent, child) on /tf topics
         ros1 = not reader.is2
         parsers = {t: raw_pose_parser(by_topic[t].msgtype, ros1, reader.typestore) for t in topics}
         names_of = {t: [n for n, r in poses.items() if r.topic == t] for t in topics}
@@ -284,6 +313,8 @@ def read_bag(
                     receive[name].append(ts)
                 continue
             msg = reader.deserialize(raw, conn.msgtype)
+            if conn.msgtype == TF_TYPE:
+                transforms.update((topic, tr.header.frame_id, tr.child_frame_id) for tr in msg.transforms)
             for name in names_of[topic]:
                 got = pose_rows(msg, conn.msgtype, poses[name].child_frame)
                 rows[name] += got
@@ -301,7 +332,9 @@ def read_bag(
     for name, req in poses.items():
         a = np.asarray(rows[name], dtype=np.float64).reshape(-1, 9)
         if not a.shape[0]:
-            what = f" with child frame {req.child_frame!r}" if by_topic[req.topic].msgtype == TF_TYPE else ""
+            what = ""
+            if by_topic[req.topic].msgtype == TF_TYPE:
+                what = f" with child frame {req.child_frame!r}" + _frames_on(transforms, req.topic)
             raise DataError(f"{path}: topic {req.topic} has no pose{what}; check the topic and frame names")
         sec = np.asarray([r[0] for r in rows[name]], dtype=np.int64)
         nsec = np.asarray([r[1] for r in rows[name]], dtype=np.int64)

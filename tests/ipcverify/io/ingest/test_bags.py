@@ -105,6 +105,22 @@ def test_tf_with_child_frames(tmp_path, motions, bagkit):
         ingest_bags([path], truth_topic="/mocap", estimate_topic="/odom")
     with pytest.raises(DataError, match="topic /mocap has no pose with child frame 'base'"):
         ingest_bags([path], truth_topic="/mocap", estimate_topic="/odom", child_frame="base")
+    # the message lists what the topic holds (a real /tf has many frames; the user must pick one)
+    with pytest.raises(
+        DataError,
+        match=r"its transforms \(parent -> child frame\): world -> other \(700\), world -> body \(700\)",
+    ):
+        ingest_bags([path], truth_topic="/mocap", estimate_topic="/odom", child_frame="base")
+
+
+def test_the_same_topic_as_truth_and_estimate_is_refused(tmp_path, motions, bagkit):
+    """Seen on a real bag (evo's tf_example: one /tf trajectory, no truth): 205 rows with y == yhat."""
+    path, _ = _bag(bagkit, "ros2_mcap", tmp_path, motions)
+    with pytest.raises(DataError, match=r"every one of the \d+ samples has its estimate equal to its truth "
+                       r"\(truth: topic /odom; estimate: topic /odom\)"):  # fmt: skip
+        ingest_bags([path], truth_topic="/odom", estimate_topic="/odom")
+    df = ingest_bags([path], truth_topic="/mocap", estimate_topic="/odom", options=_opts(OFFSET))
+    assert len(df) > 0  # two topics: accepted
 
 
 def test_receive_stamps_and_several_bags_as_runs(tmp_path, motions, bagkit):

@@ -217,3 +217,18 @@ def test_up_names_the_world_axis_of_the_tilt_columns_and_refuses_others(run_cli,
     assert m["options"]["up"] == "-x" and m["x_columns"]["x_2"].startswith("world -x axis")
     res = run_cli(*base, "--up", "down", "--out", tmp_path / "b.csv")
     assert res.code == 2 and "'down' is not one of" in res.stderr and not (tmp_path / "b.csv").exists()
+
+
+def test_the_truth_file_given_as_the_estimate_is_refused(run_cli, tum, tmp_path):
+    res = run_cli(
+        "ingest",
+        "trajectories",
+        "--truth",
+        tum / "gt.txt",
+        "--estimate",
+        tum / "gt.txt",
+        "--out",
+        tmp_path / "o.csv",
+    )
+    _one_line_error(res, "has its estimate equal to its truth", "gt.txt")
+    assert not (tmp_path / "o.csv").exists()
