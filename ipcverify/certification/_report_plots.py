@@ -127,9 +127,11 @@ def plot_coverage(coverage: BinCoverage, delta: float, epsilon: float | None) ->
     # a text column's bins are its values; a numeric one's are ranges in the data's units
     ax.set_xlabel(f"bin of {coverage.column}" + ("" if coverage.labels else f" ({DEFAULT_UNITS})"))
     ax.set_ylabel("violation rate (share of rows)")
-    ax.set_ylim(bottom=0.0)
+    # headroom above the highest interval (or epsilon) for the legend, which must not hide an interval
+    tops = [*hi[ok][np.isfinite(hi[ok])], *([] if epsilon is None else [epsilon])]
+    ax.set_ylim(0.0, 1.45 * max(tops) if tops and max(tops) > 0 else None)
     ax.set_title(f"Conditional coverage by {coverage.column}", fontsize=10)
-    ax.legend(fontsize=8, loc="upper right")
+    ax.legend(fontsize=8, loc="upper right", ncol=2)
     fig.subplots_adjust(left=0.1, right=0.97, bottom=0.3, top=0.9)
     return fig
 

@@ -410,3 +410,23 @@ def test_a_row_level_calibration_on_rows_grouped_by_flight_is_recorded_and_flagg
         ).certificate.summary.checks
     ]
     assert "independent rows" not in names
+
+
+def test_the_coverage_legend_hides_no_interval():
+    """KITTI 00's test blocks (counts and violations per speed bin of a real run): the legend sat
+    over the 8.07..8.7 bin's interval; the axes now leave room above the highest interval."""
+    from ipcverify.certification._evaluation import BinCoverage
+    from ipcverify.certification._report_plots import clopper_pearson_interval
+
+    counts = (65, 64, 64, 64, 64, 64, 64, 64, 64, 65)
+    viol = (0, 0, 0, 8, 8, 2, 14, 0, 9, 3)
+    cov = BinCoverage(column="x_0", edges=tuple(np.linspace(0.0, 11.6, 11)), counts=counts, violations=viol)
+    for epsilon in (0.1, 0.5, None):
+        fig = plot_coverage(cov, 0.01, epsilon)
+        fig.canvas.draw()
+        ax = fig.axes[0]
+        box = ax.get_legend().get_window_extent()
+        tops = [clopper_pearson_interval(v, c, 0.01)[1] for v, c in zip(viol, counts, strict=True)]
+        points = ax.transData.transform(np.column_stack([np.arange(len(counts)), tops]))
+        assert not any(box.contains(px, py) for px, py in points), epsilon
+        assert ax.get_ylim()[1] >= max([*tops, epsilon or 0.0])  # every interval drawn whole
