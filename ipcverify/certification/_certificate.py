@@ -159,15 +159,56 @@ class VolumeSummary:
         Mean and median log-volume of the test-set sets.
     unit : str
         The unit of the volumes (``"(units of y)^n"``).
+    median_half_width : tuple of float
+        Per coordinate of y, the median over the test sets of half the set's axis-aligned extent.
+    error_q90 : tuple of float
+        Per coordinate of y, the 90th percentile of the estimate's error ``|y - yhat|`` on the
+        test data: the scale to read the sets' size against.
     """
 
     mean_log: float
     median_log: float
     unit: str
+    median_half_width: tuple[float, ...] = ()
+    error_q90: tuple[float, ...] = ()
+
+    def size_text(self, fmt: str = ".3g", unit: str | None = None) -> str:
+        """The sets' half-widths beside the estimate's error, in words ('' without them).
+
+        Parameters
+        ----------
+        fmt : str
+            Format of each number.
+        unit : str, optional
+            The units of y (``"m"``), written after each list of numbers.
+
+        Examples
+        --------
+        >>> v = VolumeSummary(mean_log=0.0, median_log=0.0, unit="", median_half_width=(0.2, 0.3),
+        ...                   error_q90=(0.02, 0.1))
+        >>> v.size_text()
+        'median half-width per axis 0.2, 0.3; |y - yhat| 90th percentile 0.02, 0.1 (ratio 10, 3)'
+        """
+        if not self.median_half_width or len(self.error_q90) != len(self.median_half_width):
+            return ""
+        u = f" {unit}" if unit else ""
+        hw = ", ".join(f"{h:{fmt}}" for h in self.median_half_width) + u
+        err = ", ".join(f"{e:{fmt}}" for e in self.error_q90) + u
+        ratios = ", ".join(
+            f"{h / e:.2g}" if e > 0 else "-"
+            for h, e in zip(self.median_half_width, self.error_q90, strict=True)
+        )
+        return f"median half-width per axis {hw}; |y - yhat| 90th percentile {err} (ratio {ratios})"
 
     def to_dict(self) -> dict[str, Any]:
         """Plain-data form."""
-        return {"mean_log": self.mean_log, "median_log": self.median_log, "unit": self.unit}
+        return {
+            "mean_log": self.mean_log,
+            "median_log": self.median_log,
+            "unit": self.unit,
+            "median_half_width": list(self.median_half_width),
+            "estimate_error_q90": list(self.error_q90),
+        }
 
 
 @dataclass(frozen=True, kw_only=True)

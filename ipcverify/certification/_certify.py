@@ -289,6 +289,8 @@ def _tested(
             mean_log=float(np.mean(scores.log_volume)),
             median_log=float(np.median(scores.log_volume)),
             unit=f"log of volume in the units of y (dimension {model.config.y_dim})",
+            median_half_width=tuple(float(h) for h in np.median(scores.sets.half_widths(), axis=0)),
+            error_q90=tuple(float(e) for e in np.quantile(np.abs(test_data.y - test_data.yhat), 0.9, axis=0)),
         ),
         coverage=coverage_by_bin(values, scores.violated, column, bins),
         worst_bin=worst_bin_coverage(test_data.x, test_data.yhat, scores.violated, test_data.x_columns, bins),

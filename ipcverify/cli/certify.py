@@ -296,6 +296,8 @@ def certify_cmd(
             )
     if cert.volume is not None:
         table.add_row("mean log-volume", f"{cert.volume.mean_log:.4g}")
+        if cert.volume.size_text():
+            table.add_row("set size", cert.volume.size_text(unit=units))
     if cert.domain is not None:
         d = cert.domain
         table.add_row(

@@ -78,3 +78,28 @@ def test_bad_labels_or_units_exit_2_with_one_line(run_cli, files, tmp_path, args
     err = res.stderr.strip()
     assert err.startswith("error: ") and message in err and len(err.splitlines()) == 1
     assert not (tmp_path / "certificate.json").exists()
+
+
+def test_the_set_size_is_printed_beside_the_error_of_the_estimate(run_cli, files, tmp_path):
+    """On a real log (evo's EuRoC V1_02 estimate, 60 calibration rows) the calibrated sets were
+    7-11x the estimate's 90th-percentile error, wider than the displacements themselves, and no
+    output said so; certify now prints both, and certificate.json keeps them."""
+    import numpy as np
+
+    from ipcverify.data._dataset import load_dataset
+    from ipcverify.io._modelio import load_model
+
+    res = run_cli(
+        "certify", files / "weak.pt", "--data", files / "test.csv", "--out", tmp_path, "--units", "m"
+    )  # fmt: skip
+    assert res.code == 0, res.stderr
+    vol = json.loads((tmp_path / "certificate.json").read_text())["volume"]
+    test = load_dataset(files / "test.csv")
+    half = load_model(files / "weak.pt").predict(test.x, test.yhat).half_widths()
+    np.testing.assert_allclose(vol["median_half_width"], np.median(half, axis=0), rtol=1e-6)
+    np.testing.assert_allclose(
+        vol["estimate_error_q90"], np.quantile(np.abs(test.y - test.yhat), 0.9, axis=0)
+    )
+    flat = " ".join(res.stdout.replace("│", " ").split())  # the table wraps its cells
+    hw = ", ".join(f"{h:.3g}" for h in vol["median_half_width"])
+    assert f"set size median half-width per axis {hw} m; |y - yhat| 90th percentile" in flat
