@@ -257,15 +257,30 @@ def warn_correlated_rows(
     columns = list(counts)
     col, groups = columns[0], counts[columns[0]]
     others = "".join(f" (or --group-column {c})" for c in columns[1:])
+    few = ""
+    # the smallest epsilon a PAC calibration by group certifies: k = n, (1 - eps)^groups <= delta
+    floor = 1.0 - FEW_GROUPS_DELTA ** (1.0 / groups)
+    if floor >= FEW_GROUPS_EPSILON:
+        few = (
+            f"; but with {groups} groups a calibration by group can certify no epsilon below "
+            f"{floor:.2g} at delta = {FEW_GROUPS_DELTA:g}: for one or a few long runs, cut them into "
+            "contiguous time blocks (ipcverify split --block SECONDS --name-groups segment) and use "
+            "those as the groups"
+        )
     warnings.warn(
         Hint(
             f"{data.source} has a {col!r} column ({groups} groups): rows of one {col} are usually "
             f"correlated, and {what} row by row treats every row as an independent sample; pass "
-            f"--group-column {col}{others} (Python: {python.format(col=col)}) {remedy}"
+            f"--group-column {col}{others} (Python: {python.format(col=col)}) {remedy}{few}"
         ),
         stacklevel=3,
     )
 
+
+#: A group column whose groups cannot certify an epsilon below this (at :data:`FEW_GROUPS_DELTA`) is
+#: called too few in the correlated-rows hint (6 groups or fewer at 0.5 and 0.01).
+FEW_GROUPS_EPSILON = 0.5
+FEW_GROUPS_DELTA = 0.01
 
 #: Names of a time column, as ``ipcverify ingest`` writes it (``t``) and as logs often name it.
 TIME_NAMES = ("t", "time", "timestamp", "stamp")

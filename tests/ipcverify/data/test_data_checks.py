@@ -159,3 +159,23 @@ def test_a_log_out_of_time_order_within_a_run_gets_a_hint_and_one_in_order_none(
     with warnings.catch_warnings():
         warnings.simplefilter("error", Hint)
         warn_out_of_time_order(_ds(np.arange(3), t=np.array(["b", "a", "c"])), "the monitor replays")
+
+
+@pytest.mark.parametrize(("groups", "too_few"), [(2, True), (4, True), (6, True), (7, False), (30, False)])
+def test_the_runs_hint_says_when_the_runs_are_too_few_to_be_the_units(groups, too_few):
+    """KITTI 00, TUM and the ROS example bag hold 2 runs: the hint offered --group-column run, which
+    can certify no epsilon below 0.9 at delta 0.01; it now says so and suggests time blocks."""
+    from ipcverify.calibration._bounds import smallest_epsilon
+
+    n = 60
+    data = PerceptionDataset(
+        np.zeros((n, 1)), np.zeros((n, 1)), np.zeros((n, 1)), extra={"run": np.arange(n) % groups}
+    )
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        warn_correlated_rows(data, "calibrating", "to calibrate by run")
+    (text,) = [str(w.message) for w in seen if issubclass(w.category, Hint)]
+    assert text.count("--group-column run") == 1
+    floor = smallest_epsilon(groups, 0.01)  # the calibration's own number, by group
+    assert (f"can certify no epsilon below {floor:.2g} at delta = 0.01" in text) is too_few
+    assert ("contiguous time blocks" in text) is too_few
