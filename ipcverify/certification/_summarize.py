@@ -19,7 +19,7 @@ from ipcverify.certification._test_result import GroupTest, TestResult
 from ipcverify.contract._model import IPCModel
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import InvalidInputError
-from ipcverify.guard._domain_report import DomainReport
+from ipcverify.guard._domain_report import GROUP_METHOD, DomainReport
 
 _NOT_RUN = "no test data given: the held-out test was not run"
 
@@ -44,6 +44,23 @@ def capitalized(text: str) -> str:
 def _status_detail(status: CertificateStatus) -> str:
     """The status text without a leading repetition of its name ("certified: ...")."""
     return status.value.removeprefix(status.name.lower().replace("_", " ") + ": ")
+
+
+def _shift_note(cert: Certificate) -> str:
+    """For a certified contract whose test queries lie far outside its domain: the verdict says so.
+
+    Seen on a room change (EuRoC MH_04 -> V1_02, calibrated by flight at epsilon 0.25): the test
+    was consistent with the claim, and the verdict line said only that, while 87 % of the queries
+    lay outside the domain of validity, for which the certificate promises nothing.
+    """
+    d = cert.domain
+    if cert.status is not CertificateStatus.CERTIFIED or d is None or not d.well_above_alpha:
+        return ""
+    why = "a shift" if d.method == GROUP_METHOD else "a shift, or runs unlike the calibration's"
+    return (
+        f"; but {100 * d.outside_fraction:.0f} % of the test queries lie outside the domain of validity "
+        f"({why}: the certificate promises nothing for them)"
+    )
 
 
 def _claim(cert: Certificate) -> str:
@@ -375,7 +392,7 @@ def summarize(
     delta = cal.delta if cal is not None else (None if cert.test is None else cert.test.delta)
     return CertificateSummary(
         status=cert.status.name,
-        status_detail=_status_detail(cert.status),
+        status_detail=_status_detail(cert.status) + _shift_note(cert),
         claim=_claim(cert),
         epsilon=None if cal is None else cal.epsilon,
         certified_epsilon=None if cal is None else cal.certified_epsilon,

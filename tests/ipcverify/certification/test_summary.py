@@ -430,3 +430,28 @@ def test_the_coverage_legend_hides_no_interval():
         points = ax.transData.transform(np.column_stack([np.arange(len(counts)), tops]))
         assert not any(box.contains(px, py) for px, py in points), epsilon
         assert ax.get_ylim()[1] >= max([*tops, epsilon or 0.0])  # every interval drawn whole
+
+
+def test_a_certified_verdict_on_queries_mostly_outside_the_domain_says_so():
+    """Room change MH_04 -> V1_02 calibrated by flight: 'CERTIFIED ... consistent' with 87 % of the
+    queries outside the domain; the verdict line (and the report's banner) now says so."""
+    net = IPCModel(IPCNetwork(CFG))
+    model = calibrate(net, make_lagged_perception(1500, seed=61), 0.5, 0.01)
+    inside = certify(model, make_lagged_perception(1000, seed=62)).certificate
+    t = make_lagged_perception(1000, seed=63)
+    far = PerceptionDataset(t.x + np.r_[0, 0, 0, 0, 0, 3.0], t.y, t.yhat)  # x_5 moved: a shift
+    shifted = certify(model, far).certificate
+    assert inside.summary is not None and shifted.summary is not None
+    assert inside.status is CertificateStatus.CERTIFIED and shifted.status is CertificateStatus.CERTIFIED
+    assert inside.domain is not None and not inside.domain.well_above_alpha
+    assert "outside the domain" not in inside.summary.verdict_text()
+    assert shifted.domain is not None and shifted.domain.well_above_alpha
+    pct = f"{100 * shifted.domain.outside_fraction:.0f} %"
+    assert shifted.summary.verdict_text().endswith(
+        f"; but {pct} of the test queries lie outside the domain of validity (a shift, or runs unlike the "
+        "calibration's: the certificate promises nothing for them)"
+    )
+    import html
+
+    banner = shifted.summary.verdict_text().split(": ", 1)[1]  # the report's banner: title, then this
+    assert html.escape(banner) in render_report(certify(model, far))
