@@ -19,7 +19,7 @@ from ipcverify.certification._test_result import GroupTest, TestResult
 from ipcverify.contract._model import IPCModel
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import InvalidInputError
-from ipcverify.guard._domain_report import GROUP_METHOD, DomainReport
+from ipcverify.guard._domain_report import DomainReport
 
 _NOT_RUN = "no test data given: the held-out test was not run"
 
@@ -56,7 +56,7 @@ def _shift_note(cert: Certificate) -> str:
     d = cert.domain
     if cert.status is not CertificateStatus.CERTIFIED or d is None or not d.well_above_alpha:
         return ""
-    why = "a shift" if d.method == GROUP_METHOD else "a shift, or runs unlike the calibration's"
+    why = "a shift" if d.row_level_column is None else "a shift, or a row-level test on correlated rows"
     return (
         f"; but {100 * d.outside_fraction:.0f} % of the test queries lie outside the domain of validity "
         f"({why}: the certificate promises nothing for them)"

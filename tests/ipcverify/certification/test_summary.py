@@ -448,8 +448,8 @@ def test_a_certified_verdict_on_queries_mostly_outside_the_domain_says_so():
     assert shifted.domain is not None and shifted.domain.well_above_alpha
     pct = f"{100 * shifted.domain.outside_fraction:.0f} %"
     assert shifted.summary.verdict_text().endswith(
-        f"; but {pct} of the test queries lie outside the domain of validity (a shift, or runs unlike the "
-        "calibration's: the certificate promises nothing for them)"
+        f"; but {pct} of the test queries lie outside the domain of validity (a shift: the certificate "
+        "promises nothing for them)"  # no run column recorded: no second explanation
     )
     import html
 

@@ -276,6 +276,8 @@ def _kitti_drive(folder, pitch: float = 0.0):
     poses = np.zeros((len(t), 12))
     poses[:, [0, 1, 2, 4, 5, 6, 8, 9, 10]] = rot.reshape(-1)
     poses[:, 11] = 5.0 * t
+    np.savetxt(folder / "gt.txt", poses)
+    poses[:, 11] *= 1.02  # the estimate: 2 % fast
     np.savetxt(folder / "00.txt", poses)
     np.savetxt(folder / "times.txt", t)
     return {"truth_format": "kitti", "estimate_format": "kitti", "times": folder / "times.txt"}
@@ -286,7 +288,7 @@ def test_the_tilt_of_a_pitched_camera_is_the_up_axis_in_its_body_frame(tmp_path)
 
     theta = 0.3
     kw = _kitti_drive(tmp_path, theta)
-    df = ingest_trajectories(tmp_path / "00.txt", [tmp_path / "00.txt"], **kw)
+    df = ingest_trajectories(tmp_path / "gt.txt", [tmp_path / "00.txt"], **kw)
     # R^T (0, -1, 0) for R the rotation about x by theta, by hand: (0, -cos theta, sin theta)
     want = [0.0, -np.cos(theta), np.sin(theta)]
     np.testing.assert_allclose(df[["x_2", "x_3", "x_4"]].to_numpy(), np.tile(want, (len(df), 1)), atol=1e-12)
@@ -298,11 +300,11 @@ def test_kitti_estimates_take_the_camera_frames_up_axis_unless_told(tmp_path):
     kw = _kitti_drive(tmp_path)
     with warnings.catch_warnings():
         warnings.simplefilter("error", Hint)  # the KITTI convention is no reason for a hint
-        df = ingest_trajectories(tmp_path / "00.txt", [tmp_path / "00.txt"], **kw)
+        df = ingest_trajectories(tmp_path / "gt.txt", [tmp_path / "00.txt"], **kw)
     np.testing.assert_array_equal(df[["x_2", "x_3", "x_4"]].drop_duplicates().to_numpy(), [[0.0, -1.0, 0.0]])
     assert df.attrs[MANIFEST_KEY]["options"]["up"] == "-y"
     told = ingest_trajectories(
-        tmp_path / "00.txt", [tmp_path / "00.txt"], options=IngestOptions(up="+z"), **kw
+        tmp_path / "gt.txt", [tmp_path / "00.txt"], options=IngestOptions(up="+z"), **kw
     )
     np.testing.assert_array_equal(told[["x_2", "x_3", "x_4"]].drop_duplicates().to_numpy(), [[0.0, 0.0, 1.0]])
     assert told.attrs[MANIFEST_KEY]["options"]["up"] == "+z"
@@ -314,7 +316,7 @@ def test_an_estimate_starting_at_the_identity_with_z_taken_as_up_gets_a_hint(tmp
     t = np.arange(0.0, 4.0, 0.05)
     rows = np.column_stack([t, t, 0 * t, 0 * t, 0 * t, 0 * t, 0 * t, 1 + 0 * t])  # TUM: identity start
     np.savetxt(tmp_path / "gt.txt", rows)
-    np.savetxt(tmp_path / "vo.txt", rows)
+    np.savetxt(tmp_path / "vo.txt", rows * [1, 1.05, 1, 1, 1, 1, 1, 1])  # 5 % fast along x
     with pytest.warns(Hint, match=r"run vo starts at the identity pose.*pass --up"):
         ingest_trajectories(tmp_path / "gt.txt", [tmp_path / "vo.txt"])
     with warnings.catch_warnings():
