@@ -30,6 +30,13 @@ def test_the_page_shows_the_records_table():
     assert f"({record['runtime_seconds']:.0f} s on 2 cores)" in page
     statuses = [s["status"] for s in record["cross_room"]["steps"]]
     assert statuses == ["CONTRADICTED", "CONTRADICTED"]  # the other room is never certified
+    c0 = record["cross_room"]["steps"][0]  # the README quotes the room change
+    readme = " ".join((ROOT / "README.md").read_text().split())
+    rate, allowed = 100 * c0["test_rate"], 100 * c0["certified_epsilon"]
+    assert (
+        f"is CONTRADICTED ({rate:.1f} % violations against {allowed:.2f} % allowed, "
+        f"{100 * c0['outside_fraction']:.1f} % of the queries outside its domain)"
+    ) in readme
     monitor = record["cross_room"]["monitor"]
     assert monitor["v102"]["alarm"] and not monitor["mh04_test"]["alarm"]
     assert f"raises its alarm at row {monitor['v102']['alarm_index']:,} of" in " ".join(page.split())
