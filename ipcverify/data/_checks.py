@@ -286,6 +286,26 @@ FEW_GROUPS_DELTA = 0.01
 TIME_NAMES = ("t", "time", "timestamp", "stamp")
 
 
+def time_column(data: PerceptionDataset) -> str | None:
+    """The first extra column named as in :data:`TIME_NAMES` that holds numbers (None: no such column).
+
+    Parameters
+    ----------
+    data : PerceptionDataset
+        The log.
+
+    Examples
+    --------
+    >>> z = np.zeros((2, 1))
+    >>> time_column(PerceptionDataset(z, z, z, extra={"run": np.array(["a", "b"]), "Time": np.arange(2.0)}))
+    'Time'
+    """
+    for name in data.extra:
+        if name.strip().lower() in TIME_NAMES and np.asarray(data.extra[name]).dtype.kind in "iuf":
+            return name
+    return None
+
+
 def warn_out_of_time_order(data: PerceptionDataset, what: str) -> None:
     """A :class:`~ipcverify.errors.Hint` when a time column goes back within a run (for row-order work).
 
@@ -313,10 +333,9 @@ def warn_out_of_time_order(data: PerceptionDataset, what: str) -> None:
     >>> len(w)
     0
     """
-    names = [n for n in data.extra if n.strip().lower() in TIME_NAMES and data.extra[n].dtype.kind in "iuf"]
-    if not names or len(data) < 2:
+    col = time_column(data)
+    if col is None or len(data) < 2:
         return
-    col = names[0]
     t = np.asarray(data.extra[col], dtype=np.float64)
     back = np.diff(t) < 0
     runs = list(group_like_counts(data))

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ipcverify.data._checks import TIME_NAMES
+from ipcverify.data._checks import TIME_NAMES, time_column
 from ipcverify.data._dataset import PerceptionDataset, load_dataset, save_dataset
 from ipcverify.data._files import file_sha256, refuse_overwriting_input, write_json
 from ipcverify.data._split import group_codes, split_fractions, split_parts, time_blocks
@@ -184,9 +184,9 @@ def _time_column(data: PerceptionDataset, name: str | None) -> str:
     if name is not None:
         data.column(name)  # a missing column is refused, naming the available ones
         return name
-    for col in data.extra:
-        if col.strip().lower() in TIME_NAMES and np.asarray(data.extra[col]).dtype.kind in "iuf":
-            return col
+    found = time_column(data)
+    if found is not None:
+        return found
     raise DataError(
         f"{data.source}: time blocks need a column of times in seconds ({', '.join(TIME_NAMES)}); "
         "name yours with --time-column (Python: time_column=...)"
