@@ -36,7 +36,7 @@ from ipcverify.errors import (
 
 if TYPE_CHECKING:
     from ipcverify.calibration._global_scale import Global
-    from ipcverify.calibration._grouped import Grouped
+    from ipcverify.calibration._grouped_spec import Grouped
     from ipcverify.calibration._mondrian import Mondrian
     from ipcverify.certification._certify import certify
     from ipcverify.contract._calibrate import calibrate

@@ -7,7 +7,7 @@ set of scores), :mod:`~ipcverify.calibration._protocol` (what every kind provide
 fits it: :class:`Global`, :class:`Mondrian`, :class:`Grouped`) and
 :mod:`~ipcverify.calibration._kinds` (their registry). The pipeline step that calibrates a
 model is :func:`ipcverify.contract.calibrate`, which takes a spec:
-``calibrate(model, data, epsilon, delta, Grouped(column="run", guarantee="sample"))``.
+``calibrate(model, data, epsilon, delta, Grouped(column="run"))``.
 
 The network's score ``g = ||C (y - c)||`` is computed on ``n`` calibration samples
 that were *not* used for training. The calibrated contract is ``E(c, C / s)`` with
@@ -35,9 +35,9 @@ violation rate is at most ``epsilon``.
 
 Grouped calibration (:mod:`~ipcverify.calibration._grouped`) treats groups of correlated
 samples (flights, runs; a column of the calibration data only) as the exchangeable units
-and gives one scale with a trajectory-level guarantee (every sample of a new flight inside)
-or a per-sample one valid under group exchangeability. Proofs:
-``proofs/group_calibration.md``.
+and gives one scale with a claim about a new run: its expected share of rows outside (the
+default), the share of new runs with more than epsilon outside, or every row inside. Proofs:
+``proofs/group_calibration.md`` and ``proofs/run_claims.md``.
 
 The stored scale is the order statistic times ``1 + SCALE_MARGIN``: a slightly
 larger set, so that float32 rounding differences between batch sizes cannot
@@ -75,10 +75,8 @@ if TYPE_CHECKING:
         GuaranteeKind,
         group_violation_counts,
     )
-    from ipcverify.calibration._grouped import (
-        Grouped,
-        GroupedCalibration,
-    )
+    from ipcverify.calibration._grouped import GroupedCalibration
+    from ipcverify.calibration._grouped_spec import Grouped
     from ipcverify.calibration._kinds import (
         KINDS,
         METHODS,
@@ -112,6 +110,11 @@ if TYPE_CHECKING:
     )
     from ipcverify.calibration._risk_control import (
         risk_control_threshold,
+    )
+    from ipcverify.calibration._share_bound import (
+        run_floor,
+        share_lower_bound,
+        share_upper_bound,
     )
     from ipcverify.calibration._threshold import (
         MODES,
@@ -164,6 +167,9 @@ __all__ = [
     "pac_rows_allowing",
     "register_kind",
     "risk_control_threshold",
+    "run_floor",
+    "share_lower_bound",
+    "share_upper_bound",
     "smallest_epsilon",
     "smallest_marginal_epsilon",
     "threshold_scores",

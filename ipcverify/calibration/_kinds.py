@@ -14,7 +14,7 @@ from collections.abc import Mapping
 from typing import Any, TypeVar
 
 from ipcverify.calibration._global_scale import Global
-from ipcverify.calibration._grouped import Grouped
+from ipcverify.calibration._grouped_spec import Grouped
 from ipcverify.calibration._method import CalibrationMethod, CalibrationRecord
 from ipcverify.calibration._mondrian import Mondrian
 from ipcverify.calibration._protocol import Calibration

@@ -55,6 +55,10 @@ class CertificateStatus(Enum):
         "held-out data to obtain one"
     )
     UNCHECKED = "certified by calibration; consistency with the test data not checkable in this mode"
+    ROWS_ASSUMED = (
+        "row-level claim on rows that come in runs: it holds only if those rows are independent samples, "
+        "which rows of one run usually are not -- calibrate by runs for a claim that does not assume it"
+    )
     UNTESTED = (
         "certified by calibration; no test data was given, so nothing checked it independently -- "
         "pass --data with fresh held-out samples to add the test"
@@ -264,6 +268,11 @@ class Certificate:
         groups; empty without such columns.
     summary : CertificateSummary or None
         The executive summary.
+    runs : mapping or None
+        What the calibration data's runs support, as the model file recorded it at calibration
+        (:func:`ipcverify.contract._runs.run_record`: the unit of the claim, the smallest rate the
+        runs can certify, the runs the target needs, the within-run dependence); None if the
+        calibration data had no runs.
     """
 
     status: CertificateStatus
@@ -287,6 +296,7 @@ class Certificate:
     test_group_columns: Mapping[str, int] = field(default_factory=dict)
     calibration_group_columns: Mapping[str, int] = field(default_factory=dict)
     summary: CertificateSummary | None = None
+    runs: Mapping[str, Any] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """The content of ``certificate.json``."""
@@ -327,6 +337,7 @@ class Certificate:
             "group_test": None if self.group_test is None else self.group_test.to_dict(),
             "test_group_like_columns": dict(self.test_group_columns),
             "calibration_group_like_columns": dict(self.calibration_group_columns),
+            "runs": None if self.runs is None else dict(self.runs),
             "data": {
                 "test": None if self.test_data is None else self.test_data.to_dict(),
                 "train": None if self.train_data is None else self.train_data.to_dict(),

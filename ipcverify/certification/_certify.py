@@ -59,6 +59,7 @@ from ipcverify.certification._summarize import output_labels, summarize
 from ipcverify.certification._test_result import Consistency, GroupTest, GroupTestResult, TestResult
 from ipcverify.contract._calibrate import CALIBRATION_GROUPS_KEY, mark_row_level
 from ipcverify.contract._model import IPCModel
+from ipcverify.contract._runs import RUNS_KEY
 from ipcverify.data._checks import group_like_counts
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.data._files import atomic_write, file_sha256, write_json
@@ -219,8 +220,16 @@ def certify(
         if test is None
         else Consistency.check(None if cal is None else cal.allowed_violation_rate(), test)
     )
-    checks = (consistency,) if group_test is None else (consistency, group_test.consistency)
-    status = certificate_status(cal, checks, tested is not None)
+    calibration_groups = dict(model.metadata.get(CALIBRATION_GROUPS_KEY) or {}) if cal else {}
+    test_groups = {} if test_data is None else group_like_counts(test_data)
+    # a row-level claim on rows that come in runs rests on independent rows: only a check by runs counts
+    in_doubt = cal is not None and cal.group_claim() is None and bool(calibration_groups or test_groups)
+    checks: tuple[Consistency, ...] = (
+        (consistency,) if group_test is None else (consistency, group_test.consistency)
+    )
+    if in_doubt:
+        checks = () if group_test is None else (group_test.consistency,)
+    status = certificate_status(cal, checks, tested is not None, rows_in_doubt=in_doubt)
     t1, t1_reason, t1_source = theorem1_step(model, train_data, delta, lipschitz_radius)
     cert = Certificate(
         status=status,
@@ -241,8 +250,9 @@ def certify(
         test_data=None if test_data is None else _identity(test_data, test_path),
         train_data=None if train_data is None else _identity(train_data, train_path, model),
         group_claim=None if cal is None else cal.group_claim(),
-        test_group_columns={} if test_data is None else group_like_counts(test_data),
-        calibration_group_columns=dict(model.metadata.get(CALIBRATION_GROUPS_KEY) or {}) if cal else {},
+        test_group_columns=test_groups,
+        calibration_group_columns=calibration_groups,
+        runs=model.metadata.get(RUNS_KEY) if cal else None,
     )
     rows_outside = (
         None if tested is None else (int(tested.scores.violated.sum()), len(tested.scores.violated))

@@ -192,13 +192,24 @@ def _group_test_part(cert: Certificate) -> list[str]:
             "valid when the test groups are i.i.d., whatever the correlation within a group.</p>"
         )
     rows = ""
-    for unit, label, res in (
-        ("trajectory", "any violation in the group", g.trajectory),
-        ("sample", "one random row of the group (seeded)", g.sample),
-    ):
+    statistics = (
+        ("share", "share of the group's rows outside (mean over groups)"),
+        ("share-of-runs", "share of the group's rows above the claim's"),
+        ("trajectory", "any violation in the group"),
+        ("sample", "one random row of the group (seeded)"),
+    )
+    for unit, label in statistics:
+        res = g.result(unit)  # type: ignore[arg-type]
+        if res is None or (unit == "sample" and g.compared_unit != "sample"):
+            continue
         mark = "compared with the calibration" if g.compared_unit == unit else "reported"
+        counted = (
+            f"mean {html_value(res.empirical_rate)} over {html_value(res.n)}"
+            if res.statistic == "mean"
+            else f"{html_value(res.violations)} / {html_value(res.n)}"
+        )
         rows += (
-            f"<tr><td>{html.escape(label)}</td><td>{html_value(res.violations)} / {html_value(res.n)}</td>"
+            f"<tr><td>{html.escape(label)}</td><td>{counted}</td>"
             f"<td>{html_value(res.empirical_rate)}</td><td>{html.escape(res.bound_text())}</td>"
             f"<td>[{res.interval[0]:.4g}, {res.interval[1]:.4g}]</td><td>{mark}</td></tr>"
         )
@@ -213,8 +224,10 @@ def _group_test_part(cert: Certificate) -> list[str]:
     else:
         parts.append(f"<p class='small'>Not compared with the calibration: {html.escape(c.reason)}.</p>")
     parts.append(
-        f"<p class='small'>{g.n_groups:,} test groups, {g.n_rows:,} rows; the random row of each group "
-        f"is drawn with seed {g.seed}. Proof: proofs/group_calibration.md, section 6.</p>"
+        f"<p class='small'>{g.n_groups:,} test groups, {g.n_rows:,} rows; the mean share is bounded by "
+        "betting "
+        "bounds, the counts by Clopper-Pearson. Proofs: proofs/run_claims.md section 5, "
+        "proofs/group_calibration.md section 6.</p>"
     )
     return parts
 

@@ -23,6 +23,7 @@ _COLORS = {
     CertificateStatus.UNTESTED: ("#1b5e7f", "#ffffff"),
     CertificateStatus.UNCHECKED: ("#1b5e7f", "#ffffff"),
     CertificateStatus.NOT_CALIBRATED: ("#9a6700", "#ffffff"),
+    CertificateStatus.ROWS_ASSUMED: ("#9a6700", "#ffffff"),
     CertificateStatus.CONTRADICTED: ("#b42318", "#ffffff"),
 }
 _WEAK = ("#f5b400", "#1f2328")

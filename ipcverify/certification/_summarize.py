@@ -13,6 +13,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from ipcverify._package import VERSION
+from ipcverify.calibration._protocol import GroupUnit
 from ipcverify.certification._certificate import Certificate, CertificateStatus
 from ipcverify.certification._summary import CertificateSummary, Check, CheckLevel, target_strength, utc_now
 from ipcverify.certification._test_result import GroupTest, TestResult
@@ -105,10 +106,8 @@ def _calibration_check(cert: Certificate) -> Check:
 
 
 def _counted(t: TestResult) -> str:
-    return (
-        f"{t.violations:,} of {t.n:,} test {t.unit} outside ({100 * t.empirical_rate:.3g} %); upper bound "
-        f"{t.bound_text()} at confidence {1 - t.delta:.6g}"
-    )
+    rate = "" if t.statistic == "mean" else f" outside ({100 * t.empirical_rate:.3g} %)"
+    return f"{t.counted()}{rate}; upper bound {t.bound_text()} at confidence {1 - t.delta:.6g}"
 
 
 def _independence_check(cert: Certificate) -> Check:
@@ -129,6 +128,10 @@ def _independence_check(cert: Certificate) -> Check:
         counted = f"certify with --group-column {test_col} to also count the test per {test_col}"
     else:
         counted = "test data with a column naming its runs could also be counted per run"
+    runs = cert.runs or {}
+    worth = ""
+    if runs.get("unit") == "row" and runs.get("dependence"):
+        worth = f"; measured at calibration: {runs['dependence']['statement']}"
     return Check(
         name="independent rows",
         verdict="assumed, in doubt",
@@ -136,9 +139,29 @@ def _independence_check(cert: Certificate) -> Check:
         detail=(
             f"{' and '.join(found)}: rows of one {col} are usually correlated, but the row-level claim, "
             "and the calibration behind it, count every row as an independent sample, which their "
-            f"exact bounds need; {counted}, and recalibrate with --group-column {col} for a claim "
+            f"exact bounds need{worth}; {counted}, and recalibrate with --group-column {col} for a claim "
             f"about whole {col}s"
         ),
+    )
+
+
+def _runs_check(cert: Certificate) -> Check | None:
+    """What the calibration data's runs support: the floor, the smallest rate, the runs the target needs."""
+    runs = cert.runs
+    if not runs or not runs.get("plan"):
+        return None
+    plan, dep = runs["plan"], runs.get("dependence") or {}
+    lines = {c["guarantee"]: c for c in plan["claims"]}
+    share = lines["expected-share"]
+    detail = (
+        f"{runs['n_runs']} calibration runs of {runs['column']!r}: no claim about a new run goes below "
+        f"{plan['floor']:.3g} at delta = {plan['delta']:g}; the smallest certifiable expected share is "
+        f"{share['smallest']:g}, and epsilon = {plan['epsilon']:g} needs at least {share['runs_needed']} runs"
+    )
+    if dep.get("statement"):
+        detail += f"; {dep['statement']}"
+    return Check(
+        name="what the runs support", verdict=f"claim about {runs['unit']}s", level="info", detail=detail
     )
 
 
@@ -178,15 +201,23 @@ def _group_checks(g: GroupTest, test: TestResult | None = None) -> list[Check]:
     """
     rows = []
     c = g.consistency
-    for unit, what, res in (
-        ("sample", "one random row per group", g.sample),
-        ("trajectory", "any violation in a group", g.trajectory),
-    ):
-        counted = (
-            f"{res.violations:,} of {res.n:,} groups ({100 * res.empirical_rate:.3g} %)"
-            + (" have a truth outside its set somewhere" if unit == "trajectory" else " outside")
-            + f"; upper bound {res.bound_text()} at confidence {1 - res.delta:.6g}"
-        )
+    statistics: tuple[tuple[GroupUnit, str], ...] = (
+        ("share", "share of each group's rows outside"),
+        ("share-of-runs", "groups above the claim's share"),
+        ("sample", "one random row per group"),
+        ("trajectory", "any violation in a group"),
+    )
+    for unit, what in statistics:
+        res = g.result(unit)
+        if res is None or (unit == "sample" and g.compared_unit != "sample"):
+            continue  # the mean share counts every row; one random row per group only for a claim on it
+        if res.statistic == "mean":
+            counted = f"mean share {100 * res.empirical_rate:.3g} % outside over {res.n:,} groups"
+        else:
+            counted = f"{int(res.violations):,} of {res.n:,} groups ({100 * res.empirical_rate:.3g} %)" + (
+                " have a truth outside its set somewhere" if unit == "trajectory" else " outside"
+            )
+        counted += f"; upper bound {res.bound_text()} at confidence {1 - res.delta:.6g}"
         level: CheckLevel
         if g.compared_unit == unit and c.checked:
             verdict, level = (
@@ -208,7 +239,7 @@ def _group_checks(g: GroupTest, test: TestResult | None = None) -> list[Check]:
             test is not None
             and test.unit != "samples"  # the held-out test counted the claim's groups ...
             and g.compared_unit == unit  # ... by this row's statistic
-            and (test.violations, test.n) == (res.violations, res.n)
+            and (test.violations, test.n, test.statistic) == (res.violations, res.n, res.statistic)
         ):
             counted += "; the same count as the held-out test above, not a second test"
         name = f"per-flight test ({g.column!r}): {what}"
@@ -387,6 +418,8 @@ def summarize(
         checks += _group_checks(cert.group_test, cert.test)
     if claim_of is None and (cert.test_group_columns or cert.calibration_group_columns):
         checks.append(_independence_check(cert))
+    if (runs_check := _runs_check(cert)) is not None:
+        checks.append(runs_check)
     checks += [_domain_check(cert.domain), _theorem1_check(cert)]
     y_dim = int(cert.model.architecture.get("y_dim", len(labels) or 1))
     delta = cal.delta if cal is not None else (None if cert.test is None else cert.test.delta)

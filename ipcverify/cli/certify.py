@@ -43,22 +43,29 @@ def calibration_method(
     mondrian_column: str | None,
     bins: int | None,
     group_column: str | None,
-    guarantee: str,
+    guarantee: str | None,
     seed: int,
-) -> CalibrationMethod:
-    """The calibration spec that the ``calibrate`` command's options name.
+    unit: str | None = None,
+    gamma: float | None = None,
+    run_columns: tuple[str, ...] = (),
+) -> CalibrationMethod | None:
+    """The calibration spec that the ``calibrate`` command's options name (None: let the data decide).
 
     ``--mondrian-column`` (with ``--bins``) gives :class:`~ipcverify.calibration.Mondrian`,
-    ``--group-column`` (with ``--guarantee``) :class:`~ipcverify.calibration.Grouped`, neither
-    :class:`~ipcverify.calibration.Global`; ``--mode`` and ``--seed`` go to the one chosen.
+    ``--group-column`` (with ``--guarantee`` and ``--gamma``) :class:`~ipcverify.calibration.Grouped`,
+    ``--unit row`` :class:`~ipcverify.calibration.Global`, ``--unit run`` ``Grouped`` by the data's
+    one run column (``run_columns``); with none of them the library chooses by the data (by runs
+    when they name them). ``--mode`` and ``--seed`` go to the one chosen.
 
     Raises
     ------
     InvalidInputError
-        If ``--bins`` comes without ``--mondrian-column``, or both column options are given.
+        If ``--bins`` comes without ``--mondrian-column``, both column options are given, the
+        unit contradicts the columns, ``--unit run`` finds no single run column, or
+        ``--guarantee``/``--gamma`` come without runs.
     """
     from ipcverify.calibration._global_scale import Global
-    from ipcverify.calibration._grouped import Grouped
+    from ipcverify.calibration._grouped_spec import Grouped
     from ipcverify.calibration._mondrian import Mondrian
 
     if bins is not None and mondrian_column is None:
@@ -68,12 +75,43 @@ def calibration_method(
             "choose one of a Mondrian column (one scale per group of an x/yhat column) and a group column "
             "(flights or runs as the exchangeable units); they cannot be combined"
         )
+    if unit == "row" and group_column is not None:
+        raise InvalidInputError(
+            "--unit row makes a claim about rows, --group-column one about runs: give one of them"
+        )
+    if unit == "run" and mondrian_column is not None:
+        raise InvalidInputError("--mondrian-column makes a row-level claim: use it with --unit row, not run")
+    if unit == "run" and group_column is None:
+        if len(run_columns) != 1:
+            found = ", ".join(run_columns) if run_columns else "none"
+            raise InvalidInputError(
+                f"--unit run needs the column that names the runs: the data have {len(run_columns)} such "
+                f"columns ({found}); name it with --group-column COL"
+            )
+        group_column = run_columns[0]
     kind = cast("CalibrationMode", mode)  # the specs check it
     if group_column is not None:
-        return Grouped(column=group_column, guarantee=cast("GuaranteeKind", guarantee), seed=seed, mode=kind)
+        return Grouped(
+            column=group_column,
+            guarantee=cast("GuaranteeKind", guarantee or "expected-share"),
+            gamma=gamma,
+            seed=seed,
+            mode=kind,
+        )
+    if guarantee is not None or gamma is not None:
+        raise InvalidInputError(
+            "--guarantee and --gamma choose a claim about runs: give the runs' column with --group-column "
+            "(or --unit run)"
+        )
     if mondrian_column is not None:
         return Mondrian(column=mondrian_column, bins=bins, seed=seed, mode=kind)
-    return Global(mode=kind)
+    if unit == "row":
+        return Global(mode=kind)
+    if mode == "pac":
+        return None  # the library chooses by the data
+    if len(run_columns) == 1:  # the library's choice, in marginal mode
+        return Grouped(column=run_columns[0], seed=seed, mode=kind)
+    return None if run_columns else Global(mode=kind)
 
 
 @app.command("calibrate")
@@ -94,22 +132,36 @@ def calibration_method(
     "--bins", default=None, type=int, help="With --mondrian-column: quantile bins of a continuous column."
 )
 @click.option(
+    "--unit",
+    type=click.Choice(["row", "run"]),
+    default=None,
+    help="What the claim is about: runs (flights; the default when the data have one column that names "
+    "them) or rows (assumes independent rows; the default when the data name no runs).",
+)
+@click.option(
     "--group-column",
     default=None,
-    help="The exchangeable unit (flights, runs): calibrate with whole groups of this column as samples.",
+    help="The column that names the runs (flights): calibrate with whole runs as the exchangeable units.",
 )
-@choice_option(
+@click.option(
     "--guarantee",
-    choices=["sample", "trajectory"],
-    default="sample",
-    help="With --group-column: bound a new group's expected share of violations, or its chance of any.",
+    type=click.Choice(["expected-share", "share-of-runs", "trajectory"]),
+    default=None,
+    help="A claim about runs: a new run's expected share of rows outside [default], the share of new runs "
+    "with more than --epsilon of their rows outside (with --gamma), or any row outside.",
+)
+@click.option(
+    "--gamma",
+    type=float,
+    default=None,
+    help="With --guarantee share-of-runs: the share of new runs allowed more than --epsilon outside.",
 )
 @click.option(
     "--domain-alpha",
     type=float,
-    default=_DOMAIN_ALPHA,
-    show_default=True,
-    help="False-alarm rate of the domain-of-validity test fitted on the calibration inputs.",
+    default=None,
+    help=f"False-alarm rate of the domain-of-validity test fitted on the calibration inputs [default: "
+    f"{_DOMAIN_ALPHA:g}, or the smallest the runs allow when fitted by runs].",
 )
 @click.option(
     "--domain-group-column",
@@ -136,9 +188,11 @@ def calibrate_cmd(
     mode: str,
     mondrian_column: str | None,
     bins: int | None,
+    unit: str | None,
     group_column: str | None,
-    guarantee: str,
-    domain_alpha: float,
+    guarantee: str | None,
+    gamma: float | None,
+    domain_alpha: float | None,
     domain_group_column: str | None,
     recalibrate: bool,
     seed: int,
@@ -151,15 +205,17 @@ def calibrate_cmd(
     test is fitted on its inputs and stored with the model.
     """
     from ipcverify.contract._calibrate import calibrate
+    from ipcverify.data._checks import group_like_counts
     from ipcverify.data._files import refuse_overwriting_input
     from ipcverify.guard._domain_spec import DomainSpec
     from ipcverify.io._modelio import load_data_for_model, load_model, save_model
 
     refuse_overwriting_input(out, {"MODEL": model, "DATA": data})
-    method = calibration_method(mode, mondrian_column, bins, group_column, guarantee, seed)
     domain = DomainSpec(alpha=domain_alpha, group_column=domain_group_column, seed=seed)
     m = load_model(model)
     ds = load_data_for_model(data, m)
+    runs = tuple(group_like_counts(ds))
+    method = calibration_method(mode, mondrian_column, bins, group_column, guarantee, seed, unit, gamma, runs)
     cal_model = calibrate(m, ds, epsilon, delta, method, domain=domain, recalibrate=recalibrate)
     save_model(cal_model, out)
     cal = cal_model.calibration
@@ -174,6 +230,12 @@ def calibrate_cmd(
         table.add_row(g.label, str(g.n), str(g.k), f"{g.scale:.5g}")
     console.print(table)
     console.print(cal.guarantee(), soft_wrap=True, markup=False)
+    record = cal_model.metadata.get("calibration_runs")
+    if record:
+        console.print(record["plan"]["statement"], soft_wrap=True, markup=False)
+        console.print(
+            f"Within-run dependence: {record['dependence']['statement']}.", soft_wrap=True, markup=False
+        )
     if cal_model.domain is not None:
         console.print(cal_model.domain.describe().sentence(), soft_wrap=True, markup=False)
     console.print(f"calibrated model -> {out}", markup=False)
@@ -244,6 +306,7 @@ def certify_cmd(
         CertificateStatus.CERTIFIED: "bold green",
         CertificateStatus.UNCHECKED: "bold cyan",
         CertificateStatus.NOT_CALIBRATED: "bold yellow",
+        CertificateStatus.ROWS_ASSUMED: "bold yellow",
         CertificateStatus.CONTRADICTED: "bold red",
         CertificateStatus.UNTESTED: "bold cyan",
     }
@@ -284,15 +347,36 @@ def certify_cmd(
     else:
         table.add_row(
             "test violations",
-            f"{t.violations}/{t.n} {t.unit} = {t.empirical_rate:.4%}; "
-            f"upper bound {t.bound_text('.4%')} (confidence {1 - t.delta:g})",
+            f"{t.counted()} = {t.empirical_rate:.4%}; upper bound {t.bound_text('.4%')} "
+            f"(confidence {1 - t.delta:g})",
         )
     g = cert.group_test
     if g is not None:
-        for label, r in (("per group: one random row", g.sample), ("per group: any violation", g.trajectory)):
+        rows = [("per group: share of rows outside", g.share), ("per group: any violation", g.trajectory)]
+        if g.compared_unit == "sample":
+            rows.insert(1, ("per group: one random row", g.sample))
+        if g.share_of_runs is not None:
+            rows.insert(1, ("per group: above the claim's share", g.share_of_runs))
+        for label, r in rows:
+            if r is not None:
+                table.add_row(f"{label} ({g.column})", f"{r.counted()}; upper bound {r.bound_text('.4%')}")
+    if cert.runs:
+        plan = cert.runs["plan"]
+        share = next(c for c in plan["claims"] if c["guarantee"] == "expected-share")
+        table.add_row(
+            f"calibration runs ({cert.runs['column']})",
+            f"{cert.runs['n_runs']} runs: claim about {cert.runs['unit']}s; smallest certifiable expected "
+            "share "
+            f"{share['smallest']:g} (floor {plan['floor']:.3g}); epsilon={plan['epsilon']:g} needs "
+            f"{share['runs_needed']} runs",
+        )
+        dependence = cert.runs.get("dependence") or {}
+        if dependence.get("effective_rows") is not None:
             table.add_row(
-                f"{label} ({g.column})",
-                f"{r.violations}/{r.n} groups = {r.empirical_rate:.4%}; upper bound {r.bound_text('.4%')}",
+                "within-run dependence",
+                f"{dependence['n_rows']:,} rows worth about {dependence['effective_rows']:,.0f} independent "
+                "rows "
+                f"(design effect {dependence['design_effect']:.3g})",
             )
     if cert.volume is not None:
         table.add_row("mean log-volume", f"{cert.volume.mean_log:.4g}")

@@ -79,6 +79,19 @@ def _print_evaluation(ev: Evaluation, title: str) -> None:
             f"{d.violations_inside} of {inside} / {d.violations_outside} of {d.outside}",
         )
     console.print(table)
+    if ev.by_run is not None:
+        r = ev.by_run
+        rt = Table(title=f"per run of {r.column} (the unit of a claim about runs)", show_header=False)
+        rt.add_row("runs", f"{r.n_runs} ({r.runs_with_violation} with some row outside)")
+        rt.add_row(
+            "mean share of a run's rows outside",
+            f"{100 * r.share.empirical_rate:.2f} % (bounds {100 * r.share.lower_bound:.2f} to "
+            f"{100 * r.share.upper_bound:.2f} % at confidence {1 - r.share.delta:g} each; largest run "
+            f"{100 * r.max_share:.1f} %)",
+        )
+        if r.outside_domain is not None:
+            rt.add_row("mean share outside the domain", f"{100 * r.outside_domain:.2f} %")
+        console.print(rt)
     if ev.by_bin is not None:
         bt = Table(title=f"violation rate by {ev.by_bin.column}")
         bt.add_column("bin")
@@ -250,15 +263,23 @@ def train_cmd(
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of tables.")
 @click.option("--bin-column", default=None, help="Report the violation rate per bin of this column.")
 @click.option("--bins", default=10, show_default=True, type=int)
-def evaluate_cmd(model: Path, data: Path, as_json: bool, bin_column: str | None, bins: int) -> None:
-    """Empirical violation rate and set sizes of MODEL on labelled DATA."""
+@click.option(
+    "--group-column",
+    default=None,
+    help="Count per run of this column [default: the calibration's run column, or the data's one "
+    "column that names runs].",
+)
+def evaluate_cmd(
+    model: Path, data: Path, as_json: bool, bin_column: str | None, bins: int, group_column: str | None
+) -> None:
+    """Empirical violation rate and set sizes of MODEL on labelled DATA (per run too, for data with runs)."""
     from ipcverify.certification._evaluation import evaluate
     from ipcverify.data._files import json_data
     from ipcverify.io._modelio import load_data_for_model, load_model
 
     m = load_model(model)
     ds = load_data_for_model(data, m)
-    ev = evaluate(m, ds, bin_column=bin_column, bins=bins)
+    ev = evaluate(m, ds, bin_column=bin_column, bins=bins, group_column=group_column)
     if as_json:
         click.echo(json.dumps(json_data(ev.to_dict())))
     else:

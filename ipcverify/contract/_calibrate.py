@@ -16,27 +16,21 @@ import warnings
 from dataclasses import replace
 
 from ipcverify.calibration._bounds import pac_rows_allowing
-from ipcverify.calibration._global_scale import Global
 from ipcverify.calibration._kinds import check_registered
 from ipcverify.calibration._method import CalibrationMethod, CalibrationSample
 from ipcverify.calibration._protocol import Calibration
 from ipcverify.calibration._threshold import check_eps_delta
 from ipcverify.contract._model import IPCModel
-from ipcverify.data._checks import (
-    check_informative,
-    group_like_counts,
-    warn_correlated_rows,
-    warn_outside_training,
-)
+from ipcverify.contract._runs import RUNS_KEY, choose_method, run_record
+from ipcverify.data._checks import check_informative, group_like_counts, warn_outside_training
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import Hint, InvalidInputError, SampleSizeError
 from ipcverify.guard._domain import DomainModel
 from ipcverify.guard._domain_report import DomainReport
 from ipcverify.guard._domain_spec import DomainSpec
 
-#: The default calibration: one scale for every query, PAC.
-DEFAULT_METHOD = Global()
-#: The default domain test: alpha = ``ipcverify.guard.DEFAULT_ALPHA``, rows as the units.
+#: The default domain test: alpha = ``ipcverify.guard.DEFAULT_ALPHA`` (or the smallest the runs allow),
+#: with the calibration's units.
 DEFAULT_DOMAIN = DomainSpec()
 
 
@@ -50,7 +44,7 @@ def calibrate(
     calibration_data: PerceptionDataset,
     epsilon: float,
     delta: float,
-    method: CalibrationMethod = DEFAULT_METHOD,
+    method: CalibrationMethod | None = None,
     *,
     domain: DomainSpec | None = DEFAULT_DOMAIN,
     recalibrate: bool = False,
@@ -69,13 +63,17 @@ def calibrate(
         Target violation probability, e.g. 0.01.
     delta : float
         Confidence parameter of the PAC guarantee, e.g. 0.001 (recorded in marginal mode).
-    method : CalibrationMethod
+    method : CalibrationMethod, optional
         The kind of calibration and its options, a registered spec (it fits itself):
-        ``Global(mode="pac")`` (the default: one scale, PAC or ``mode="marginal"``),
+        ``Global(mode="pac")`` (one scale, rows as the units, PAC or ``mode="marginal"``),
         ``Mondrian(column=..., bins=..., edge_fraction=..., seed=..., mode=...)`` (one scale per
-        group of an ``x`` or ``yhat`` column) or ``Grouped(column=..., guarantee=..., seed=...,
+        group of an ``x`` or ``yhat`` column) or ``Grouped(column=..., guarantee=..., gamma=...,
         mode=...)`` (flights or runs as the exchangeable units,
-        :class:`~ipcverify.calibration.GroupedCalibration`, ``proofs/group_calibration.md``).
+        :class:`~ipcverify.calibration.GroupedCalibration`, ``proofs/run_claims.md``). Default:
+        by runs when the data have one column that names them (``run``, ``flight``, ...:
+        ``Grouped(column=...)``, expected share), else ``Global()``. A row-level claim on data
+        with runs is then an explicit choice, recorded in the model as an assumption with the
+        data's effective number of independent rows.
     domain : DomainSpec or None
         How to fit the domain-of-validity test on the calibration inputs
         (:class:`~ipcverify.guard.DomainModel`, attached to the model): its false-alarm rate
@@ -92,7 +90,8 @@ def calibrate(
     InvalidInputError
         If the model is already calibrated, the dimensions disagree, the data is the
         training data, is made mostly of repeated rows, the group column cannot be seen at
-        predict time, or ``method`` is not a registered calibration spec.
+        predict time, ``method`` is not a registered calibration spec, or no method is given and
+        several columns could name the runs.
 
     Warns
     -----
@@ -100,8 +99,9 @@ def calibrate(
         If most calibration inputs lie outside the ranges of the training inputs, if rows repeat,
         or if a column is constant.
     Hint
-        If the data have a ``run``, ``flight``, ``sequence`` or ``group`` column and are
-        calibrated row by row (neither the method nor the domain test has a group column).
+        When ipcverify chose to calibrate by runs; when a row-level claim is made on data with
+        runs (with their effective number of independent rows); when the domain test takes the
+        smallest false-alarm rate the runs allow.
 
     Examples
     --------
@@ -121,7 +121,19 @@ def calibrate(
     ...                       domain=DomainSpec(alpha=0.05))
     >>> by_flight.calibration.n_groups, by_flight.domain.n_groups  # the domain test's units too
     (100, 100)
+    >>> import warnings
+    >>> with warnings.catch_warnings():
+    ...     warnings.simplefilter("ignore")
+    ...     auto = calibrate(IPCModel(net), flights, 0.1, 0.05)    # the data name their runs
+    >>> auto.calibration.guarantee_kind, auto.metadata["calibration_runs"]["unit"]
+    ('expected-share', 'run')
     """
+    if domain is not None and not isinstance(domain, DomainSpec):
+        raise InvalidInputError(
+            "domain must be a DomainSpec (ipcverify.guard), e.g. DomainSpec(alpha=0.01), or None; "
+            f"got {domain!r}"
+        )
+    method, chosen = choose_method(calibration_data, method)
     _check_inputs(model, calibration_data, epsilon, delta, method, domain, recalibrate)
     sample = CalibrationSample(
         scores=model.raw_scores(calibration_data.x, calibration_data.y, calibration_data.yhat),
@@ -133,16 +145,9 @@ def calibrate(
     )
     unmet: list[str] = []  # every sample-size requirement is reported at once
     cal: Calibration | None = None
-    try:
-        cal = method.fit(sample)
-    except SampleSizeError as exc:
-        unmet.append(str(exc))
-    dom: DomainModel | None = None
-    if domain is not None:
-        try:
-            dom = domain.fit(calibration_data, method.unit_column)
-        except SampleSizeError as exc:
-            unmet.append(str(exc))
+    with warnings.catch_warnings(record=True) as caught:  # a hint is shown only if no error follows
+        warnings.simplefilter("always")
+        cal, dom = _fit(method, domain, sample, calibration_data, chosen, unmet)
     if unmet:
         raise SampleSizeError(
             unmet[0]
@@ -152,22 +157,55 @@ def calibrate(
         )
     if cal is None:  # unreachable: the fit above assigns or raises
         raise SampleSizeError("no calibration was fitted")
-    if method.unit_column is None and (domain is None or domain.group_column is None):
-        remedy = (
-            "to calibrate with whole groups as the exchangeable units; or keep the row-level claim and "
-            "fit only the domain test by group with --domain-group-column and the same column (Python: "
-            "domain=DomainSpec(group_column=...); fitted row by row on correlated rows, it flags the "
-            "rows of a new run too often)"
+    if chosen and method.unit_column is not None:
+        warnings.warn(
+            Hint(
+                f"{calibration_data.source}: its rows come in runs of {method.unit_column!r}, so the claim "
+                "is "
+                "about runs (the expected share of a new run's rows outside their sets); for a row-level "
+                "claim, which assumes independent rows, choose Global() (CLI: --unit row)"
+            ),
+            stacklevel=2,
         )
-        warn_correlated_rows(calibration_data, "calibrating", remedy, python="Grouped(column={col!r})")
+    for w in caught:
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     if method.unit_column is None and cal.mode == "pac":
         warn_largest_score(cal, calibration_data.source)
     warn_outside_training(model.metadata, calibration_data)
-    # what the certificate's "independent rows" check needs to know of a row-level calibration
-    metadata = {k: v for k, v in model.metadata.items() if k != CALIBRATION_GROUPS_KEY}
+    # what the certificate's "independent rows" check needs to know of a row-level calibration, and
+    # what the runs of the calibration data support
+    metadata = {k: v for k, v in model.metadata.items() if k not in (CALIBRATION_GROUPS_KEY, RUNS_KEY)}
     if method.unit_column is None and (counts := group_like_counts(calibration_data)):
         metadata[CALIBRATION_GROUPS_KEY] = counts
+    normalized = sample.scores / cal.scale_for(calibration_data.x, calibration_data.yhat)
+    by_rows = domain is not None and domain.units(method.unit_column) is None
+    if (record := run_record(cal, calibration_data, normalized, method, chosen, by_rows)) is not None:
+        metadata[RUNS_KEY] = record
     return IPCModel(model.source, cal, metadata, dom)
+
+
+def _fit(
+    method: CalibrationMethod,
+    domain: DomainSpec | None,
+    sample: CalibrationSample,
+    data: PerceptionDataset,
+    chosen: bool,
+    unmet: list[str],
+) -> tuple[Calibration | None, DomainModel | None]:
+    """Fit the calibration and the domain test; every unmet sample-size requirement goes to ``unmet``."""
+    cal: Calibration | None = None
+    try:
+        cal = method.fit(sample)
+    except SampleSizeError as exc:
+        row_claim = " or make a row-level claim explicitly with Global() (CLI: --unit row)"
+        unmet.append(str(exc).rstrip(".") + (row_claim if chosen and method.unit_column is not None else ""))
+    dom: DomainModel | None = None
+    if domain is not None:
+        try:
+            dom = domain.fit(data, method.unit_column)
+        except SampleSizeError as exc:
+            unmet.append(str(exc))
+    return cal, dom
 
 
 def mark_row_level(model: IPCModel, report: DomainReport | None) -> DomainReport | None:
@@ -249,11 +287,6 @@ def _check_inputs(
 ) -> None:
     """Refuse a calibration that could not carry its guarantee."""
     check_registered(method)
-    if domain is not None and not isinstance(domain, DomainSpec):
-        raise InvalidInputError(
-            "domain must be a DomainSpec (ipcverify.guard), e.g. DomainSpec(alpha=0.01), or None; "
-            f"got {domain!r}"
-        )
     check_eps_delta(epsilon, delta)
     if model.calibration is not None and not recalibrate:
         raise InvalidInputError(

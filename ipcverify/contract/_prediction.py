@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ipcverify.calibration._group_counts import allowed_outside
 from ipcverify.contract._calibrate import mark_row_level
 from ipcverify.contract._model import IPCModel
 from ipcverify.data._dataset import PerceptionDataset, PerceptionInputs
@@ -219,6 +220,11 @@ class LogMonitoring:
     runs : ViolationRuns or None
         For a log monitored row by row: whether its violations come in runs (then an alarm says
         that correlated rows can raise it; :mod:`ipcverify.guard._clustering`). None per group.
+    null : str
+        The hypothesis the violation test rejects when it alarms, in words.
+    domain_rate : float or None
+        Per group, with a domain test fitted by groups: the out-of-domain test's null rate (a new
+        group's expected share of queries outside the domain is at most this); None otherwise.
     """
 
     result: MonitorResult
@@ -232,11 +238,18 @@ class LogMonitoring:
     n_rows: int = 0
     row_in_domain_fraction: float = 1.0
     runs: ViolationRuns | None = None
+    null: str = ""
+    domain_rate: float | None = None
 
     @property
     def alarm_index(self) -> int | None:
         """Observation (row, or group in ``labels``) at which the certificate was refuted, or None."""
         return self.result.alarm_index
+
+    @property
+    def domain_alarm_index(self) -> int | None:
+        """Group (in ``labels``) at which the out-of-domain rate was refuted, or None (or no such test)."""
+        return self.result.final.domain_alarm_index
 
     def _where(self, i: int) -> str:
         return f"row {i}" if not self.labels else f"group {self.labels[i]!r} (observation {i} of {self.unit})"
@@ -249,26 +262,38 @@ class LogMonitoring:
             if not self.labels
             else f"{len(self.labels)} {self.unit} ({self.n_rows} rows)"
         )
+        domain = self._domain_sentence()
+        null = self.null or f"a violation rate of at most {self.epsilon:.4g}"
         if self.alarm_index is None:
             return (
-                f"No alarm over {what}: the log is consistent with a violation rate of at most "
-                f"{self.epsilon:.4g} (anytime-valid test, false-alarm probability at most {self.delta:g}); "
-                f"{share}."
+                f"No alarm over {what}: the log is consistent with {null} "
+                f"(anytime-valid test, false-alarm probability at most {self.delta:g}); {share}.{domain}"
             )
         text = (
-            f"ALARM at {self._where(self.alarm_index)}: the violations up to there refute a violation rate "
-            f"of at most {self.epsilon:.4g} (false-alarm probability at most {self.delta:g}, given a "
-            f"calibration whose claim holds, which it does with probability at least "
-            f"{1 - self.calibration_delta:g}"
+            f"ALARM at {self._where(self.alarm_index)}: the violations up to there refute "
+            f"{null} (false-alarm probability at most "
+            f"{self.delta:g}, given a calibration whose claim holds, which it does with probability at least "
+            f"{1 - self.calibration_delta:g})"
         )
         if self.runs is not None and self.runs.clustered:
-            text += (
-                ", and every row violating with probability at most that given the rows before it); "
-                f"but {self.runs.sentence()}"
+            text += f"; but {self.runs.sentence()}"
+        return f"{text}; {share}.{domain}"
+
+    def _domain_sentence(self) -> str:
+        if self.domain_rate is None:
+            return ""
+        i = self.domain_alarm_index
+        if i is None:
+            return (
+                " The out-of-domain test raised no alarm (a new group's expected share of queries outside "
+                "the "
+                f"domain of validity at most {self.domain_rate:g})."
             )
-        else:
-            text += ")"
-        return f"{text}; {share}."
+        return (
+            f" DOMAIN ALARM at {self._where(i)}: the groups' shares of queries outside the domain of "
+            "validity "
+            f"refute an expected share of at most {self.domain_rate:g} (the domain test's false-alarm rate)."
+        )
 
     def to_dict(self) -> dict[str, Any]:
         """Plain data for ``monitor.json`` (``unit``, ``observations`` and ``groups`` added for groups)."""
@@ -284,11 +309,25 @@ class LogMonitoring:
             "calibration_delta": self.calibration_delta,
             "alarm": self.alarm_index is not None,
             "alarm_index": self.alarm_index,
+            "null": self.null,
+            "domain_rate": self.domain_rate,
+            "domain_alarm": self.domain_alarm_index is not None,
+            "domain_alarm_index": self.domain_alarm_index,
             "in_domain_fraction": self.row_in_domain_fraction,
             "violation_runs": None if self.runs is None else self.runs.to_dict(),
             "statement": self.sentence(),
             "monitor": self.result.to_dict(),
         }
+
+
+@dataclass(frozen=True, eq=False)
+class _GroupObservations:
+    """One observation per group, in the order the groups end (an observation exists only then)."""
+
+    statistic: FloatArray
+    mostly_inside: NDArray[np.bool_]
+    outside_share: FloatArray
+    labels: tuple[str, ...]
 
 
 def _per_group(
@@ -297,8 +336,9 @@ def _per_group(
     statistic: str,
     violated: NDArray[np.bool_],
     in_domain: NDArray[np.bool_],
-) -> tuple[FloatArray, NDArray[np.bool_], tuple[str, ...]]:
-    """One observation per group, in the order the groups end (an observation exists only then)."""
+    share_limit: float | None,
+) -> _GroupObservations:
+    """Each group's statistic (any violation, its share outside, or that share above the limit)."""
     codes, distinct = group_codes(data.column(column), f"{data.source}: group column {column!r}")
     G = len(distinct)
     last = np.full(G, -1)
@@ -307,8 +347,32 @@ def _per_group(
     size = np.bincount(codes, minlength=G)
     bad = np.bincount(codes, weights=violated.astype(np.float64), minlength=G)
     inside = np.bincount(codes, weights=in_domain.astype(np.float64), minlength=G)
-    stat = (bad > 0).astype(np.float64) if statistic == "trajectory" else bad / size
-    return stat[order], (2 * inside > size)[order], tuple(str(v) for v in distinct[order])
+    if statistic == "trajectory":
+        stat = (bad > 0).astype(np.float64)
+    elif statistic == "share-of-runs" and share_limit is not None:
+        stat = np.array(
+            [b > allowed_outside(share_limit, int(m)) for b, m in zip(bad, size, strict=True)], float
+        )
+    else:
+        stat = bad / size
+    return _GroupObservations(
+        statistic=stat[order],
+        mostly_inside=(2 * inside > size)[order],
+        outside_share=(1.0 - inside / size)[order],
+        labels=tuple(str(v) for v in distinct[order]),
+    )
+
+
+#: The null hypothesis of the monitor's violation test, by the statistic of one observation.
+_NULLS = {
+    "rows": "each row violating with probability at most {rate:.4g} given the rows before it",
+    "trajectory": "each new group leaving its sets somewhere with probability at most {rate:.4g} given the "
+    "groups before it",
+    "share": "each new group's expected share of rows outside at most {rate:.4g} given the groups before it",
+    "sample": "each new group's expected share of rows outside at most {rate:.4g} given the groups before it",
+    "share-of-runs": "each new group having more than {limit:g} of its rows outside with probability at "
+    "most {rate:.4g} given the groups before it",
+}
 
 
 def monitor_log(
@@ -319,13 +383,18 @@ def monitor_log(
     The tested rate is the calibration's allowed rate (:meth:`Calibration.allowed_violation_rate`,
     or its epsilon when it makes no per-draw claim). A row-level calibration is monitored row by
     row (every row an observation, in the domain or not, since the claim covers every
-    exchangeable query). A flight-level calibration (its claim is about groups) is monitored with
-    one observation per group of its column, taken when the group's last row arrives: whether the
-    group left its sets anywhere (``guarantee="trajectory"``), or the share of its rows outside
-    their sets (``"sample"``, whose expectation is what the claim bounds). ``group_column`` names
+    exchangeable query); its null, stated where it alarms, is that every row violates with at most
+    that probability given the rows before it, which correlated rows can break. A run-level
+    calibration (its claim is about groups) is monitored with one observation per group of its
+    column, taken when the group's last row arrives: whether the group left its sets anywhere
+    (``guarantee="trajectory"``), the share of its rows outside their sets (``"expected-share"``,
+    whose expectation is what the claim bounds), or whether that share exceeds the claim's
+    (``"share-of-runs"``); the null is then the claim itself, and bursts of violations within a
+    run raise no alarm. With a domain test fitted by groups, a second e-process tests the groups'
+    shares of queries outside the domain against its false-alarm rate. ``group_column`` names
     that column (it must be the calibration's), or, for a row-level calibration, monitors one
     observation per group of it (the share of its rows outside), which stays valid when the rows
-    of a group are correlated but the groups are independent.
+    of a group are correlated but the groups are independent. Proofs: ``proofs/monitor.md``.
 
     Parameters
     ----------
@@ -355,7 +424,8 @@ def monitor_log(
             f"{claim.column} (or leave --group-column out), not {group_column!r}"
         )
     column = claim.column if claim is not None else group_column
-    statistic = claim.unit if claim is not None else "sample"
+    statistic = claim.unit if claim is not None else "share"
+    limit = None if claim is None else claim.share_limit
     if column is not None:
         data.column(column)  # a missing column is refused before any work, naming the available ones
     pred = predict_sets(model, PerceptionInputs(data.x, data.yhat, data.source))
@@ -363,8 +433,8 @@ def monitor_log(
     g = np.linalg.norm(np.einsum("bij,bj->bi", pred.shapes, d), axis=1)
     violated = np.asarray(~(g <= 1.0), dtype=np.bool_)
     row_share = float(pred.in_domain.mean())
-    monitor = ViolationMonitor(epsilon, delta, in_domain_only=False)
     if column is None:
+        monitor = ViolationMonitor(epsilon, delta, in_domain_only=False)
         return LogMonitoring(
             result=monitor.run(violated, pred.in_domain),
             violated=violated,
@@ -375,18 +445,28 @@ def monitor_log(
             n_rows=len(violated),
             row_in_domain_fraction=row_share,
             runs=ViolationRuns.of(violated),
+            null=_NULLS["rows"].format(rate=epsilon),
         )
-    obs, inside, labels = _per_group(data, column, statistic, violated, pred.in_domain)
-    what = "any violation" if statistic == "trajectory" else "share of rows outside"
+    obs = _per_group(data, column, statistic, violated, pred.in_domain, limit)
+    # a domain test fitted by groups bounds a new group's expected share of queries outside: test it per group
+    dom = model.domain
+    domain_rate = dom.alpha if dom is not None and dom.n_groups is not None else None
+    monitor = ViolationMonitor(epsilon, delta, in_domain_only=False, domain_rate=domain_rate)
+    what = {
+        "trajectory": "any violation",
+        "share-of-runs": f"more than {limit:g} of its rows outside" if limit is not None else "",
+    }.get(statistic, "share of rows outside")
     return LogMonitoring(
-        result=monitor.run(obs, inside),
-        violated=obs,
-        in_domain=inside,
+        result=monitor.run(obs.statistic, obs.mostly_inside, obs.outside_share),
+        violated=obs.statistic,
+        in_domain=obs.mostly_inside,
         epsilon=epsilon,
         delta=delta,
         calibration_delta=cal.delta,
         unit=f"groups of {column} ({what})",
-        labels=labels,
+        labels=obs.labels,
         n_rows=len(violated),
         row_in_domain_fraction=row_share,
+        null=_NULLS[statistic].format(rate=epsilon, limit=limit or 0.0),
+        domain_rate=domain_rate,
     )

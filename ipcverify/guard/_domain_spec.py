@@ -7,11 +7,14 @@ calibration inputs; ``calibrate(..., domain=None)`` fits none.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
+from ipcverify.calibration._bounds import min_calibration_size, smallest_marginal_epsilon
 from ipcverify.calibration._threshold import check_seed
 from ipcverify.data._dataset import PerceptionDataset
-from ipcverify.errors import InvalidInputError
+from ipcverify.data._split import group_codes
+from ipcverify.errors import Hint, InvalidInputError
 from ipcverify.guard._domain import DEFAULT_ALPHA, DEFAULT_K, DomainModel
 
 
@@ -21,9 +24,12 @@ class DomainSpec:
 
     Parameters
     ----------
-    alpha : float
+    alpha : float, optional
         False-alarm rate: an input exchangeable with the calibration inputs is flagged with
-        probability at most ``alpha`` (``proofs/domain.md``).
+        probability at most ``alpha`` (``proofs/domain.md``). Default (None):
+        :data:`~ipcverify.guard.DEFAULT_ALPHA`, or, for a test fitted by groups too few for it,
+        the smallest rate they allow (``1 / (G + 1)`` rounded up), with a
+        :class:`~ipcverify.errors.Hint` that says so.
     group_column : str, optional
         Fit the test with the groups of this column (flights, runs) as the exchangeable units
         (leave-one-group-out distances, risk-control threshold: a new group's expected share of
@@ -41,20 +47,23 @@ class DomainSpec:
     >>> from ipcverify.data._synthetic import make_lagged_perception
     >>> DomainSpec(alpha=0.05).fit(make_lagged_perception(500, seed=1)).alpha
     0.05
+    >>> DomainSpec().fit(make_lagged_perception(500, seed=1)).alpha
+    0.01
     >>> DomainSpec(alpha=2.0)
     Traceback (most recent call last):
     ...
     ipcverify.errors.InvalidInputError: domain test: alpha must lie strictly between 0 and 1; got 2.0
     """
 
-    alpha: float = DEFAULT_ALPHA
+    alpha: float | None = None
     group_column: str | None = None
     k: int = DEFAULT_K
     seed: int = 0
 
     def __post_init__(self) -> None:
-        if isinstance(self.alpha, bool) or not (
-            isinstance(self.alpha, (int, float)) and 0.0 < self.alpha < 1.0
+        if self.alpha is not None and (
+            isinstance(self.alpha, bool)
+            or not (isinstance(self.alpha, (int, float)) and 0.0 < self.alpha < 1.0)
         ):
             raise InvalidInputError(
                 f"domain test: alpha must lie strictly between 0 and 1; got {self.alpha!r}"
@@ -89,11 +98,24 @@ class DomainSpec:
             If ``data`` has no such group column.
         """
         column = self.units(unit_column)
-        return DomainModel.fit(
-            data.x,
-            data.yhat,
-            alpha=self.alpha,
-            k=self.k,
-            seed=int(self.seed),
-            groups=None if column is None else data.column(column),
-        )
+        groups = None if column is None else data.column(column)
+        alpha = self.alpha
+        if alpha is None:
+            alpha = DEFAULT_ALPHA
+            if groups is not None:
+                _, labels = group_codes(groups, f"{data.source}: group column {column!r}")
+                G, need = len(labels), min_calibration_size(DEFAULT_ALPHA, 0.5, "marginal")
+                if G < need:
+                    alpha = smallest_marginal_epsilon(G)
+                    warnings.warn(Hint(_too_few_groups(data.source, G, column, need, alpha)), stacklevel=3)
+        return DomainModel.fit(data.x, data.yhat, alpha=alpha, k=self.k, seed=int(self.seed), groups=groups)
+
+
+def _too_few_groups(source: str, G: int, column: str | None, need: int, alpha: float) -> str:
+    """The hint of a domain test that takes the smallest rate its groups allow."""
+    return (
+        f"{source}: the domain of validity is fitted with the {G} groups of {column!r} as its units, too few "
+        f"for its default false-alarm rate {DEFAULT_ALPHA:g} ({need} are needed), so it uses {alpha:g}, the "
+        "smallest they allow: a new group's expected share of queries flagged outside the domain is at most "
+        "that"
+    )

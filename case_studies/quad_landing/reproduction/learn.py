@@ -216,7 +216,7 @@ def flight_level_check(
     )
     try:
         by_flight = calibrate(model, calibration_data, epsilon, row.delta,
-                              Grouped(column="flight", guarantee="sample", mode="marginal"),
+                              Grouped(column="flight", guarantee="expected-share", mode="marginal"),
                               domain=None, recalibrate=True)  # fmt: skip
     except SampleSizeError:
         return check

@@ -14,6 +14,7 @@ import pytest
 import torch
 
 from ipcverify import calibrate
+from ipcverify.calibration import Global
 from ipcverify.certification._certify import certify
 from ipcverify.certification._summarize import summarize
 from ipcverify.contract import IPCModel
@@ -53,9 +54,9 @@ def _calibrated(net: IPCModel, cal: PerceptionDataset, group_column: str | None)
 
     domain = DomainSpec(alpha=ALPHA, group_column=group_column)
     if group_column is not None:
-        return calibrate(net, cal, 0.2, 0.05, domain=domain)
-    with pytest.warns(Hint, match="--domain-group-column"):  # the correlated-rows hint names the remedy
-        return calibrate(net, cal, 0.2, 0.05, domain=domain)
+        return calibrate(net, cal, 0.2, 0.05, Global(), domain=domain)
+    with pytest.warns(Hint, match="--domain-group-column"):  # the row-level claim's hint names the remedy
+        return calibrate(net, cal, 0.2, 0.05, Global(), domain=domain)
 
 
 def test_a_row_level_test_on_correlated_rows_is_named_beside_the_shift(net, data):
@@ -99,7 +100,7 @@ def test_a_run_column_of_the_test_data_alone_names_no_row_level_test(net, data):
     # calibration data without a run column (nothing recorded in the model file), test data with one
     cal = data["cal"]
     plain = PerceptionDataset(cal.x, cal.y, cal.yhat, source="no runs")
-    model = calibrate(net, plain, 0.2, 0.05, domain=DomainSpec(alpha=ALPHA))
+    model = calibrate(net, plain, 0.2, 0.05, Global(), domain=DomainSpec(alpha=ALPHA))
     d = certify(model, data["test"]).certificate.domain
     assert d is not None and d.well_above_alpha and d.row_level_column is None
     assert "--domain-group-column" not in d.sentence()

@@ -290,7 +290,7 @@ calibrate-one-row            | 2 | distinct row                     | calibrate 
 calibrate-identical-rows     | 2 | 1 distinct row among 2855        | calibrate {model} {identical} {cal_ok}
 calibrate-too-few            | 2 | 2 requirements are not met       | calibrate {model} {test} {cal_ok} --epsilon 0.001 --domain-alpha 0.001
 calibrate-unknown-group      | 2 | no column 'nope'                 | calibrate {model} {cal} {cal_ok} --group-column nope
-calibrate-few-flights        | 2 | (2) the group-aware domain test  | calibrate {model} {cal_flights} {cal_ok} --group-column flight
+calibrate-few-flights        | 2 | groups of column 'flight' are too few | calibrate {model} {cal_flights} {cal_ok} --group-column flight
 calibrate-mondrian-on-truth  | 2 | ground truth                     | calibrate {model} {cal} {cal_ok} --mondrian-column y_0
 calibrate-bins-alone         | 2 | --mondrian-column                | calibrate {model} {cal} {cal_ok} --bins 3
 calibrate-domain-alpha-0     | 2 | alpha                            | calibrate {model} {cal} {cal_ok} --domain-alpha 0

@@ -112,31 +112,36 @@ def test_calibrate_warns_when_the_inputs_lie_outside_the_training_inputs(setup, 
     )
 
 
-def test_a_run_column_calibrated_or_certified_row_by_row_gets_a_hint(setup, run_cli, tmp_path):
+def test_a_run_column_is_calibrated_by_runs_unless_rows_are_chosen_and_certified_by_runs(
+    setup, run_cli, tmp_path
+):
     args = ["--epsilon", "0.05", "--delta", "0.01", "--out", tmp_path / "c.pt"]
+    # the data name 30 runs: the claim is about runs, and 30 runs cannot certify 5 %; the refusal says why
     res = run_cli("calibrate", setup["model"], setup["cal_runs"], *args)
-    assert res.code == 0
-    hints = [line for line in res.stderr.splitlines() if line.startswith("hint:")]
-    assert len(hints) == 1 and "'run' column (30 groups)" in hints[0] and "--group-column run" in hints[0]
+    assert res.code == 2 and len(res.stderr.strip().splitlines()) == 1, res.stderr
+    assert "30 groups of column 'run' are too few" in res.stderr and "--unit row" in res.stderr
+    assert "hint:" not in res.stderr  # no hint before the error it belongs to
+    rows = run_cli("calibrate", setup["model"], setup["cal_runs"], *args, "--unit", "row")
+    assert rows.code == 0, rows.stderr
+    hints = [line for line in rows.stderr.splitlines() if line.startswith("hint:")]
+    assert len(hints) == 1 and "a row-level claim on data with runs of 'run' (chosen explicitly)" in hints[0]
+    assert "3,000 rows in 30 runs of 'run' are worth about" in hints[0] and "--unit run" in hints[0]
+    assert "Within-run dependence: 3,000 rows in 30 runs" in rows.stdout
     grouped = run_cli(
         "calibrate", setup["model"], setup["cal_runs"], *args, "--group-column", "run", "--epsilon", "0.3",
         "--delta", "0.2", "--domain-alpha", "0.2",
     )  # fmt: skip
     assert grouped.code == 0, grouped.stderr
-    assert "hint:" not in grouped.stderr
+    assert "hint:" not in grouped.stderr and "From 30 independent runs at delta=0.2" in grouped.stdout
+    # the test data's flights are counted per flight, with or without --group-column
     cert = run_cli("certify", setup["calibrated"], "--data", setup["flights"], "--out", tmp_path / "cert")
-    assert cert.code == 0 and "hint: " in cert.stderr and "--group-column flight" in cert.stderr
     counted = run_cli(
-        "certify",
-        setup["calibrated"],
-        "--data",
-        setup["flights"],
-        "--group-column",
-        "flight",
-        "--out",
-        tmp_path / "c2",
-    )
-    assert counted.code == 0 and "hint:" not in counted.stderr
+        "certify", setup["calibrated"], "--data", setup["flights"], "--group-column", "flight",
+        "--out", tmp_path / "c2",
+    )  # fmt: skip
+    assert cert.code == counted.code == 0 and "hint:" not in cert.stderr + counted.stderr
+    first, second = (json.loads((tmp_path / d / "certificate.json").read_text()) for d in ("cert", "c2"))
+    assert first["group_test"]["column"] == "flight" and first["group_test"] == second["group_test"]
 
 
 def test_monitor_takes_a_flight_level_model_one_observation_per_flight(setup, run_cli, tmp_path):

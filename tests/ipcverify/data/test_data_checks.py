@@ -7,7 +7,7 @@ import warnings
 import numpy as np
 import pytest
 
-from ipcverify.calibration import Grouped
+from ipcverify.calibration import Global, Grouped
 from ipcverify.contract._calibrate import calibrate
 from ipcverify.contract._model import IPCModel, IPCNetwork
 from ipcverify.data._checks import (
@@ -106,14 +106,15 @@ def test_calibrate_warns_far_from_training_and_hints_at_runs(recwarn):
     far = PerceptionDataset(
         cal.x - np.r_[50.0, 0, 0, 0, 0, 0], cal.y, cal.yhat, source="cal.csv", extra={"run": runs}
     )
-    calibrate(model, far, 0.05, 0.01)
+    calibrate(model, far, 0.05, 0.01, Global())  # a row-level claim on runs, chosen explicitly
     messages = [(w.category, str(w.message)) for w in recwarn]
     assert any("lie outside the ranges of the training inputs" in m for c, m in messages if c is DataWarning)
     hint = [m for c, m in messages if c is Hint]
-    assert len(hint) == 1 and "'run' column (15 groups)" in hint[0] and "--group-column run" in hint[0]
+    assert len(hint) == 1 and "a row-level claim on data with runs of 'run'" in hint[0]
+    assert "1,500 rows in 15 runs of 'run'" in hint[0] and "CLI: --unit run" in hint[0]
     recwarn.clear()
     calibrate(model, far, 0.3, 0.2, Grouped(column="run"), domain=DomainSpec(alpha=0.1))
-    assert not [w for w in recwarn if w.category is Hint]  # grouped: no hint
+    assert not [w for w in recwarn if w.category is Hint]  # grouped by choice: no hint
 
 
 def test_group_like_counts_need_a_fitting_name_and_more_than_one_group():

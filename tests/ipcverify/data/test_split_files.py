@@ -56,6 +56,7 @@ def test_the_record_names_the_source_and_every_part_by_sha256(tmp_path):
 
 def test_the_record_matches_what_train_calibrate_and_certify_record_of_their_data(tmp_path):
     from ipcverify import calibrate, certify, train
+    from ipcverify.calibration import Global
     from ipcverify.network import ModelConfig
     from ipcverify.training import TrainConfig
 
@@ -63,7 +64,7 @@ def test_the_record_matches_what_train_calibrate_and_certify_record_of_their_dat
     train_part, cal_part, test_part = (load_dataset(p.path) for p in s.parts)
     config = ModelConfig(x_dim=5, y_dim=3, hidden=(8,), param="cholesky")
     model = train(train_part, config, TrainConfig(epochs=1, seed=0)).model
-    model = calibrate(model, cal_part, epsilon=0.2, delta=0.05)
+    model = calibrate(model, cal_part, epsilon=0.2, delta=0.05, method=Global())
     cert = certify(model, test_part).certificate
     hashes = [p.content_sha256 for p in s.parts]
     assert hashes == [

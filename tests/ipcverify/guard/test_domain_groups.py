@@ -18,7 +18,7 @@ import pytest
 from scipy.spatial import cKDTree
 
 from benchmarks.bench_domain_groups import correlated_flights, figure, run
-from ipcverify.calibration import Grouped
+from ipcverify.calibration import Global, Grouped
 from ipcverify.contract._calibrate import calibrate
 from ipcverify.contract._model import IPCModel, IPCNetwork
 from ipcverify.data._dataset import PerceptionDataset
@@ -114,8 +114,10 @@ def test_calibrate_fits_the_domain_by_flight_and_the_model_file_keeps_it(tmp_pat
     z, labels = correlated_flights(rng, 120)
     data = _dataset(z, labels, rng)
     net = IPCModel(IPCNetwork(ModelConfig.recipe("v1", x_dim=3, y_dim=2, hidden=(8,))))
-    rows = calibrate(net, data, 0.05, 0.01)
-    flights = calibrate(net, data, 0.05, 0.01, domain=DomainSpec(alpha=ALPHA, group_column="flight"))
+    rows = calibrate(net, data, 0.05, 0.01, Global())  # row-level claims, chosen explicitly
+    flights = calibrate(
+        net, data, 0.05, 0.01, Global(), domain=DomainSpec(alpha=ALPHA, group_column="flight")
+    )
     grouped = calibrate(
         net, data, 0.05, 0.01, Grouped(column="flight", mode="marginal"), domain=DomainSpec(alpha=ALPHA)
     )
@@ -140,7 +142,7 @@ def test_cli_calibrate_domain_group_column(tmp_path, run_cli):
     net = IPCNetwork(ModelConfig.recipe("v1", x_dim=3, y_dim=2, hidden=(8,)))
     save_model(IPCModel(net), tmp_path / "m.pt")
     args = ["calibrate", tmp_path / "m.pt", tmp_path / "cal.csv", "--epsilon", "0.05", "--delta", "0.01",
-            "--domain-alpha", "0.05", "--out", tmp_path / "cal.pt"]  # fmt: skip
+            "--domain-alpha", "0.05", "--unit", "row", "--out", tmp_path / "cal.pt"]  # fmt: skip
     res = run_cli(*args, "--domain-group-column", "flight")
     assert res.code == 0, res.stderr
     dom = load_model(tmp_path / "cal.pt").domain
