@@ -316,3 +316,63 @@ def main(argv: Sequence[str] | None = None) -> None:
 
 if __name__ == "__main__":
     main()
+
+
+_CLAIMS = ("row PAC", "expected share", "share of runs", "trajectory")
+
+
+def markdown_table(results: dict[str, Any]) -> str:
+    """The page's table of false claims, per case, claim and setting (docs/runs.md pastes it)."""
+    settings = list(results["settings"])
+    lines = [
+        "| runs x rows | claim (target) | " + " | ".join(settings) + " |",
+        "|---|---|" + "---|" * len(settings),
+    ]
+    for case in results["cases"]:
+        key = f"{case['runs']} runs"
+        for claim in _CLAIMS:
+            first = results["settings"][settings[0]]["cases"][key][claim]
+            cells = []
+            for name in settings:
+                rec = results["settings"][name]["cases"][key][claim]
+                lo, hi = rec["false_interval_99"]
+                share = f"{rec['false']}/{rec['calibrations']} ({100 * lo:.1f}–{100 * hi:.1f} %)"
+                cells.append(f"**{share}**" if rec["valid"] is False else share)
+            label = f"{claim} ({first['target']:g})"
+            lines.append(f"| {case['runs']} x {case['rows']} | {label} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def scale_table(results: dict[str, Any]) -> str:
+    """Median calibrated scale over the oracle scale, per case, run-level claim and setting."""
+    settings = list(results["settings"])
+    lines = ["| runs x rows | claim | " + " | ".join(settings) + " |", "|---|---|" + "---|" * len(settings)]
+    for case in results["cases"]:
+        key = f"{case['runs']} runs"
+        for claim in _CLAIMS[1:]:
+            cells = [
+                f"{results['settings'][n]['cases'][key][claim]['scale_over_oracle_median']:.3f}"
+                for n in settings
+            ]
+            lines.append(f"| {case['runs']} x {case['rows']} | {claim} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def monitor_table(results: dict[str, Any]) -> str:
+    """False alarms of the run and row monitors on in-distribution replays, and the detection delay."""
+    lines = [
+        "| setting | run monitor: false alarms | row monitor: false alarms | errors x1.5: detected within "
+        "40 runs (median delay) |",
+        "|---|---|---|---|",
+    ]
+    for name, entry in results["settings"].items():
+        m = entry["monitor"]
+        cells = []
+        for unit in ("runs", "rows"):
+            f = m["false_alarms"][unit]
+            lo, hi = f["interval_99"]
+            cells.append(f"{f['alarms']}/{m['replays']} ({100 * lo:.1f}–{100 * hi:.1f} %)")
+        delay = "–" if m["median_delay_runs"] is None else f"{m['median_delay_runs']:.0f} runs"
+        cells.append(f"{100 * m['detected_within_40_runs']:.0f} % ({delay})")
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)

@@ -111,6 +111,11 @@ if TYPE_CHECKING:
     from ipcverify.calibration._risk_control import (
         risk_control_threshold,
     )
+    from ipcverify.calibration._run_plan import (
+        ClaimPlan,
+        RunPlan,
+        plan_runs,
+    )
     from ipcverify.calibration._share_bound import (
         run_floor,
         share_lower_bound,
@@ -141,6 +146,7 @@ __all__ = [
     "CalibrationSample",
     "CalibrationSpec",
     "CalibrationSummary",
+    "ClaimPlan",
     "Global",
     "GlobalCalibration",
     "GroupClaim",
@@ -153,6 +159,7 @@ __all__ = [
     "GuaranteeKind",
     "Mondrian",
     "MondrianCalibration",
+    "RunPlan",
     "ScoreThreshold",
     "TestCounts",
     "calibration_from_dict",
@@ -165,6 +172,7 @@ __all__ = [
     "pac_calibration_index",
     "pac_epsilon",
     "pac_rows_allowing",
+    "plan_runs",
     "register_kind",
     "risk_control_threshold",
     "run_floor",

@@ -8,15 +8,57 @@ range), or it is refused with a message that says to recalibrate.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import Protocol
 
-from ipcverify.calibration._bounds import min_calibration_size
+from ipcverify.calibration._bounds import CalibrationMode, min_calibration_size
+from ipcverify.calibration._group_counts import GuaranteeKind
 from ipcverify.calibration._group_fit import METHOD_OF, runs_needed
-from ipcverify.calibration._threshold import check_eps_delta
+from ipcverify.calibration._threshold import ScoreThreshold, check_eps_delta
 from ipcverify.errors import InvalidInputError
 
-if TYPE_CHECKING:
-    from ipcverify.calibration._grouped import GroupedCalibration
+
+class GroupedCalibration(Protocol):
+    """The fields of a grouped calibration record that the checks read."""
+
+    @property
+    def guarantee_kind(self) -> GuaranteeKind: ...  # noqa: D102
+    @property
+    def mode(self) -> CalibrationMode: ...  # noqa: D102
+    @property
+    def method(self) -> str: ...  # noqa: D102
+    @property
+    def epsilon(self) -> float: ...  # noqa: D102
+    @property
+    def delta(self) -> float: ...  # noqa: D102
+    @property
+    def gamma(self) -> float | None: ...  # noqa: D102
+    @property
+    def n_groups(self) -> int: ...  # noqa: D102
+    @property
+    def k_groups(self) -> int | None: ...  # noqa: D102
+    @property
+    def n_rows(self) -> int: ...  # noqa: D102
+    @property
+    def n_used(self) -> int: ...  # noqa: D102
+    @property
+    def n_inside(self) -> int: ...  # noqa: D102
+    @property
+    def size_min(self) -> int: ...  # noqa: D102
+    @property
+    def size_median(self) -> float: ...  # noqa: D102
+    @property
+    def size_max(self) -> int: ...  # noqa: D102
+    @property
+    def risk(self) -> float | None: ...  # noqa: D102
+    @property
+    def bound(self) -> float | None: ...  # noqa: D102
+    @property
+    def scale(self) -> float: ...  # noqa: D102
+    @property
+    def order_statistic(self) -> float: ...  # noqa: D102
+    @property
+    def group_threshold(self) -> ScoreThreshold | None: ...  # noqa: D102
+
 
 #: Relative slack when a stored record is re-checked (its mean share and bound are rounded floats).
 RISK_RTOL = 1e-9

@@ -352,14 +352,14 @@ def certify_cmd(
         )
     g = cert.group_test
     if g is not None:
-        rows = [("per group: share of rows outside", g.share), ("per group: any violation", g.trajectory)]
+        rows = [("share of rows outside", g.share), ("any violation", g.trajectory)]
         if g.compared_unit == "sample":
-            rows.insert(1, ("per group: one random row", g.sample))
+            rows.insert(1, ("one random row", g.sample))
         if g.share_of_runs is not None:
-            rows.insert(1, ("per group: above the claim's share", g.share_of_runs))
+            rows.insert(1, ("above the claim's share", g.share_of_runs))
         for label, r in rows:
             if r is not None:
-                table.add_row(f"{label} ({g.column})", f"{r.counted()}; upper bound {r.bound_text('.4%')}")
+                table.add_row(f"per {g.column}: {label}", f"{r.counted()}; upper bound {r.bound_text('.4%')}")
     if cert.runs:
         plan = cert.runs["plan"]
         share = next(c for c in plan["claims"] if c["guarantee"] == "expected-share")

@@ -264,7 +264,7 @@ def test_cli_group_column_and_its_errors(net, flights, run_cli, tmp_path):
                   "--out", tmp_path / "c")  # fmt: skip
     assert res.code in (0, 1), res.stderr
     d = json.loads((tmp_path / "c" / "certificate.json").read_text())
-    assert d["group_test"]["n_groups"] == 120 and "per group: share of rows outside (flight)" in res.stdout
+    assert d["group_test"]["n_groups"] == 120 and "per flight: share of rows outside" in res.stdout
     assert res.code == (1 if d["status"] == "CONTRADICTED" else 0)
     save_dataset(flights["test"].subset(flights["test"].extra["flight"] < 1, "one"), tmp_path / "one.csv")
     for args, message in (
