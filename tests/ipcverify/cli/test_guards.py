@@ -120,7 +120,7 @@ def test_a_run_column_calibrated_or_certified_row_by_row_gets_a_hint(setup, run_
     assert len(hints) == 1 and "'run' column (30 groups)" in hints[0] and "--group-column run" in hints[0]
     grouped = run_cli(
         "calibrate", setup["model"], setup["cal_runs"], *args, "--group-column", "run", "--epsilon", "0.3",
-        "--delta", "0.2", "--domain-alpha", "0.2",
+        "--delta", "0.2", "--domain-alpha", "0.2", "--force",
     )  # fmt: skip
     assert grouped.code == 0, grouped.stderr
     assert "hint:" not in grouped.stderr
