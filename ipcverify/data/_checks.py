@@ -356,8 +356,8 @@ def warn_out_of_time_order(data: PerceptionDataset, what: str) -> None:
     )
     warnings.warn(
         Hint(
-            f"{data.source}: column {col!r} goes back in time at row {r} (0-based){where} ({t[r - 1]:g} then "
-            f"{t[r]:g}); {what} the rows in file order, so sort the log by time{new_run}"
+            f"{data.source}: column {col!r} goes back in time at row {r} (0-based){where}, from {t[r - 1]:g} "
+            f"to {t[r]:g}; {what} the rows in file order, so sort the log by time{new_run}"
         ),
         stacklevel=3,
     )
