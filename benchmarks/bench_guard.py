@@ -224,7 +224,7 @@ def cli_predict(model: IPCModel, queries: PerceptionInputs, n: int) -> dict[str,
         env = {k: v for k, v in os.environ.items() if not k.endswith("_NUM_THREADS")}
         env["PYTHONPATH"] = str(ROOT)
         cmd = [sys.executable, "-m", "ipcverify", "predict", str(folder / "model.pt"),
-               str(folder / "queries.parquet"), "--out", str(folder / "sets.npz")]  # fmt: skip
+               str(folder / "queries.parquet"), "--out", str(folder / "sets.npz"), "--force"]  # fmt: skip
         subprocess.run([sys.executable, "-c", "import ipcverify.cli"], env=env, check=True)  # warm file cache
         runs: dict[str, Any] = {}
         one = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}

@@ -75,7 +75,7 @@ def _commands(model: Path, queries: Path, out: Path) -> dict[str, list[str]]:
         "version": [py, "-c", _CLI, "--version"],
         "help": [py, "-c", _CLI, "--help"],
         "predict_help": [py, "-c", _CLI, "predict", "--help"],
-        "predict": [py, "-c", _CLI, "predict", str(model), str(queries), "--out", str(out)],
+        "predict": [py, "-c", _CLI, "predict", str(model), str(queries), "--out", str(out), "--force"],
         "import_torch": [py, "-c", "import torch"],
     }
 

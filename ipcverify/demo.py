@@ -34,6 +34,8 @@ DEMO_DELTA = 0.001
 DEMO_MIN_TRAIN = 100
 #: Most samples of one kind the demo generates (its data are made and trained on in memory).
 DEMO_MAX_SAMPLES = 10_000_000
+#: The files the demo writes into its folder.
+DEMO_FILES = ("train.csv", "calibration.csv", "test.csv", "model.pt", "calibrated.pt", "sets.png")
 
 
 @dataclass(frozen=True)

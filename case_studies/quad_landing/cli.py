@@ -21,6 +21,7 @@ from case_studies.quad_landing.settings import DEFAULTS_PATH, REPRODUCE_PATH, re
 from case_studies.quad_landing.sim.camera import MAX_BUFFER_SIZE
 from case_studies.quad_landing.sim.config import SimConfig, load_config
 from ipcverify.cli.app import run_group
+from ipcverify.cli.outputs import check_outputs, force_option
 from ipcverify.data import json_data
 from ipcverify.errors import InvalidInputError
 
@@ -94,8 +95,9 @@ def quad() -> None:
     help="Worker processes (the data do not depend on it).",
 )
 @click.option("--quiet", is_flag=True, help="No progress bar.")
+@force_option
 def collect_command(buffer_size: int | None, n: int | None, seed: int, out: str,
-                    config_path: str | None, jobs: int, quiet: bool) -> None:  # fmt: skip
+                    config_path: str | None, jobs: int, quiet: bool, force: bool) -> None:  # fmt: skip
     """Fly the exploration paths and write a dataset of camera measurements."""
     from case_studies.quad_landing.data.collect import collect, write_dataset
 
@@ -104,6 +106,7 @@ def collect_command(buffer_size: int | None, n: int | None, seed: int, out: str,
         raise InvalidInputError(f"--out must end in .parquet or .csv, got {out_path.name!r}")
     if not out_path.parent.exists():
         raise InvalidInputError(f"--out directory {out_path.parent} does not exist; create it")
+    check_outputs([out_path, out_path.with_name(out_path.stem + ".stats.json")], force=force)
     cfg = _config(config_path)
     with Progress(
         TextColumn("collecting"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),

@@ -242,7 +242,7 @@ def coverage_by_bin(
     missing = pd.isna(raw)
     if missing.any():
         r = int(np.flatnonzero(missing)[0])
-        raise DataError(f"bin column {column!r}: row {r} has no value; every sample needs one")
+        raise DataError(f"bin column {column!r}: row {r} (0-based) has no value; every sample needs one")
     try:
         v = raw.astype(np.float64)
     except (TypeError, ValueError):  # text: flight or run names
@@ -256,7 +256,9 @@ def coverage_by_bin(
         return BinCoverage(column, (), tuple(int(c) for c in counts), tuple(int(c) for c in viol), names)
     if not np.isfinite(v).all():
         r = int(np.flatnonzero(~np.isfinite(v))[0])
-        raise DataError(f"bin column {column!r}: row {r} is {v[r]:g}; bin by a column of finite values")
+        raise DataError(
+            f"bin column {column!r}: row {r} (0-based) is {v[r]:g}; bin by a column of finite values"
+        )
     uniq = np.unique(v)
     if len(uniq) <= bins:
         edges = np.concatenate([uniq, [uniq[-1]]])

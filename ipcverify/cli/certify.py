@@ -21,8 +21,10 @@ from ipcverify.cli.app import (
     choice_option,
     console,
     err_console,
+    given,
     out_dir_option,
 )
+from ipcverify.cli.outputs import check_model_output, check_outputs, force_option
 from ipcverify.errors import InvalidInputError
 from ipcverify.network._lipschitz_ball import DEFAULT_RADIUS
 
@@ -33,6 +35,8 @@ if TYPE_CHECKING:
 
 __all__: list[str] = []
 
+#: The files ``certify`` writes into its folder (by ``ipcverify.certification.write_certificate``).
+CERTIFY_FILES = ("certificate.json", "report.html")
 #: ``ipcverify.guard.DEFAULT_ALPHA``, written out so that ``--help`` need not import the domain
 #: test (SciPy, Numba); ``tests/ipcverify/cli/test_startup.py`` checks that the two agree.
 _DOMAIN_ALPHA = 0.01
@@ -179,7 +183,8 @@ def calibration_method(
     help="Seed for the bin-edge samples (--bins), the one random row per group (--group-column) "
     "and the domain test's reference subsample of large data.",
 )
-@click.option("--out", type=OUTPUT_FILE, required=True, help="Calibrated model.")
+@click.option("--out", type=OUTPUT_FILE, required=True, help="Calibrated model (.pt).")
+@force_option
 def calibrate_cmd(
     model: Path,
     data: Path,
@@ -197,6 +202,7 @@ def calibrate_cmd(
     recalibrate: bool,
     seed: int,
     out: Path,
+    force: bool,
 ) -> None:
     """Calibrate MODEL on DATA and write the calibrated model to --out.
 
@@ -206,11 +212,10 @@ def calibrate_cmd(
     """
     from ipcverify.contract._calibrate import calibrate
     from ipcverify.data._checks import group_like_counts
-    from ipcverify.data._files import refuse_overwriting_input
     from ipcverify.guard._domain_spec import DomainSpec
     from ipcverify.io._modelio import load_data_for_model, load_model, save_model
 
-    refuse_overwriting_input(out, {"MODEL": model, "DATA": data})
+    outputs = check_model_output(out, force=force, inputs={"MODEL": model, "DATA": data})
     domain = DomainSpec(alpha=domain_alpha, group_column=domain_group_column, seed=seed)
     m = load_model(model)
     ds = load_data_for_model(data, m)
@@ -239,6 +244,7 @@ def calibrate_cmd(
     if cal_model.domain is not None:
         console.print(cal_model.domain.describe().sentence(), soft_wrap=True, markup=False)
     console.print(f"calibrated model -> {out}", markup=False)
+    outputs.announce()
 
 
 @app.command("certify")
@@ -252,9 +258,16 @@ def calibrate_cmd(
 )
 @click.option("--train-data", type=EXISTING_FILE, default=None, help="The training data (for Theorem 1).")
 @out_dir_option("certificate", help="Directory for certificate.json and report.html.")
+@force_option
 @click.option("--delta", type=float, default=None, help="Confidence (default: the calibration's; 0.001).")
-@click.option("--bin-column", default=None, help="Column for conditional coverage (default: first x column).")
-@click.option("--bins", default=10, show_default=True, type=int)
+@click.option(
+    "--bin-column",
+    default=None,
+    help="With --data: column for conditional coverage (default: first x column).",
+)
+@click.option(
+    "--bins", default=10, show_default=True, type=int, help="With --data: quantile bins per column."
+)
 @click.option(
     "--group-column",
     default=None,
@@ -285,6 +298,7 @@ def certify_cmd(
     test: Path | None,
     train_data: Path | None,
     out: Path,
+    force: bool,
     delta: float | None,
     bin_column: str | None,
     bins: int,
@@ -301,6 +315,17 @@ def certify_cmd(
     """
     from ipcverify.certification._certificate import CertificateStatus
     from ipcverify.certification._certify import certify_files
+
+    unused = [o for o, name in (("--bin-column", "bin_column"), ("--bins", "bins")) if given(name)]
+    if test is None and unused:
+        many = len(unused) > 1
+        raise InvalidInputError(
+            f"{' and '.join(unused)} {'are' if many else 'is'} for binning the test data's coverage; without "
+            f"--data TEST there is no test data -- give --data, or leave {'them' if many else 'it'} out"
+        )
+    files = [out / name for name in CERTIFY_FILES]
+    inputs = {"MODEL": model, "--data": test, "--train-data": train_data}
+    outputs = check_outputs(files, force=force, folder=out, inputs=inputs)
 
     style_of = {
         CertificateStatus.CERTIFIED: "bold green",
@@ -409,6 +434,7 @@ def certify_cmd(
         err_console.print(
             f"[bold yellow]warning:[/] {cert.domain.sentence()}", soft_wrap=True, highlight=False
         )
-    console.print(f"wrote {out / 'certificate.json'} and {out / 'report.html'}", markup=False)
+    console.print(f"wrote {files[0]} and {files[1]}", markup=False)
+    outputs.announce()
     if cert.status is CertificateStatus.CONTRADICTED:
         sys.exit(1)

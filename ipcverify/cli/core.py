@@ -24,8 +24,10 @@ from ipcverify.cli.app import (
     choice_option,
     console,
     err_console,
+    given,
     out_dir_option,
 )
+from ipcverify.cli.outputs import check_model_output, check_outputs, force_option
 from ipcverify.errors import InvalidInputError
 from ipcverify.network._architecture import DEFAULT_RECIPE, RECIPES
 
@@ -116,7 +118,8 @@ def _given(**values: object) -> dict[str, object]:
 
 @app.command("train")
 @click.argument("data", type=EXISTING_FILE)
-@click.option("--out", type=OUTPUT_FILE, required=True, help="Model file.")
+@click.option("--out", type=OUTPUT_FILE, required=True, help="Model file (.pt).")
+@force_option
 @choice_option(
     "--recipe",
     choices=list(RECIPES),
@@ -169,6 +172,7 @@ def _given(**values: object) -> dict[str, object]:
 def train_cmd(
     data: Path,
     out: Path,
+    force: bool,
     recipe: str,
     hidden: str | None,
     epochs: int | None,
@@ -200,12 +204,11 @@ def train_cmd(
     needs in the model file.
     """
     from ipcverify.data._dataset import load_dataset
-    from ipcverify.data._files import refuse_overwriting_input
     from ipcverify.io._modelio import save_model
     from ipcverify.network._architecture import ModelConfig
     from ipcverify.training._train import HingeSelection, TrainConfig, train
 
-    refuse_overwriting_input(out, {"DATA": data})
+    outputs = check_model_output(out, force=force, inputs={"DATA": data})
     ds = load_dataset(data, _columns(x_columns), _columns(y_columns), _columns(yhat_columns))
     mc = ModelConfig.recipe(
         recipe,
@@ -235,6 +238,14 @@ def train_cmd(
             schedule=schedule,
         ),
     )
+    hinge_only = [name for name, v in (("--alpha", alpha), ("--lam", lam)) if v is not None]
+    if hinge_only and tc.loss != "hinge":
+        which = f"--loss {tc.loss}" if loss is not None else f"recipe {recipe}'s {tc.loss} loss"
+        names, them = " and ".join(hinge_only), "them" if len(hinge_only) > 1 else "it"
+        raise InvalidInputError(
+            f"{names} {'belong' if len(hinge_only) > 1 else 'belongs'} to the hinge loss, but this run "
+            f"trains with {which} and would ignore {them}: add --loss hinge, or leave {them} out"
+        )
     chosen_by_hand = alpha is not None or lam is not None or batch_size is not None
     if group_column is not None and (recipe != "paper" or chosen_by_hand):
         raise InvalidInputError(
@@ -252,6 +263,7 @@ def train_cmd(
         f"-> {out}; calibrate it before use",
         markup=False,
     )
+    outputs.announce()
     if "selection" in result.model.metadata:
         console.print(f"chosen on held-out training rows: {result.model.metadata['selection']['summary']}",
                       markup=False)  # fmt: skip
@@ -262,7 +274,13 @@ def train_cmd(
 @click.argument("data", type=EXISTING_FILE)
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of tables.")
 @click.option("--bin-column", default=None, help="Report the violation rate per bin of this column.")
-@click.option("--bins", default=10, show_default=True, type=int)
+@click.option(
+    "--bins",
+    default=10,
+    show_default=True,
+    type=int,
+    help="With --bin-column: quantile bins of a numeric column (a text column has one bin per value).",
+)
 @click.option(
     "--group-column",
     default=None,
@@ -277,9 +295,17 @@ def evaluate_cmd(
     from ipcverify.data._files import json_data
     from ipcverify.io._modelio import load_data_for_model, load_model
 
+    if given("bins") and bin_column is None:
+        raise InvalidInputError(
+            "--bins sets the number of bins of --bin-column COL; give the column, or leave --bins out"
+        )
     m = load_model(model)
     ds = load_data_for_model(data, m)
     ev = evaluate(m, ds, bin_column=bin_column, bins=bins, group_column=group_column)
+    if given("bins") and ev.by_bin is not None and ev.by_bin.labels:
+        raise InvalidInputError(
+            f"--bins does not apply to the text column {bin_column!r} (one bin per value); leave --bins out"
+        )
     if as_json:
         click.echo(json.dumps(json_data(ev.to_dict())))
     else:
@@ -291,7 +317,8 @@ def evaluate_cmd(
 @click.argument("model", type=EXISTING_FILE)
 @click.argument("data", type=EXISTING_FILE)
 @click.option("--out", type=OUTPUT_FILE, required=True, help="Output .npz.")
-def predict_cmd(model: Path, data: Path, out: Path) -> None:
+@force_option
+def predict_cmd(model: Path, data: Path, out: Path, force: bool) -> None:
     """Write the IPC's sets for the queries in DATA to an NPZ.
 
     Arrays: `center` (B, n), `shape` (B, n, n) with E_i = {y : ||shape_i (y - center_i)|| <= 1},
@@ -299,12 +326,9 @@ def predict_cmd(model: Path, data: Path, out: Path) -> None:
     `domain_distance` (B,) and `singular` (B,). DATA needs only the state and estimate columns.
     """
     from ipcverify.contract._prediction import predict_sets, write_predictions
-    from ipcverify.data._files import refuse_overwriting_input
     from ipcverify.io._modelio import load_inputs_for_model, load_model
 
-    if out.suffix.lower() != ".npz":
-        raise InvalidInputError(f"--out must end in .npz; got {out.name}")
-    refuse_overwriting_input(out, {"MODEL": model, "DATA": data})
+    outputs = check_outputs([out], force=force, suffixes=(".npz",), inputs={"MODEL": model, "DATA": data})
     m = load_model(model)
     pred = predict_sets(m, load_inputs_for_model(data, m))
     write_predictions(pred, out)
@@ -323,12 +347,14 @@ def predict_cmd(model: Path, data: Path, out: Path) -> None:
             "they are marked in_domain = False",
             markup=False,
         )
+    outputs.announce()
 
 
 @app.command("monitor")
 @click.argument("model", type=EXISTING_FILE)
 @click.argument("log", type=EXISTING_FILE)
 @out_dir_option("monitor", help="Directory for monitor.json and monitor.png.")
+@force_option
 @click.option(
     "--delta", type=float, default=None, help="False-alarm bound (default: the calibration's delta)."
 )
@@ -338,7 +364,9 @@ def predict_cmd(model: Path, data: Path, out: Path) -> None:
     help="One observation per group of this column (flights, runs), taken at its last row. Default: "
     "a flight-level calibration's column; otherwise one observation per row.",
 )
-def monitor_cmd(model: Path, log: Path, out: Path, delta: float | None, group_column: str | None) -> None:
+def monitor_cmd(
+    model: Path, log: Path, out: Path, force: bool, delta: float | None, group_column: str | None
+) -> None:
     """Replay a labelled deployment LOG (rows in time order) through the online monitor.
 
     An anytime-valid test of "the violation rate is at most the calibrated rate": it raises an
@@ -353,15 +381,19 @@ def monitor_cmd(model: Path, log: Path, out: Path, delta: float | None, group_co
     from ipcverify.guard._monitor import plot_monitor
     from ipcverify.io._modelio import load_data_for_model, load_model
 
+    json_path, png_path = out / "monitor.json", out / "monitor.png"
+    outputs = check_outputs(
+        [json_path, png_path], force=force, folder=out, inputs={"MODEL": model, "LOG": log}
+    )
     m = load_model(model)
     data = load_data_for_model(log, m)
-    warn_out_of_time_order(data, "the monitor replays")
     res = monitor_log(m, data, delta=delta, group_column=group_column)
+    warn_out_of_time_order(data, "the monitor replays")
     if not res.labels:
         warn_correlated_rows(data, "monitoring", "to monitor one observation per group")
-    write_json(out / "monitor.json", res)
     png = figure_to_png(plot_monitor(res.result, title=f"{log.name}: anytime-valid test of the certificate"))
-    atomic_write(out / "monitor.png", lambda f: f.write(png))
+    write_json(json_path, res)
+    atomic_write(png_path, lambda f: f.write(png))
     target, style = (err_console, "bold red") if res.alarm_index is not None else (console, "bold green")
     # the alarm's sentence starts with "ALARM at ..."; "No alarm ..." gets an "OK" in front
     head, rest = (
@@ -370,13 +402,15 @@ def monitor_cmd(model: Path, log: Path, out: Path, delta: float | None, group_co
         else ("OK", " " + res.sentence())
     )
     target.print(f"[{style}]{head}[/]{rest}", soft_wrap=True)
-    console.print(f"wrote {out / 'monitor.json'} and {out / 'monitor.png'}", markup=False)
+    console.print(f"wrote {json_path} and {png_path}", markup=False)
+    outputs.announce()
     if res.alarm_index is not None:
         sys.exit(EXIT_VERDICT)
 
 
 @app.command("demo")
 @out_dir_option("ipcverify-demo", help="Directory for the example data and model.")
+@force_option
 @click.option(
     "--n",
     "n_samples",
@@ -386,10 +420,15 @@ def monitor_cmd(model: Path, log: Path, out: Path, delta: float | None, group_co
     help="Training samples (100 to 10,000,000).",
 )
 @click.option("--seed", default=0, show_default=True, type=int)
-def demo_cmd(out: Path, n_samples: int, seed: int) -> None:
-    """Generate synthetic lagged-perception data, train an IPC, calibrate it, evaluate it."""
-    from ipcverify.demo import run_demo
+def demo_cmd(out: Path, force: bool, n_samples: int, seed: int) -> None:
+    """Generate synthetic lagged-perception data, train an IPC, calibrate it, evaluate it.
 
+    The six files go into --out; a folder that already holds one of them (an earlier demo's) is
+    refused unless --force is given.
+    """
+    from ipcverify.demo import DEMO_FILES, run_demo
+
+    outputs = check_outputs([out / name for name in DEMO_FILES], force=force, folder=out)
     s = run_demo(out, n_train=n_samples, seed=seed, progress=True)
     table = Table(title=f"on {s.calibrated.n} fresh test samples")
     table.add_column("sets")
@@ -408,4 +447,5 @@ def demo_cmd(out: Path, n_samples: int, seed: int) -> None:
         f"the calibrated IPC's sets are {np.exp(s.global_log_volume - s.calibrated.log_volume_mean):.1f}x "
         "smaller than the global ellipsoid's (geometric mean of volumes), at the same certified level"
     )
-    console.print(f"files in {out}/: train.csv, calibration.csv, test.csv, model.pt, calibrated.pt, sets.png")
+    console.print(f"files in {out}/: {', '.join(DEMO_FILES)}", markup=False)
+    outputs.announce()

@@ -13,6 +13,7 @@ import click
 from rich.table import Table
 
 from ipcverify.cli.app import EXISTING_FILE, app, choice_option, console, err_console, out_dir_option
+from ipcverify.cli.outputs import check_outputs, force_option
 from ipcverify.errors import InvalidInputError
 
 if TYPE_CHECKING:
@@ -75,6 +76,7 @@ def _row_split_hint(result: SplitFiles) -> str:
 @app.command("split")
 @click.argument("data", type=EXISTING_FILE)
 @out_dir_option("split", help="Directory for train, calibration and test files and split.json.")
+@force_option
 @click.option(
     "--by",
     "group_column",
@@ -121,6 +123,7 @@ def _row_split_hint(result: SplitFiles) -> str:
 def split_cmd(
     data: Path,
     out: Path,
+    force: bool,
     group_column: str | None,
     group_name: str | None,
     block: float | None,
@@ -136,9 +139,10 @@ def split_cmd(
     a training row into the test part. A log of one or a few long runs splits into time
     blocks with --block. --out/split.json names the source and every part by SHA-256.
     """
-    from ipcverify.data._split_files import split_file
+    from ipcverify.data._split_files import split_file, split_outputs
 
     suffix = None if fmt == "same" else f".{fmt}"
+    outputs = check_outputs(split_outputs(data, out, suffix), force=force, folder=out, inputs={"DATA": data})
     columns = None if group_column is None else [c.strip() for c in group_column.split(",") if c.strip()]
     result = split_file(
         data, out, parse_fractions(fractions), seed, columns, suffix, group_name, block, time_column
@@ -164,4 +168,5 @@ def split_cmd(
     if result.dropped_columns:
         dropped = ", ".join(result.dropped_columns)
         err_console.print(f"warning: the npz parts hold x, y and yhat only; not written: {dropped}")
-    console.print(f"record: {result.record}")
+    console.print(f"record: {result.record}", markup=False)
+    outputs.announce()

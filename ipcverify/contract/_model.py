@@ -217,6 +217,7 @@ def _out_of_domain_message(error: str, domain: DomainModel | None, x: FloatArray
     """Blame the input, not the model, when the network's set degenerates far from its data."""
     where = error.split(":", 1)[0].replace("ellipsoid", "input row")
     row = int(where.rsplit(" ", 1)[-1]) if where.rsplit(" ", 1)[-1].isdigit() else None
+    where += "" if row is None else " (0-based)"
     far = ""
     if domain is not None and row is not None:
         d = float(domain.distance(x[row : row + 1], yhat[row : row + 1])[0])

@@ -252,7 +252,9 @@ class LogMonitoring:
         return self.result.final.domain_alarm_index
 
     def _where(self, i: int) -> str:
-        return f"row {i}" if not self.labels else f"group {self.labels[i]!r} (observation {i} of {self.unit})"
+        if not self.labels:
+            return f"row {i} (0-based)"
+        return f"group {self.labels[i]!r} (observation {i} of {self.unit}, 0-based)"
 
     def sentence(self) -> str:
         """The outcome in words."""

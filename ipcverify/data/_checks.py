@@ -74,6 +74,11 @@ def check_informative(data: PerceptionDataset, purpose: Purpose) -> None:
     block, names = _blocks(data)
     n = len(block)
     distinct = len(np.unique(block, axis=0))
+    if n < 2:
+        raise DataError(
+            f"{data.source}: only {n} row; {purpose} needs at least 2 distinct rows (independent samples), "
+            "and far more for a useful contract"
+        )
     if distinct < max(2, math.ceil(MIN_DISTINCT_SHARE * n)):
         raise DataError(
             f"{data.source}: only {distinct} distinct row{'s' if distinct != 1 else ''} among {n}: repeated "
@@ -351,8 +356,8 @@ def warn_out_of_time_order(data: PerceptionDataset, what: str) -> None:
     )
     warnings.warn(
         Hint(
-            f"{data.source}: column {col!r} goes back in time at row {r}{where} ({t[r - 1]:g} then "
-            f"{t[r]:g}); {what} the rows in file order, so sort the log by time{new_run}"
+            f"{data.source}: column {col!r} goes back in time at row {r} (0-based){where}, from {t[r - 1]:g} "
+            f"to {t[r]:g}; {what} the rows in file order, so sort the log by time{new_run}"
         ),
         stacklevel=3,
     )

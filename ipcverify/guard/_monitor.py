@@ -236,8 +236,8 @@ def _observations(violated: ArrayLike, in_domain: ArrayLike | None) -> tuple[Flo
     if not (np.isfinite(x).all() and (x >= 0).all() and (x <= 1).all()):
         bad = int(np.flatnonzero(~(np.isfinite(x) & (x >= 0) & (x <= 1)))[0])
         raise InvalidInputError(
-            f"observation {bad}: violated={v[bad].item()!r} is not in [0, 1]; pass True/False (truth "
-            "outside its set) or, for one observation per group, the fraction of its samples outside"
+            f"observation {bad} (0-based): violated={v[bad].item()!r} is not in [0, 1]; pass True/False "
+            "(truth outside its set) or, for one observation per group, the fraction of its samples outside"
         )
     if in_domain is None:
         return x, np.ones(len(x), dtype=bool)

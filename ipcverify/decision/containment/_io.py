@@ -42,7 +42,9 @@ def set_to_dict(s: OuterSet) -> dict[str, Any]:
     {'type': 'box', 'lower': [0.0], 'upper': [1.0]}
     """
     if not isinstance(s, OuterSet):
-        raise SetError(f"cannot serialise a {type(s).__name__}; expected Box, Polytope or Ellipsoid")
+        raise SetError(
+            f"cannot serialise an object of type {type(s).__name__}; expected Box, Polytope or Ellipsoid"
+        )
     return s.to_set_dict()
 
 

@@ -412,7 +412,7 @@ def test_smallest_epsilon_is_the_smallest_on_its_grid():
             InvalidInputError,
             "600 calibration scores but 5 labels in group column 'run'",
         ),
-        ({"groups": np.r_[np.nan, np.ones(599)]}, DataError, "row 0 has no group label"),
+        ({"groups": np.r_[np.nan, np.ones(599)]}, DataError, r"row 0 \(0-based\) has no group label"),
     ],
 )
 def test_fit_refuses_bad_input(kwargs, error, match):

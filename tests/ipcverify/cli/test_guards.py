@@ -129,7 +129,7 @@ def test_a_run_column_is_calibrated_by_runs_unless_rows_are_chosen_and_certified
     assert "Within-run dependence: 3,000 rows in 30 runs" in rows.stdout
     grouped = run_cli(
         "calibrate", setup["model"], setup["cal_runs"], *args, "--group-column", "run", "--epsilon", "0.3",
-        "--delta", "0.2", "--domain-alpha", "0.2",
+        "--delta", "0.2", "--domain-alpha", "0.2", "--force",
     )  # fmt: skip
     assert grouped.code == 0, grouped.stderr
     assert "hint:" not in grouped.stderr and "From 30 independent runs at delta=0.2" in grouped.stdout

@@ -164,7 +164,7 @@ def test_a_singular_set_on_a_far_input_blames_the_input(recipe, far):
     model = train(data, train_config=TrainConfig.recipe(recipe, epochs=1), recipe=recipe).model
     cal = calibrate(model, make_lagged_perception(800, seed=1), 0.05, 0.01)
     with pytest.raises(
-        SetError, match=r"input row 0: the contract's set is degenerate .* outside the domain"
+        SetError, match=r"input row 0 \(0-based\): the contract's set is degenerate .* outside the domain"
     ):
         cal.predict(np.full((1, 6), far), np.zeros((1, 3)))
     q = LandingQuery(IPCQuery(cal), Box([-10.0, -10.0, -10.0], [10.0, 10.0, 10.0]))

@@ -147,7 +147,7 @@ def test_cli_calibrate_domain_group_column(tmp_path, run_cli):
     assert res.code == 0, res.stderr
     dom = load_model(tmp_path / "cal.pt").domain
     assert dom is not None and dom.n_groups == 120
-    res = run_cli(*args, "--domain-group-column", "nope")
+    res = run_cli(*args, "--domain-group-column", "nope", "--force")
     assert res.code == 2 and "nope" in res.stderr and len(res.stderr.strip().splitlines()) == 1
 
 

@@ -188,7 +188,7 @@ def test_error_zero_header_stamps(run_cli, tmp_path, motions, bagkit):
 @pytest.mark.parametrize(
     ("extra", "fragment"),
     [
-        (["--out", "o.json"], "write the samples as .csv or .parquet"),
+        (["--out", "o.json"], "--out must end in .csv, .parquet or .pq (a table); got o.json"),
         (["--tag", "novalue", "--out", "o.csv"], "--tag 'novalue': write KEY=VALUE"),
         (["--align", "se3", "--out", "o.csv"], "--align se3 needs the quantity position or pose"),
         (
@@ -232,3 +232,10 @@ def test_the_truth_file_given_as_the_estimate_is_refused(run_cli, tum, tmp_path)
     )
     _one_line_error(res, "has its estimate equal to its truth", "gt.txt")
     assert not (tmp_path / "o.csv").exists()
+
+
+def test_topics_of_an_empty_bag_is_a_user_error_not_an_empty_listing(run_cli, tmp_path, bagkit):
+    path = bagkit.write_bag("ros1", tmp_path / "empty", [])
+    res = run_cli("ingest", "topics", path)
+    assert res.code == 2 and res.stdout == ""
+    assert res.stderr == f"error: {path}: no topic in it (the recording is empty)\n"
