@@ -282,6 +282,19 @@ predict-no-estimates         | 2 | missing column(s) x_0            | predict {m
 predict-inputs-only          | 2 | missing column(s) yhat_0         | predict {calibrated} {inputs_only} --out {tmp}/s.npz
 predict-one-row              | 0 | -                                | predict {calibrated} {one_row} --out {tmp}/one.npz
 monitor-uncalibrated         | 2 | not calibrated                   | monitor {model} {test} --out {tmp}/mon
+plan-no-input                | 2 | either a data file or --runs G   | plan --delta 0.01
+plan-both-inputs             | 2 | not both                         | plan {flights} --runs 5 --delta 0.01
+plan-no-runs-column          | 2 | name the column of its runs      | plan {test} --delta 0.01
+plan-runs-0                  | 2 | positive integer                 | plan --runs 0 --delta 0.01
+plan-delta-2                 | 2 | delta must lie strictly          | plan --runs 5 --delta 2
+plan-epsilon-0               | 2 | epsilon must lie strictly        | plan --runs 5 --delta 0.1 --epsilon 0
+plan-unknown-column          | 2 | no column 'nope'                 | plan {flights} --group-column nope --delta 0.1
+plan-flights                 | 0 | -                                | plan {flights} --delta 0.1 --epsilon 0.2
+calibrate-unit-row-and-group | 2 | --unit row makes a claim         | calibrate {model} {cal_flights} {cal_ok} --unit row --group-column flight
+calibrate-unit-run-no-runs   | 2 | --unit run needs the column      | calibrate {model} {cal} {cal_ok} --unit run
+calibrate-gamma-without-runs | 2 | --guarantee and --gamma choose   | calibrate {model} {cal} {cal_ok} --gamma 0.2
+calibrate-share-no-gamma     | 2 | needs gamma                      | calibrate {model} {cal_flights} {cal_ok} --group-column flight --guarantee share-of-runs --epsilon 0.9
+calibrate-runs-too-few       | 2 | --unit row                       | calibrate {model} {cal_flights} {cal_ok}
 monitor-delta-2              | 2 | delta                            | monitor {calibrated} {test} --out {tmp}/mon --delta 2
 monitor-unknown-group        | 2 | no column 'nope'                 | monitor {calibrated} {test} --group-column nope
 monitor-other-group          | 2 | --group-column flight            | monitor {flight_model} {flights} --group-column x_0
