@@ -279,7 +279,7 @@ class GroupedCalibration:
             return TestCounts(
                 violations=int((outside > 0).sum()),
                 n=len(shares),
-                unit=f"{unit} (share of rows outside)",
+                unit=unit,
                 shares=tuple(float(v) for v in shares),
             )
         if self.method == "run-quantile":

@@ -57,7 +57,7 @@ from ipcverify.certification._group_check import group_test_step
 from ipcverify.certification._report import render_report
 from ipcverify.certification._summarize import output_labels, summarize
 from ipcverify.certification._test_result import Consistency, GroupTest, GroupTestResult, TestResult
-from ipcverify.contract._calibrate import CALIBRATION_GROUPS_KEY, mark_row_level
+from ipcverify.contract._calibrate import CALIBRATION_GROUPS_KEY, mark_row_level, mark_runs
 from ipcverify.contract._model import IPCModel
 from ipcverify.contract._runs import RUNS_KEY
 from ipcverify.data._checks import group_like_counts
@@ -316,7 +316,8 @@ def _domain(
         return None
     if test_data is None:
         return model.domain.describe()
-    return mark_row_level(model, model.domain.report(test_data.x, test_data.yhat, violated))
+    report = mark_row_level(model, model.domain.report(test_data.x, test_data.yhat, violated))
+    return mark_runs(model, report, test_data, ~model.domain.contains(test_data.x, test_data.yhat))
 
 
 def write_certificate(result: CertifyResult, out_dir: PathLike) -> tuple[Path, Path]:

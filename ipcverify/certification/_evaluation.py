@@ -11,7 +11,7 @@ from numpy.typing import NDArray
 
 from ipcverify.calibration._group_counts import group_shares
 from ipcverify.certification._test_result import TestResult
-from ipcverify.contract._calibrate import mark_row_level
+from ipcverify.contract._calibrate import mark_row_level, mark_runs
 from ipcverify.contract._model import IPCModel
 from ipcverify.data._checks import group_like_counts
 from ipcverify.data._dataset import PerceptionDataset
@@ -425,8 +425,10 @@ def evaluate(
         mean_extent=tuple(float(e) for e in extent.mean(axis=0)),
         calibrated=model.calibration is not None,
         by_bin=by_bin,
-        domain=mark_row_level(
-            model, None if model.domain is None else model.domain.report(data.x, data.yhat, violated)
+        domain=None
+        if model.domain is None or outside is None
+        else mark_runs(
+            model, mark_row_level(model, model.domain.report(data.x, data.yhat, violated)), data, outside
         ),
         by_run=by_run,
     )

@@ -15,7 +15,11 @@ from __future__ import annotations
 import warnings
 from dataclasses import replace
 
+import numpy as np
+from numpy.typing import NDArray
+
 from ipcverify.calibration._bounds import pac_rows_allowing
+from ipcverify.calibration._group_counts import group_shares
 from ipcverify.calibration._kinds import check_registered
 from ipcverify.calibration._method import CalibrationMethod, CalibrationSample
 from ipcverify.calibration._protocol import Calibration
@@ -23,7 +27,7 @@ from ipcverify.calibration._threshold import check_eps_delta
 from ipcverify.contract._model import IPCModel
 from ipcverify.contract._runs import RUNS_KEY, choose_method, run_record
 from ipcverify.data._checks import check_informative, group_like_counts, warn_outside_training
-from ipcverify.data._dataset import PerceptionDataset
+from ipcverify.data._dataset import PerceptionDataset, PerceptionInputs
 from ipcverify.errors import Hint, InvalidInputError, SampleSizeError
 from ipcverify.guard._domain import DomainModel
 from ipcverify.guard._domain_report import DomainReport
@@ -230,6 +234,44 @@ def mark_row_level(model: IPCModel, report: DomainReport | None) -> DomainReport
         return report
     column = next(iter(recorded))
     return replace(report, row_level_column=column, row_level_groups=int(recorded[column]))
+
+
+def mark_runs(
+    model: IPCModel,
+    report: DomainReport | None,
+    data: PerceptionDataset | PerceptionInputs,
+    outside: NDArray[np.bool_],
+) -> DomainReport | None:
+    """``report`` counted by the queries' runs, when they come in runs (see :class:`DomainReport`).
+
+    The runs' column is the calibration's run column if the queries have it, else the queries' one
+    column that names runs (:func:`~ipcverify.data._checks.group_like_counts`); None keeps the
+    report as it is.
+
+    Parameters
+    ----------
+    model : IPCModel
+        The model whose domain test made ``report``.
+    report : DomainReport or None
+        What the test found on the queries.
+    data : PerceptionDataset or PerceptionInputs
+        The queries (their extra columns name the runs).
+    outside : ndarray of bool, shape (N,)
+        Whether each query lies outside the domain.
+    """
+    if report is None:
+        return None
+    record = model.metadata.get(RUNS_KEY) or {}
+    claim = None if model.calibration is None else model.calibration.group_claim()
+    known = [c for c in (None if claim is None else claim.column, record.get("column")) if c]
+    column = next((c for c in known if c in data.extra), None)
+    if column is None:
+        runs = group_like_counts(data)  # type: ignore[arg-type]
+        column = next(iter(runs)) if len(runs) == 1 else None
+    if column is None:
+        return report
+    shares, _, _ = group_shares(outside, data.extra[column], f"{data.source}: run column {column!r}")
+    return replace(report, run_column=column, run_shares=tuple(float(v) for v in shares))
 
 
 def warn_largest_score(cal: Calibration, source: str) -> None:

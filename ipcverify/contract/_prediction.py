@@ -33,7 +33,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ipcverify.calibration._group_counts import allowed_outside
-from ipcverify.contract._calibrate import mark_row_level
+from ipcverify.contract._calibrate import mark_row_level, mark_runs
 from ipcverify.contract._model import IPCModel
 from ipcverify.data._dataset import PerceptionDataset, PerceptionInputs
 from ipcverify.data._files import atomic_write
@@ -149,7 +149,7 @@ def _predict_sets(model: IPCModel, inputs: PerceptionInputs, chunk: int | None) 
     else:
         inside = domain.contains(inputs.x, inputs.yhat)
         in_domain = np.asarray(inside & ~singular, dtype=np.bool_)
-        report = mark_row_level(model, domain.summarize_outside(~inside))
+        report = mark_runs(model, mark_row_level(model, domain.summarize_outside(~inside)), inputs, ~inside)
     return Predictions(
         centers=centers,
         shapes=shapes,

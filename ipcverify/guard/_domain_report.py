@@ -8,6 +8,7 @@ from typing import Any
 from scipy import stats
 
 from ipcverify.calibration._bounds import smallest_marginal_epsilon
+from ipcverify.calibration._share_bound import share_lower_bound
 from ipcverify.errors import InvalidInputError
 
 #: Level of the one-sided binomial test behind "far more queries outside than false alarms explain".
@@ -41,6 +42,12 @@ class DomainReport:
     row_level_groups : int or None
         How many groups of ``row_level_column`` the calibration data held (None: not known),
         for the smallest ``--domain-alpha`` a test fitted by group allows.
+    run_column : str or None
+        When the queries come in runs: the column that names them (the claim's, or the queries'
+        one run-like column); then "far more outside than false alarms explain" is decided with
+        the runs as the units (their shares outside), not the correlated rows.
+    run_shares : tuple of float or None
+        Each run's share of queries outside the domain (with ``run_column``).
 
     Examples
     --------
@@ -59,8 +66,14 @@ class DomainReport:
     violations_outside: int | None = None
     row_level_column: str | None = None
     row_level_groups: int | None = None
+    run_column: str | None = None
+    run_shares: tuple[float, ...] | None = None
 
     def __post_init__(self) -> None:
+        if (self.run_column is None) != (self.run_shares is None) or (
+            self.run_shares is not None and not all(0.0 <= v <= 1.0 for v in self.run_shares)
+        ):
+            raise InvalidInputError("run shares in [0, 1] go with the run column, and only with it")
         if not (0 <= self.outside <= self.n):
             raise InvalidInputError(f"need 0 <= outside <= n; got {self.outside}, {self.n}")
         if self.row_level_column is not None and not self.row_level_column.strip():
@@ -98,6 +111,11 @@ class DomainReport:
                 + (f", {100 * rate_in:.2f} %" if inside else "")
                 + ")"
             )
+        if self.run_shares is not None:
+            text += (
+                f"; counted by its {len(self.run_shares)} runs of {self.run_column!r}, a run's mean share "
+                f"outside is {100 * sum(self.run_shares) / len(self.run_shares):.2f} %"
+            )
         if self.well_above_alpha:
             text += ". That is far more than false alarms explain: the deployment data have shifted"
             if (col := self.row_level_column) is not None:
@@ -133,9 +151,16 @@ class DomainReport:
 
     @property
     def well_above_alpha(self) -> bool:
-        """The outside share is above what false alarms explain (one-sided binomial test at 0.001)."""
+        """The outside share is above what false alarms explain, at level 0.001.
+
+        With the queries' runs known (:attr:`run_shares`, two or more runs), the runs' mean share
+        outside is tested (its betting lower bound exceeds ``alpha``), since the rows of a run are
+        correlated; otherwise the rows (a one-sided binomial test).
+        """
         if self.n == 0 or self.outside == 0:
             return False
+        if self.run_shares is not None and len(self.run_shares) >= 2:
+            return bool(share_lower_bound(self.run_shares, WELL_ABOVE_LEVEL) > self.alpha)
         return bool(stats.binom.sf(self.outside - 1, self.n, self.alpha) < WELL_ABOVE_LEVEL)
 
     def to_dict(self) -> dict[str, Any]:
@@ -153,5 +178,10 @@ class DomainReport:
             "violations_outside": self.violations_outside,
             "row_level_column": self.row_level_column,
             "row_level_groups": self.row_level_groups,
+            "run_column": self.run_column,
+            "runs": None if self.run_shares is None else len(self.run_shares),
+            "run_mean_outside": None
+            if self.run_shares is None
+            else sum(self.run_shares) / len(self.run_shares),
             "statement": self.sentence(),
         }
