@@ -9,9 +9,9 @@ except for a share ``alpha``.
 * **Distance.** ``z`` is whitened with the calibration inputs' mean and covariance (an
   eigenvalue floor keeps near-constant directions from dominating), and the score of a
   query is its Euclidean distance to its ``k``-th nearest calibration input.
-* **Threshold (conformal, leave-one-out).** Each calibration input's score is its distance
-  to its ``k``-th nearest *other* calibration input; the threshold is the
-  ``ceil((n + 1)(1 - alpha))``-th smallest of these ``n`` scores.
+* **Threshold (conformal, leave-one-out).** On the ``n`` *distinct* calibration inputs, each one's
+  score is its distance to its ``k``-th nearest other; the threshold is the
+  ``ceil((n + 1)(1 - alpha))``-th smallest of these scores, and never 0 (:func:`_positive`).
 * **Guarantee.** If a query is exchangeable with the ``n`` calibration inputs, it is
   flagged with probability at most ``alpha`` (proof: ``proofs/domain.md``). A range check
   alone cannot do this: a query can lie inside every column's range and far from all data.
@@ -59,6 +59,7 @@ from ipcverify.calibration._bounds import (
 )
 from ipcverify.calibration._risk_control import risk_control_threshold
 from ipcverify.data._dataset import query_rows
+from ipcverify.data._fingerprints import first_distinct_rows
 from ipcverify.data._split import group_codes
 from ipcverify.errors import InvalidInputError, SampleSizeError
 from ipcverify.guard._domain_report import DomainReport
@@ -91,6 +92,13 @@ def _stack(x: ArrayLike, yhat: ArrayLike) -> FloatArray:
             f"domain test: x and yhat must be (B, d) and (B, n) with the same B; got {xa.shape}, {ya.shape}"
         )
     return np.concatenate([xa, ya], axis=1)
+
+
+def _positive(threshold: float, scores: FloatArray) -> float:
+    """The threshold, or if it is 0 the smallest positive score (it flags less: ``proofs/domain.md``)."""
+    if threshold > 0 or not (scores > 0).any():  # no positive score: fewer than 2 distinct inputs, refused
+        return threshold
+    return float(scores[scores > 0].min())
 
 
 def alpha_floor_text(n: int, units: str) -> str:
@@ -240,10 +248,10 @@ class DomainModel:
             raise InvalidInputError(
                 f"domain test: {len(z)} calibration inputs but groups of shape {labels.shape}"
             )
-        if len(z) > max_reference:
-            keep = np.sort(np.random.default_rng(seed).choice(len(z), max_reference, replace=False))
-            z = z[keep]
-            labels = None if labels is None else labels[keep]
+        keep = first_distinct_rows(z)  # a repeated input is one point (of its first group)
+        if len(keep) > max_reference:
+            keep = keep[np.sort(np.random.default_rng(seed).choice(len(keep), max_reference, replace=False))]
+        z, labels = z[keep], None if labels is None else labels[keep]
         n = len(z)
         need = min_calibration_size(alpha, 0.5, "marginal")  # ceil((1 - alpha) / alpha), exactly
         if n < max(need, k + 1):
@@ -273,11 +281,12 @@ class DomainModel:
                     f"({alpha_floor_text(len(distinct), 'groups')})"
                 ) from None
             return cls(mean=mean, whitening=whitening, reference=ref, k=int(k), alpha=float(alpha),
-                       threshold=threshold, n=n, method=GROUP_METHOD, n_groups=len(distinct))  # fmt: skip
+                       threshold=_positive(threshold, scores), n=n, method=GROUP_METHOD,
+                       n_groups=len(distinct))  # fmt: skip
         dist, _ = tree.query(ref, k=k + 1)  # the first neighbour is the point itself
         loo = np.asarray(dist, dtype=np.float64).reshape(n, k + 1)[:, k]
         rank = marginal_conformal_index(n, alpha)
-        threshold = float(np.partition(loo, rank - 1)[rank - 1])
+        threshold = _positive(float(np.partition(loo, rank - 1)[rank - 1]), loo)
         return cls(mean=mean, whitening=whitening, reference=ref, k=int(k), alpha=float(alpha),
                    threshold=threshold, n=n)  # fmt: skip
 
