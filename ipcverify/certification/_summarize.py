@@ -421,14 +421,14 @@ def summarize(
     >>> s = summarize(certify(m, make_lagged_perception(2000, seed=2)).certificate, units="m")
     >>> s.verdict_text()[:67]
     'CERTIFIED, WEAK TARGET (epsilon = 0.2: up to 20 % of the truths may'
-    >>> [c.name for c in s.checks]  # an untrained network: its training rows are unknown
-    ['calibration certificate', 'held-out test', 'fresh test rows', 'domain of validity', 'Theorem 1 (paper)']
+    >>> [c.name for c in s.checks]
+    ['calibration certificate', 'held-out test', 'domain of validity', 'Theorem 1 (paper)']
     """
     cal = cert.calibration
     claim_of = cert.group_claim
     checks = [_calibration_check(cert), _test_check(cert, rows_outside)]
     if cert.test_rows is not None and (rows_check := cert.test_rows.check()) is not None:
-        checks.append(rows_check)  # repeated test rows, or an overlap the model file cannot check
+        checks.append(rows_check)  # repeated test rows, or an overlap a model file too old cannot check
     if cert.group_test is not None:
         checks += _group_checks(cert.group_test, cert.test)
     if claim_of is None and (cert.test_group_columns or cert.calibration_group_columns):

@@ -110,10 +110,12 @@ class TestRows:
         >>> TestRows(n=300, distinct=300, training="rows", calibration="rows").sentence()
         'counted on 300 distinct test rows, none of them a training or calibration row (row fingerprints)'
         """
-        fresh = [role for role in ("training", "calibration") if role not in self.unchecked()]
-        if self.calibration == "not calibrated":
-            fresh = [r for r in fresh if r != "calibration"]
+        roles = ("training", "calibration")
+        fresh = [role for role in roles if getattr(self, role) in ("rows", "training data given")]
         none = f", none of them a {' or '.join(fresh)} row (row fingerprints)" if fresh else ""
+        unknown = [role for role in roles if getattr(self, role) == "none"]  # a model built outside train
+        if unknown:
+            none += f"; the model records nothing of its {' or '.join(unknown)} rows to compare them with"
         return f"counted on {self.distinct:,} distinct test rows{none}"
 
     def how(self, role: Role) -> str:
@@ -121,7 +123,10 @@ class TestRows:
         return _HOW[self.training if role == "training" else self.calibration]
 
     def check(self) -> Check | None:
-        """The summary's line on the test rows when there is news: repeats, or an overlap not checked.
+        """The summary's line on the test rows when there is news: repeats, or a model file too old to check.
+
+        A model that records nothing of its training rows (a network not trained by ipcverify) gets
+        no line: :meth:`sentence` says so on the held-out test's.
 
         Examples
         --------
@@ -138,20 +143,14 @@ class TestRows:
                 f"sample, so the test counts the {self.distinct:,} distinct rows once each (counting the "
                 "repeats would tighten the bound without new evidence)"
             )
-        for role in self.unchecked():
-            old = (self.training if role == "training" else self.calibration) == "file"
+        old = [role for role in self.unchecked() if getattr(self, role) == "file"]  # from before fingerprints
+        for role in old:
             verdicts.append(f"overlap with {role} rows not checked")
             details.append(
-                f"the model file records no fingerprints of its {role} rows"
-                + (
-                    f" (written before ipcverify recorded them): only an exact copy of the {role} file "
-                    "was refused"
-                    if old
-                    else ", nor a hash of them: nothing was checked"
-                )  # fmt: skip
-                + f"; test rows that are {role} rows in another order, a subset or repeated would count "
-                f"as fresh -- {'retrain' if role == 'training' else 'recalibrate'} with this ipcverify to "
-                "record them"
+                f"the model file records no fingerprints of its {role} rows (written before ipcverify "
+                f"recorded them): only an exact copy of the {role} file was refused; test rows that are "
+                f"{role} rows in another order, a subset or repeated would count as fresh -- "
+                f"{'retrain' if role == 'training' else 'recalibrate'} with this ipcverify to record them"
             )
         if not verdicts:
             return None

@@ -147,21 +147,17 @@ def first_distinct_rows(block: NDArray[np.float64]) -> NDArray[np.intp]:
 
 
 def count_recorded(fingerprints: U64, recorded: U64) -> int:
-    """How many of ``fingerprints`` (with repeats) are among ``recorded`` (sorted, distinct).
+    """How many of ``fingerprints`` (with repeats) are among ``recorded``.
 
     Parameters
     ----------
     fingerprints : ndarray of uint64
         One fingerprint per row.
     recorded : ndarray of uint64
-        Sorted distinct fingerprints, as a model file records them.
+        Fingerprints of the other rows (as a model file records them: sorted and distinct).
     """
     fp = np.asarray(fingerprints, dtype=np.uint64)
-    rec = np.asarray(recorded, dtype=np.uint64)
-    if len(rec) == 0 or len(fp) == 0:
-        return 0
-    at = np.minimum(np.searchsorted(rec, fp), len(rec) - 1)
-    return int((rec[at] == fp).sum())
+    return int(np.isin(fp, np.asarray(recorded, dtype=np.uint64)).sum())
 
 
 def recorded_rows(metadata: Mapping[str, Any], role: Role) -> U64 | None:

@@ -21,12 +21,11 @@ except for a share ``alpha``.
   ``1e-9`` of the threshold (:mod:`ipcverify.guard._index`) -- the exact test's answer for
   every query, at about a leaf of the tree per in-distribution query.
 
-A flagged query is *outside the domain of validity*: the calibration certificate promises
-nothing for it. The test says nothing, either way, about queries it does not flag -- no
-finite sample can certify that the world did not change; the online monitor
-(:mod:`ipcverify.guard._monitor`) watches for that. :class:`DomainReport`
-(:mod:`ipcverify.guard._domain_report`) counts the queries of a batch outside the domain;
-:func:`~ipcverify.guard._neighbours.other_group_distances` gives the leave-one-group-out scores.
+A flagged query is *outside the domain of validity*: the calibration certificate promises nothing
+for it. The test says nothing about queries it does not flag -- no finite sample can certify that
+the world did not change; the online monitor (:mod:`ipcverify.guard._monitor`) watches for that.
+:class:`DomainReport` (:mod:`ipcverify.guard._domain_report`) counts the queries of a batch outside
+the domain, :func:`~ipcverify.guard._neighbours.other_group_distances` the leave-one-group-out scores.
 
 Examples
 --------
@@ -61,7 +60,7 @@ from ipcverify.calibration._risk_control import risk_control_threshold
 from ipcverify.data._dataset import query_rows
 from ipcverify.data._fingerprints import first_distinct_rows
 from ipcverify.data._split import group_codes
-from ipcverify.errors import InvalidInputError, SampleSizeError
+from ipcverify.errors import DataError, InvalidInputError, SampleSizeError
 from ipcverify.guard._domain_report import DomainReport
 from ipcverify.guard._index import BAND, MAX_INPUTS, DomainIndex, levels
 from ipcverify.guard._kernels import domain_one, whiten_one, whiten_rows
@@ -96,9 +95,10 @@ def _stack(x: ArrayLike, yhat: ArrayLike) -> FloatArray:
 
 def _positive(threshold: float, scores: FloatArray) -> float:
     """The threshold, or if it is 0 the smallest positive score (it flags less: ``proofs/domain.md``)."""
-    if threshold > 0 or not (scores > 0).any():  # no positive score: fewer than 2 distinct inputs, refused
-        return threshold
-    return float(scores[scores > 0].min())
+    if threshold <= 0 and not (scores > 0).any():
+        raise DataError("domain test: the whitened calibration inputs lie at distance 0 from each other in "
+                        "float64, so no radius can be set; calibrate on data whose inputs vary")  # fmt: skip
+    return threshold if threshold > 0 else float(scores[scores > 0].min())
 
 
 def alpha_floor_text(n: int, units: str) -> str:
