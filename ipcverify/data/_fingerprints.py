@@ -156,8 +156,13 @@ def count_recorded(fingerprints: U64, recorded: U64) -> int:
     recorded : ndarray of uint64
         Fingerprints of the other rows (as a model file records them: sorted and distinct).
     """
-    fp = np.asarray(fingerprints, dtype=np.uint64)
-    return int(np.isin(fp, np.asarray(recorded, dtype=np.uint64)).sum())
+    fp, rec = np.asarray(fingerprints, dtype=np.uint64), np.asarray(recorded, dtype=np.uint64)
+    if len(rec) > 1 and not (rec[1:] > rec[:-1]).all():  # not as a model file records them
+        rec = np.unique(rec)
+    if len(rec) == 0:
+        return 0
+    at = np.minimum(np.searchsorted(rec, fp), len(rec) - 1)
+    return int((rec[at] == fp).sum())
 
 
 def recorded_rows(metadata: Mapping[str, Any], role: Role) -> U64 | None:

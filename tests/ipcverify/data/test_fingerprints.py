@@ -110,6 +110,7 @@ def test_shuffled_cut_and_repeated_copies_are_counted_row_by_row(data):
     )
     assert count_recorded(_fp(mixed), recorded) == 7
     assert count_recorded(fp, np.array([], dtype=np.uint64)) == 0
+    assert count_recorded(fp[:10], fp[::-1]) == 10  # unsorted, with repeats: the training data given
 
 
 def test_rows_that_differ_in_one_value_beyond_float32_precision_are_different_rows(data):
