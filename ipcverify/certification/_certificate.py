@@ -10,6 +10,8 @@ layout of ``certificate.json`` (written with the one JSON encoder of
   :class:`~ipcverify.certification._test_result.GroupTest` -- what the test data says
   (:mod:`ipcverify.certification._test_result`);
 * :class:`ModelIdentity`, :class:`DataIdentity`, :class:`VolumeSummary` -- provenance and size;
+  :class:`~ipcverify.certification._test_rows.TestRows` -- the test rows counted, and how they
+  were checked against the training and calibration rows;
 * :class:`Certificate` -- all of the above plus the calibration summary, Theorem 1, the unit of
   the claim and the executive summary (:class:`~ipcverify.certification.CertificateSummary`);
 * :class:`CertifyEvidence`, :class:`CertifyResult` -- the per-sample arrays behind it.
@@ -30,6 +32,7 @@ from ipcverify.calibration._protocol import CalibrationSummary, GroupClaim
 from ipcverify.certification._evaluation import BinCoverage, WorstBin
 from ipcverify.certification._summary import CertificateSummary
 from ipcverify.certification._test_result import Consistency, GroupTest, GroupTestResult, TestResult
+from ipcverify.certification._test_rows import TestRows
 from ipcverify.certification._theorem1 import Theorem1Result
 from ipcverify.guard._domain_report import DomainReport
 
@@ -273,6 +276,10 @@ class Certificate:
         (:func:`ipcverify.contract._runs.run_record`: the unit of the claim, the smallest rate the
         runs can certify, the runs the target needs, the within-run dependence); None if the
         calibration data had no runs.
+    test_rows : TestRows or None
+        The test rows counted (each distinct row once) and how they were checked against the
+        training and calibration rows (:mod:`ipcverify.certification._test_rows`); None without
+        test data.
     """
 
     status: CertificateStatus
@@ -297,6 +304,7 @@ class Certificate:
     calibration_group_columns: Mapping[str, int] = field(default_factory=dict)
     summary: CertificateSummary | None = None
     runs: Mapping[str, Any] | None = None
+    test_rows: TestRows | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """The content of ``certificate.json``."""
@@ -338,6 +346,7 @@ class Certificate:
             "test_group_like_columns": dict(self.test_group_columns),
             "calibration_group_like_columns": dict(self.calibration_group_columns),
             "runs": None if self.runs is None else dict(self.runs),
+            "test_rows": None if self.test_rows is None else self.test_rows.to_dict(),
             "data": {
                 "test": None if self.test_data is None else self.test_data.to_dict(),
                 "train": None if self.train_data is None else self.train_data.to_dict(),

@@ -9,6 +9,9 @@
    one-sided Clopper--Pearson upper bound on the violation rate at confidence
    ``1 - delta`` -- valid by itself when the test samples are i.i.d. from the
    deployment distribution and were not used to train, select or calibrate the model.
+   Test rows that are training or calibration rows (by the row fingerprints the model file
+   records, whatever their order, subset or repeats) are refused, and a repeated test row is
+   counted once (:func:`~ipcverify.certification._test_rows.fresh_test_rows`).
    If the test data contradicts the calibration claim (its lower bound exceeds what
    the calibration allows), the status says so.
    With a group column (flights, runs; ``group_column=``, or the column of a flight-level
@@ -57,6 +60,7 @@ from ipcverify.certification._group_check import group_test_step
 from ipcverify.certification._report import render_report
 from ipcverify.certification._summarize import output_labels, summarize
 from ipcverify.certification._test_result import Consistency, GroupTest, GroupTestResult, TestResult
+from ipcverify.certification._test_rows import fresh_test_rows
 from ipcverify.contract._calibrate import CALIBRATION_GROUPS_KEY, mark_row_level, mark_runs
 from ipcverify.contract._model import IPCModel
 from ipcverify.contract._runs import RUNS_KEY
@@ -153,7 +157,8 @@ def certify(
     model : IPCModel
         The model; its calibration (if any) is what gets certified.
     test_data : PerceptionDataset, optional
-        Fresh samples, used neither for training nor for calibration. Without them the
+        Fresh samples, used neither for training nor for calibration (a row of either is
+        refused; a repeated row is counted once: the certificate's ``test_rows``). Without them the
         certificate holds what the model file holds: the calibration certificate, the
         domain of validity and Theorem 1 from the statistics stored at training.
     train_data : PerceptionDataset, optional
@@ -184,10 +189,11 @@ def certify(
     Raises
     ------
     InvalidInputError
-        If dimensions disagree, the test data is the calibration or training data,
-        the calibration belongs to a different network, the group column is missing from
-        the test data, has one group only, or is given without test data, or the labels do
-        not name every coordinate of ``y`` or the units are empty.
+        If dimensions disagree, some test rows are calibration or training rows (or, for a
+        model file without row fingerprints, the test data is an exact copy of either), most
+        test rows repeat another, the calibration belongs to a different network, the group
+        column is missing from the test data, has one group only, or is given without test
+        data, or the labels do not name every coordinate of ``y`` or the units are empty.
 
     Examples
     --------
@@ -202,6 +208,9 @@ def certify(
     ('CERTIFIED', 2000)
     """
     delta = check_inputs(model, test_data, train_data, delta)
+    given, rows = test_data, None  # the test data as given, and what its rows are
+    if test_data is not None:  # refuse training or calibration rows; count each distinct row once
+        test_data, rows = fresh_test_rows(model, test_data, train_data)
     y_labels = output_labels(model, test_data, labels)
     if units is not None and not units.strip():
         raise InvalidInputError(
@@ -247,12 +256,13 @@ def certify(
         worst_bin=None if tested is None else tested.worst_bin,
         domain=_domain(model, test_data, None if tested is None else tested.scores.violated),
         group_test=group_test,
-        test_data=None if test_data is None else _identity(test_data, test_path),
+        test_data=None if given is None else _identity(given, test_path),
         train_data=None if train_data is None else _identity(train_data, train_path, model),
         group_claim=None if cal is None else cal.group_claim(),
         test_group_columns=test_groups,
         calibration_group_columns=calibration_groups,
         runs=model.metadata.get(RUNS_KEY) if cal else None,
+        test_rows=rows,
     )
     rows_outside = (
         None if tested is None else (int(tested.scores.violated.sum()), len(tested.scores.violated))

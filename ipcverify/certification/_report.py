@@ -125,6 +125,13 @@ def _test_section(cert: Certificate, ev: CertifyEvidence | None, s: CertificateS
         (f"mean log-volume of the sets ({volume})", cert.volume.mean_log),
         (f"median log-volume ({volume})", cert.volume.median_log),
     ]
+    if (r := cert.test_rows) is not None:  # which rows were counted, and how they were checked
+        rows += [
+            ("rows of the test data", r.n),
+            ("repeated rows (each distinct row is counted once)", r.repeated),
+            ("checked against the training rows", r.how("training")),
+            ("checked against the calibration rows", r.how("calibration")),
+        ]
     parts.append(html_table(rows))
     if cert.consistency.checked:
         parts.append(_consistency_line("Consistency check: test", cert.consistency))

@@ -58,6 +58,8 @@ def _shift_note(cert: Certificate) -> str:
     if cert.status is not CertificateStatus.CERTIFIED or d is None or not d.well_above_alpha:
         return ""
     why = "a shift" if d.row_level_column is None else "a shift, or a row-level test on correlated rows"
+    if d.threshold == 0:
+        why = "a domain test of radius 0, fitted on repeated rows: recalibrate"
     return (
         f"; but {100 * d.outside_fraction:.0f} % of the test queries lie outside the domain of validity "
         f"({why}: the certificate promises nothing for them)"
@@ -184,6 +186,8 @@ def _test_check(cert: Certificate, rows_outside: tuple[int, int] | None) -> Chec
         verdict, level = "CONTRADICTS the calibration", "fail"
         versus = f"lower bound {c.test_lower_bound:.4g} > allowed {c.allowed_rate:.4g}"
     detail = f"{_counted(t)}; {versus}"
+    if cert.test_rows is not None:
+        detail += f"; {cert.test_rows.sentence()}"
     if rows_outside is not None and t.unit != "samples":
         k, n = rows_outside
         detail += (
@@ -257,6 +261,15 @@ def _domain_check(d: DomainReport | None) -> Check:
             detail="the model carries no domain-of-validity test; recalibrate with a current ipcverify",
         )
     fitted = f"fitted on {d.n_reference:,} calibration inputs, false-alarm rate alpha = {d.alpha:g}"
+    if d.threshold == 0:  # only in a model file from before the test was fitted on distinct inputs
+        return Check(
+            name=name,
+            verdict="radius 0: flags every query not equal to a calibration input",
+            level="warn",
+            detail=f"{fitted}; its threshold is 0 because it was fitted on repeated calibration inputs by an "
+            "older ipcverify, so the queries it flags say nothing about a shift -- recalibrate to refit it "
+            "on the distinct inputs",
+        )
     if d.n == 0:
         return Check(name=name, verdict="not run", level="info", detail=f"{fitted}; {_NOT_RUN}")
     counted = f"{d.outside:,} of {d.n:,} test queries ({100 * d.outside_fraction:.3g} %) outside; {fitted}"
@@ -414,6 +427,8 @@ def summarize(
     cal = cert.calibration
     claim_of = cert.group_claim
     checks = [_calibration_check(cert), _test_check(cert, rows_outside)]
+    if cert.test_rows is not None and (rows_check := cert.test_rows.check()) is not None:
+        checks.append(rows_check)  # repeated test rows, or an overlap a model file too old cannot check
     if cert.group_test is not None:
         checks += _group_checks(cert.group_test, cert.test)
     if claim_of is None and (cert.test_group_columns or cert.calibration_group_columns):

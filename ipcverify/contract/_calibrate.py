@@ -28,6 +28,7 @@ from ipcverify.contract._model import IPCModel
 from ipcverify.contract._runs import RUNS_KEY, choose_method, run_record
 from ipcverify.data._checks import check_informative, group_like_counts, warn_outside_training
 from ipcverify.data._dataset import PerceptionDataset, PerceptionInputs
+from ipcverify.data._fingerprints import count_recorded, recorded_rows, row_fingerprints, with_recorded_rows
 from ipcverify.errors import Hint, InvalidInputError, SampleSizeError
 from ipcverify.guard._domain import DomainModel
 from ipcverify.guard._domain_report import DomainReport
@@ -92,20 +93,22 @@ def calibrate(
         If there are too few samples (overall or in a group) for ``(epsilon, delta)``, or for
         the domain test at its ``alpha``; every unmet requirement is named in one message.
     InvalidInputError
-        If the model is already calibrated, the dimensions disagree, the data is the
-        training data, is made mostly of repeated rows, the group column cannot be seen at
-        predict time, ``method`` is not a registered calibration spec, or no method is given and
-        several columns could name the runs.
+        If the model is already calibrated, the dimensions disagree, some calibration rows are
+        training rows (whatever their order or repeats: by the row fingerprints the model file
+        records, :mod:`ipcverify.data._fingerprints`), the data is made mostly of repeated rows,
+        the group column cannot be seen at predict time, ``method`` is not a registered
+        calibration spec, or no method is given and several columns could name the runs.
 
     Warns
     -----
     DataWarning
-        If most calibration inputs lie outside the ranges of the training inputs, if rows repeat,
-        or if a column is constant.
+        If most calibration inputs lie outside the ranges of the training inputs, if rows repeat
+        (which breaks the exchangeability the guarantee rests on), or if a column is constant.
     Hint
-        When ipcverify chose to calibrate by runs; when a row-level claim is made on data with
-        runs (with their effective number of independent rows); when the domain test takes the
-        smallest false-alarm rate the runs allow.
+        When the model file records no fingerprints of its training rows (only an exact copy of
+        the training file is then recognised); when ipcverify chose to calibrate by runs; when a
+        row-level claim is made on data with runs (with their effective number of independent
+        rows); when the domain test takes the smallest false-alarm rate the runs allow.
 
     Examples
     --------
@@ -139,6 +142,7 @@ def calibrate(
         )
     method, chosen = choose_method(calibration_data, method)
     _check_inputs(model, calibration_data, epsilon, delta, method, domain, recalibrate)
+    rows = _fresh_rows(model, calibration_data)
     sample = CalibrationSample(
         scores=model.raw_scores(calibration_data.x, calibration_data.y, calibration_data.yhat),
         data=calibration_data,
@@ -179,6 +183,7 @@ def calibrate(
     # what the certificate's "independent rows" check needs to know of a row-level calibration, and
     # what the runs of the calibration data support
     metadata = {k: v for k, v in model.metadata.items() if k not in (CALIBRATION_GROUPS_KEY, RUNS_KEY)}
+    metadata = with_recorded_rows(metadata, "calibration", rows)  # certify refuses test rows among them
     if method.unit_column is None and (counts := group_like_counts(calibration_data)):
         metadata[CALIBRATION_GROUPS_KEY] = counts
     normalized = sample.scores / cal.scale_for(calibration_data.x, calibration_data.yhat)
@@ -343,8 +348,40 @@ def _check_inputs(
             f"y_dim={calibration_data.y_dim} but the model expects x_dim={cfg.x_dim}, y_dim={cfg.y_dim}"
         )
     check_informative(calibration_data, "calibration")
-    if calibration_data.content_hash() == model.metadata.get("train_data_hash"):
-        raise InvalidInputError(
-            f"{calibration_data.source}: this is the model's training data; calibration needs held-out "
-            "samples that were not used for training (e.g. the calibration part of a split)"
+
+
+def _fresh_rows(model: IPCModel, data: PerceptionDataset) -> NDArray[np.uint64]:
+    """The calibration rows' fingerprints; refuse rows that are training rows (in any order, subset, repeats).
+
+    With the training rows' fingerprints recorded in the model, every row is looked up; a model
+    trained by an ipcverify that did not record them is checked only against an exact copy of the
+    training file (its content hash), with a :class:`~ipcverify.errors.Hint` that says so.
+    """
+    rows = row_fingerprints(data)
+    recorded = recorded_rows(model.metadata, "training")
+    held_out = (
+        "calibration needs held-out samples that were not used for training (e.g. the calibration part of "
+        "a split)"
+    )
+    if recorded is not None:
+        reused = count_recorded(rows, recorded)
+        if reused:
+            raise InvalidInputError(
+                f"{data.source}: {reused:,} of {len(rows):,} calibration rows are rows of the model's "
+                f"training data (by the fingerprints of the {len(recorded):,} training rows the model file "
+                "records); "
+                f"{held_out} -- remove those rows"
+            )
+    elif (train_hash := model.metadata.get("train_data_hash")) is not None:
+        if data.content_hash() == train_hash:
+            raise InvalidInputError(f"{data.source}: this is the model's training data; {held_out}")
+        warnings.warn(
+            Hint(
+                f"{data.source}: the model file records no fingerprints of its training rows (an ipcverify "
+                "before row fingerprints trained it), so only an exact copy of the training file is "
+                "recognised, not a shuffled, partial or repeated one: make sure no calibration row was a "
+                "training row, or retrain with this ipcverify"
+            ),
+            stacklevel=3,
         )
+    return rows

@@ -46,7 +46,8 @@ def check_informative(data: PerceptionDataset, purpose: Purpose) -> None:
 
     * Fewer distinct rows (of ``x``, ``y``, ``yhat``) than half the rows, or fewer than 2:
       repeated rows are not independent samples -- refused.
-    * Some rows repeat an earlier one: a :class:`~ipcverify.errors.DataWarning`.
+    * Some rows repeat an earlier one: a :class:`~ipcverify.errors.DataWarning` that says how many
+      (for calibration: that the repeats break the exchangeability its guarantee rests on).
     * A constant column: refused for training (the network cannot learn how the errors depend on
       it, and extrapolates on any other value); a warning for calibration (the domain of validity
       then flags every query with another value).
@@ -87,13 +88,7 @@ def check_informative(data: PerceptionDataset, purpose: Purpose) -> None:
             "was assembled"
         )
     if distinct < n:
-        warnings.warn(
-            DataWarning(
-                f"{data.source}: {n - distinct} of {n} rows repeat an earlier row; repeated rows are not "
-                "independent samples -- remove them unless the data really repeat"
-            ),
-            stacklevel=2,
-        )
+        warnings.warn(DataWarning(_repeats_text(data.source, n, distinct, purpose)), stacklevel=2)
     constant = [i for i in range(block.shape[1]) if block[0, i] == block[:, i].min() == block[:, i].max()]
     if not constant:
         return
@@ -113,6 +108,23 @@ def check_informative(data: PerceptionDataset, purpose: Purpose) -> None:
             "every other one"
         ),
         stacklevel=2,
+    )
+
+
+def _repeats_text(source: str, n: int, distinct: int, purpose: Purpose) -> str:
+    """The warning for ``n - distinct`` repeated rows; for calibration, what they break."""
+    repeats = (
+        f"{source}: {n - distinct:,} of {n:,} {purpose} rows repeat an earlier row ({distinct:,} distinct)"
+    )
+    if purpose == "calibration":
+        return (
+            f"{repeats}; the guarantee rests on the calibration rows being exchangeable with deployment "
+            "rows, and a repeated row is one sample counted again, which breaks that exchangeability -- "
+            "remove the repeats unless the data really repeat (the domain of validity is fitted on the "
+            "distinct inputs)"
+        )
+    return (
+        f"{repeats}; repeated rows are not independent samples -- remove them unless the data really repeat"
     )
 
 

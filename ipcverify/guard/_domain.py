@@ -9,9 +9,9 @@ except for a share ``alpha``.
 * **Distance.** ``z`` is whitened with the calibration inputs' mean and covariance (an
   eigenvalue floor keeps near-constant directions from dominating), and the score of a
   query is its Euclidean distance to its ``k``-th nearest calibration input.
-* **Threshold (conformal, leave-one-out).** Each calibration input's score is its distance
-  to its ``k``-th nearest *other* calibration input; the threshold is the
-  ``ceil((n + 1)(1 - alpha))``-th smallest of these ``n`` scores.
+* **Threshold (conformal, leave-one-out).** On the ``n`` *distinct* calibration inputs, each one's
+  score is its distance to its ``k``-th nearest other; the threshold is the
+  ``ceil((n + 1)(1 - alpha))``-th smallest of these scores, and never 0 (:func:`_positive`).
 * **Guarantee.** If a query is exchangeable with the ``n`` calibration inputs, it is
   flagged with probability at most ``alpha`` (proof: ``proofs/domain.md``). A range check
   alone cannot do this: a query can lie inside every column's range and far from all data.
@@ -21,12 +21,11 @@ except for a share ``alpha``.
   ``1e-9`` of the threshold (:mod:`ipcverify.guard._index`) -- the exact test's answer for
   every query, at about a leaf of the tree per in-distribution query.
 
-A flagged query is *outside the domain of validity*: the calibration certificate promises
-nothing for it. The test says nothing, either way, about queries it does not flag -- no
-finite sample can certify that the world did not change; the online monitor
-(:mod:`ipcverify.guard._monitor`) watches for that. :class:`DomainReport`
-(:mod:`ipcverify.guard._domain_report`) counts the queries of a batch outside the domain;
-:func:`~ipcverify.guard._neighbours.other_group_distances` gives the leave-one-group-out scores.
+A flagged query is *outside the domain of validity*: the calibration certificate promises nothing
+for it. The test says nothing about queries it does not flag -- no finite sample can certify that
+the world did not change; the online monitor (:mod:`ipcverify.guard._monitor`) watches for that.
+:class:`DomainReport` (:mod:`ipcverify.guard._domain_report`) counts the queries of a batch outside
+the domain, :func:`~ipcverify.guard._neighbours.other_group_distances` the leave-one-group-out scores.
 
 Examples
 --------
@@ -59,8 +58,9 @@ from ipcverify.calibration._bounds import (
 )
 from ipcverify.calibration._risk_control import risk_control_threshold
 from ipcverify.data._dataset import query_rows
+from ipcverify.data._fingerprints import first_distinct_rows
 from ipcverify.data._split import group_codes
-from ipcverify.errors import InvalidInputError, SampleSizeError
+from ipcverify.errors import DataError, InvalidInputError, SampleSizeError
 from ipcverify.guard._domain_report import DomainReport
 from ipcverify.guard._index import BAND, MAX_INPUTS, DomainIndex, levels
 from ipcverify.guard._kernels import domain_one, whiten_one, whiten_rows
@@ -91,6 +91,14 @@ def _stack(x: ArrayLike, yhat: ArrayLike) -> FloatArray:
             f"domain test: x and yhat must be (B, d) and (B, n) with the same B; got {xa.shape}, {ya.shape}"
         )
     return np.concatenate([xa, ya], axis=1)
+
+
+def _positive(threshold: float, scores: FloatArray) -> float:
+    """The threshold, or if it is 0 the smallest positive score (it flags less: ``proofs/domain.md``)."""
+    if threshold <= 0 and not (scores > 0).any():
+        raise DataError("domain test: the whitened calibration inputs lie at distance 0 from each other in "
+                        "float64, so no radius can be set; calibrate on data whose inputs vary")  # fmt: skip
+    return threshold if threshold > 0 else float(scores[scores > 0].min())
 
 
 def alpha_floor_text(n: int, units: str) -> str:
@@ -240,10 +248,10 @@ class DomainModel:
             raise InvalidInputError(
                 f"domain test: {len(z)} calibration inputs but groups of shape {labels.shape}"
             )
-        if len(z) > max_reference:
-            keep = np.sort(np.random.default_rng(seed).choice(len(z), max_reference, replace=False))
-            z = z[keep]
-            labels = None if labels is None else labels[keep]
+        keep = first_distinct_rows(z)  # a repeated input is one point (of its first group)
+        if len(keep) > max_reference:
+            keep = keep[np.sort(np.random.default_rng(seed).choice(len(keep), max_reference, replace=False))]
+        z, labels = z[keep], None if labels is None else labels[keep]
         n = len(z)
         need = min_calibration_size(alpha, 0.5, "marginal")  # ceil((1 - alpha) / alpha), exactly
         if n < max(need, k + 1):
@@ -273,11 +281,12 @@ class DomainModel:
                     f"({alpha_floor_text(len(distinct), 'groups')})"
                 ) from None
             return cls(mean=mean, whitening=whitening, reference=ref, k=int(k), alpha=float(alpha),
-                       threshold=threshold, n=n, method=GROUP_METHOD, n_groups=len(distinct))  # fmt: skip
+                       threshold=_positive(threshold, scores), n=n, method=GROUP_METHOD,
+                       n_groups=len(distinct))  # fmt: skip
         dist, _ = tree.query(ref, k=k + 1)  # the first neighbour is the point itself
         loo = np.asarray(dist, dtype=np.float64).reshape(n, k + 1)[:, k]
         rank = marginal_conformal_index(n, alpha)
-        threshold = float(np.partition(loo, rank - 1)[rank - 1])
+        threshold = _positive(float(np.partition(loo, rank - 1)[rank - 1]), loo)
         return cls(mean=mean, whitening=whitening, reference=ref, k=int(k), alpha=float(alpha),
                    threshold=threshold, n=n)  # fmt: skip
 

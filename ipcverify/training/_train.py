@@ -24,6 +24,7 @@ from ipcverify.certification._theorem1 import TrainingStatistics
 from ipcverify.contract._model import IPCModel
 from ipcverify.data._checks import check_informative, input_ranges
 from ipcverify.data._dataset import PerceptionDataset
+from ipcverify.data._fingerprints import row_fingerprints, with_recorded_rows
 from ipcverify.errors import InvalidInputError
 from ipcverify.network._architecture import DEFAULT_RECIPE, ModelConfig
 from ipcverify.network._modules import IPCNetwork, Network
@@ -402,6 +403,8 @@ def train(
     }
     if record is not None:
         metadata["selection"] = record.to_dict()
+    # every training row's fingerprint: calibrate and certify refuse rows that are training rows
+    metadata = with_recorded_rows(metadata, "training", row_fingerprints(train_data))
     return TrainResult(IPCModel(net, None, metadata), history)
 
 

@@ -160,7 +160,9 @@ def test_refusals_have_messages(model, cal_data):
 def test_refuses_the_training_data():
     data = make_lagged_perception(900, seed=5)
     m = train(data, ModelConfig(x_dim=6, y_dim=3, hidden=(4,)), TrainConfig(epochs=1)).model
-    with pytest.raises(InvalidInputError, match=r"this is the model's training data"):
+    with pytest.raises(
+        InvalidInputError, match=r"900 of 900 calibration rows are rows of the model's training data"
+    ):
         calibrate(m, data, 0.05, 0.01)
 
 

@@ -131,9 +131,8 @@ def test_certificate_json_adds_the_summary_and_keeps_every_key(files, tmp_path):
     )
     write_certificate(res, tmp_path)
     d = json.loads((tmp_path / "certificate.json").read_text())
-    assert OLD_KEYS | {"summary", "test_group_like_columns", "calibration_group_like_columns", "runs"} == set(
-        d
-    )
+    new_keys = {"summary", "test_group_like_columns", "calibration_group_like_columns", "runs", "test_rows"}
+    assert OLD_KEYS | new_keys == set(d)
     assert d["runs"] is None  # no runs in the calibration data
     s = d["summary"]
     assert s == json.loads(json.dumps(res.certificate.summary.to_dict()))
@@ -327,7 +326,8 @@ def test_every_plot_axis_says_what_it_measures_and_in_which_units(net, monkeypat
     report.render_report(named)
     assert len(seen) == 1 and len(seen[0]) == 3 * 2 * len(named.evidence.example_index)
     assert set(seen[0]) == {"forward [m]", "left [m]", "up [m]"}
-    one_d = PerceptionDataset(np.zeros((50, 2)), np.ones((50, 1)), np.ones((50, 1)) + 0.01)
+    y1 = np.arange(50.0)[:, None] / 50.0  # distinct rows: a file of one repeated row is refused
+    one_d = PerceptionDataset(np.zeros((50, 2)), y1, y1 + 0.01)
     m1 = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=1, hidden=(4,), param="cholesky")))
     ev1 = certify(m1, one_d).evidence
     assert _labels(plot_projections(ev1, ("range [m]",))) == ["range [m]"] * len(ev1.example_index)

@@ -73,6 +73,23 @@ def files(tmp_path_factory) -> dict[str, Path]:
     save_model(model, f["model"])
     f["calibrated"] = d / "calibrated.pt"
     save_model(calibrate(model, cal_ds, 0.05, 0.01), f["calibrated"])
+    # copies of the training and calibration rows that a whole-file hash took for fresh data
+    rng = np.random.default_rng(5)
+    reused = {
+        "cal_shuffled": cal_ds.subset(rng.permutation(len(cal_ds))),
+        "cal_minus_one": cal_ds.subset(np.arange(1, len(cal_ds))),
+        "cal_twice": cal_ds.subset(np.r_[np.arange(len(cal_ds)), np.arange(len(cal_ds))]),
+        "train_shuffled": train_ds.subset(rng.permutation(len(train_ds))),
+        "train_minus_one": train_ds.subset(np.arange(1, len(train_ds))),
+        "test_twice": test_ds.subset(np.r_[np.arange(len(test_ds)), np.arange(len(test_ds))]),
+    }
+    for name, ds in reused.items():
+        f[name] = d / f"{name}.csv"
+        save_dataset(ds, f[name])
+    f["old_calibrated"] = d / "old_calibrated.pt"  # as written before row fingerprints
+    old = torch.load(f["calibrated"], weights_only=True)
+    del old["row_fingerprints"]
+    torch.save(old, f["old_calibrated"])
     f["flight_model"] = d / "flight_model.pt"
     flight_cal = calibrate(
         model,
@@ -213,7 +230,8 @@ def files(tmp_path_factory) -> dict[str, Path]:
     return f
 
 
-# id | exit status | a fragment of the one error line ("-": none expected) | the command line.
+# id | exit status | a fragment of the one error line ("-": none expected; "warning: ..." or "hint: ...":
+# no error line, and a warning or hint line with that fragment) | the command line.
 # {name} is the path of a file built by the fixture, {tmp} a fresh directory; {cal_ok} stands for
 # "--epsilon 0.05 --delta 0.01 --out {tmp}/c.pt" (an option given again later overrides it).
 TABLE = """
@@ -335,6 +353,17 @@ certify-wrong-dimensions     | 2 | missing column(s) x_5            | certify {c
 certify-out-is-file          | 2 | train.csv                        | certify {calibrated} --out {train}
 certify-other-train-data     | 2 | not the data the model was train | certify {calibrated} --data {test} --train-data {cal} --out {tmp}/cert
 certify-garbage-model        | 2 | garbage.pt                       | certify {garbage} --out {tmp}/cert
+certify-calibration-shuffled | 2 | 1,500 of 1,500 test rows are rows of the calibration data | certify {calibrated} --data {cal_shuffled} --out {tmp}/cert
+certify-calibration-minus-1  | 2 | 1,499 of 1,499 test rows are rows of the calibration data | certify {calibrated} --data {cal_minus_one} --out {tmp}/cert
+certify-calibration-twice    | 2 | 3,000 of 3,000 test rows are rows of the calibration data | certify {calibrated} --data {cal_twice} --out {tmp}/cert
+certify-training-shuffled    | 2 | 400 of 400 test rows are rows of the training data | certify {calibrated} --data {train_shuffled} --out {tmp}/cert
+certify-training-minus-1     | 2 | 399 of 399 test rows are rows of the training data | certify {calibrated} --data {train_minus_one} --out {tmp}/cert
+certify-one-row-repeated     | 2 | only 1 distinct row among 2855 test rows | certify {calibrated} --data {identical} --out {tmp}/cert
+certify-every-row-twice      | 0 | warning: 300 of 600 test rows repeat an earlier row | certify {calibrated} --data {test_twice} --out {tmp}/cert
+certify-old-model-shuffled   | 0 | hint: only an exact copy of the calibration file | certify {old_calibrated} --data {cal_shuffled} --out {tmp}/cert
+calibrate-training-minus-1   | 2 | 399 of 399 calibration rows are rows of the model's training data | calibrate {model} {train_minus_one} {cal_ok}
+calibrate-training-shuffled  | 2 | 400 of 400 calibration rows are rows of the model's training data | calibrate {model} {train_shuffled} {cal_ok}
+calibrate-every-row-twice    | 0 | warning: breaks that exchangeability | calibrate {model} {cal_twice} {cal_ok}
 prove-bad-json               | 2 | not valid JSON                   | prove-containment {bad_json} --out {tmp}/c.json
 prove-json-scalar            | 2 | expected one problem             | prove-containment {json_scalar} --out {tmp}/c.json
 prove-json-schema            | 2 | problem 0                        | prove-containment {json_schema} --out {tmp}/c.json
@@ -446,6 +475,11 @@ def test_bad_and_odd_inputs_exit_with_one_error_line_and_no_traceback(
     assert res.code == code, res.stderr
     if fragment is None:
         assert errors == [], res.stderr
+        assert res.stdout.strip(), "a success says what it did"
+    elif fragment.startswith(("warning: ", "hint: ")):  # accepted, and said so
+        kind, text = fragment.split(": ", 1)
+        said = [line for line in res.stderr.splitlines() if line.startswith(kind + ":") and text in line]
+        assert errors == [] and said, res.stderr
         assert res.stdout.strip(), "a success says what it did"
     else:
         assert len(errors) == 1 and fragment in errors[0], res.stderr

@@ -48,7 +48,7 @@ def test_mostly_repeated_rows_are_refused_and_a_few_are_a_warning():
     with pytest.raises(DataError, match="only 49 distinct rows among 100"):
         check_informative(half, "calibration")
     few = base.subset(np.r_[np.arange(100), [3, 4]])
-    with pytest.warns(DataWarning, match="2 of 102 rows repeat an earlier row"):
+    with pytest.warns(DataWarning, match="2 of 102 training rows repeat an earlier row"):
         check_informative(few, "training")
     with warnings.catch_warnings():
         warnings.simplefilter("error")

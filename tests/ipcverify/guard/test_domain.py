@@ -12,7 +12,7 @@ from ipcverify.data._synthetic import make_lagged_perception
 from ipcverify.decision._landing import Verdict
 from ipcverify.decision._landing_query import LandingQuery
 from ipcverify.decision._query import IPCQuery
-from ipcverify.errors import InvalidInputError, SampleSizeError, SetError
+from ipcverify.errors import DataError, InvalidInputError, SampleSizeError, SetError
 from ipcverify.guard._domain import DomainModel
 from ipcverify.guard._domain_report import DomainReport
 from ipcverify.io._modelio import load_model, save_model
@@ -185,3 +185,40 @@ def test_predict_sets_decides_in_domain_without_the_distances_and_computes_them_
     assert np.array_equal(pred.in_domain, (d <= dom.threshold) & ~pred.singular)
     assert not pred.in_domain[:40].any() and pred.in_domain[40:].mean() > 0.9
     assert pred.domain is not None and pred.domain.outside == int((d > dom.threshold).sum())
+
+
+def test_repeated_calibration_inputs_are_one_point_each_and_the_radius_is_not_0():
+    """Every input twice (a doubled calibration file) gave radius 0 and flagged every fresh query."""
+    x, yhat = _draw(np.random.default_rng(21), 400)
+    once = DomainModel.fit(x, yhat, alpha=0.05)
+    rng = np.random.default_rng(22)
+    order = np.r_[np.arange(400), rng.integers(0, 400, 700)]  # every input, then 700 repeats of them
+    repeated = DomainModel.fit(x[order], yhat[order], alpha=0.05)
+    assert repeated.n == once.n == 400 and repeated.threshold == once.threshold > 0
+    for name in ("mean", "whitening", "reference"):
+        np.testing.assert_array_equal(getattr(repeated, name), getattr(once, name))
+    fresh_x, fresh_yhat = _draw(np.random.default_rng(23), 1000)
+    np.testing.assert_array_equal(repeated.contains(fresh_x, fresh_yhat), once.contains(fresh_x, fresh_yhat))
+    groups = np.r_[np.arange(400) // 10, 1000 + np.arange(700)]  # a repeat keeps its first input's group
+    by_group = DomainModel.fit(x[order], yhat[order], alpha=0.05, groups=groups)
+    assert by_group.n == 400 and by_group.n_groups == 40 and by_group.threshold > 0
+
+
+def test_the_threshold_is_raised_to_the_smallest_positive_score_and_all_zero_scores_are_refused():
+    """Inputs distinct in float64 whose whitened distances underflow to 0: the radius is never 0."""
+    rng = np.random.default_rng(24)
+    base = rng.uniform(-1.0, 1.0, (300, 2))
+    tiny = np.r_[np.zeros(300), np.full(300, 1e-300)][:, None]  # twins that differ by 1e-300 only
+    x, yhat = np.hstack([np.vstack([base, base]), tiny]), np.vstack([base, base])[:, :1]
+    with pytest.raises(
+        DataError, match=r"lie at distance 0 from each other in float64, so no radius can be set"
+    ):
+        DomainModel.fit(x, yhat, alpha=0.01)
+    spread = rng.uniform(-1.0, 1.0, (5, 2))  # 5 inputs without a twin: 5 positive scores of 605
+    x2 = np.vstack([x, np.hstack([spread, np.zeros((5, 1))])])
+    yhat2 = np.vstack([yhat, spread[:, :1]])
+    dom = DomainModel.fit(x2, yhat2, alpha=0.01)
+    from scipy.spatial import cKDTree
+
+    loo = cKDTree(dom.reference).query(dom.reference, k=2)[0][:, 1]
+    assert (loo == 0).sum() == 600 and dom.threshold == loo[loo > 0].min() > 0
