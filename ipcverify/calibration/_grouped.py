@@ -268,9 +268,9 @@ class GroupedCalibration:
         """One statistic per test group (the test data needs the group column): its share, or a count."""
         if self.column not in test_data.extra:
             raise InvalidInputError(
-                f"{test_data.source}: the calibration's claim is about groups of {self.column!r} (flights, "
-                "runs), so the test data needs that column to be counted per group; add it, or test a "
-                "row-level calibration"
+                f"{test_data.source}: the calibration's claim is about runs (its calibration data named them "
+                f"{self.column!r}), so the test is counted per run: name the column of the test data's runs "
+                "(CLI: --group-column COL)"
             )
         labels = test_data.extra[self.column]
         unit = f"groups of {self.column}"

@@ -38,10 +38,15 @@ from ipcverify.guard._domain_report import DomainReport
 
 FloatArray = NDArray[np.float64]
 
-#: What every statement of a certificate assumes.
+#: What every statement of a certificate assumes (a claim about rows).
 ASSUMPTION = (
     "calibration, test and deployment samples are exchangeable (e.g. i.i.d. from the deployment "
     "distribution) and were not used for training"
+)
+#: What a claim about runs assumes.
+RUN_ASSUMPTION = (
+    "calibration, test and deployment runs are i.i.d. (rows within a run may be correlated), and no "
+    "calibration or test row was used for training"
 )
 
 
@@ -331,7 +336,7 @@ class Certificate:
             "status": self.status.name,
             "status_text": self.status.value,
             "statement": self.statement,
-            "assumption": ASSUMPTION,
+            "assumption": ASSUMPTION if self.group_claim is None else RUN_ASSUMPTION,
             "n_parameters": self.model.n_parameters,
             "model": self.model.to_dict(),
             "calibration": None if self.calibration is None else self.calibration.to_dict(),

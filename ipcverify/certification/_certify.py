@@ -211,6 +211,9 @@ def certify(
     given, rows = test_data, None  # the test data as given, and what its rows are
     if test_data is not None:  # refuse training or calibration rows; count each distinct row once
         test_data, rows = fresh_test_rows(model, test_data, train_data)
+    claim = None if model.calibration is None else model.calibration.group_claim()
+    if test_data is not None and claim is not None and group_column is not None:
+        test_data, group_column = _runs_named(test_data, claim.column, group_column)
     y_labels = output_labels(model, test_data, labels)
     if units is not None and not units.strip():
         raise InvalidInputError(
@@ -274,6 +277,16 @@ def certify(
     return CertifyResult(
         cert, None if tested is None or test_data is None else _evidence(tested.scores, test_data)
     )
+
+
+def _runs_named(
+    test_data: PerceptionDataset, claim_column: str, column: str
+) -> tuple[PerceptionDataset, str]:
+    """Test data whose runs ``column`` names, for a claim about runs named ``claim_column`` at calibration."""
+    if claim_column in test_data.extra or column not in test_data.extra:
+        return test_data, column
+    extra = {**test_data.extra, claim_column: test_data.extra[column]}
+    return replace(test_data, extra=extra), claim_column
 
 
 @dataclass(frozen=True, eq=False)

@@ -233,6 +233,8 @@ def _group_checks(g: GroupTest, test: TestResult | None = None) -> list[Check]:
         else:
             if g.compared_unit is None or not c.checked:
                 why = c.reason or "the calibration claims no rate to compare with"
+            elif unit == "trajectory" and g.compared_unit in ("share", "share-of-runs"):
+                why = "the claim bounds a group's share of rows outside, not whether any row is"
             elif unit == "trajectory":
                 why = "the claim bounds single rows, not whole groups"
             else:

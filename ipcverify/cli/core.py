@@ -361,8 +361,8 @@ def predict_cmd(model: Path, data: Path, out: Path, force: bool) -> None:
 @click.option(
     "--group-column",
     default=None,
-    help="One observation per group of this column (flights, runs), taken at its last row. Default: "
-    "a flight-level calibration's column; otherwise one observation per row.",
+    help="The column of LOG that names its runs: one observation per run, taken at its last row. "
+    "Default: a run-level calibration's column; otherwise one observation per row.",
 )
 def monitor_cmd(
     model: Path, log: Path, out: Path, force: bool, delta: float | None, group_column: str | None
@@ -371,8 +371,9 @@ def monitor_cmd(
 
     An anytime-valid test of "the violation rate is at most the calibrated rate": it raises an
     alarm at the first observation where the violations so far refute the certificate, with a
-    false-alarm probability of at most --delta. A flight-level model is monitored one flight at a
-    time. Exits with status 1 on an alarm.
+    false-alarm probability of at most --delta. A run-level model is monitored one run at a time,
+    with its claim as the null, and, with a domain test fitted by runs, the runs' shares outside
+    the domain are tested too. Exits with status 1 on an alarm of either test.
     """
     from ipcverify.certification._report_plots import figure_to_png
     from ipcverify.contract._prediction import monitor_log
@@ -394,17 +395,16 @@ def monitor_cmd(
     png = figure_to_png(plot_monitor(res.result, title=f"{log.name}: anytime-valid test of the certificate"))
     write_json(json_path, res)
     atomic_write(png_path, lambda f: f.write(png))
-    target, style = (err_console, "bold red") if res.alarm_index is not None else (console, "bold green")
-    # the alarm's sentence starts with "ALARM at ..."; "No alarm ..." gets an "OK" in front
-    head, rest = (
-        ("ALARM", res.sentence().removeprefix("ALARM"))
-        if res.alarm_index is not None
-        else ("OK", " " + res.sentence())
-    )
+    alarm = res.alarm_index is not None or res.domain_alarm_index is not None
+    target, style = (err_console, "bold red") if alarm else (console, "bold green")
+    # an alarm's sentence starts with "ALARM at ..." or "DOMAIN ALARM at ..."; "No alarm ..." gets an "OK"
+    sentence = res.sentence()
+    head = next((h for h in ("ALARM", "DOMAIN ALARM") if sentence.startswith(h)), None)
+    head, rest = (head, sentence.removeprefix(head)) if head else ("OK", " " + sentence)
     target.print(f"[{style}]{head}[/]{rest}", soft_wrap=True)
     console.print(f"wrote {json_path} and {png_path}", markup=False)
     outputs.announce()
-    if res.alarm_index is not None:
+    if alarm:
         sys.exit(EXIT_VERDICT)
 
 

@@ -63,8 +63,7 @@ def plan_cmd(
             if len(runs) != 1:
                 found = ", ".join(runs) if runs else "none"
                 raise InvalidInputError(
-                    f"{data.name}: name the column of its runs with --group-column (columns that could: "
-                    f"{found})"
+                    f"{data}: name the column of its runs with --group-column (columns that could: {found})"
                 )
             group_column = next(iter(runs))
         n_runs = len(group_codes(ds.column(group_column), f"{data.name}: group column {group_column!r}")[1])

@@ -267,10 +267,13 @@ class LogMonitoring:
         domain = self._domain_sentence()
         null = self.null or f"a violation rate of at most {self.epsilon:.4g}"
         if self.alarm_index is None:
-            return (
-                f"No alarm over {what}: the log is consistent with {null} "
-                f"(anytime-valid test, false-alarm probability at most {self.delta:g}); {share}.{domain}"
+            quiet = (
+                f"the log is consistent with {null} (anytime-valid test, false-alarm probability at most "
+                f"{self.delta:g}); {share}."
             )
+            if self.domain_alarm_index is not None:  # the domain alarm leads, the violation test follows
+                return f"{domain.strip()} No violation alarm over {what}: {quiet}"
+            return f"No alarm over {what}: {quiet}{domain}"
         text = (
             f"ALARM at {self._where(self.alarm_index)}: the violations up to there refute "
             f"{null} (false-alarm probability at most "
@@ -393,10 +396,11 @@ def monitor_log(
     whose expectation is what the claim bounds), or whether that share exceeds the claim's
     (``"share-of-runs"``); the null is then the claim itself, and bursts of violations within a
     run raise no alarm. With a domain test fitted by groups, a second e-process tests the groups'
-    shares of queries outside the domain against its false-alarm rate. ``group_column`` names
-    that column (it must be the calibration's), or, for a row-level calibration, monitors one
-    observation per group of it (the share of its rows outside), which stays valid when the rows
-    of a group are correlated but the groups are independent. Proofs: ``proofs/monitor.md``.
+    shares of queries outside the domain against its false-alarm rate. ``group_column`` names the
+    log's runs when its column is not the calibration's; for a row-level calibration it monitors
+    one observation per group of it (the share of its rows outside), which stays valid when the
+    rows of a group are correlated but the groups are independent. Proofs: ``proofs/monitor.md``
+    and ``proofs/run_claims.md``.
 
     Parameters
     ----------
@@ -412,20 +416,21 @@ def monitor_log(
     Raises
     ------
     InvalidInputError
-        If the model is not calibrated, the group column is not in the log, or differs from a
-        flight-level calibration's.
+        If the model is not calibrated, or the runs' column (the claim's, or ``group_column``) is
+        not in the log.
     """
     cal = model.require_calibration()
     allowed = cal.allowed_violation_rate()
     epsilon = allowed.rate if allowed.rate is not None else cal.epsilon
     delta = cal.delta if delta is None else float(delta)
     claim = cal.group_claim()
-    if claim is not None and group_column not in (None, claim.column):
+    column = group_column if group_column is not None else None if claim is None else claim.column
+    if claim is not None and column not in data.extra:
         raise InvalidInputError(
-            f"this calibration's claim is about groups of {claim.column!r}: monitor with --group-column "
-            f"{claim.column} (or leave --group-column out), not {group_column!r}"
+            f"{data.source}: the calibration's claim is about runs (its calibration data named them "
+            f"{claim.column!r}), and the log has no column {column!r}; name the column of the log's runs "
+            "(CLI: --group-column COL)"
         )
-    column = claim.column if claim is not None else group_column
     statistic = claim.unit if claim is not None else "share"
     limit = None if claim is None else claim.share_limit
     if column is not None:

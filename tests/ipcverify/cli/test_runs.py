@@ -158,3 +158,44 @@ def test_plan_and_dependence_refuse_bad_input():
         measure_dependence([1.0, np.nan], [0, 1], 0.5, "run")
     d = measure_dependence(np.zeros(10), np.repeat([0, 1], 5), 0.5, "run")
     assert d.effective_rows is None and "cannot be measured" in d.sentence()
+
+
+def test_a_log_that_names_its_runs_otherwise_is_certified_and_monitored_by_them(files, run_cli, tmp_path):
+    """A contract calibrated by 'run', deployed on a log whose runs are named 'flight' (--group-column)."""
+    run_cli("calibrate", files / "m.pt", files / "cal.csv", "--epsilon", "0.2", "--delta", "0.05",
+            "--out", tmp_path / "c.pt")  # fmt: skip
+    test = _runs(30, 20, seed=2, column="flight")
+    save_dataset(test, tmp_path / "flights.csv")
+    missing = run_cli(
+        "certify", tmp_path / "c.pt", "--data", tmp_path / "flights.csv", "--out", tmp_path / "x"
+    )
+    assert (
+        missing.code == 2
+        and "name the column of the test data's runs (CLI: --group-column COL)" in missing.stderr
+    )
+    named = run_cli("certify", tmp_path / "c.pt", "--data", tmp_path / "flights.csv",
+                    "--group-column", "flight", "--out", tmp_path / "cert")  # fmt: skip
+    assert named.code in (0, 1), named.stderr
+    d = json.loads((tmp_path / "cert" / "certificate.json").read_text())
+    assert d["test"]["n"] == 30 and d["group_test"]["n_groups"] == 30
+    assert "runs are i.i.d." in d["assumption"]
+    no_runs = run_cli("monitor", tmp_path / "c.pt", tmp_path / "flights.csv", "--out", tmp_path / "m0")
+    assert no_runs.code == 2 and "name the column of the log's runs" in no_runs.stderr
+    mon = run_cli("monitor", tmp_path / "c.pt", tmp_path / "flights.csv", "--group-column", "flight",
+                  "--out", tmp_path / "m")  # fmt: skip
+    record = json.loads((tmp_path / "m" / "monitor.json").read_text())
+    assert record["observations"] == 30 and record["unit"].startswith("groups of flight")
+    assert mon.code == (1 if record["alarm"] or record["domain_alarm"] else 0)
+
+
+def test_a_domain_alarm_alone_is_an_alarm(files, run_cli, tmp_path):
+    run_cli("calibrate", files / "m.pt", files / "cal.csv", "--epsilon", "0.2", "--delta", "0.05",
+            "--out", tmp_path / "c.pt")  # fmt: skip
+    far = _runs(30, 20, seed=5)
+    far = PerceptionDataset(far.x + np.r_[0, 0, 0, 0, 40.0, 0], far.y, far.yhat, extra=dict(far.extra))
+    save_dataset(far, tmp_path / "far.csv")
+    res = run_cli("monitor", tmp_path / "c.pt", tmp_path / "far.csv", "--out", tmp_path / "m")
+    record = json.loads((tmp_path / "m" / "monitor.json").read_text())
+    assert record["domain_alarm"] and res.code == 1, res.stdout + res.stderr
+    first = res.stderr.strip().splitlines()[0]
+    assert first.startswith(("DOMAIN ALARM at group", "ALARM at group")) and "OK" not in first
