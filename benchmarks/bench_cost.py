@@ -22,7 +22,7 @@ from benchmarks.common import spread
 from benchmarks.datasets import Splits
 from case_studies.quad_landing.landing.state_machine import LandingParams
 from ipcverify.contract import IPCModel
-from ipcverify.decision import landing_accept_float
+from ipcverify.decision._landing_float import landing_accept_float
 
 __all__ = ["bench_cost"]
 

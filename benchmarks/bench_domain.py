@@ -35,11 +35,16 @@ from matplotlib.figure import Figure
 from scipy.spatial import cKDTree
 
 from benchmarks.common import machine_info, write_json
-from ipcverify.calibration import marginal_conformal_index
-from ipcverify.certification import certify, figure_to_png
+from ipcverify.calibration._bounds import marginal_conformal_index
+from ipcverify.certification import certify
+from ipcverify.certification._report_plots import figure_to_png
 from ipcverify.contract import calibrate, monitor_log
-from ipcverify.data import PerceptionDataset, atomic_write, make_lagged_perception
-from ipcverify.guard import DEFAULT_ALPHA, DEFAULT_K, DomainModel, plot_monitor
+from ipcverify.data import PerceptionDataset
+from ipcverify.data._files import atomic_write
+from ipcverify.data._synthetic import make_lagged_perception
+from ipcverify.guard import DomainModel
+from ipcverify.guard._domain import DEFAULT_ALPHA, DEFAULT_K
+from ipcverify.guard._monitor import plot_monitor
 from ipcverify.training import TrainConfig, train
 
 __all__ = ["EUROC", "load_euroc", "real_log", "synthetic_shifts", "candidates", "query_cost", "main"]

@@ -46,10 +46,13 @@ from benchmarks.datasets import load_splits, quad_flights
 from benchmarks.oracle_data import make_hetlag
 from benchmarks.timing import run_child
 from ipcverify.calibration import Global
-from ipcverify.contract import IPCModel, calibrate, predict_sets, write_predictions
-from ipcverify.data import PerceptionInputs, atomic_write
+from ipcverify.contract import IPCModel, calibrate
+from ipcverify.contract._prediction import predict_sets, write_predictions
+from ipcverify.data import PerceptionInputs
+from ipcverify.data._files import atomic_write
 from ipcverify.guard import DomainModel, DomainSpec
-from ipcverify.io import load_inputs_for_model, load_model, save_model
+from ipcverify.io import load_model, save_model
+from ipcverify.io._modelio import load_inputs_for_model
 from ipcverify.training import TrainConfig, train
 
 __all__ = ["batches", "calibration_sizes", "cli_predict", "main", "plot", "reference_cap"]

@@ -41,10 +41,12 @@ from scipy import optimize, stats
 
 from benchmarks.common import machine_info, save_figure, write_json
 from benchmarks.run_logs import SETTINGS, Setting, make_run_log
-from ipcverify.calibration import Global, Grouped, clopper_pearson_interval, run_floor
+from ipcverify.calibration import Global, Grouped
+from ipcverify.calibration._bounds import clopper_pearson_interval
 from ipcverify.calibration._group_fit import smallest_run_rate
 from ipcverify.calibration._method import CalibrationSample
 from ipcverify.calibration._run_fit import run_quantiles
+from ipcverify.calibration._share_bound import run_floor
 from ipcverify.data import PerceptionDataset
 from ipcverify.errors import Hint, SampleSizeError
 

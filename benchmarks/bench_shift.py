@@ -35,7 +35,7 @@ import pandas as pd
 from benchmarks.common import write_json
 from benchmarks.oracle_data import make_fresh_lagged, make_hetlag
 from ipcverify.calibration import Global
-from ipcverify.certification import fit_global_mahalanobis
+from ipcverify.certification._baselines import fit_global_mahalanobis
 from ipcverify.contract import calibrate
 from ipcverify.data import PerceptionDataset
 from ipcverify.training import TrainConfig, train

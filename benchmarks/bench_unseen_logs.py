@@ -458,9 +458,11 @@ def replay(contract: Path, log: Path, out: Path, column: str) -> dict[str, Any]:
     the domain test's false-alarm rate. The per-run numbers come from the library's
     ``monitor_log`` (the code the command runs), checked against the command's alarms.
     """
-    from ipcverify.contract import monitor_log, predict_sets
+    from ipcverify.contract import monitor_log
+    from ipcverify.contract._prediction import predict_sets
     from ipcverify.data import PerceptionInputs
-    from ipcverify.io import load_data_for_model, load_model
+    from ipcverify.io import load_model
+    from ipcverify.io._modelio import load_data_for_model
 
     code, err = _cli(["monitor", str(contract), str(log), "--out", str(out)])
     if code not in (0, 1):

@@ -56,7 +56,8 @@ from numpy.typing import NDArray
 
 from benchmarks.common import write_json
 from benchmarks.oracle_data import Oracle, make_hetlag
-from ipcverify.sets import Ellipsoid, unit_ball_log_volume
+from ipcverify.sets import Ellipsoid
+from ipcverify.sets._ellipsoid import unit_ball_log_volume
 
 __all__ = ["DiagnosisResult", "diagnose", "toy_check", "diagnose_recipes", "main"]
 

@@ -30,7 +30,7 @@ from matplotlib.figure import Figure
 from scipy.spatial.transform import Rotation
 
 from benchmarks.bench_ingest import PoseStream, write_pose_bag
-from ipcverify.data import atomic_write
+from ipcverify.data._files import atomic_write
 
 __all__ = ["MOCAP_AHEAD", "simulate_flight", "write_flights", "commands", "plot_flight", "main"]
 

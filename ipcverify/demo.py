@@ -84,7 +84,8 @@ def example(
         Cut the rows into this many consecutive runs of equal length (``n`` a multiple of it),
         named by a ``run`` column: the log then comes in runs, as a robot log does.
     config : ModelConfig, optional
-        The model's architecture (``x_dim=6``, ``y_dim=3``); default: a small Cholesky network.
+        The model's architecture; default: a small Cholesky network for the data's 6 state columns
+        and 3 outputs. Another one (other dimensions too) gives a model for examples of its own.
 
     Examples
     --------
@@ -101,10 +102,6 @@ def example(
     if runs is not None and (isinstance(runs, bool) or not isinstance(runs, int) or runs < 1 or n % runs):
         raise InvalidInputError(f"runs must be a positive integer that divides n = {n}; got {runs!r}")
     cfg = EXAMPLE_CONFIG if config is None else config
-    if (cfg.x_dim, cfg.y_dim) != (6, 3):
-        raise InvalidInputError(
-            f"the example data have x_dim=6, y_dim=3; got a config for {cfg.x_dim}, {cfg.y_dim}"
-        )
     data = make_lagged_perception(n, seed=seed)
     if runs is not None:
         data = PerceptionDataset(
@@ -245,8 +242,8 @@ def plot_demo_sets(data: PerceptionDataset, ipc: Ellipsoid, base: Ellipsoid) -> 
 
     Examples
     --------
-    >>> from ipcverify.data._synthetic import make_lagged_perception
-    >>> d = make_lagged_perception(50, seed=0)
+    >>> from ipcverify import example
+    >>> d = example(50, seed=0).data
     >>> e = Ellipsoid(d.yhat, np.broadcast_to(np.eye(3) * 20.0, (50, 3, 3)))
     >>> len(plot_demo_sets(d, e, e).axes)
     3

@@ -22,7 +22,7 @@ from case_studies.quad_landing.sim.camera import MAX_BUFFER_SIZE
 from case_studies.quad_landing.sim.config import SimConfig, load_config
 from ipcverify.cli.app import run_group
 from ipcverify.cli.outputs import check_outputs, force_option
-from ipcverify.data import json_data
+from ipcverify.data._files import json_data
 from ipcverify.errors import InvalidInputError
 
 __all__ = ["quad", "main"]

@@ -51,136 +51,16 @@ from typing import TYPE_CHECKING
 from ipcverify._package import lazy_exports
 
 if TYPE_CHECKING:
-    from ipcverify.calibration._bounds import (
-        TAIL_MARGIN,
-        CalibrationMode,
-        clopper_pearson_interval,
-        clopper_pearson_lower,
-        clopper_pearson_upper,
-        marginal_conformal_index,
-        min_calibration_size,
-        pac_calibration_index,
-        pac_epsilon,
-        pac_rows_allowing,
-        smallest_epsilon,
-        smallest_marginal_epsilon,
-    )
-    from ipcverify.calibration._global_scale import (
-        Global,
-        GlobalCalibration,
-    )
-    from ipcverify.calibration._group_counts import (
-        GUARANTEES,
-        GroupViolations,
-        GuaranteeKind,
-        group_violation_counts,
-    )
-    from ipcverify.calibration._grouped import GroupedCalibration
+    from ipcverify.calibration._global_scale import Global
     from ipcverify.calibration._grouped_spec import Grouped
-    from ipcverify.calibration._kinds import (
-        KINDS,
-        METHODS,
-        calibration_from_dict,
-        register_kind,
-    )
-    from ipcverify.calibration._method import (
-        CalibrationMethod,
-        CalibrationRecord,
-        CalibrationSample,
-        CalibrationSpec,
-    )
-    from ipcverify.calibration._mondrian import (
-        GroupScale,
-        Mondrian,
-        MondrianCalibration,
-    )
-    from ipcverify.calibration._mondrian_groups import (
-        EDGE_FRACTION,
-        MAX_GROUPS,
-    )
-    from ipcverify.calibration._protocol import (
-        GROUP_UNITS,
-        AllowedRate,
-        Calibration,
-        CalibrationSummary,
-        GroupClaim,
-        GroupInfo,
-        GroupUnit,
-        TestCounts,
-    )
-    from ipcverify.calibration._risk_control import (
-        risk_control_threshold,
-    )
-    from ipcverify.calibration._run_plan import (
-        ClaimPlan,
-        RunPlan,
-        plan_runs,
-    )
-    from ipcverify.calibration._share_bound import (
-        run_floor,
-        share_lower_bound,
-        share_upper_bound,
-    )
-    from ipcverify.calibration._threshold import (
-        MODES,
-        SCALE_MARGIN,
-        ScoreThreshold,
-        threshold_scores,
-    )
+    from ipcverify.calibration._mondrian import Mondrian
+    from ipcverify.calibration._run_plan import plan_runs
 
 __all__ = [
-    "EDGE_FRACTION",
-    "GROUP_UNITS",
-    "GUARANTEES",
-    "KINDS",
-    "MAX_GROUPS",
-    "METHODS",
-    "MODES",
-    "SCALE_MARGIN",
-    "TAIL_MARGIN",
-    "AllowedRate",
-    "Calibration",
-    "CalibrationMethod",
-    "CalibrationMode",
-    "CalibrationRecord",
-    "CalibrationSample",
-    "CalibrationSpec",
-    "CalibrationSummary",
-    "ClaimPlan",
     "Global",
-    "GlobalCalibration",
-    "GroupClaim",
-    "GroupInfo",
-    "GroupScale",
-    "GroupUnit",
-    "GroupViolations",
     "Grouped",
-    "GroupedCalibration",
-    "GuaranteeKind",
     "Mondrian",
-    "MondrianCalibration",
-    "RunPlan",
-    "ScoreThreshold",
-    "TestCounts",
-    "calibration_from_dict",
-    "clopper_pearson_interval",
-    "clopper_pearson_lower",
-    "clopper_pearson_upper",
-    "group_violation_counts",
-    "marginal_conformal_index",
-    "min_calibration_size",
-    "pac_calibration_index",
-    "pac_epsilon",
-    "pac_rows_allowing",
     "plan_runs",
-    "register_kind",
-    "risk_control_threshold",
-    "run_floor",
-    "share_lower_bound",
-    "share_upper_bound",
-    "smallest_epsilon",
-    "smallest_marginal_epsilon",
-    "threshold_scores",
 ]
 
 __getattr__, __dir__ = lazy_exports(__name__, __file__)

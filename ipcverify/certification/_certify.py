@@ -197,13 +197,12 @@ def certify(
 
     Examples
     --------
-    >>> from ipcverify.data._synthetic import make_lagged_perception
-    >>> from ipcverify.network._modules import IPCNetwork
-    >>> from ipcverify.network._architecture import ModelConfig
-    >>> from ipcverify.contract._calibrate import calibrate
-    >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(8,), param="cholesky")))
-    >>> m = calibrate(m, make_lagged_perception(2000, seed=1), epsilon=0.05, delta=0.01)
-    >>> res = certify(m, make_lagged_perception(2000, seed=2))
+    >>> from ipcverify import example
+    >>> from ipcverify.network import ModelConfig
+    >>> from ipcverify import calibrate
+    >>> m = example(config=ModelConfig(x_dim=6, y_dim=3, hidden=(8,), param="cholesky")).model
+    >>> m = calibrate(m, example(2000, seed=1).data, epsilon=0.05, delta=0.01)
+    >>> res = certify(m, example(2000, seed=2).data)
     >>> res.certificate.status.name, res.certificate.test.n
     ('CERTIFIED', 2000)
     """

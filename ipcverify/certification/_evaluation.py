@@ -382,9 +382,9 @@ def evaluate(
 
     Examples
     --------
-    >>> from ipcverify.data._synthetic import make_lagged_perception
-    >>> from ipcverify.training._train import train, TrainConfig
-    >>> ds = make_lagged_perception(300, seed=0)
+    >>> from ipcverify import example
+    >>> from ipcverify.training import train, TrainConfig
+    >>> ds = example(300, seed=0).data
     >>> ev = evaluate(train(ds, train_config=TrainConfig(epochs=1)).model, ds)
     >>> ev.n
     300

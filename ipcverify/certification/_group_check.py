@@ -82,8 +82,8 @@ def group_test_step(
 
     Examples
     --------
-    >>> from ipcverify.data._synthetic import make_lagged_perception
-    >>> ds = make_lagged_perception(40, seed=0)
+    >>> from ipcverify import example
+    >>> ds = example(40, seed=0).data
     >>> ds = PerceptionDataset(ds.x, ds.y, ds.yhat, extra={"run": np.repeat(np.arange(8), 5)})
     >>> violated = np.zeros(40, dtype=bool); violated[[0, 1, 7]] = True
     >>> g = group_test_step(None, ds, violated, 0.05, "run")

@@ -326,13 +326,12 @@ def render_report(result: CertifyResult) -> str:
 
     Examples
     --------
-    >>> from ipcverify.data._synthetic import make_lagged_perception
-    >>> from ipcverify.contract._model import IPCModel
-    >>> from ipcverify.network._modules import IPCNetwork
-    >>> from ipcverify.network._architecture import ModelConfig
+    >>> from ipcverify import example
+    >>> from ipcverify import IPCModel
+    >>> from ipcverify.network import ModelConfig
     >>> from ipcverify.certification import certify  # certify imports this module, not the other way round
-    >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(8,), param="cholesky")))
-    >>> page = render_report(certify(m, make_lagged_perception(500, seed=2)))
+    >>> m = example(config=ModelConfig(x_dim=6, y_dim=3, hidden=(8,), param="cholesky")).model
+    >>> page = render_report(certify(m, example(500, seed=2).data))
     >>> page.startswith("<!DOCTYPE html>") and "http" not in page
     True
     """

@@ -346,9 +346,9 @@ def output_labels(
 
     Examples
     --------
-    >>> from ipcverify.network._modules import IPCNetwork
-    >>> from ipcverify.network._architecture import ModelConfig
-    >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(4,), param="cholesky")))
+    >>> from ipcverify import example
+    >>> from ipcverify.network import ModelConfig
+    >>> m = example(config=ModelConfig(x_dim=2, y_dim=3, hidden=(4,), param="cholesky")).model
     >>> output_labels(m, None), output_labels(m, None, [" forward", "left", "up"])
     (('y_0', 'y_1', 'y_2'), ('forward', 'left', 'up'))
     """
@@ -412,15 +412,14 @@ def summarize(
 
     Examples
     --------
-    >>> from ipcverify.data._synthetic import make_lagged_perception
-    >>> from ipcverify.contract._model import IPCModel
-    >>> from ipcverify.network._modules import IPCNetwork
-    >>> from ipcverify.network._architecture import ModelConfig
-    >>> from ipcverify.contract._calibrate import calibrate
-    >>> from ipcverify.certification._certify import certify
-    >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(8,), param="cholesky")))
-    >>> m = calibrate(m, make_lagged_perception(2000, seed=1), epsilon=0.2, delta=0.01)
-    >>> s = summarize(certify(m, make_lagged_perception(2000, seed=2)).certificate, units="m")
+    >>> from ipcverify import example
+    >>> from ipcverify import IPCModel
+    >>> from ipcverify.network import ModelConfig
+    >>> from ipcverify import calibrate
+    >>> from ipcverify import certify
+    >>> m = example(config=ModelConfig(x_dim=6, y_dim=3, hidden=(8,), param="cholesky")).model
+    >>> m = calibrate(m, example(2000, seed=1).data, epsilon=0.2, delta=0.01)
+    >>> s = summarize(certify(m, example(2000, seed=2).data).certificate, units="m")
     >>> s.verdict_text()[:67]
     'CERTIFIED, WEAK TARGET (epsilon = 0.2: up to 20 % of the truths may'
     >>> [c.name for c in s.checks]

@@ -209,14 +209,13 @@ def fresh_test_rows(
     Examples
     --------
     >>> import numpy as np
-    >>> from ipcverify.data._synthetic import make_lagged_perception
-    >>> from ipcverify.network._modules import IPCNetwork
-    >>> from ipcverify.network._architecture import ModelConfig
-    >>> from ipcverify.contract._calibrate import calibrate
-    >>> cal = make_lagged_perception(500, seed=1)
-    >>> net = IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(8,), param="cholesky"))
+    >>> from ipcverify import example
+    >>> from ipcverify.network import ModelConfig
+    >>> from ipcverify import calibrate
+    >>> cal = example(500, seed=1).data
+    >>> net = example(config=ModelConfig(x_dim=6, y_dim=3, hidden=(8,), param="cholesky")).model.network
     >>> m = calibrate(IPCModel(net), cal, 0.1, 0.05)
-    >>> test = make_lagged_perception(200, seed=2)
+    >>> test = example(200, seed=2).data
     >>> twice = PerceptionDataset(*(np.vstack([a, a]) for a in (test.x, test.y, test.yhat)))
     >>> rows, record = fresh_test_rows(m, twice)
     >>> len(rows), record.repeated, record.calibration

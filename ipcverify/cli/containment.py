@@ -16,15 +16,10 @@ import click
 from ipcverify.cli.app import EXISTING_FILE, OUTPUT_FILE, app, console
 from ipcverify.cli.outputs import check_outputs, force_option
 from ipcverify.data._files import atomic_write
-from ipcverify.decision.containment import (
-    ContainmentCertificate,
-    Method,
-    certificate_from_dict,
-    problem_from_dict,
-    prove,
-    verify,
-)
-from ipcverify.decision.containment._status import check_method
+from ipcverify.decision.containment import prove, verify
+from ipcverify.decision.containment._certificate import ContainmentCertificate, certificate_from_dict
+from ipcverify.decision.containment._io import problem_from_dict
+from ipcverify.decision.containment._status import Method, check_method
 from ipcverify.errors import InvalidInputError
 
 __all__ = ["load_json_items"]

@@ -113,16 +113,15 @@ def calibrate(
     Examples
     --------
     >>> from ipcverify.calibration import Grouped
-    >>> from ipcverify.data._synthetic import make_lagged_perception
-    >>> from ipcverify.network._modules import IPCNetwork
-    >>> from ipcverify.network._architecture import ModelConfig
-    >>> net = IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(8,), param="cholesky"))
-    >>> cal = calibrate(IPCModel(net), make_lagged_perception(1000, seed=1), 0.05, 0.01)
+    >>> from ipcverify import example
+    >>> from ipcverify.network import ModelConfig
+    >>> net = example(config=ModelConfig(x_dim=6, y_dim=3, hidden=(8,), param="cholesky")).model.network
+    >>> cal = calibrate(IPCModel(net), example(1000, seed=1).data, 0.05, 0.01)
     >>> cal.calibration.groups()[0].k, cal.domain.alpha
     (966, 0.01)
     >>> import numpy as np
     >>> from ipcverify.data import PerceptionDataset
-    >>> d = make_lagged_perception(1000, seed=2)
+    >>> d = example(1000, seed=2).data
     >>> flights = PerceptionDataset(d.x, d.y, d.yhat, extra={"flight": np.arange(1000) // 10})  # 100 flights
     >>> by_flight = calibrate(IPCModel(net), flights, 0.1, 0.05, Grouped(column="flight"),
     ...                       domain=DomainSpec(alpha=0.05))
@@ -296,15 +295,12 @@ def warn_largest_score(cal: Calibration, source: str) -> None:
     Examples
     --------
     >>> import warnings
-    >>> import numpy as np
-    >>> from ipcverify.calibration import Global
-    >>> from ipcverify.calibration._method import CalibrationSample
-    >>> sample = CalibrationSample(scores=np.linspace(0.1, 3.0, 50), data=None, epsilon=0.1, delta=0.01,
-    ...                            data_hash="", network_hash="")
+    >>> from ipcverify import example
+    >>> ex = example(50)
     >>> with warnings.catch_warnings(record=True) as w:
     ...     warnings.simplefilter("always")
-    ...     warn_largest_score(Global().fit(sample), "cal.csv")
-    >>> print(str(w[0].message)[:77])
+    ...     warn_largest_score(calibrate(ex.model, ex.data, 0.1, 0.01, domain=None).calibration, "cal.csv")
+    >>> print(str(w[-1].message)[:77])
     cal.csv: the calibrated scale is the largest of the 50 calibration scores: at
     """
     for g in cal.groups():

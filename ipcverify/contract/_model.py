@@ -70,8 +70,8 @@ class IPCModel:
     Examples
     --------
     >>> import numpy as np
-    >>> from ipcverify.network._modules import build_network
-    >>> m = IPCModel(build_network(ModelConfig(x_dim=2, y_dim=3, hidden=(8,))))
+    >>> from ipcverify import example
+    >>> m = example(config=ModelConfig(x_dim=2, y_dim=3, hidden=(8,))).model
     >>> m.predict(np.zeros((4, 2)), np.zeros((4, 3))).batch_size
     4
     """
@@ -192,8 +192,8 @@ class IPCModel:
 
         Examples
         --------
-        >>> from ipcverify.network._modules import build_network
-        >>> m = IPCModel(build_network(ModelConfig(x_dim=1, y_dim=1, hidden=(2,))))
+        >>> from ipcverify import example
+        >>> m = example(config=ModelConfig(x_dim=1, y_dim=1, hidden=(2,))).model
         >>> m.require_calibration()  # doctest: +ELLIPSIS
         Traceback (most recent call last):
         ...
@@ -246,8 +246,8 @@ def network_fingerprint(network: Network | NetworkWeights) -> str:
 
     Examples
     --------
-    >>> from ipcverify.network._modules import build_network
-    >>> len(network_fingerprint(build_network(ModelConfig(x_dim=1, y_dim=1, hidden=(2,)))))
+    >>> from ipcverify import example
+    >>> len(network_fingerprint(example(config=ModelConfig(x_dim=1, y_dim=1, hidden=(2,))).model.network))
     64
     """
     return NetworkWeights.of(network).fingerprint()

@@ -11,11 +11,10 @@ counted, instead of stopping the batch. :func:`write_predictions` writes the arr
 Examples
 --------
 >>> import numpy as np
->>> from ipcverify.network._architecture import ModelConfig
->>> from ipcverify.data._dataset import PerceptionDataset, PerceptionInputs
->>> from ipcverify.data._split import group_codes
->>> from ipcverify.contract._model import IPCModel, IPCNetwork
->>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(8,), param="cholesky")))
+>>> from ipcverify.network import ModelConfig
+>>> from ipcverify.data import PerceptionDataset, PerceptionInputs
+>>> from ipcverify import IPCModel, example
+>>> m = example(config=ModelConfig(x_dim=2, y_dim=3, hidden=(8,), param="cholesky")).model
 >>> p = predict_sets(m, PerceptionInputs(np.zeros((4, 2)), np.zeros((4, 3))))
 >>> p.centers.shape, p.in_domain.tolist()   # no domain model: every query counts as inside
 ((4, 3), [True, True, True, True])

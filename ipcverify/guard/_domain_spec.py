@@ -44,10 +44,10 @@ class DomainSpec:
 
     Examples
     --------
-    >>> from ipcverify.data._synthetic import make_lagged_perception
-    >>> DomainSpec(alpha=0.05).fit(make_lagged_perception(500, seed=1)).alpha
+    >>> from ipcverify import example
+    >>> DomainSpec(alpha=0.05).fit(example(500, seed=1).data).alpha
     0.05
-    >>> DomainSpec().fit(make_lagged_perception(500, seed=1)).alpha
+    >>> DomainSpec().fit(example(500, seed=1).data).alpha
     0.01
     >>> DomainSpec(alpha=2.0)
     Traceback (most recent call last):

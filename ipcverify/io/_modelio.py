@@ -104,8 +104,8 @@ def save_model(model: IPCModel, path: str | os.PathLike[str]) -> None:
     Examples
     --------
     >>> import tempfile, os, numpy as np
-    >>> from ipcverify.network._modules import build_network
-    >>> m = IPCModel(build_network(ModelConfig(x_dim=2, y_dim=3, hidden=(8,))))
+    >>> from ipcverify import example
+    >>> m = example(config=ModelConfig(x_dim=2, y_dim=3, hidden=(8,))).model
     >>> p = os.path.join(tempfile.mkdtemp(), "model.pt")
     >>> save_model(m, p)
     >>> load_model(p).config.hidden
@@ -306,13 +306,12 @@ def load_data_for_model(path: str | os.PathLike[str], model: IPCModel) -> Percep
     Examples
     --------
     >>> import tempfile, os
-    >>> from ipcverify.data._synthetic import make_lagged_perception
-    >>> from ipcverify.data._dataset import save_dataset
-    >>> from ipcverify.network._architecture import ModelConfig
+    >>> from ipcverify import example
+    >>> from ipcverify.data import save_dataset
+    >>> from ipcverify.network import ModelConfig
     >>> p = os.path.join(tempfile.mkdtemp(), "d.csv")
-    >>> save_dataset(make_lagged_perception(5, seed=0), p)
-    >>> from ipcverify.network._modules import build_network
-    >>> len(load_data_for_model(p, IPCModel(build_network(ModelConfig(x_dim=6, y_dim=3)))))
+    >>> save_dataset(example(5, seed=0).data, p)
+    >>> len(load_data_for_model(p, example(config=ModelConfig(x_dim=6, y_dim=3)).model))
     5
     """
     if Path(path).suffix.lower() == ".npz":
@@ -337,11 +336,11 @@ def load_inputs_for_model(path: str | os.PathLike[str], model: IPCModel) -> Perc
     --------
     >>> import tempfile, os
     >>> import numpy as np, pandas as pd
-    >>> from ipcverify.network._architecture import ModelConfig
+    >>> from ipcverify.network import ModelConfig
     >>> p = os.path.join(tempfile.mkdtemp(), "q.csv")
     >>> pd.DataFrame({"x_0": [0.0, 1.0], "yhat_0": [0.5, 0.5]}).to_csv(p, index=False)
-    >>> from ipcverify.network._modules import build_network
-    >>> load_inputs_for_model(p, IPCModel(build_network(ModelConfig(x_dim=1, y_dim=1)))).x.shape
+    >>> from ipcverify import example
+    >>> load_inputs_for_model(p, example(config=ModelConfig(x_dim=1, y_dim=1)).model).x.shape
     (2, 1)
     """
     if Path(path).suffix.lower() == ".npz":

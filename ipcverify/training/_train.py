@@ -250,8 +250,8 @@ def select_hinge(
 
     Examples
     --------
-    >>> from ipcverify.data._synthetic import make_lagged_perception
-    >>> ds = make_lagged_perception(300, seed=0)
+    >>> from ipcverify import example
+    >>> ds = example(300, seed=0).data
     >>> mc = ModelConfig.recipe("paper", x_dim=6, y_dim=3, hidden=(8, 8))
     >>> tc, rec = select_hinge(ds, mc, TrainConfig.recipe("paper", epochs=1),
     ...                        HingeSelection(alphas=(0.1, 1.0), lams=(0.01,)))
@@ -366,8 +366,8 @@ def train(
 
     Examples
     --------
-    >>> from ipcverify.data._synthetic import make_lagged_perception
-    >>> ds = make_lagged_perception(200, seed=0)
+    >>> from ipcverify import example
+    >>> ds = example(200, seed=0).data
     >>> res = train(ds, train_config=TrainConfig(epochs=2))
     >>> len(res.history), res.model.config.members
     (2, 5)

@@ -22,7 +22,7 @@ from benchmarks.bench_unseen_logs import (
     replay_table,
     run_log,
 )
-from ipcverify.calibration import run_floor
+from ipcverify.calibration._share_bound import run_floor
 
 ROOT = Path(__file__).resolve().parents[2]
 EXCERPT = ROOT / "tests" / "ipcverify" / "io" / "ingest" / "data" / "euroc_mh04"

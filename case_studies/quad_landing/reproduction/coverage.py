@@ -25,7 +25,7 @@ import numpy as np
 from case_studies.quad_landing.arrays import FloatArray
 from case_studies.quad_landing.landing.runs import LandingRun
 from case_studies.quad_landing.reproduction.record import Record
-from ipcverify.calibration import clopper_pearson_interval, clopper_pearson_lower
+from ipcverify.calibration._bounds import clopper_pearson_interval, clopper_pearson_lower
 from ipcverify.contract import IPCModel
 from ipcverify.data import PerceptionDataset
 from ipcverify.errors import InvalidInputError

@@ -44,9 +44,11 @@ import torch
 
 from case_studies.quad_landing.reproduction.config import IpcParams
 from case_studies.quad_landing.reproduction.record import Record
-from ipcverify.calibration import CalibrationSummary, Global, Grouped, plan_runs
+from ipcverify.calibration import Global, Grouped, plan_runs
+from ipcverify.calibration._protocol import CalibrationSummary
 from ipcverify.contract import IPCModel, calibrate
-from ipcverify.data import PerceptionDataset, atomic_write
+from ipcverify.data import PerceptionDataset
+from ipcverify.data._files import atomic_write
 from ipcverify.errors import Hint, ModelFileError, SampleSizeError
 from ipcverify.guard import DomainSpec
 from ipcverify.io import load_model, save_model

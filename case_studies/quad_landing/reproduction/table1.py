@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from case_studies.quad_landing.reproduction.record import Record
-from ipcverify.calibration import clopper_pearson_interval, clopper_pearson_upper
+from ipcverify.calibration._bounds import clopper_pearson_interval, clopper_pearson_upper
 from ipcverify.contract import IPCModel
 from ipcverify.data import PerceptionDataset
 from ipcverify.errors import InvalidInputError

@@ -10,16 +10,12 @@ import pytest
 import torch
 from scipy import stats
 
-from ipcverify.calibration import (
-    SCALE_MARGIN,
-    Global,
-    GlobalCalibration,
-    Mondrian,
-    MondrianCalibration,
-    calibration_from_dict,
-    threshold_scores,
-)
+from ipcverify.calibration import Global, Mondrian
 from ipcverify.calibration._bounds import marginal_conformal_index, pac_calibration_index
+from ipcverify.calibration._global_scale import GlobalCalibration
+from ipcverify.calibration._kinds import calibration_from_dict
+from ipcverify.calibration._mondrian import MondrianCalibration
+from ipcverify.calibration._threshold import SCALE_MARGIN, threshold_scores
 from ipcverify.contract._calibrate import calibrate
 from ipcverify.contract._model import network_fingerprint
 from ipcverify.data._dataset import PerceptionDataset

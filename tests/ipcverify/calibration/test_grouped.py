@@ -28,16 +28,14 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from ipcverify.calibration import (
-    CalibrationSummary,
-    GroupedCalibration,
-    calibration_from_dict,
-    group_violation_counts,
-    risk_control_threshold,
-    threshold_scores,
-)
 from ipcverify.calibration._bounds import min_calibration_size, smallest_epsilon
+from ipcverify.calibration._group_counts import group_violation_counts
 from ipcverify.calibration._group_fit import runs_needed, smallest_run_rate
+from ipcverify.calibration._grouped import GroupedCalibration
+from ipcverify.calibration._kinds import calibration_from_dict
+from ipcverify.calibration._protocol import CalibrationSummary
+from ipcverify.calibration._risk_control import risk_control_threshold
+from ipcverify.calibration._threshold import threshold_scores
 from ipcverify.errors import DataError, InvalidInputError, SampleSizeError
 
 SB, SE = 1.0, 0.5

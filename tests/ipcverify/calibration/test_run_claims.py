@@ -15,12 +15,15 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from ipcverify.calibration import GroupedCalibration, run_floor, share_lower_bound, share_upper_bound
+from ipcverify.calibration._grouped import GroupedCalibration
 from ipcverify.calibration._run_fit import expected_share_threshold, run_quantiles, run_shares
 from ipcverify.calibration._share_bound import (
     FLOOR_WEIGHT,
+    run_floor,
     runs_for_share,
+    share_lower_bound,
     share_rejects,
+    share_upper_bound,
     smallest_share_epsilon,
 )
 from ipcverify.errors import InvalidInputError, SampleSizeError

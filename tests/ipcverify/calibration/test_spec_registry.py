@@ -10,23 +10,14 @@ from typing import ClassVar
 import numpy as np
 import pytest
 
-from ipcverify.calibration import (
-    KINDS,
-    METHODS,
-    CalibrationRecord,
-    CalibrationSample,
-    CalibrationSpec,
-    Global,
-    GlobalCalibration,
-    Grouped,
-    GroupedCalibration,
-    GroupInfo,
-    Mondrian,
-    MondrianCalibration,
-    calibration_from_dict,
-    register_kind,
-    threshold_scores,
-)
+from ipcverify.calibration import Global, Grouped, Mondrian
+from ipcverify.calibration._global_scale import GlobalCalibration
+from ipcverify.calibration._grouped import GroupedCalibration
+from ipcverify.calibration._kinds import KINDS, METHODS, calibration_from_dict, register_kind
+from ipcverify.calibration._method import CalibrationRecord, CalibrationSample, CalibrationSpec
+from ipcverify.calibration._mondrian import MondrianCalibration
+from ipcverify.calibration._protocol import GroupInfo
+from ipcverify.calibration._threshold import threshold_scores
 from ipcverify.certification import certify
 from ipcverify.contract import IPCModel, calibrate
 from ipcverify.data import PerceptionDataset

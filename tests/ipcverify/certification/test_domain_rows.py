@@ -21,7 +21,8 @@ from ipcverify.contract import IPCModel
 from ipcverify.data import PerceptionDataset
 from ipcverify.errors import Hint
 from ipcverify.guard import DomainReport, DomainSpec
-from ipcverify.network import IPCNetwork, ModelConfig
+from ipcverify.network import ModelConfig
+from ipcverify.network._modules import IPCNetwork
 
 ALPHA = 0.05
 #: certify's hint that the test rows have a run column is the subject of other tests
@@ -121,7 +122,7 @@ def test_the_cli_warning_names_the_remedy(net, data, tmp_path, run_cli):
 
 def test_predict_and_evaluate_give_the_same_second_explanation(net, data):
     from ipcverify.certification import evaluate
-    from ipcverify.contract import predict_sets
+    from ipcverify.contract._prediction import predict_sets
     from ipcverify.data import PerceptionInputs
 
     model = _calibrated(net, data["cal"], None)

@@ -12,10 +12,9 @@ import json
 import numpy as np
 import pytest
 
-from ipcverify.calibration import run_floor
 from ipcverify.calibration._dependence import measure_dependence
 from ipcverify.calibration._run_plan import plan_runs
-from ipcverify.calibration._share_bound import smallest_share_epsilon
+from ipcverify.calibration._share_bound import run_floor, smallest_share_epsilon
 from ipcverify.contract import IPCModel
 from ipcverify.data import PerceptionDataset, save_dataset
 from ipcverify.data._synthetic import make_lagged_perception

@@ -9,7 +9,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from ipcverify.data import PerceptionDataset, file_sha256, load_dataset, save_dataset, split_file
+from ipcverify.data import PerceptionDataset, load_dataset, save_dataset, split_file
+from ipcverify.data._files import file_sha256
 from ipcverify.errors import DataError, InvalidInputError
 
 LOG = Path(__file__).resolve().parents[3] / "data" / "euroc_mh04_vislam.csv"
