@@ -101,7 +101,7 @@ def main(repeats: int = 3) -> dict[str, object]:
     # --- acceptance numbers
     assert res is not None
     cert = res.certificate.to_dict()
-    sets = cal_model.predict(big_test.x, big_test.yhat)
+    sets = cal_model.predict_unguarded(big_test.x, big_test.yhat)
     k = int((~sets.contains(big_test.y)).sum())
     maha = fit_global_mahalanobis(train_data).calibrate(cal_data, EPS, DELTA)
     msets = maha.predict(big_test.x, big_test.yhat)

@@ -50,7 +50,7 @@ def bench_cost(
 ) -> dict[str, Any]:
     """Pipeline costs for one (calibrated) model on one dataset; see the module docstring."""
     rng = np.random.default_rng(20240601)
-    sets = model.predict(splits.test.x, splits.test.yhat)
+    sets = model.predict_unguarded(splits.test.x, splits.test.yhat)
     landing = []
     for _ in range(repeats):
         t0 = time.perf_counter()

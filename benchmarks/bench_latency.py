@@ -215,7 +215,7 @@ def single_query(
                 paths[f"decide_{name}_queries"] = cycler(lambda j: q.decide(xs[j], ys[j]), idx)
         if full:
             paths["model_predict_one"] = cycler(
-                lambda j: model.predict(xs[j : j + 1], ys[j : j + 1]), np.arange(m)
+                lambda j: model.predict_unguarded(xs[j : j + 1], ys[j : j + 1]), np.arange(m)
             )
         for dtype, entry in (onnx or {}).items() if full else ():
             sess, np_t, _ = entry
@@ -321,7 +321,7 @@ def batch_throughput(
             "predict_sets": lambda inputs=inputs: predict_sets(model, inputs),
             "predict_sets_without_domain": lambda inputs=inputs: predict_sets(bare_model, inputs),
             "domain_contains": lambda xs=xs, ys=ys: domain.contains(xs, ys) if domain is not None else None,
-            "model_predict": lambda xs=xs, ys=ys: model.predict(xs, ys),
+            "model_predict": lambda xs=xs, ys=ys: model.predict_unguarded(xs, ys),
             "bare_torch_forward": bare,
         }
         if full:

@@ -8,7 +8,7 @@ runs, its default claim is about runs: a new run's expected share of rows outsid
 nothing per log but the file names, the file format and how to split (by run where a log has
 many, by blocks of time where it has one or two). Where ``calibrate`` is refused, the next step
 does what its message says, once: name the column of the runs (``--group-column``), raise
-``--epsilon`` to the smallest value the runs allow, or set the ``--domain-alpha`` it names; where
+``--epsilon`` to the smallest value the runs allow, or set the ``--domain-flag-rate`` it names; where
 a certificate asks for a domain test fitted by groups, the next step fits it so. Per step it
 records the claim (unit and epsilon), the certificate's status, the held-out test counted by runs
 (the mean of the runs' shares of rows outside with its betting bounds, and the runs with any
@@ -293,9 +293,9 @@ def _certified(out: Path, model: Path, test: Path) -> dict[str, Any]:
         "by_runs": _by_runs(c.get("group_test") or {}),
         "test_rows": c["data"]["test"]["n"],
         "rows_outside": int(sum(c["coverage_by_bin"]["violations"])),
-        "domain_alpha": dom.get("alpha"),
+        "domain_flag_rate": dom.get("flag_rate"),
         "outside_fraction": dom.get("outside_fraction"),
-        "shift_warning": dom.get("well_above_alpha"),
+        "shift_warning": dom.get("well_above_flag_rate"),
         "domain_statement": dom.get("statement"),
         "inside_violation_rate": (dom["violations_inside"] / inside) if inside else None,
         "row_level_column": dom.get("row_level_column"),
@@ -309,7 +309,7 @@ def _certified(out: Path, model: Path, test: Path) -> dict[str, Any]:
 #: A refusal for too few runs names the smallest rate they allow (``too_few_groups``).
 _SMALLEST = re.compile(r"raise --(epsilon|gamma) \(with \d+ groups the smallest is ([0-9.e+-]+)")
 #: A refusal of the domain test names a false-alarm rate that works.
-_DOMAIN = re.compile(r"domain test at alpha=\S+ needs .*?--domain-alpha ([0-9.e-]+) works\)")
+_DOMAIN = re.compile(r"domain test at flag rate \S+ needs .*?--domain-flag-rate ([0-9.e-]+) works\)")
 
 
 def _advice(step: dict[str, Any], options: list[str], group_column: str) -> list[str] | None:
@@ -317,7 +317,7 @@ def _advice(step: dict[str, Any], options: list[str], group_column: str) -> list
 
     A refusal that asks which column names the runs gets the column the split kept whole
     (``group_column``); one for too few runs, the smallest ``--epsilon`` it names; one of the domain
-    test, the ``--domain-alpha`` it names. A certificate whose row-level domain test flags a shift
+    test, the ``--domain-flag-rate`` it names. A certificate whose row-level domain test flags a shift
     that a test fitted by groups might not gets the ``--domain-group-column`` it names.
     """
     message = step.get("message", "")
@@ -332,11 +332,11 @@ def _advice(step: dict[str, Any], options: list[str], group_column: str) -> list
         elif "requirements are not met" in message:
             return None  # the guarantee itself is out of reach, and no value is named
         if domain := _DOMAIN.search(message):
-            new = [*_without(new, "--domain-alpha"), "--domain-alpha", domain.group(1)]
+            new = [*_without(new, "--domain-flag-rate"), "--domain-flag-rate", domain.group(1)]
         return new if new != options else None
     told = re.search(r"\(calibrate (--domain-group-column [^)]+)\)", step.get("domain_statement") or "")
     if step.get("shift_warning") and told and "--domain-group-column" not in options:
-        return [*_without(options, "--domain-alpha"), *told.group(1).split()]
+        return [*_without(options, "--domain-flag-rate"), *told.group(1).split()]
     return None
 
 
@@ -575,6 +575,11 @@ def findings(results: dict[str, Any]) -> str:
     weak = f", and say so (`{weak_verdicts.pop()}`)" if len(weak_verdicts) == 1 else ""
     contradicted = [name for name, st in last.items() if st["status"] == "CONTRADICTED"]
     shifted = [(name, st) for name, st in last.items() if st["shift_warning"]]
+    beyond = [
+        (name, st)
+        for name, st in last.items()
+        if (st["outside_fraction"] or 0) > 1.5 * st["domain_flag_rate"]
+    ]
     kitti, mh04, v102 = logs["KITTI 00"], logs[MH04_LOG.name], logs["EuRoC V1_02, VI-SLAM"]
     dep = {name: last[name]["calibration_runs"] for name in (v102["name"], mh04["name"])}
     unmeasured = [name for name, st in last.items() if st["calibration_runs"]["design_effect"] is None]
@@ -634,12 +639,16 @@ def findings(results: dict[str, Any]) -> str:
   {round(k_mon["shares"][short] * k_mon["run_rows"][short])} of them outside (a share of
   {_pct(k_mon["shares"][short])}); the other {len(k_mon["shares"]) - 1} blocks have none. The claim
   counts runs as equals, whatever their length.
-* **A domain test fitted on a few blocks does not cover the next ones.** On
-  {" and ".join(name for name, _ in shifted)}, the held-out queries outside the domain are
-  {" and ".join(_pct(st["outside_fraction"]) for _, st in shifted)} (the test fitted by
-  {shifted[0][1]["calibration_runs"]["n_runs"]} blocks, at α = {shifted[0][1]["domain_alpha"]:g}, the
-  smallest they allow), and the certificate warns of a shift: a few seconds of a hand-held
-  camera do not span the next few.
+* **A domain test fitted on a few blocks does not cover the next ones, and a few runs cannot
+  show it.** On {" and ".join(name for name, _ in beyond)}, the held-out queries outside the
+  domain are {" and ".join(_pct(st["outside_fraction"]) for _, st in beyond)} (the test fitted by
+  {beyond[0][1]["calibration_runs"]["n_runs"]} blocks, at flag rate {beyond[0][1]["domain_flag_rate"]:g},
+  the smallest they allow): a few seconds of a hand-held camera do not span the next few. Counted
+  by their {" and ".join(str(st["by_runs"]["runs"]) for _, st in beyond)} held-out runs, as a claim
+  about runs must be, that is {
+        "a shift warning on " + str(len(shifted)) + " of them" if shifted else "no shift warning"
+    }: the warning needs the runs' shares outside to be above the flag rate
+  with confidence, and so few runs cannot give it.
 * **The monitor is silent on held-out runs.** Replaying KITTI's {k_mon["observations"]} held-out
   segments and MH_04's {m_mon["observations"]} held-out flights through their own contracts raises
   no alarm (exit status {max(k_mon["exit"], m_mon["exit"])}), one observation per run: neither test's
@@ -651,7 +660,7 @@ def findings(results: dict[str, Any]) -> str:
   never does.** The MH_04 contract is the last step of its row: the default split
   (`{mh04["split"]}`: {mh04["parts"]["calibration"]["groups"]} calibration flights), `train`'s
   defaults, then `{" ".join(mh_steps[-1]["options"])}` as the refusals said (δ = {delta:g}), with
-  the domain test fitted by flight at α = {c_mon["domain_rate"]:g}, the smallest those flights allow
+  the domain test fitted by flight at flag rate {c_mon["domain_rate"]:g}, the smallest those flights allow
   (`calibrate` says so in a hint). Replaying all {c_mon["observations"]} runs of V1_02 in their
   order ({order}), each run has
   {_range(c_mon["outside_shares"])} of its queries outside MH_04's domain, against a rate of
@@ -660,18 +669,23 @@ def findings(results: dict[str, Any]) -> str:
   {_pct(c["by_runs"]["mean_share"])}), against a null of {c_mon["epsilon"]:g}: there is nothing
   for the violation test to refute. The contract's sets, {c["radius_over_error"]:.2f} times V1_02's
   error quantile, are large enough for the other room; what changed is where the queries are,
-  and that is what the domain test reports. `monitor` exits with status {c_mon["exit"]}: its exit
-  status follows the violation test only.
+  and that is what the domain test reports. `monitor` exits with status {c_mon["exit"]}: an alarm
+  of either test exits 1.
 * **`certify` on V1_02 passes the weak claim and warns of the shift.** It says `{c["status"]}`
   (99 % upper bound {_pct(c["by_runs"]["upper"])} on the mean share, against
   {c["certified_epsilon"]:g}; {c["by_runs"]["with_violation"]} of {c["by_runs"]["runs"]} runs have a
   violation somewhere), with {_pct(c["outside_fraction"])} of the queries outside the domain
-  (against α = {c["domain_alpha"]:g}) and a shift warning; inside the domain rows are outside their
-  sets at {_pct(c["inside_violation_rate"])}. Both commands need V1_02's runs in a column named like
-  the contract's: `certify` says "{refusals["certify"]["message"].removeprefix("error: ")}", and
-  `monitor` "{refusals["monitor"]["message"].removeprefix("error: ")}", or with `--group-column run`
-  "{refusals["monitor --group-column run"]["message"].removeprefix("error: ")}". `split --by run
-  --name-groups flight --fractions 0,0,1` names them, keeping every row in its order."""
+  (against a flag rate of {
+        c["domain_flag_rate"]:g}) and a shift warning; inside the domain rows are outside their
+  sets at {
+        _pct(c["inside_violation_rate"])
+    }. Both commands count V1_02's runs only when told which column names them:
+  `certify` says "{refusals["certify"]["message"].removeprefix("error: ")}", and `monitor`
+  "{refusals["monitor"]["message"].removeprefix("error: ")}". With `--group-column run`, `monitor` counts
+  V1_02's runs by that column and raises the same domain alarm (observation
+  {refusals["monitor --group-column run"]["message"].split("observation ")[1].split(" ")[0]}). The
+  replay above names them like the contract's instead, with `split --by run --name-groups flight
+  --fractions 0,0,1`, keeping every row in its order."""
 
 
 def bench_unseen_logs(rpg: Path, evo: Path, logs: Sequence[Log] = LOGS) -> dict[str, Any]:
@@ -743,7 +757,13 @@ def figure(results: dict[str, Any], path: Path = FIGURE) -> None:
         ax.plot([step["certified_epsilon"]], [yi], marker="|", ms=16, mew=2.5, color="k")
         outside = 100 * (step["outside_fraction"] or 0.0)
         bx.barh([yi], [outside], color="tab:orange" if step["shift_warning"] else "0.6", height=0.6)
-        bx.text(outside + 2, yi, f"{outside:.1f} % (α = {step['domain_alpha']:g})", va="center", fontsize=8)
+        bx.text(
+            outside + 2,
+            yi,
+            f"{outside:.1f} % (flag rate {step['domain_flag_rate']:g})",
+            va="center",
+            fontsize=8,
+        )
     ax.plot(
         [], [], "o-", color="tab:blue", label="held-out runs: mean share of rows outside, 99 % betting bounds"
     )
@@ -848,7 +868,7 @@ def _cells(step: dict[str, Any]) -> str:
     anywhere = f"{r['with_violation']} of {r['runs']}"
     rows = f"{step['rows_outside']}/{step['test_rows']:,}"
     shift = ", shift warning" if step["shift_warning"] else ""
-    outside = f"{_pct(step['outside_fraction'] or 0.0)} (α = {step['domain_alpha']:g}{shift})"
+    outside = f"{_pct(step['outside_fraction'] or 0.0)} (flag rate {step['domain_flag_rate']:g}{shift})"
     return (
         f"`{options}` | {_claim(step)} | {step['status']} | {share} | {anywhere} | {rows} | {outside} | "
         f"{step['radius_over_error']:.2f} | {_worth(step)} |"
@@ -889,8 +909,8 @@ def replay_table(results: dict[str, Any]) -> str:
     """The monitor's replays, from the record: what was replayed, its nulls, and which test alarmed."""
     lines = _head(
         "replayed", "through the contract of", "runs", "violation test: null ε, alarm",
-        "runs' shares outside their sets", "domain test: null α, alarm", "runs' shares outside the domain",
-        "exit status",
+        "runs' shares outside their sets", "domain test: null flag rate, alarm",
+        "runs' shares outside the domain", "exit status",
     )  # fmt: skip
     for what, owner, mon in _replays(results):
 

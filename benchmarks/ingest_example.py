@@ -111,7 +111,7 @@ def commands(out: Path, bags: list[Path], ingest_only: bool) -> list[list[str]]:
             ["train", str(out / "train.parquet"), "--out", str(out / "model.pt")],
             [
                 "calibrate", str(out / "model.pt"), str(out / "calibration.parquet"), "--epsilon", "0.1",
-                "--delta", "0.01", "--group-column", "run", "--domain-alpha", "0.05",
+                "--delta", "0.01", "--group-column", "run", "--domain-flag-rate", "0.05",
                 "--out", str(out / "calibrated.pt"),
             ],
             [

@@ -193,7 +193,7 @@ def run_demo(
     calibrated = calibrate(model, cal_data, DEMO_EPSILON, DEMO_DELTA, Global(mode="pac"))
     base = fit_global_mahalanobis(train_data).calibrate(cal_data, DEMO_EPSILON, DEMO_DELTA, mode="pac")
     base_sets = base.predict(test_data.x, test_data.yhat)
-    ipc_sets = calibrated.predict(test_data.x, test_data.yhat)
+    ipc_sets = calibrated.predict_unguarded(test_data.x, test_data.yhat)
     png = figure_to_png(plot_demo_sets(test_data, ipc_sets, base_sets), dpi=110)
     # every step succeeded: only now write (a failed run leaves no partial set of files)
     out.mkdir(parents=True, exist_ok=True)

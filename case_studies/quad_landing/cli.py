@@ -20,7 +20,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from case_studies.quad_landing.settings import DEFAULTS_PATH, REPRODUCE_PATH, read_toml
 from case_studies.quad_landing.sim.camera import MAX_BUFFER_SIZE
 from case_studies.quad_landing.sim.config import SimConfig, load_config
-from ipcverify.cli.app import run_group
+from ipcverify.cli.app import CliGroup, run_group
 from ipcverify.cli.outputs import check_outputs, force_option
 from ipcverify.data._files import json_data
 from ipcverify.errors import InvalidInputError
@@ -54,6 +54,7 @@ _seed_option = click.option(
 
 
 @click.group(
+    cls=CliGroup,
     name="quad_landing",
     context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100},
 )

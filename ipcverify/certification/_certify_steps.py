@@ -146,7 +146,7 @@ def score_test_set(model: IPCModel, test_data: PerceptionDataset) -> TestScores:
     raw = np.linalg.norm(np.einsum("bij,bj->bi", shapes, test_data.y - centers), axis=1)
     cal = model.calibration
     scales = np.ones(len(raw)) if cal is None else np.asarray(cal.scale_for(test_data.x, test_data.yhat))
-    sets = model.predict(test_data.x, test_data.yhat)
+    sets = model.predict_unguarded(test_data.x, test_data.yhat)
     return TestScores(
         sets=sets,
         raw=raw,

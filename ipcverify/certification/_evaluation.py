@@ -11,7 +11,7 @@ from numpy.typing import NDArray
 
 from ipcverify.calibration._group_counts import group_shares
 from ipcverify.certification._test_result import TestResult
-from ipcverify.contract._calibrate import mark_row_level, mark_runs
+from ipcverify.contract._guarded import mark_row_level, mark_runs
 from ipcverify.contract._model import IPCModel
 from ipcverify.data._checks import group_like_counts
 from ipcverify.data._dataset import PerceptionDataset
@@ -394,7 +394,7 @@ def evaluate(
             f"{data.source}: data has x_dim={data.x_dim}, y_dim={data.y_dim} but the model "
             f"expects x_dim={model.config.x_dim}, y_dim={model.config.y_dim}"
         )
-    sets = model.predict(data.x, data.yhat)
+    sets = model.predict_unguarded(data.x, data.yhat)
     violated = ~sets.contains(data.y)
     logvol = sets.log_volume()
     extent = 2.0 * sets.half_widths()

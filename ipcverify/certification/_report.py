@@ -89,7 +89,7 @@ def _domain_section(cert: Certificate) -> list[str]:
     parts.append(f"<p>{html.escape(d.sentence())}</p>")
     rows: list[tuple[str, Any]] = [
         ("method", d.method),
-        ("false-alarm rate alpha", d.alpha),
+        ("false-alarm rate alpha", d.flag_rate),
         ("threshold (whitened distance)", d.threshold),
         ("calibration inputs (reference)", d.n_reference),
     ]

@@ -26,6 +26,7 @@ import click
 from click.core import ParameterSource
 from rich.console import Console
 
+from ipcverify._wording import Audience, speaking
 from ipcverify.errors import Hint, InvalidInputError
 
 __all__ = [
@@ -60,7 +61,20 @@ _DEBUG = [False]  # set by the global --debug option of the running command line
 _HINTS: list[str] = []  # the running command's hints, printed when it ends
 
 
+class CliGroup(click.Group):
+    """A click group whose commands speak CLI: library messages name flags, not parameters.
+
+    Every run (:func:`run_group`, or click's test runner calling :meth:`main`) happens inside
+    :func:`ipcverify._wording.speaking` for the command line, and the audience is restored after.
+    """
+
+    def main(self, *args: Any, **kwargs: Any) -> Any:  # noqa: D102 - as click.Group.main
+        with speaking(Audience.CLI):
+            return super().main(*args, **kwargs)
+
+
 @click.group(
+    cls=CliGroup,
     name="ipcverify",
     context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100},
 )

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING, cast
+from typing import TYPE_CHECKING, Any, cast
 
 import click
 from rich.table import Table
@@ -37,9 +37,21 @@ __all__: list[str] = []
 
 #: The files ``certify`` writes into its folder (by ``ipcverify.certification.write_certificate``).
 CERTIFY_FILES = ("certificate.json", "report.html")
-#: ``ipcverify.guard.DEFAULT_ALPHA``, written out so that ``--help`` need not import the domain
+#: ``ipcverify.guard.DEFAULT_FLAG_RATE``, written out so that ``--help`` need not import the domain
 #: test (SciPy, Numba); ``tests/ipcverify/cli/test_startup.py`` checks that the two agree.
-_DOMAIN_ALPHA = 0.01
+_DOMAIN_FLAG_RATE = 0.01
+
+
+def renamed_option(old: str, new: str) -> Any:
+    """A hidden option under an earlier name that refuses itself, naming the option that replaced it."""
+
+    def refuse(ctx: click.Context, param: click.Parameter, value: object) -> None:
+        if value is not None:
+            raise click.UsageError(
+                f"{old} is now {new} (alpha names only the hinge margin of the paper's loss)"
+            )
+
+    return click.option(old, hidden=True, expose_value=False, default=None, callback=refuse)
 
 
 def calibration_method(
@@ -161,12 +173,13 @@ def calibration_method(
     help="With --guarantee share-of-runs: the share of new runs allowed more than --epsilon outside.",
 )
 @click.option(
-    "--domain-alpha",
+    "--domain-flag-rate",
     type=float,
     default=None,
-    help=f"False-alarm rate of the domain-of-validity test fitted on the calibration inputs [default: "
-    f"{_DOMAIN_ALPHA:g}, or the smallest the runs allow when fitted by runs].",
+    help=f"The rate at which the domain-of-validity test flags in-distribution queries [default: "
+    f"{_DOMAIN_FLAG_RATE:g}, or the smallest the runs allow when fitted by runs].",
 )
+@renamed_option("--domain-alpha", "--domain-flag-rate")
 @click.option(
     "--domain-group-column",
     default=None,
@@ -197,7 +210,7 @@ def calibrate_cmd(
     group_column: str | None,
     guarantee: str | None,
     gamma: float | None,
-    domain_alpha: float | None,
+    domain_flag_rate: float | None,
     domain_group_column: str | None,
     recalibrate: bool,
     seed: int,
@@ -216,7 +229,7 @@ def calibrate_cmd(
     from ipcverify.io._modelio import load_data_for_model, load_model, save_model
 
     outputs = check_model_output(out, force=force, inputs={"MODEL": model, "DATA": data})
-    domain = DomainSpec(alpha=domain_alpha, group_column=domain_group_column, seed=seed)
+    domain = DomainSpec(flag_rate=domain_flag_rate, group_column=domain_group_column, seed=seed)
     m = load_model(model)
     ds = load_data_for_model(data, m)
     runs = tuple(group_like_counts(ds))
@@ -411,9 +424,9 @@ def certify_cmd(
         d = cert.domain
         table.add_row(
             "domain of validity",
-            f"{d.outside}/{d.n} test queries outside (alpha = {d.alpha:g})"
+            f"{d.outside}/{d.n} test queries outside (flag rate {d.flag_rate:g})"
             if d.n
-            else f"fitted (alpha = {d.alpha:g}); no test data given: the held-out test was not run",
+            else f"fitted (flag rate {d.flag_rate:g}); no test data given: the held-out test was not run",
         )
     if cert.theorem1 is None:
         table.add_row("Theorem 1", cert.theorem1_reason)
@@ -430,7 +443,7 @@ def certify_cmd(
     console.print(table)
     if cert.test_bound_note:
         console.print(cert.test_bound_note, soft_wrap=True, markup=False)
-    if cert.domain is not None and cert.domain.well_above_alpha:
+    if cert.domain is not None and cert.domain.well_above_flag_rate:
         err_console.print(
             f"[bold yellow]warning:[/] {cert.domain.sentence()}", soft_wrap=True, highlight=False
         )

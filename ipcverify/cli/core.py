@@ -107,7 +107,7 @@ def _print_evaluation(ev: Evaluation, title: str) -> None:
 
 def _warn_domain(report: DomainReport | None) -> None:
     """A shifted batch (far more queries outside the domain than false alarms explain) is a warning."""
-    if report is not None and report.well_above_alpha:
+    if report is not None and report.well_above_flag_rate:
         err_console.print(f"[bold yellow]warning:[/] {report.sentence()}", soft_wrap=True, highlight=False)
 
 
@@ -338,8 +338,8 @@ def predict_cmd(model: Path, data: Path, out: Path, force: bool) -> None:
     if report is None:
         console.print("no domain-of-validity test in this model: every query is in_domain", markup=False)
     elif report.outside:
-        target = err_console if report.well_above_alpha else console
-        prefix = "[bold yellow]warning:[/] " if report.well_above_alpha else ""
+        target = err_console if report.well_above_flag_rate else console
+        prefix = "[bold yellow]warning:[/] " if report.well_above_flag_rate else ""
         target.print(prefix + report.sentence(), soft_wrap=True, highlight=False)
     if pred.singular.any():
         console.print(

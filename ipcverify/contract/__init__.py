@@ -12,8 +12,9 @@ from ipcverify._package import lazy_exports
 
 if TYPE_CHECKING:
     from ipcverify.contract._calibrate import calibrate
+    from ipcverify.contract._guarded import Predictions
     from ipcverify.contract._model import IPCModel
-    from ipcverify.contract._prediction import Predictions, monitor_log
+    from ipcverify.contract._prediction import monitor_log
 
 __all__ = [
     "IPCModel",

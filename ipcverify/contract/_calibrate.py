@@ -13,35 +13,28 @@ proved in ``proofs/pac_calibration.md``.
 from __future__ import annotations
 
 import warnings
-from dataclasses import replace
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ipcverify.calibration._bounds import pac_rows_allowing
-from ipcverify.calibration._group_counts import group_shares
 from ipcverify.calibration._kinds import check_registered
 from ipcverify.calibration._method import CalibrationMethod, CalibrationSample
 from ipcverify.calibration._protocol import Calibration
 from ipcverify.calibration._threshold import check_eps_delta
+from ipcverify.contract._guarded import CALIBRATION_GROUPS_KEY
 from ipcverify.contract._model import IPCModel
 from ipcverify.contract._runs import RUNS_KEY, choose_method, run_record
 from ipcverify.data._checks import check_informative, group_like_counts, warn_outside_training
-from ipcverify.data._dataset import PerceptionDataset, PerceptionInputs
+from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.data._fingerprints import count_recorded, recorded_rows, row_fingerprints, with_recorded_rows
 from ipcverify.errors import Hint, InvalidInputError, SampleSizeError
 from ipcverify.guard._domain import DomainModel
-from ipcverify.guard._domain_report import DomainReport
 from ipcverify.guard._domain_spec import DomainSpec
 
-#: The default domain test: alpha = ``ipcverify.guard.DEFAULT_ALPHA`` (or the smallest the runs allow),
-#: with the calibration's units.
+#: The default domain test: flag rate ``DEFAULT_FLAG_RATE`` of :mod:`ipcverify.guard._domain` (or the
+#: smallest the runs allow), with the calibration's units.
 DEFAULT_DOMAIN = DomainSpec()
-
-
-#: Model metadata of a row-level calibration whose data had columns naming runs or flights
-#: (:func:`ipcverify.data._checks.group_like_counts`): ``{column: number of groups}``.
-CALIBRATION_GROUPS_KEY = "calibration_group_like_columns"
 
 
 def calibrate(
@@ -82,7 +75,7 @@ def calibrate(
     domain : DomainSpec or None
         How to fit the domain-of-validity test on the calibration inputs
         (:class:`~ipcverify.guard.DomainModel`, attached to the model): its false-alarm rate
-        ``alpha`` and the column whose groups are its units (default: the method's, e.g. a
+        ``flag_rate`` and the column whose groups are its units (default: the method's, e.g. a
         ``Grouped`` calibration's column); None fits none.
     recalibrate : bool
         Allow replacing an existing calibration.
@@ -91,7 +84,7 @@ def calibrate(
     ------
     SampleSizeError
         If there are too few samples (overall or in a group) for ``(epsilon, delta)``, or for
-        the domain test at its ``alpha``; every unmet requirement is named in one message.
+        the domain test at its ``flag_rate``; every unmet requirement is named in one message.
     InvalidInputError
         If the model is already calibrated, the dimensions disagree, some calibration rows are
         training rows (whatever their order or repeats: by the row fingerprints the model file
@@ -117,14 +110,14 @@ def calibrate(
     >>> from ipcverify.network import ModelConfig
     >>> net = example(config=ModelConfig(x_dim=6, y_dim=3, hidden=(8,), param="cholesky")).model.network
     >>> cal = calibrate(IPCModel(net), example(1000, seed=1).data, 0.05, 0.01)
-    >>> cal.calibration.groups()[0].k, cal.domain.alpha
+    >>> cal.calibration.groups()[0].k, cal.domain.flag_rate
     (966, 0.01)
     >>> import numpy as np
     >>> from ipcverify.data import PerceptionDataset
     >>> d = example(1000, seed=2).data
     >>> flights = PerceptionDataset(d.x, d.y, d.yhat, extra={"flight": np.arange(1000) // 10})  # 100 flights
     >>> by_flight = calibrate(IPCModel(net), flights, 0.1, 0.05, Grouped(column="flight"),
-    ...                       domain=DomainSpec(alpha=0.05))
+    ...                       domain=DomainSpec(flag_rate=0.05))
     >>> by_flight.calibration.n_groups, by_flight.domain.n_groups  # the domain test's units too
     (100, 100)
     >>> import warnings
@@ -136,7 +129,7 @@ def calibrate(
     """
     if domain is not None and not isinstance(domain, DomainSpec):
         raise InvalidInputError(
-            "domain must be a DomainSpec (ipcverify.guard), e.g. DomainSpec(alpha=0.01), or None; "
+            "domain must be a DomainSpec (ipcverify.guard), e.g. DomainSpec(flag_rate=0.01), or None; "
             f"got {domain!r}"
         )
     method, chosen = choose_method(calibration_data, method)
@@ -214,68 +207,6 @@ def _fit(
         except SampleSizeError as exc:
             unmet.append(str(exc))
     return cal, dom
-
-
-def mark_row_level(model: IPCModel, report: DomainReport | None) -> DomainReport | None:
-    """``report`` with the run-like column of a row-level domain test's calibration data, if recorded.
-
-    A domain test fitted row by row on calibration data whose model file records a column naming
-    runs (:data:`CALIBRATION_GROUPS_KEY`) flags the rows of a new run too often; the report then
-    names that column and its groups, so that every statement of a shift (certify, evaluate,
-    predict) also gives that explanation and the command that tells the two apart.
-
-    Parameters
-    ----------
-    model : IPCModel
-        The model whose domain test made ``report``.
-    report : DomainReport or None
-        What the test found on a batch (None: the model has no domain test).
-    """
-    if report is None or model.domain is None or model.domain.n_groups is not None:
-        return report
-    recorded = dict(model.metadata.get(CALIBRATION_GROUPS_KEY) or {})
-    if not recorded:
-        return report
-    column = next(iter(recorded))
-    return replace(report, row_level_column=column, row_level_groups=int(recorded[column]))
-
-
-def mark_runs(
-    model: IPCModel,
-    report: DomainReport | None,
-    data: PerceptionDataset | PerceptionInputs,
-    outside: NDArray[np.bool_],
-) -> DomainReport | None:
-    """``report`` counted by the queries' runs, when they come in runs (see :class:`DomainReport`).
-
-    The runs' column is the calibration's run column if the queries have it, else the queries' one
-    column that names runs (:func:`~ipcverify.data._checks.group_like_counts`); None keeps the
-    report as it is.
-
-    Parameters
-    ----------
-    model : IPCModel
-        The model whose domain test made ``report``.
-    report : DomainReport or None
-        What the test found on the queries.
-    data : PerceptionDataset or PerceptionInputs
-        The queries (their extra columns name the runs).
-    outside : ndarray of bool, shape (N,)
-        Whether each query lies outside the domain.
-    """
-    if report is None:
-        return None
-    record = model.metadata.get(RUNS_KEY) or {}
-    claim = None if model.calibration is None else model.calibration.group_claim()
-    known = [c for c in (None if claim is None else claim.column, record.get("column")) if c]
-    column = next((c for c in known if c in data.extra), None)
-    if column is None:
-        runs = group_like_counts(data)  # type: ignore[arg-type]
-        column = next(iter(runs)) if len(runs) == 1 else None
-    if column is None:
-        return report
-    shares, _, _ = group_shares(outside, data.extra[column], f"{data.source}: run column {column!r}")
-    return replace(report, run_column=column, run_shares=tuple(float(v) for v in shares))
 
 
 def warn_largest_score(cal: Calibration, source: str) -> None:

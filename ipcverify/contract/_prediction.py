@@ -1,21 +1,16 @@
-"""Deployment: a contract's sets for many queries (marked in or out of its domain), and logs replayed
-through the online monitor.
+"""Deployment: a contract's sets written to a file, and logs replayed through the online monitor.
 
-:func:`predict_sets` needs only the queries ``(x, yhat)`` -- a deployment log has no ground
-truth. Every query gets its calibrated ellipsoid, its distance to the calibration inputs and
-an ``in_domain`` flag (:mod:`ipcverify.guard._domain`); a query whose set degenerates (singular shape
-matrix, which happens far from the training data) is kept, marked ``in_domain = False`` and
-counted, instead of stopping the batch. :func:`write_predictions` writes the arrays to NPZ.
+The sets themselves come from :meth:`IPCModel.predict <ipcverify.IPCModel.predict>`
+(:mod:`ipcverify.contract._guarded`). :func:`write_predictions` writes them to NPZ;
 :func:`monitor_log` replays a labelled log, in order, through the anytime-valid monitor.
 
 Examples
 --------
 >>> import numpy as np
+>>> from ipcverify import example
 >>> from ipcverify.network import ModelConfig
->>> from ipcverify.data import PerceptionDataset, PerceptionInputs
->>> from ipcverify import IPCModel, example
 >>> m = example(config=ModelConfig(x_dim=2, y_dim=3, hidden=(8,), param="cholesky")).model
->>> p = predict_sets(m, PerceptionInputs(np.zeros((4, 2)), np.zeros((4, 3))))
+>>> p = m.predict(np.zeros((4, 2)), np.zeros((4, 3)))
 >>> p.centers.shape, p.in_domain.tolist()   # no domain model: every query counts as inside
 ((4, 3), [True, True, True, True])
 """
@@ -23,146 +18,23 @@ Examples
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
-from dataclasses import dataclass, field
-from functools import cached_property
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ipcverify.calibration._group_counts import allowed_outside
-from ipcverify.contract._calibrate import mark_row_level, mark_runs
+from ipcverify.contract._guarded import Predictions, predict_sets
 from ipcverify.contract._model import IPCModel
 from ipcverify.data._dataset import PerceptionDataset, PerceptionInputs
 from ipcverify.data._files import atomic_write
 from ipcverify.data._split import group_codes
 from ipcverify.errors import InvalidInputError
 from ipcverify.guard._clustering import ViolationRuns
-from ipcverify.guard._domain import DomainModel, DomainReport
-from ipcverify.guard._index import one_blas_thread
 from ipcverify.guard._monitor import MonitorResult, ViolationMonitor
-from ipcverify.network._nonsingular import nonsingular
 
 FloatArray = NDArray[np.float64]
-
-
-@dataclass(frozen=True, eq=False)
-class Predictions:
-    """Sets for a batch of queries and what is known about their validity.
-
-    Attributes
-    ----------
-    centers : ndarray (B, n)
-    shapes : ndarray (B, n, n)
-        ``E_i = {y : ||shapes_i (y - centers_i)|| <= 1}`` (calibrated if the model is).
-    in_domain : bool ndarray (B,)
-        The query is inside the domain of validity and its set is non-degenerate; the
-        calibration certificate covers only these queries.
-    singular : bool ndarray (B,)
-        The set is degenerate (singular or non-finite shape matrix).
-    calibrated : bool
-        Whether the model's calibration was applied.
-    domain : DomainReport or None
-        How many queries the domain test flags (None without a domain model).
-    distances : callable or None
-        Computes the queries' distances to the calibration inputs on demand (:attr:`distance`;
-        None without a domain model).
-    """
-
-    centers: FloatArray
-    shapes: FloatArray
-    in_domain: NDArray[np.bool_]
-    singular: NDArray[np.bool_]
-    calibrated: bool
-    domain: DomainReport | None = None
-    distances: Callable[[], FloatArray] | None = field(default=None, repr=False)
-
-    @cached_property
-    def distance(self) -> FloatArray:
-        """Each query's distance to the calibration inputs (B,), computed on first access.
-
-        :meth:`ipcverify.guard.DomainModel.distance` (the ``k``-th neighbour distance; at most the
-        threshold exactly where the domain test says inside). ``in_domain`` does not need it:
-        the distance costs a search over every reference per query (a float32 BLAS product),
-        the domain test alone about one leaf of a k-d tree. NaN without a domain model.
-        """
-        if self.distances is None:
-            return np.full(len(self.centers), np.nan)
-        return self.distances()
-
-    @property
-    def outside(self) -> int:
-        """Queries outside the domain (or with a degenerate set)."""
-        return int((~self.in_domain).sum())
-
-
-def predict_sets(model: IPCModel, inputs: PerceptionInputs, chunk: int | None = None) -> Predictions:
-    """The model's sets for every query, with the domain test applied.
-
-    The sets come from :meth:`IPCModel.raw_arrays` (``chunk`` rows at a time; default: the engine's
-    cache-sized chunk), scaled by the calibration in place; the singular test is
-    :func:`ipcverify.network.nonsingular` (the SVD test, settled cheaply where it can be);
-    ``in_domain`` comes from :meth:`DomainModel.contains <ipcverify.guard.DomainModel.contains>`
-    (the exact test's answer, about one k-d tree leaf per in-distribution query). The distances
-    themselves are computed only when ``Predictions.distance`` is read. NumPy's BLAS runs on one
-    thread meanwhile (:func:`ipcverify.guard.one_blas_thread`): every product here is a
-    block sized to the cache, which a second thread only slows down.
-
-    Parameters
-    ----------
-    model : IPCModel
-        The model.
-    inputs : PerceptionInputs
-        The queries.
-    chunk : int, optional
-        Rows per batch.
-
-    Raises
-    ------
-    InvalidInputError
-        If the inputs' dimensions are not the model's.
-    """
-    cfg = model.config
-    if (inputs.x.shape[1], inputs.yhat.shape[1]) != (cfg.x_dim, cfg.y_dim):
-        raise InvalidInputError(
-            f"{inputs.source}: the queries have x_dim={inputs.x.shape[1]}, yhat_dim={inputs.yhat.shape[1]} "
-            f"but the model expects x_dim={cfg.x_dim}, y_dim={cfg.y_dim}"
-        )
-    with one_blas_thread():
-        return _predict_sets(model, inputs, chunk)
-
-
-def _predict_sets(model: IPCModel, inputs: PerceptionInputs, chunk: int | None) -> Predictions:
-    centers, shapes = model.raw_arrays(inputs.x, inputs.yhat, batch_size=chunk)
-    if model.calibration is not None:
-        shapes /= model.calibration.scale_for(inputs.x, inputs.yhat)[:, None, None]
-    finite = np.asarray(np.isfinite(shapes).all(axis=(1, 2)) & np.isfinite(centers).all(axis=1))
-    singular = np.asarray(~finite, dtype=np.bool_)
-    if finite.any():  # the SVD test of Ellipsoid, with an SVD only where a cheap bound does not settle it
-        singular[np.flatnonzero(finite)] = ~nonsingular(shapes[finite])[0]
-    report = None
-    domain = model.domain
-    if domain is None:
-        in_domain = np.asarray(~singular, dtype=np.bool_)
-    else:
-        inside = domain.contains(inputs.x, inputs.yhat)
-        in_domain = np.asarray(inside & ~singular, dtype=np.bool_)
-        report = mark_runs(model, mark_row_level(model, domain.summarize_outside(~inside)), inputs, ~inside)
-    return Predictions(
-        centers=centers,
-        shapes=shapes,
-        in_domain=in_domain,
-        singular=singular,
-        calibrated=model.calibration is not None,
-        domain=report,
-        distances=None if domain is None else (lambda: _distances(domain, inputs)),
-    )
-
-
-def _distances(domain: DomainModel, inputs: PerceptionInputs) -> FloatArray:
-    with one_blas_thread():
-        return domain.distance(inputs.x, inputs.yhat)
 
 
 def write_predictions(predictions: Predictions, path: str | os.PathLike[str]) -> None:
@@ -456,7 +328,7 @@ def monitor_log(
     obs = _per_group(data, column, statistic, violated, pred.in_domain, limit)
     # a domain test fitted by groups bounds a new group's expected share of queries outside: test it per group
     dom = model.domain
-    domain_rate = dom.alpha if dom is not None and dom.n_groups is not None else None
+    domain_rate = dom.flag_rate if dom is not None and dom.n_groups is not None else None
     monitor = ViolationMonitor(epsilon, delta, in_domain_only=False, domain_rate=domain_rate)
     what = {
         "trajectory": "any violation",

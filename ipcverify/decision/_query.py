@@ -84,7 +84,7 @@ class IPCQuery:
     >>> from ipcverify import example
     >>> m = example(config=ModelConfig(x_dim=2, y_dim=3, hidden=(8,), members=2)).model
     >>> c, C = IPCQuery(m).ellipsoid([0.0, 1.0], [0.1, 0.2, 0.3])
-    >>> bool(np.allclose(C, m.predict([0.0, 1.0], [0.1, 0.2, 0.3]).shapes[0]))
+    >>> bool(np.allclose(C, m.predict_unguarded([0.0, 1.0], [0.1, 0.2, 0.3]).shapes[0]))
     True
     """
 
@@ -184,7 +184,7 @@ class IPCQuery:
     def ellipsoid(self, x: ArrayLike, yhat: ArrayLike) -> tuple[FloatArray, FloatArray]:
         """Centre (n,) and calibrated shape matrix (n, n) for one query (no domain test).
 
-        The same sets as ``model.predict(x, yhat)`` (float64 engine, calibration
+        The same sets as ``model.predict_unguarded(x, yhat)`` (float64 engine, calibration
         applied), without building an :class:`~ipcverify.sets.Ellipsoid`.
 
         Raises

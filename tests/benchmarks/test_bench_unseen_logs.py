@@ -97,7 +97,10 @@ def test_the_monitor_is_silent_on_held_out_runs_and_alarms_in_another_room():
     assert abs(sum(mon["shares"]) / 20 - cross["steps"][0]["by_runs"]["mean_share"]) < 1e-6
     assert all(s < mon["epsilon"] for s in mon["shares"]) and not mon["alarm"]  # why no violation alarm
     assert cross["steps"][0]["shift_warning"]  # the certificate in V1_02 warns of the shift
-    assert {r["exit"] for r in cross["refusals"].values()} == {2}
+    refused = cross["refusals"]
+    assert refused["certify"]["exit"] == refused["monitor"]["exit"] == 2  # the runs' column is not named
+    named = refused["monitor --group-column run"]  # named: the same replay, the same domain alarm
+    assert named["exit"] == 1 and f"DOMAIN ALARM at group {mon['runs'][i]!r}" in named["message"]
 
 
 @pytest.mark.slow
@@ -149,18 +152,18 @@ def test_advice_follows_only_what_a_message_asks_for():
     assert refusal(few["message"]) == "10 segments are too few for ε = 0.1; the smallest they allow is 0.378"
     none = {**few, "message": few["message"].replace("0.378", "1")}
     assert _advice(none, options, "segment") is None  # nothing below 1 to raise it to
-    domain = "error: the domain test at alpha=0.01 needs at least 99 calibration inputs; got 57"
+    domain = "error: the domain test at flag rate 0.01 needs at least 99 calibration inputs; got 57"
     refused = {
         "refused_at": "calibrate",
-        "message": f"{domain} -- ... (with 57 inputs alpha must be at least 1/58: --domain-alpha 0.0173 works)",  # noqa: E501
+        "message": f"{domain} -- ... (with 57 inputs the flag rate must be at least 1/58: --domain-flag-rate 0.0173 works)",  # noqa: E501
     }
-    assert _advice(refused, [], "run") == ["--domain-alpha", "0.0173"]
+    assert _advice(refused, [], "run") == ["--domain-flag-rate", "0.0173"]
     both = {"refused_at": "calibrate", "message": f"error: 2 requirements are not met: (1) ... (2) {domain}"}
     assert _advice(both, [], "run") is None  # the guarantee itself is out of reach, and no value is named
-    told = "refit it with whole groups (calibrate --domain-group-column run --domain-alpha 0.091) to tell"
+    told = "refit it with whole groups (calibrate --domain-group-column run --domain-flag-rate 0.091) to tell"
     shifted = {"shift_warning": True, "domain_statement": f"... shifted, or ...; {told} the two apart."}
-    assert _advice(shifted, ["--domain-alpha", "0.018"], "run") == [
-        "--domain-group-column", "run", "--domain-alpha", "0.091"
+    assert _advice(shifted, ["--domain-flag-rate", "0.018"], "run") == [
+        "--domain-group-column", "run", "--domain-flag-rate", "0.091"
     ]  # fmt: skip
     assert _advice({**shifted, "shift_warning": False}, [], "run") is None
 

@@ -77,7 +77,7 @@ def test_a_room_change_is_flagged_contradicted_and_alarmed(contract, parts):
     # cannot contradict it, and a row-level claim on runs is never certified
     assert not cert.consistency.consistent and cert.group_test.n_groups == 10
     assert cert.status is CertificateStatus.ROWS_ASSUMED
-    assert cert.domain is not None and cert.domain.outside_fraction > 0.5 and cert.domain.well_above_alpha
+    assert cert.domain is not None and cert.domain.outside_fraction > 0.5 and cert.domain.well_above_flag_rate
     mon = monitor_log(contract, parts["room_change"])
     assert mon.alarm_index is not None and mon.alarm_index < len(parts["room_change"])
     assert "ALARM at row" in mon.sentence()
@@ -105,20 +105,20 @@ def test_twenty_runs_cannot_certify_one_percent_at_the_group_level(parts):
         calibrate(model, data, 0.01, 0.001, Grouped(column="run"))
     # the domain test follows the groups too, and 1 % of a new run needs 99 runs: asked for, it says so;
     # by default it takes the smallest rate the 6 runs allow, and says that
-    with pytest.raises(SampleSizeError, match=r"group-aware domain test .* larger --domain-alpha"):
+    with pytest.raises(SampleSizeError, match=r"group-aware domain test .* larger flag_rate"):
         calibrate(
             model,
             data,
             0.5,
             0.1,
             Grouped(column="run", guarantee="trajectory"),
-            domain=DomainSpec(alpha=0.01),
+            domain=DomainSpec(flag_rate=0.01),
         )
     with pytest.warns(
         Hint, match=r"the 6 groups of 'run' as its units, too few for its default .* uses 0.143"
     ):
         by_run = calibrate(model, data, 0.5, 0.1, Grouped(column="run", guarantee="trajectory"))
-    assert by_run.domain is not None and by_run.domain.alpha == 0.143 and by_run.domain.n_groups == 6
+    assert by_run.domain is not None and by_run.domain.flag_rate == 0.143 and by_run.domain.n_groups == 6
     loose = calibrate(model, data, 0.5, 0.1, Grouped(column="run", guarantee="trajectory"), domain=None)
     summary = loose.require_calibration().summary()
     assert summary.kind == "grouped" and summary.details["group_column"] == "run"

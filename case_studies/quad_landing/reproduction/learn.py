@@ -124,7 +124,7 @@ def row_level_calibration(
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", Hint)
         return calibrate(model, calibration_data, epsilon, delta, Global(mode="pac"),
-                         domain=DomainSpec(alpha=alpha, group_column=by))  # fmt: skip
+                         domain=DomainSpec(flag_rate=alpha, group_column=by))  # fmt: skip
 
 
 def domain_groups(calibration_data: PerceptionDataset, alpha: float) -> str | None:

@@ -182,7 +182,7 @@ def table1(model: IPCModel, tests: Mapping[int, PerceptionDataset], delta: float
 
 
 def _row(model: IPCModel, b: int, data: PerceptionDataset, each: float, confidence: float) -> Table1Row:
-    violated = ~model.predict(data.x, data.yhat).contains(data.y)
+    violated = ~model.predict_unguarded(data.x, data.yhat).contains(data.y)
     n, k = len(data), int(violated.sum())
     paths = hit = None
     if "path" in data.extra:

@@ -80,7 +80,7 @@ def test_calibrate_attaches_a_global_scale(model, cal_data):
     assert cal.data_hash == cal_data.content_hash()
     assert cal.network_hash == network_fingerprint(model.network)
     # predict uses E(c, C / s): a truth is inside iff its raw score is <= s
-    sets = cal_model.predict(cal_data.x, cal_data.yhat)
+    sets = cal_model.predict_unguarded(cal_data.x, cal_data.yhat)
     raw = model.predict_raw(cal_data.x, cal_data.yhat)
     np.testing.assert_allclose(sets.shapes, raw.shapes / cal.threshold.scale, rtol=1e-12)
     assert (sets.contains(cal_data.y) == (scores <= cal.threshold.scale)).all()
@@ -93,7 +93,8 @@ def test_calibration_survives_the_model_file(model, cal_data, tmp_path):
     back = load_model(tmp_path / "m.pt")
     assert back.calibration == cal_model.calibration
     np.testing.assert_array_equal(
-        back.predict(cal_data.x, cal_data.yhat).shapes, cal_model.predict(cal_data.x, cal_data.yhat).shapes
+        back.predict_unguarded(cal_data.x, cal_data.yhat).shapes,
+        cal_model.predict_unguarded(cal_data.x, cal_data.yhat).shapes,
     )
 
 
@@ -181,7 +182,7 @@ def test_mondrian_discrete_groups(model):
     unseen = data.x[:5].copy()
     unseen[:, 2] = 7.0
     with pytest.raises(InvalidInputError, match=r"value 7, a group never seen in calibration"):
-        cm.predict(unseen, data.yhat[:5])
+        cm.predict_unguarded(unseen, data.yhat[:5])
 
 
 def test_mondrian_too_small_group_is_refused(model):
@@ -247,7 +248,7 @@ def test_end_to_end_pac_through_calibrate(model, pool):
         s = cm.calibration.threshold.scale
         bad += np.mean(scores > s) > eps
         if i == 0:  # the sets the model predicts agree with the score rule
-            inside = cm.predict(data.x[:5000], data.yhat[:5000]).contains(data.y[:5000])
+            inside = cm.predict_unguarded(data.x[:5000], data.yhat[:5000]).contains(data.y[:5000])
             assert (inside == (scores[:5000] <= s)).all()
     assert stats.binom.sf(bad - 1, reps, delta) >= ALPHA_E2E
 

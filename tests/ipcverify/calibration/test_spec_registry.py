@@ -92,7 +92,7 @@ def test_a_registered_toy_kind_is_fitted_saved_read_back_and_certified(registere
     assert cal.threshold == threshold_scores(scores[::2], 0.1, 0.05, "pac")
     assert cal.data_hash == cal_data.content_hash()
     # the rest of the pipeline reads it through the protocol only
-    sets = cal_model.predict(cal_data.x[:50], cal_data.yhat[:50])
+    sets = cal_model.predict_unguarded(cal_data.x[:50], cal_data.yhat[:50])
     raw = model.predict_raw(cal_data.x[:50], cal_data.yhat[:50])
     np.testing.assert_allclose(sets.shapes, raw.shapes / cal.threshold.scale, rtol=1e-12)
     save_model(cal_model, tmp_path / "toy.pt")
@@ -186,12 +186,12 @@ def test_each_spec_fits_what_its_calibration_class_fits():
 def test_the_domain_spec_fits_what_domain_model_fits(model):
     data = _flights(make_lagged_perception(2000, seed=44), 10)
     with pytest.warns(Hint, match=r"a row-level claim on data with runs of 'flight' \(chosen explicitly\)"):
-        rows = calibrate(model, data, 0.1, 0.05, Global(), domain=DomainSpec(alpha=0.05, k=2))
-    ref = DomainModel.fit(data.x, data.yhat, alpha=0.05, k=2, seed=0)
+        rows = calibrate(model, data, 0.1, 0.05, Global(), domain=DomainSpec(flag_rate=0.05, k=2))
+    ref = DomainModel.fit(data.x, data.yhat, flag_rate=0.05, k=2, seed=0)
     assert (rows.domain.threshold, rows.domain.k, rows.domain.n_groups) == (ref.threshold, 2, ref.n_groups)
     # a grouped calibration's column is the domain test's units unless the spec names another
-    by_flight = calibrate(model, data, 0.1, 0.05, Grouped(column="flight"), domain=DomainSpec(alpha=0.05))
-    grouped_ref = DomainModel.fit(data.x, data.yhat, alpha=0.05, groups=data.column("flight"))
+    by_flight = calibrate(model, data, 0.1, 0.05, Grouped(column="flight"), domain=DomainSpec(flag_rate=0.05))
+    grouped_ref = DomainModel.fit(data.x, data.yhat, flag_rate=0.05, groups=data.column("flight"))
     assert by_flight.domain.n_groups == 200 and by_flight.domain.threshold == grouped_ref.threshold
     with pytest.warns(Hint, match=r"its rows come in runs of 'flight', so the claim is about runs"):
         auto = calibrate(model, data, 0.1, 0.05, domain=None)
@@ -220,7 +220,10 @@ def test_the_domain_spec_fits_what_domain_model_fits(model):
         (lambda: Grouped(column=None), r"a grouped calibration needs a group column name; got None"),
         (lambda: Grouped(column="run", seed=True), r"seed must be an integer; got True"),
         (lambda: Grouped(column="run", mode="conformal"), r"mode must be 'pac' or 'marginal'"),
-        (lambda: DomainSpec(alpha=0.0), r"domain test: alpha must lie strictly between 0 and 1; got 0.0"),
+        (
+            lambda: DomainSpec(flag_rate=0.0),
+            r"domain test: flag_rate must lie strictly between 0 and 1; got 0.0",
+        ),
         (lambda: DomainSpec(k=0), r"domain test: k must be a positive integer; got 0"),
         (lambda: DomainSpec(group_column=""), r"domain test: group_column must be a column name"),
     ],

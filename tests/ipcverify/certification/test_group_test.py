@@ -307,7 +307,7 @@ def test_real_log_end_to_end_with_group_column(run_cli, tmp_path):
     assert (g["column"], g["n_groups"], g["n_rows"], g["compared_unit"]) == ("flight", 6, len(test), "share")
     # the flights with a violation, counted independently from the calibrated sets
     calibrated = load_model(tmp_path / "cal.pt")
-    sets = calibrated.predict(
+    sets = calibrated.predict_unguarded(
         test[[f"x_{i}" for i in range(5)]].to_numpy(), test[[f"yhat_{i}" for i in range(3)]].to_numpy()
     )
     violated = ~sets.contains(test[[f"y_{i}" for i in range(3)]].to_numpy())

@@ -152,7 +152,7 @@ def test_a_run_level_claim_counts_the_distinct_rows_of_each_run(setup):
 
     cal = runs(make_lagged_perception(3000, seed=63), 30)
     by_run = calibrate(
-        model, cal, 0.2, 0.1, Grouped(column="run"), domain=DomainSpec(alpha=0.1), recalibrate=True
+        model, cal, 0.2, 0.1, Grouped(column="run"), domain=DomainSpec(flag_rate=0.1), recalibrate=True
     )
     test = runs(make_lagged_perception(1200, seed=64), 20)
     once = certify(by_run, test).certificate

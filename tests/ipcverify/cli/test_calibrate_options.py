@@ -59,7 +59,7 @@ def test_the_options_defaults_are_the_specs_defaults():
     assert (
         _option("seed").default == Grouped(column="c").seed == Mondrian(column="c").seed == DomainSpec().seed
     )
-    assert _option("domain_alpha").default == DomainSpec().alpha
+    assert _option("domain_flag_rate").default == DomainSpec().flag_rate
     assert _option("bins").default is Mondrian(column="c").bins is None
 
 
@@ -94,7 +94,7 @@ def files(tmp_path_factory):
 
 
 def test_the_command_calibrates_as_python_does_with_the_spec(files, run_cli, tmp_path):
-    args = ["--epsilon", "0.2", "--delta", "0.05", "--domain-alpha", "0.05", "--seed", "3"]
+    args = ["--epsilon", "0.2", "--delta", "0.05", "--domain-flag-rate", "0.05", "--seed", "3"]
     res = run_cli(
         "calibrate", files / "model.pt", files / "cal.csv", *args, "--group-column", "flight",
         "--out", tmp_path / "g.pt",
@@ -103,7 +103,7 @@ def test_the_command_calibrates_as_python_does_with_the_spec(files, run_cli, tmp
     model = load_model(files / "model.pt")
     data = load_data_for_model(files / "cal.csv", model)
     expect = calibrate(
-        model, data, 0.2, 0.05, Grouped(column="flight", seed=3), domain=DomainSpec(alpha=0.05, seed=3)
+        model, data, 0.2, 0.05, Grouped(column="flight", seed=3), domain=DomainSpec(flag_rate=0.05, seed=3)
     )
     got = load_model(tmp_path / "g.pt")
     assert got.calibration == expect.calibration
@@ -128,6 +128,6 @@ def test_the_refusals_exit_2_with_one_line(files, run_cli, tmp_path):
     )
     res = run_cli("calibrate", *base, "--mondrian-column", "x_0", "--group-column", "flight")
     assert res.code == 2 and "cannot be combined" in res.stderr and len(res.stderr.strip().splitlines()) == 1
-    res = run_cli("calibrate", *base, "--domain-alpha", "1.5")
-    assert res.code == 2 and "domain test: alpha must lie strictly between 0 and 1; got 1.5" in res.stderr
+    res = run_cli("calibrate", *base, "--domain-flag-rate", "1.5")
+    assert res.code == 2 and "domain test: flag_rate must lie strictly between 0 and 1; got 1.5" in res.stderr
     assert not (tmp_path / "x.pt").exists()

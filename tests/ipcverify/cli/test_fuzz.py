@@ -97,7 +97,7 @@ def files(tmp_path_factory) -> dict[str, Path]:
         0.3,
         0.1,
         Grouped(column="flight", seed=1),
-        domain=DomainSpec(alpha=0.1, seed=1),
+        domain=DomainSpec(flag_rate=0.1, seed=1),
     )
     save_model(flight_cal, f["flight_model"])
 
@@ -315,7 +315,7 @@ calibrate-share-no-gamma     | 2 | needs gamma                      | calibrate 
 calibrate-runs-too-few       | 2 | --unit row                       | calibrate {model} {cal_flights} {cal_ok}
 monitor-delta-2              | 2 | delta                            | monitor {calibrated} {test} --out {tmp}/mon --delta 2
 monitor-unknown-group        | 2 | no column 'nope'                 | monitor {calibrated} {test} --group-column nope
-monitor-other-group          | 2 | --group-column flight            | monitor {flight_model} {flights} --group-column x_0
+monitor-other-group          | 2 | name the column of the log's runs | monitor {flight_model} {flights} --group-column x_0
 monitor-flights-missing      | 2 | no column 'flight'               | monitor {flight_model} {test} --out {tmp}/m2
 monitor-out-is-file          | 2 | train.csv                        | monitor {calibrated} {test} --out {train}
 demo-n-0                     | 2 | --n                              | demo --n 0 --out {tmp}/demo
@@ -334,12 +334,12 @@ calibrate-twice              | 2 | --recalibrate                    | calibrate 
 calibrate-on-training-data   | 2 | training data                    | calibrate {model} {train} {cal_ok}
 calibrate-one-row            | 2 | distinct row                     | calibrate {model} {one_row} {cal_ok}
 calibrate-identical-rows     | 2 | 1 distinct row among 2855        | calibrate {model} {identical} {cal_ok}
-calibrate-too-few            | 2 | 2 requirements are not met       | calibrate {model} {test} {cal_ok} --epsilon 0.001 --domain-alpha 0.001
+calibrate-too-few            | 2 | 2 requirements are not met       | calibrate {model} {test} {cal_ok} --epsilon 0.001 --domain-flag-rate 0.001
 calibrate-unknown-group      | 2 | no column 'nope'                 | calibrate {model} {cal} {cal_ok} --group-column nope
 calibrate-few-flights        | 2 | groups of column 'flight' are too few | calibrate {model} {cal_flights} {cal_ok} --group-column flight
 calibrate-mondrian-on-truth  | 2 | ground truth                     | calibrate {model} {cal} {cal_ok} --mondrian-column y_0
 calibrate-bins-alone         | 2 | --mondrian-column                | calibrate {model} {cal} {cal_ok} --bins 3
-calibrate-domain-alpha-0     | 2 | alpha                            | calibrate {model} {cal} {cal_ok} --domain-alpha 0
+calibrate-domain-alpha-0     | 2 | alpha                            | calibrate {model} {cal} {cal_ok} --domain-flag-rate 0
 calibrate-out-unwritable     | 2 | exists and is not a directory    | calibrate {model} {cal} {cal_ok} --out {unwritable}
 calibrate-wrong-dimensions   | 2 | missing column(s) x_5            | calibrate {model} {wrong_dims} {cal_ok}
 certify-missing-data         | 2 | does not exist                   | certify {calibrated} --data {tmp}/none.csv --out {tmp}/cert

@@ -39,7 +39,7 @@ def setup(tmp_path_factory):
     save_model(model, f["model"])
     save_model(calibrate(model, cal_ds, 0.05, 0.01), f["calibrated"])
     flight_cal = calibrate(
-        model, _flights(cal_ds, 100), 0.3, 0.1, Grouped(column="flight"), domain=DomainSpec(alpha=0.1)
+        model, _flights(cal_ds, 100), 0.3, 0.1, Grouped(column="flight"), domain=DomainSpec(flag_rate=0.1)
     )
     save_model(flight_cal, f["flight_model"])
     test = make_lagged_perception(600, seed=2)
@@ -65,7 +65,7 @@ def test_evaluate_reports_the_domain_in_its_table_and_json_and_warns_when_all_is
     dom = json.loads(res.stdout)["domain"]
     assert dom["n"] == 600 and dom["outside"] == 600 and dom["outside_fraction"] == 1.0
     assert dom["violations_inside"] == 0 and dom["violations_outside"] == json.loads(res.stdout)["violations"]
-    assert dom["well_above_alpha"] is True
+    assert dom["well_above_flag_rate"] is True
     assert res.stderr.startswith("warning: 600 of 600 queries (100.00 %) lie outside the domain of validity")
     table = run_cli("evaluate", setup["calibrated"], setup["far"])
     assert "outside the domain of validity │ 600 (100.00 %)" in table.stdout
@@ -129,7 +129,7 @@ def test_a_run_column_is_calibrated_by_runs_unless_rows_are_chosen_and_certified
     assert "Within-run dependence: 3,000 rows in 30 runs" in rows.stdout
     grouped = run_cli(
         "calibrate", setup["model"], setup["cal_runs"], *args, "--group-column", "run", "--epsilon", "0.3",
-        "--delta", "0.2", "--domain-alpha", "0.2", "--force",
+        "--delta", "0.2", "--domain-flag-rate", "0.2", "--force",
     )  # fmt: skip
     assert grouped.code == 0, grouped.stderr
     assert "hint:" not in grouped.stderr and "From 30 independent runs at delta=0.2" in grouped.stdout

@@ -113,7 +113,7 @@ def test_calibrate_warns_far_from_training_and_hints_at_runs(recwarn):
     assert len(hint) == 1 and "a row-level claim on data with runs of 'run'" in hint[0]
     assert "1,500 rows in 15 runs of 'run'" in hint[0] and "CLI: --unit run" in hint[0]
     recwarn.clear()
-    calibrate(model, far, 0.3, 0.2, Grouped(column="run"), domain=DomainSpec(alpha=0.1))
+    calibrate(model, far, 0.3, 0.2, Grouped(column="run"), domain=DomainSpec(flag_rate=0.1))
     assert not [w for w in recwarn if w.category is Hint]  # grouped by choice: no hint
 
 

@@ -52,7 +52,7 @@ def contracts():
     net = IPCModel(IPCNetwork(ModelConfig.recipe("v1", x_dim=6, y_dim=3, hidden=(8,))))
     cal = _runs(400, seed=1)
     return {
-        "runs": calibrate(net, cal, 0.1, DELTA, Grouped(column="run"), domain=DomainSpec(alpha=0.1)),
+        "runs": calibrate(net, cal, 0.1, DELTA, Grouped(column="run"), domain=DomainSpec(flag_rate=0.1)),
         "rows": calibrate(net, cal, 0.1, DELTA, Global(), domain=None),
     }
 

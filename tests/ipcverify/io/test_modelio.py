@@ -22,7 +22,7 @@ def test_save_load_gives_identical_outputs(tmp_path):
     p = tmp_path / "m.pt"
     save_model(model, p)
     back = load_model(p)
-    a, b = model.predict(ds.x, ds.yhat), back.predict(ds.x, ds.yhat)
+    a, b = model.predict_unguarded(ds.x, ds.yhat), back.predict_unguarded(ds.x, ds.yhat)
     assert np.array_equal(a.centers, b.centers)
     assert np.array_equal(a.shapes, b.shapes)
     assert back.metadata["train_data_hash"] == ds.content_hash()
@@ -122,7 +122,9 @@ def test_paper_head_files_stay_version_1_and_lowrank_files_are_version_2(tmp_pat
         assert back.config == model.config and network_fingerprint(back.network) == network_fingerprint(
             model.network
         )
-        np.testing.assert_array_equal(back.predict(ds.x, ds.yhat).shapes, model.predict(ds.x, ds.yhat).shapes)
+        np.testing.assert_array_equal(
+            back.predict_unguarded(ds.x, ds.yhat).shapes, model.predict_unguarded(ds.x, ds.yhat).shapes
+        )
 
 
 def test_a_file_written_before_the_lowrank_head_loads_unchanged(tmp_path):
@@ -152,7 +154,9 @@ def test_a_file_written_before_the_lowrank_head_loads_unchanged(tmp_path):
     assert back.config == ModelConfig.recipe("v1", x_dim=2, y_dim=3)
     assert network_fingerprint(back.network) == network_fingerprint(net)
     x, yhat = np.ones((4, 2)), np.zeros((4, 3))
-    np.testing.assert_array_equal(back.predict(x, yhat).shapes, IPCModel(net).predict(x, yhat).shapes)
+    np.testing.assert_array_equal(
+        back.predict_unguarded(x, yhat).shapes, IPCModel(net).predict_unguarded(x, yhat).shapes
+    )
 
 
 def test_a_lowrank_network_in_a_version_1_file_is_refused(tmp_path):
@@ -188,7 +192,7 @@ def test_a_layout_the_torch_free_reader_does_not_know_is_read_by_torch(tmp_path,
         via_torch.weights.fingerprint() == direct.weights.fingerprint() == network_fingerprint(model.network)
     )
     np.testing.assert_array_equal(
-        via_torch.predict(ds.x, ds.yhat).shapes, direct.predict(ds.x, ds.yhat).shapes
+        via_torch.predict_unguarded(ds.x, ds.yhat).shapes, direct.predict_unguarded(ds.x, ds.yhat).shapes
     )
 
 

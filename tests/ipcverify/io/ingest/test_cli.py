@@ -54,7 +54,7 @@ def test_ingested_runs_train_and_calibrate_by_run(run_cli, tum, tmp_path):
     assert run_cli("train", train, "--out", tmp_path / "m.pt", "--epochs", "2", "--hidden", "8").code == 0
     res = run_cli(
         "calibrate", tmp_path / "m.pt", cal, "--epsilon", "0.2", "--delta", "0.1",
-        "--group-column", "run", "--domain-alpha", "0.1", "--out", tmp_path / "cal.pt",
+        "--group-column", "run", "--domain-flag-rate", "0.1", "--out", tmp_path / "cal.pt",
     )  # fmt: skip
     assert res.code == 0, res.stderr
     assert "20 calibration groups (by 'run')" in " ".join(res.stdout.split())
