@@ -58,10 +58,10 @@ from ipcverify.certification._certify_steps import (
 from ipcverify.certification._evaluation import BinCoverage, WorstBin, coverage_by_bin, worst_bin_coverage
 from ipcverify.certification._group_check import group_test_step
 from ipcverify.certification._report import render_report
-from ipcverify.certification._summarize import output_labels, summarize
+from ipcverify.certification._summarize import check_labels, output_labels, summarize
 from ipcverify.certification._test_result import Consistency, GroupTest, GroupTestResult, TestResult
 from ipcverify.certification._test_rows import fresh_test_rows
-from ipcverify.contract._calibrate import CALIBRATION_GROUPS_KEY, mark_row_level, mark_runs
+from ipcverify.contract._guarded import CALIBRATION_GROUPS_KEY, mark_row_level, mark_runs
 from ipcverify.contract._model import IPCModel
 from ipcverify.contract._runs import RUNS_KEY
 from ipcverify.data._checks import group_like_counts
@@ -144,13 +144,11 @@ def certify(
     bins: int = 10,
     group_column: str | None = None,
     lipschitz_radius: float = DEFAULT_RADIUS,
-    model_path: PathLike | None = None,
-    test_path: PathLike | None = None,
-    train_path: PathLike | None = None,
-    units: str | None = None,
-    labels: Sequence[str] | None = None,
 ) -> CertifyResult:
     """Certify a (preferably calibrated) IPC on fresh test data.
+
+    It takes the statistical inputs only. How the report names ``y`` (units, labels) and which
+    files the certificate records belong to the report: :func:`write_certificate`.
 
     Parameters
     ----------
@@ -177,14 +175,6 @@ def certify(
         Default: the column of a flight-level calibration, if the test data has it.
     lipschitz_radius : float
         Parameter-ball radius of the sound Lipschitz bound (Theorem 1).
-    model_path, test_path, train_path : path-like, optional
-        Files to fingerprint (SHA-256) in the certificate.
-    units : str, optional
-        The units of ``y`` (e.g. ``"m"``), for the summary and every plot axis along ``y``;
-        default: none named (the page says "units of the data").
-    labels : sequence of str, optional
-        One label per coordinate of ``y`` (e.g. ``("forward", "left", "up")``); default: the
-        data's column names (:func:`output_labels`).
 
     Raises
     ------
@@ -193,7 +183,7 @@ def certify(
         model file without row fingerprints, the test data is an exact copy of either), most
         test rows repeat another, the calibration belongs to a different network, the group
         column is missing from the test data, has one group only, or is given without test
-        data, or the labels do not name every coordinate of ``y`` or the units are empty.
+        data.
 
     Examples
     --------
@@ -213,11 +203,7 @@ def certify(
     claim = None if model.calibration is None else model.calibration.group_claim()
     if test_data is not None and claim is not None and group_column is not None:
         test_data, group_column = _runs_named(test_data, claim.column, group_column)
-    y_labels = output_labels(model, test_data, labels)
-    if units is not None and not units.strip():
-        raise InvalidInputError(
-            "the units of y must not be empty; name them (e.g. --units m) or leave them out"
-        )
+    y_labels = output_labels(model, test_data)
     if group_column is not None and test_data is None:
         raise InvalidInputError(f"group column {group_column!r} needs test data to count per group (--data)")
     cal = model.calibration
@@ -245,7 +231,7 @@ def certify(
     cert = Certificate(
         status=status,
         statement=statement(cal, test, status, group_test),
-        model=_model_identity(model, model_path),
+        model=_model_identity(model, None),
         calibration=None if cal is None else cal.summary(),
         test=test,
         test_groups=() if tested is None else tested.groups,
@@ -258,8 +244,8 @@ def certify(
         worst_bin=None if tested is None else tested.worst_bin,
         domain=_domain(model, test_data, None if tested is None else tested.scores.violated),
         group_test=group_test,
-        test_data=None if given is None else _identity(given, test_path),
-        train_data=None if train_data is None else _identity(train_data, train_path, model),
+        test_data=None if given is None else _identity(given, None),
+        train_data=None if train_data is None else _identity(train_data, None, model),
         group_claim=None if cal is None else cal.group_claim(),
         test_group_columns=test_groups,
         calibration_group_columns=calibration_groups,
@@ -269,9 +255,7 @@ def certify(
     rows_outside = (
         None if tested is None else (int(tested.scores.violated.sum()), len(tested.scores.violated))
     )
-    summary = summarize(
-        cert, units=None if units is None else units.strip(), labels=y_labels, rows_outside=rows_outside
-    )
+    summary = summarize(cert, labels=y_labels, rows_outside=rows_outside)
     cert = replace(cert, summary=summary)
     return CertifyResult(
         cert, None if tested is None or test_data is None else _evidence(tested.scores, test_data)
@@ -342,7 +326,13 @@ def _domain(
     return mark_runs(model, report, test_data, ~model.domain.contains(test_data.x, test_data.yhat))
 
 
-def write_certificate(result: CertifyResult, out_dir: PathLike) -> tuple[Path, Path]:
+def write_certificate(
+    result: CertifyResult,
+    out_dir: PathLike,
+    *,
+    units: str | None = None,
+    labels: Sequence[str] | None = None,
+) -> tuple[Path, Path]:
     """Write ``certificate.json`` and ``report.html`` into ``out_dir`` (atomically); return their paths.
 
     Parameters
@@ -351,7 +341,30 @@ def write_certificate(result: CertifyResult, out_dir: PathLike) -> tuple[Path, P
         What :func:`certify` returned.
     out_dir : path-like
         The directory (created if missing).
+    units : str, optional
+        The units of ``y`` (e.g. ``"m"``), for the summary and every plot axis along ``y``;
+        default: none named (the page says "units of the data").
+    labels : sequence of str, optional
+        One label per coordinate of ``y`` (e.g. ``("forward", "left", "up")``); default: the
+        data's column names.
+
+    Raises
+    ------
+    InvalidInputError
+        If the labels do not name every coordinate of ``y`` or the units are empty.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from ipcverify import calibrate, certify, example
+    >>> m = calibrate(example().model, example(2000, seed=1).data, epsilon=0.05, delta=0.01)
+    >>> res = certify(m, example(2000, seed=2).data)
+    >>> with tempfile.TemporaryDirectory() as out:
+    ...     json_path, html_path = write_certificate(res, out, units="m", labels=("x", "y", "z"))
+    ...     (json_path.name, html_path.name)
+    ('certificate.json', 'report.html')
     """
+    result = labelled(result, units=units, labels=labels)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     cert_path, report_path = out / "certificate.json", out / "report.html"
@@ -359,6 +372,53 @@ def write_certificate(result: CertifyResult, out_dir: PathLike) -> tuple[Path, P
     html = render_report(result)
     atomic_write(report_path, lambda f: f.write(html), mode="w")
     return cert_path, report_path
+
+
+def labelled(
+    result: CertifyResult, *, units: str | None = None, labels: Sequence[str] | None = None
+) -> CertifyResult:
+    """``result`` with its summary naming the units and coordinates of ``y`` (nothing is re-decided)."""
+    cert = result.certificate
+    if cert.summary is None or (units is None and labels is None):
+        return result
+    if units is not None and not units.strip():
+        raise InvalidInputError(
+            "the units of y must not be empty; name them (e.g. --units m) or leave them out"
+        )
+    names = cert.summary.labels if labels is None else check_labels(labels, len(cert.summary.labels))
+    violated = None if result.evidence is None else result.evidence.violated
+    summary = summarize(
+        cert,
+        created_utc=cert.summary.date_utc,
+        units=None if units is None else units.strip(),
+        labels=names,
+        rows_outside=None if violated is None else (int(violated.sum()), len(violated)),
+    )
+    return replace(result, certificate=replace(cert, summary=summary))
+
+
+def with_files(
+    result: CertifyResult, model_path: PathLike, test_path: PathLike | None, train_path: PathLike | None
+) -> CertifyResult:
+    """``result`` with the SHA-256 of the files it was certified from (and its summary redone)."""
+    cert = result.certificate
+    cert = replace(
+        cert,
+        model=replace(cert.model, path=str(model_path), file_sha256=file_sha256(model_path)),
+        test_data=None
+        if cert.test_data is None or test_path is None
+        else replace(cert.test_data, file_sha256=file_sha256(test_path)),
+        train_data=None
+        if cert.train_data is None or train_path is None
+        else replace(cert.train_data, file_sha256=file_sha256(train_path)),
+    )
+    if cert.summary is not None:
+        violated = None if result.evidence is None else result.evidence.violated
+        cert = replace(cert, summary=summarize(
+            cert, created_utc=cert.summary.date_utc, units=cert.summary.units, labels=cert.summary.labels,
+            rows_outside=None if violated is None else (int(violated.sum()), len(violated)),
+        ))  # fmt: skip
+    return replace(result, certificate=cert)
 
 
 def certify_files(
@@ -387,8 +447,10 @@ def certify_files(
         Directory for ``certificate.json`` and ``report.html``.
     train_path : path-like, optional
         The training data file, for Theorem 1.
-    delta, bin_column, bins, group_column, lipschitz_radius, units, labels
+    delta, bin_column, bins, group_column, lipschitz_radius
         As for :func:`certify`.
+    units, labels
+        As for :func:`write_certificate`.
     """
     model = load_model(model_path)
     test_data = None if test_path is None else load_data_for_model(test_path, model)
@@ -402,11 +464,7 @@ def certify_files(
         bins=bins,
         group_column=group_column,
         lipschitz_radius=lipschitz_radius,
-        model_path=model_path,
-        test_path=test_path,
-        train_path=train_path,
-        units=units,
-        labels=labels,
     )
+    result = labelled(with_files(result, model_path, test_path, train_path), units=units, labels=labels)
     write_certificate(result, out_dir)
     return result

@@ -55,7 +55,7 @@ def _shift_note(cert: Certificate) -> str:
     lay outside the domain of validity, for which the certificate promises nothing.
     """
     d = cert.domain
-    if cert.status is not CertificateStatus.CERTIFIED or d is None or not d.well_above_alpha:
+    if cert.status is not CertificateStatus.CERTIFIED or d is None or not d.well_above_flag_rate:
         return ""
     why = "a shift" if d.row_level_column is None else "a shift, or a row-level test on correlated rows"
     if d.threshold == 0:
@@ -262,7 +262,7 @@ def _domain_check(d: DomainReport | None) -> Check:
             level="warn",
             detail="the model carries no domain-of-validity test; recalibrate with a current ipcverify",
         )
-    fitted = f"fitted on {d.n_reference:,} calibration inputs, false-alarm rate alpha = {d.alpha:g}"
+    fitted = f"fitted on {d.n_reference:,} calibration inputs, flag rate = {d.flag_rate:g}"
     if d.threshold == 0:  # only in a model file from before the test was fitted on distinct inputs
         return Check(
             name=name,
@@ -275,7 +275,7 @@ def _domain_check(d: DomainReport | None) -> Check:
     if d.n == 0:
         return Check(name=name, verdict="not run", level="info", detail=f"{fitted}; {_NOT_RUN}")
     counted = f"{d.outside:,} of {d.n:,} test queries ({100 * d.outside_fraction:.3g} %) outside; {fitted}"
-    if d.well_above_alpha and d.row_level_column is not None:
+    if d.well_above_flag_rate and d.row_level_column is not None:
         col = d.row_level_column
         return Check(
             name=name,
@@ -286,7 +286,7 @@ def _domain_check(d: DomainReport | None) -> Check:
             f"row on calibration data with a column {col!r}: refit it by {col} ({d.regroup_command()}) "
             f"to tell a shift from a threshold too short for a new {col}",
         )
-    if d.well_above_alpha:
+    if d.well_above_flag_rate:
         return Check(
             name=name,
             verdict="SHIFT: far more queries outside than false alarms explain",
@@ -357,6 +357,17 @@ def output_labels(
         names = tuple(test_data.y_columns) if test_data is not None else ()
         names = names or tuple(model.metadata.get("y_columns") or ())
         return names if len(names) == n else tuple(f"y_{i}" for i in range(n))
+    return check_labels(labels, n)
+
+
+def check_labels(labels: Sequence[str], n: int) -> tuple[str, ...]:
+    """``labels`` stripped, if they name ``n`` coordinates of ``y`` with a non-empty label each.
+
+    Examples
+    --------
+    >>> check_labels([" forward", "left", "up "], 3)
+    ('forward', 'left', 'up')
+    """
     given = tuple(str(label).strip() for label in labels)
     if len(given) != n or not all(given):
         example = (

@@ -16,7 +16,7 @@ from matplotlib.figure import Figure
 import ipcverify
 from ipcverify.calibration import Global, Grouped
 from ipcverify.certification._certificate import CertificateStatus
-from ipcverify.certification._certify import certify, write_certificate
+from ipcverify.certification._certify import certify, labelled, with_files, write_certificate
 from ipcverify.certification._report import render_report
 from ipcverify.certification._report_plots import plot_coverage, plot_projections, plot_scores
 from ipcverify.certification._summary import WEAK_EPSILON, CertificateSummary, target_strength
@@ -85,7 +85,7 @@ def test_summary_of_a_strong_certificate(files):
     model = load_model(files / "strong.pt")
     test = load_data_for_model(files / "test.csv", model)
     before = datetime.now(UTC).replace(microsecond=0)
-    cert = certify(model, test, model_path=files / "strong.pt", test_path=files / "test.csv").certificate
+    cert = with_files(certify(model, test), files / "strong.pt", files / "test.csv", None).certificate
     after = datetime.now(UTC)
     s = cert.summary
     assert isinstance(s, CertificateSummary) and cert.status is CertificateStatus.CERTIFIED
@@ -126,10 +126,9 @@ def test_certificate_json_adds_the_summary_and_keeps_every_key(files, tmp_path):
     from ipcverify.io._modelio import load_data_for_model, load_model
 
     model = load_model(files / "weak.pt")
-    res = certify(
-        model, load_data_for_model(files / "test.csv", model), units="m", labels=("fwd", "left", "up")
-    )
-    write_certificate(res, tmp_path)
+    res = certify(model, load_data_for_model(files / "test.csv", model))
+    write_certificate(res, tmp_path, units="m", labels=("fwd", "left", "up"))  # the report names y
+    res = labelled(res, units="m", labels=("fwd", "left", "up"))
     d = json.loads((tmp_path / "certificate.json").read_text())
     new_keys = {"summary", "test_group_like_columns", "calibration_group_like_columns", "runs", "test_rows"}
     assert OLD_KEYS | new_keys == set(d)
@@ -250,7 +249,7 @@ def test_a_claim_about_flights_has_flights_as_its_unit(net):
         0.2,
         0.05,
         Grouped(column="flight"),
-        domain=DomainSpec(alpha=0.1),
+        domain=DomainSpec(flag_rate=0.1),
     )
     test = _flights(make_lagged_perception(1000, seed=84), 25)
     res = certify(model, test)
@@ -276,14 +275,15 @@ def test_a_claim_about_flights_has_flights_as_its_unit(net):
 
 def test_labels_and_units_are_checked(net):
     test = make_lagged_perception(300, seed=85)
-    s = certify(net, test, units=" m ", labels=[" forward", "left", "up "]).certificate.summary
+    res = certify(net, test)
+    s = labelled(res, units=" m ", labels=[" forward", "left", "up "]).certificate.summary
     assert s.units == "m" and s.labels == ("forward", "left", "up") and s.axis_label(2) == "up [m]"
     with pytest.raises(InvalidInputError, match=r"labels must name the 3 coordinates of y .* got 2"):
-        certify(net, test, labels=["forward", "left"])
+        labelled(res, labels=["forward", "left"])
     with pytest.raises(InvalidInputError, match="one non-empty label each"):
-        certify(net, test, labels=["forward", "", "up"])
+        labelled(res, labels=["forward", "", "up"])
     with pytest.raises(InvalidInputError, match="units of y must not be empty"):
-        certify(net, test, units="  ")
+        labelled(res, units="  ")
 
 
 def _labels(fig: Figure) -> list[str]:
@@ -321,8 +321,8 @@ def test_every_plot_axis_says_what_it_measures_and_in_which_units(net, monkeypat
         return fig
 
     monkeypatch.setattr(report, "plot_projections", spy)
-    named = certify(calibrate(net, make_lagged_perception(800, seed=87), 0.05, 0.05), test, units="m",
-                    labels=("forward", "left", "up"))  # fmt: skip
+    named = labelled(certify(calibrate(net, make_lagged_perception(800, seed=87), 0.05, 0.05), test),
+                     units="m", labels=("forward", "left", "up"))  # fmt: skip
     report.render_report(named)
     assert len(seen) == 1 and len(seen[0]) == 3 * 2 * len(named.evidence.example_index)
     assert set(seen[0]) == {"forward [m]", "left [m]", "up [m]"}
@@ -378,7 +378,7 @@ def test_a_row_level_claim_on_test_rows_grouped_by_flight_is_flagged_as_an_assum
     # no such row for a claim about flights, nor for test data without a run or flight column
     by_flight = calibrate(
         net, _flights(make_lagged_perception(3000, seed=83), 10), 0.2, 0.05, Grouped(column="flight"),
-        domain=DomainSpec(alpha=0.05),
+        domain=DomainSpec(flag_rate=0.05),
     )  # fmt: skip
     names = [c.name for c in certify(by_flight, test).certificate.summary.checks]
     assert "independent rows" not in names
@@ -424,7 +424,7 @@ def test_a_row_level_calibration_on_rows_grouped_by_flight_is_recorded_and_flagg
     )
     # recalibrated by flight, the record is dropped and the check is gone
     by_flight = calibrate(
-        model, cal, 0.2, 0.05, Grouped(column="flight"), domain=DomainSpec(alpha=0.05), recalibrate=True
+        model, cal, 0.2, 0.05, Grouped(column="flight"), domain=DomainSpec(flag_rate=0.05), recalibrate=True
     )
     assert "calibration_group_like_columns" not in by_flight.metadata
     names = [
@@ -467,9 +467,9 @@ def test_a_certified_verdict_on_queries_mostly_outside_the_domain_says_so():
     shifted = certify(model, far).certificate
     assert inside.summary is not None and shifted.summary is not None
     assert inside.status is CertificateStatus.CERTIFIED and shifted.status is CertificateStatus.CERTIFIED
-    assert inside.domain is not None and not inside.domain.well_above_alpha
+    assert inside.domain is not None and not inside.domain.well_above_flag_rate
     assert "outside the domain" not in inside.summary.verdict_text()
-    assert shifted.domain is not None and shifted.domain.well_above_alpha
+    assert shifted.domain is not None and shifted.domain.well_above_flag_rate
     pct = f"{100 * shifted.domain.outside_fraction:.0f} %"
     assert shifted.summary.verdict_text().endswith(
         f"; but {pct} of the test queries lie outside the domain of validity (a shift: the certificate "
@@ -479,3 +479,13 @@ def test_a_certified_verdict_on_queries_mostly_outside_the_domain_says_so():
 
     banner = shifted.summary.verdict_text().split(": ", 1)[1]  # the report's banner: title, then this
     assert html.escape(banner) in render_report(certify(model, far))
+
+
+def test_certify_takes_the_statistical_inputs_and_the_report_names_y():
+    """Issue 39, item 4: units, labels and files belong to the report, not to certify()."""
+    import inspect
+
+    assert list(inspect.signature(certify).parameters) == [
+        "model", "test_data", "train_data", "delta", "bin_column", "bins", "group_column", "lipschitz_radius",
+    ]  # fmt: skip
+    assert {"units", "labels"} <= set(inspect.signature(write_certificate).parameters)
