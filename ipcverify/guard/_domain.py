@@ -230,7 +230,7 @@ class DomainModel:
             raise InvalidInputError(f"domain test: k must be a positive integer; got {k!r}")
         if not (isinstance(flag_rate, (int, float)) and 0.0 < flag_rate < 1.0):
             raise InvalidInputError(
-                f"domain test: flag_rate must lie strictly between 0 and 1; got {flag_rate!r}"
+                f"domain test: {option('flag_rate')} must lie strictly between 0 and 1; got {flag_rate!r}"
             )
         labels = None if groups is None else np.asarray(groups)
         if labels is not None and labels.shape != (len(z),):

@@ -10,6 +10,7 @@ from __future__ import annotations
 import warnings
 from dataclasses import dataclass
 
+from ipcverify._wording import option
 from ipcverify.calibration._bounds import min_calibration_size, smallest_marginal_epsilon
 from ipcverify.calibration._threshold import check_seed
 from ipcverify.data._dataset import PerceptionDataset
@@ -65,8 +66,9 @@ class DomainSpec:
             isinstance(self.flag_rate, bool)
             or not (isinstance(self.flag_rate, (int, float)) and 0.0 < self.flag_rate < 1.0)
         ):
+            got = self.flag_rate
             raise InvalidInputError(
-                f"domain test: flag_rate must lie strictly between 0 and 1; got {self.flag_rate!r}"
+                f"domain test: {option('flag_rate')} must lie strictly between 0 and 1; got {got!r}"
             )
         if isinstance(self.k, bool) or not (isinstance(self.k, int) and self.k >= 1):
             raise InvalidInputError(f"domain test: k must be a positive integer; got {self.k!r}")

@@ -166,9 +166,9 @@ def table1(model: IPCModel, tests: Mapping[int, PerceptionDataset], delta: float
 
     Examples
     --------
-    >>> from ipcverify.network import IPCNetwork
+    >>> from ipcverify import example
     >>> from ipcverify.network import ModelConfig
-    >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(4,), param="cholesky")))
+    >>> m = example(10, config=ModelConfig(x_dim=2, y_dim=3, hidden=(4,), param="cholesky")).model
     >>> ds = PerceptionDataset(np.zeros((10, 2)), np.ones((10, 3)) * 100, np.zeros((10, 3)))
     >>> table1(m, {1: ds}).row(1).violations
     10

@@ -339,7 +339,7 @@ calibrate-unknown-group      | 2 | no column 'nope'                 | calibrate 
 calibrate-few-flights        | 2 | groups of column 'flight' are too few | calibrate {model} {cal_flights} {cal_ok} --group-column flight
 calibrate-mondrian-on-truth  | 2 | ground truth                     | calibrate {model} {cal} {cal_ok} --mondrian-column y_0
 calibrate-bins-alone         | 2 | --mondrian-column                | calibrate {model} {cal} {cal_ok} --bins 3
-calibrate-domain-alpha-0     | 2 | alpha                            | calibrate {model} {cal} {cal_ok} --domain-flag-rate 0
+calibrate-domain-alpha-0     | 2 | --domain-flag-rate               | calibrate {model} {cal} {cal_ok} --domain-flag-rate 0
 calibrate-out-unwritable     | 2 | exists and is not a directory    | calibrate {model} {cal} {cal_ok} --out {unwritable}
 calibrate-wrong-dimensions   | 2 | missing column(s) x_5            | calibrate {model} {wrong_dims} {cal_ok}
 certify-missing-data         | 2 | does not exist                   | certify {calibrated} --data {tmp}/none.csv --out {tmp}/cert
