@@ -56,7 +56,7 @@ _EUROC = (
     "df[df.run >= 7].to_csv('test.csv', index=False)\"; "
     "{py} -c '{cli}' train train.csv --out model.pt; "
     "{py} -c '{cli}' calibrate model.pt calibration.csv --epsilon 0.5 --delta 0.1 --group-column flight "
-    "--domain-alpha 0.2 --out calibrated.pt; "
+    "--domain-flag-rate 0.2 --out calibrated.pt; "
     "{py} -c '{cli}' certify calibrated.pt --data test.csv --train-data train.csv --units m "
     "--labels 'body x,body y,body z' --out certificate"
 )

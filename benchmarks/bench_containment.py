@@ -38,20 +38,15 @@ import numpy as np
 
 from benchmarks.common import machine_info
 from case_studies.quad_landing.landing.state_machine import LandingParams
-from ipcverify.certification import figure_to_png
-from ipcverify.data import atomic_write
-from ipcverify.decision import LandingRule, landing_decision
-from ipcverify.decision.containment import (
-    FaceSystem,
-    Status,
-    contained_float,
-    face_centre,
-    prove,
-    sdp_problem,
-    solve_face_sdp,
-    support_slack,
-    verify,
-)
+from ipcverify.certification._report_plots import figure_to_png
+from ipcverify.data._files import atomic_write
+from ipcverify.decision import landing_decision
+from ipcverify.decision._landing import LandingRule
+from ipcverify.decision.containment import Status, prove, verify
+from ipcverify.decision.containment._face_lmi import FaceSystem, face_centre
+from ipcverify.decision.containment._face_sdp import solve_face_sdp
+from ipcverify.decision.containment._margin import contained_float, support_slack
+from ipcverify.decision.containment._sdp import sdp_problem
 from ipcverify.sets import Box, Ellipsoid, Polytope
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -183,7 +178,7 @@ def _general(rng, n, log_cond, margin, sign):
         e1.centers[0] + rng.normal(size=n) / np.linalg.norm(e1.shapes[0], 2),
         _shape(rng, n, min(log_cond, 3.0)),
     )
-    from ipcverify.decision.containment import normalised, trust_region_maximiser
+    from ipcverify.decision.containment._sdp import normalised, trust_region_maximiser
 
     d_mat, d = normalised(e1, e2)
     u, _ = trust_region_maximiser(d_mat, d)

@@ -35,11 +35,16 @@ from matplotlib.figure import Figure
 from scipy.spatial import cKDTree
 
 from benchmarks.common import machine_info, write_json
-from ipcverify.calibration import marginal_conformal_index
-from ipcverify.certification import certify, figure_to_png
+from ipcverify.calibration._bounds import marginal_conformal_index
+from ipcverify.certification import certify
+from ipcverify.certification._report_plots import figure_to_png
 from ipcverify.contract import calibrate, monitor_log
-from ipcverify.data import PerceptionDataset, atomic_write, make_lagged_perception
-from ipcverify.guard import DEFAULT_ALPHA, DEFAULT_K, DomainModel, plot_monitor
+from ipcverify.data import PerceptionDataset
+from ipcverify.data._files import atomic_write
+from ipcverify.data._synthetic import make_lagged_perception
+from ipcverify.guard import DomainModel
+from ipcverify.guard._domain import DEFAULT_FLAG_RATE, DEFAULT_K
+from ipcverify.guard._monitor import plot_monitor
 from ipcverify.training import TrainConfig, train
 
 __all__ = ["EUROC", "load_euroc", "real_log", "synthetic_shifts", "candidates", "query_cost", "main"]
@@ -114,7 +119,7 @@ def _standardised(x: np.ndarray, yhat: np.ndarray, k: int, alpha: float) -> Doma
     loo = cKDTree(ref).query(ref, k=k + 1)[0][:, k]
     r = marginal_conformal_index(len(z), alpha)
     thr = float(np.partition(loo, r - 1)[r - 1])
-    return DomainModel(mean=mean, whitening=w, reference=ref, k=k, alpha=alpha, threshold=thr, n=len(z))
+    return DomainModel(mean=mean, whitening=w, reference=ref, k=k, flag_rate=alpha, threshold=thr, n=len(z))
 
 
 def candidates(df: pd.DataFrame) -> list[dict[str, Any]]:
@@ -125,8 +130,8 @@ def candidates(df: pd.DataFrame) -> list[dict[str, Any]]:
 
             def fit(x: np.ndarray, yhat: np.ndarray, metric: str = metric, k: int = k) -> DomainModel:
                 if metric == "whitened":
-                    return DomainModel.fit(x, yhat, alpha=DEFAULT_ALPHA, k=k)
-                return _standardised(x, yhat, k, DEFAULT_ALPHA)
+                    return DomainModel.fit(x, yhat, flag_rate=DEFAULT_FLAG_RATE, k=k)
+                return _standardised(x, yhat, k, DEFAULT_FLAG_RATE)
 
             rows.append(
                 {"metric": metric, "k": k, "real": real_log(fit, df), "synthetic": synthetic_shifts(fit)}
@@ -246,7 +251,7 @@ def main() -> dict[str, Any]:
         return DomainModel.fit(x, yhat)
 
     results = {
-        "default": {"alpha": DEFAULT_ALPHA, "k": DEFAULT_K, "metric": "whitened"},
+        "default": {"alpha": DEFAULT_FLAG_RATE, "k": DEFAULT_K, "metric": "whitened"},
         "real_log": real_log(default_fit, df),
         "synthetic": synthetic_shifts(default_fit),
         "candidates": candidates(df),

@@ -50,8 +50,8 @@ def run(draws: int = 200, alpha: float = ALPHA) -> dict[str, Any]:
         rng = np.random.default_rng(seed)
         z, labels = correlated_flights(rng, 60)
         new, _ = correlated_flights(rng, 5)
-        rows = DomainModel.fit(z[:, :3], z[:, 3:], alpha=alpha)
-        flight = DomainModel.fit(z[:, :3], z[:, 3:], alpha=alpha, groups=labels)
+        rows = DomainModel.fit(z[:, :3], z[:, 3:], flag_rate=alpha)
+        flight = DomainModel.fit(z[:, :3], z[:, 3:], flag_rate=alpha, groups=labels)
         for name, dom in (("rows", rows), ("flight", flight)):
             out[f"{name}_new"].append(_share(dom, new))
             out[f"{name}_shifted"].append(_share(dom, 4.0 * new))

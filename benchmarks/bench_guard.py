@@ -46,10 +46,13 @@ from benchmarks.datasets import load_splits, quad_flights
 from benchmarks.oracle_data import make_hetlag
 from benchmarks.timing import run_child
 from ipcverify.calibration import Global
-from ipcverify.contract import IPCModel, calibrate, predict_sets, write_predictions
-from ipcverify.data import PerceptionInputs, atomic_write
+from ipcverify.contract import IPCModel, calibrate
+from ipcverify.contract._prediction import predict_sets, write_predictions
+from ipcverify.data import PerceptionInputs
+from ipcverify.data._files import atomic_write
 from ipcverify.guard import DomainModel, DomainSpec
-from ipcverify.io import load_inputs_for_model, load_model, save_model
+from ipcverify.io import load_model, save_model
+from ipcverify.io._modelio import load_inputs_for_model
 from ipcverify.training import TrainConfig, train
 
 __all__ = ["batches", "calibration_sizes", "cli_predict", "main", "plot", "reference_cap"]
@@ -224,7 +227,7 @@ def cli_predict(model: IPCModel, queries: PerceptionInputs, n: int) -> dict[str,
         env = {k: v for k, v in os.environ.items() if not k.endswith("_NUM_THREADS")}
         env["PYTHONPATH"] = str(ROOT)
         cmd = [sys.executable, "-m", "ipcverify", "predict", str(folder / "model.pt"),
-               str(folder / "queries.parquet"), "--out", str(folder / "sets.npz")]  # fmt: skip
+               str(folder / "queries.parquet"), "--out", str(folder / "sets.npz"), "--force"]  # fmt: skip
         subprocess.run([sys.executable, "-c", "import ipcverify.cli"], env=env, check=True)  # warm file cache
         runs: dict[str, Any] = {}
         one = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}

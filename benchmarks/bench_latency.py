@@ -66,9 +66,11 @@ import torch
 
 from benchmarks.common import spread, time_calls
 from case_studies.quad_landing.landing.state_machine import LandingParams
-from ipcverify.contract import IPCModel, predict_sets
+from ipcverify.contract import IPCModel
+from ipcverify.contract._prediction import predict_sets
 from ipcverify.data import PerceptionDataset, PerceptionInputs
-from ipcverify.decision import IPCQuery, LandingQuery, landing_by_bound
+from ipcverify.decision import IPCQuery, LandingQuery
+from ipcverify.decision._landing_bound import landing_by_bound
 
 __all__ = [
     "BATCH_SIZES",
@@ -103,7 +105,8 @@ def outside_fraction(model: IPCModel, queries: PerceptionDataset) -> float | Non
 
 
 def _onnx_sessions(model: IPCModel, folder: Path) -> dict[str, Any]:
-    from ipcverify.io import export_onnx, onnx_session
+    from ipcverify.io import export_onnx
+    from ipcverify.io._onnx import onnx_session
 
     try:
         import onnx  # noqa: F401
@@ -212,7 +215,7 @@ def single_query(
                 paths[f"decide_{name}_queries"] = cycler(lambda j: q.decide(xs[j], ys[j]), idx)
         if full:
             paths["model_predict_one"] = cycler(
-                lambda j: model.predict(xs[j : j + 1], ys[j : j + 1]), np.arange(m)
+                lambda j: model.predict_unguarded(xs[j : j + 1], ys[j : j + 1]), np.arange(m)
             )
         for dtype, entry in (onnx or {}).items() if full else ():
             sess, np_t, _ = entry
@@ -318,7 +321,7 @@ def batch_throughput(
             "predict_sets": lambda inputs=inputs: predict_sets(model, inputs),
             "predict_sets_without_domain": lambda inputs=inputs: predict_sets(bare_model, inputs),
             "domain_contains": lambda xs=xs, ys=ys: domain.contains(xs, ys) if domain is not None else None,
-            "model_predict": lambda xs=xs, ys=ys: model.predict(xs, ys),
+            "model_predict": lambda xs=xs, ys=ys: model.predict_unguarded(xs, ys),
             "bare_torch_forward": bare,
         }
         if full:
@@ -460,7 +463,7 @@ def bench_latency(
         onnx = _onnx_sessions(first.model, Path(tmp))
         result["onnx_available"] = bool(onnx)
         if onnx:
-            from ipcverify.io import check_onnx
+            from ipcverify.io._onnx import check_onnx
 
             n = min(len(first.queries), 2000)
             result["onnx_check"] = {

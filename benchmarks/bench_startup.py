@@ -55,7 +55,8 @@ _PROBE = (
 def _model_and_queries(folder: Path, n_train: int, epochs: int) -> tuple[Path, Path]:
     """A calibrated default-recipe model file and a 100-row query file (trained in this process)."""
     from ipcverify.contract import calibrate
-    from ipcverify.data import make_lagged_perception, save_dataset
+    from ipcverify.data import save_dataset
+    from ipcverify.data._synthetic import make_lagged_perception
     from ipcverify.io import save_model
     from ipcverify.training import TrainConfig, train
 
@@ -75,7 +76,7 @@ def _commands(model: Path, queries: Path, out: Path) -> dict[str, list[str]]:
         "version": [py, "-c", _CLI, "--version"],
         "help": [py, "-c", _CLI, "--help"],
         "predict_help": [py, "-c", _CLI, "predict", "--help"],
-        "predict": [py, "-c", _CLI, "predict", str(model), str(queries), "--out", str(out)],
+        "predict": [py, "-c", _CLI, "predict", str(model), str(queries), "--out", str(out), "--force"],
         "import_torch": [py, "-c", "import torch"],
     }
 

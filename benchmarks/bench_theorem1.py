@@ -30,9 +30,12 @@ import torch
 from torch.func import functional_call, grad, vmap
 
 from benchmarks.common import machine_info, spread, write_json
-from ipcverify.certification import TrainingStatistics, sound_lipschitz, theorem1
-from ipcverify.data import PerceptionDataset, load_dataset, make_lagged_perception
-from ipcverify.network import LowRankEnsemble, ensemble_scores
+from ipcverify.certification._lipschitz import sound_lipschitz
+from ipcverify.certification._theorem1 import TrainingStatistics, theorem1
+from ipcverify.data import PerceptionDataset, load_dataset
+from ipcverify.data._synthetic import make_lagged_perception
+from ipcverify.network._lipschitz_lowrank import ensemble_scores
+from ipcverify.network._lowrank import LowRankEnsemble
 from ipcverify.training import train
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -110,6 +110,6 @@ def save_figure(fig: Any, path: Path) -> None:
 
 def write_json(path: Path, data: Any) -> None:
     """Write ``data`` as indented JSON (atomically, with ipcverify's one rule for inf and NaN)."""
-    from ipcverify.data import write_json as write_json_file
+    from ipcverify.data._files import write_json as write_json_file
 
     write_json_file(path, data, indent=2)

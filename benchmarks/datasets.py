@@ -33,7 +33,8 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.oracle_data import Oracle, make_fresh_lagged, make_hetlag
-from ipcverify.data import PerceptionDataset, atomic_write, load_dataset
+from ipcverify.data import PerceptionDataset, load_dataset
+from ipcverify.data._files import atomic_write
 from ipcverify.errors import InvalidInputError
 
 __all__ = [

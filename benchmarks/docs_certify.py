@@ -25,9 +25,12 @@ from pathlib import Path
 from typing import Any, BinaryIO
 
 from benchmarks.common import write_json
-from ipcverify.certification import certify_files, figure_to_png, plot_coverage, plot_projections, plot_scores
+from ipcverify.certification._certify import certify_files
+from ipcverify.certification._report_plots import figure_to_png, plot_coverage, plot_projections, plot_scores
 from ipcverify.cli import main as cli_main
-from ipcverify.data import atomic_write, make_lagged_perception, save_dataset
+from ipcverify.data import save_dataset
+from ipcverify.data._files import atomic_write
+from ipcverify.data._synthetic import make_lagged_perception
 
 __all__ = ["FIGURES", "main", "run_example"]
 

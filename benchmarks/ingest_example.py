@@ -30,7 +30,7 @@ from matplotlib.figure import Figure
 from scipy.spatial.transform import Rotation
 
 from benchmarks.bench_ingest import PoseStream, write_pose_bag
-from ipcverify.data import atomic_write
+from ipcverify.data._files import atomic_write
 
 __all__ = ["MOCAP_AHEAD", "simulate_flight", "write_flights", "commands", "plot_flight", "main"]
 
@@ -111,7 +111,7 @@ def commands(out: Path, bags: list[Path], ingest_only: bool) -> list[list[str]]:
             ["train", str(out / "train.parquet"), "--out", str(out / "model.pt")],
             [
                 "calibrate", str(out / "model.pt"), str(out / "calibration.parquet"), "--epsilon", "0.1",
-                "--delta", "0.01", "--group-column", "run", "--domain-alpha", "0.05",
+                "--delta", "0.01", "--group-column", "run", "--domain-flag-rate", "0.05",
                 "--out", str(out / "calibrated.pt"),
             ],
             [

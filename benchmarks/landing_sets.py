@@ -32,7 +32,7 @@ from case_studies.quad_landing.reproduction.learn import learn_ipc
 from case_studies.quad_landing.sim.camera import Camera
 from case_studies.quad_landing.sim.config import load_config
 from case_studies.quad_landing.sim.frames import transform_ellipsoid
-from ipcverify.data import atomic_write
+from ipcverify.data._files import atomic_write
 from ipcverify.decision import IPCQuery, LandingQuery
 
 OUT = Path(__file__).resolve().parents[1] / "tests" / "data" / "landing_sets.npz"

@@ -46,7 +46,8 @@ from scipy import stats
 
 from ipcverify.data import PerceptionDataset
 from ipcverify.errors import InvalidInputError
-from ipcverify.sets import Ellipsoid, unit_ball_log_volume
+from ipcverify.sets import Ellipsoid
+from ipcverify.sets._ellipsoid import unit_ball_log_volume
 
 __all__ = ["Oracle", "make_hetlag", "make_fresh_lagged"]
 

@@ -32,7 +32,8 @@ import numpy as np
 import torch
 from numpy.typing import NDArray
 
-from ipcverify.calibration import CalibrationMode, ScoreThreshold, threshold_scores
+from ipcverify.calibration._bounds import CalibrationMode
+from ipcverify.calibration._threshold import ScoreThreshold, threshold_scores
 from ipcverify.data import PerceptionDataset
 from ipcverify.errors import InvalidInputError
 from ipcverify.sets import Ellipsoid

@@ -36,14 +36,15 @@ from ipcverify.errors import (
 
 if TYPE_CHECKING:
     from ipcverify.calibration._global_scale import Global
-    from ipcverify.calibration._grouped import Grouped
+    from ipcverify.calibration._grouped_spec import Grouped
     from ipcverify.calibration._mondrian import Mondrian
     from ipcverify.certification._certify import certify
     from ipcverify.contract._calibrate import calibrate
     from ipcverify.contract._model import IPCModel
-    from ipcverify.data._dataset import PerceptionDataset
+    from ipcverify.data._dataset import PerceptionDataset, load_dataset
     from ipcverify.decision._landing_query import LandingQuery
     from ipcverify.decision._query import IPCQuery
+    from ipcverify.demo import Example, example
     from ipcverify.guard._domain_spec import DomainSpec
     from ipcverify.io._modelio import load_model, save_model
     from ipcverify.sets._box import Box
@@ -62,6 +63,7 @@ __all__ = [
     "Box",
     "DataError",
     "Ellipsoid",
+    "Example",
     "IPCModel",
     "IPCQuery",
     "IPCVerifyError",
@@ -74,6 +76,8 @@ __all__ = [
     "__version__",
     "calibrate",
     "certify",
+    "example",
+    "load_dataset",
     "load_model",
     "save_model",
     "train",

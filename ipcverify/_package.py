@@ -80,7 +80,7 @@ def lazy_exports(package: str, init_file: str) -> tuple[Callable[[str], Any], Ca
     Examples
     --------
     >>> import ipcverify.calibration
-    >>> "GroupedCalibration" in dir(ipcverify.calibration)
+    >>> "Grouped" in dir(ipcverify.calibration)
     True
     """
     table: dict[str, tuple[str, str]] | None = None

@@ -1,4 +1,5 @@
-"""The ``ipcverify demo`` job: synthetic data -> trained IPC -> calibrated IPC -> evaluation."""
+"""The examples' data and model (:func:`example`), and the ``ipcverify demo`` job: synthetic data ->
+trained IPC -> calibrated IPC -> evaluation."""
 
 from __future__ import annotations
 
@@ -17,15 +18,17 @@ from ipcverify.certification._evaluation import Evaluation, evaluate
 from ipcverify.certification._report import figure_to_png
 from ipcverify.certification._report_plots import ellipse_outline
 from ipcverify.contract._calibrate import calibrate
+from ipcverify.contract._model import IPCModel
 from ipcverify.data._dataset import PerceptionDataset, save_dataset
 from ipcverify.data._files import atomic_write
 from ipcverify.data._synthetic import make_lagged_perception
 from ipcverify.errors import InvalidInputError
 from ipcverify.io._modelio import save_model
+from ipcverify.network._architecture import ModelConfig
 from ipcverify.sets._ellipsoid import Ellipsoid
 from ipcverify.training._train import TrainConfig, train
 
-__all__ = ["DemoSummary", "run_demo", "plot_demo_sets"]
+__all__ = ["DemoSummary", "Example", "example", "run_demo", "plot_demo_sets"]
 
 #: Calibration target of the demo: PAC, at most 1 % violations with confidence 99.9 %.
 DEMO_EPSILON = 0.01
@@ -34,6 +37,84 @@ DEMO_DELTA = 0.001
 DEMO_MIN_TRAIN = 100
 #: Most samples of one kind the demo generates (its data are made and trained on in memory).
 DEMO_MAX_SAMPLES = 10_000_000
+#: The files the demo writes into its folder.
+DEMO_FILES = ("train.csv", "calibration.csv", "test.csv", "model.pt", "calibrated.pt", "sets.png")
+
+
+#: The example model's architecture: a small paper-style network (Cholesky head) for the example data.
+EXAMPLE_CONFIG = ModelConfig(x_dim=6, y_dim=3, hidden=(8,), param="cholesky")
+
+
+@dataclass(frozen=True, eq=False)
+class Example:
+    """A small perception log and an untrained IPC for it (:func:`example`).
+
+    Attributes
+    ----------
+    data : PerceptionDataset
+        The log: an observer whose camera image lags its state, ``x`` (n, 6) = position and
+        velocity, ``y`` and ``yhat`` (n, 3) = the target's true and perceived position; with
+        ``runs``, an extra ``run`` column.
+    model : IPCModel
+        An untrained IPC for it (weights drawn from the example's seed; train it with
+        :func:`~ipcverify.train`, or calibrate it as it is).
+    """
+
+    data: PerceptionDataset
+    model: IPCModel
+
+
+def example(
+    n: int = 1000, *, seed: int = 0, runs: int | None = None, config: ModelConfig | None = None
+) -> Example:
+    """Example data and an untrained IPC for it: what the documentation's examples and the tests use.
+
+    The data are the demo's synthetic lagged perception (``make_lagged_perception``: the error
+    grows with speed and range); the model is the architecture ``config`` with weights drawn from
+    ``seed``, so that an example gives the same numbers every time. It is not trained: calibration
+    makes its sets valid whatever they are, and :func:`~ipcverify.train` trains one.
+
+    Parameters
+    ----------
+    n : int
+        Rows of the log.
+    seed : int
+        Seeds the data and the model's weights.
+    runs : int, optional
+        Cut the rows into this many consecutive runs of equal length (``n`` a multiple of it),
+        named by a ``run`` column: the log then comes in runs, as a robot log does.
+    config : ModelConfig, optional
+        The model's architecture; default: a small Cholesky network for the data's 6 state columns
+        and 3 outputs. Another one (other dimensions too) gives a model for examples of its own.
+
+    Examples
+    --------
+    >>> ex = example(200, seed=1)
+    >>> ex.data.x.shape, ex.data.y.shape, ex.model.config.param
+    ((200, 6), (200, 3), 'cholesky')
+    >>> sorted(set(example(100, runs=4).data.extra["run"].tolist()))
+    [0, 1, 2, 3]
+    """
+    import torch
+
+    from ipcverify.network._modules import build_network
+
+    if runs is not None and (isinstance(runs, bool) or not isinstance(runs, int) or runs < 1 or n % runs):
+        raise InvalidInputError(f"runs must be a positive integer that divides n = {n}; got {runs!r}")
+    cfg = EXAMPLE_CONFIG if config is None else config
+    data = make_lagged_perception(n, seed=seed)
+    if runs is not None:
+        data = PerceptionDataset(
+            data.x,
+            data.y,
+            data.yhat,
+            source=data.source,
+            extra={"run": np.repeat(np.arange(runs), n // runs)},
+        )
+    with torch.random.fork_rng(devices=[]):
+        torch.manual_seed(seed)
+        network = build_network(cfg)
+    return Example(data=data, model=IPCModel(network))
 
 
 @dataclass(frozen=True)
@@ -112,7 +193,7 @@ def run_demo(
     calibrated = calibrate(model, cal_data, DEMO_EPSILON, DEMO_DELTA, Global(mode="pac"))
     base = fit_global_mahalanobis(train_data).calibrate(cal_data, DEMO_EPSILON, DEMO_DELTA, mode="pac")
     base_sets = base.predict(test_data.x, test_data.yhat)
-    ipc_sets = calibrated.predict(test_data.x, test_data.yhat)
+    ipc_sets = calibrated.predict_unguarded(test_data.x, test_data.yhat)
     png = figure_to_png(plot_demo_sets(test_data, ipc_sets, base_sets), dpi=110)
     # every step succeeded: only now write (a failed run leaves no partial set of files)
     out.mkdir(parents=True, exist_ok=True)
@@ -161,8 +242,8 @@ def plot_demo_sets(data: PerceptionDataset, ipc: Ellipsoid, base: Ellipsoid) -> 
 
     Examples
     --------
-    >>> from ipcverify.data._synthetic import make_lagged_perception
-    >>> d = make_lagged_perception(50, seed=0)
+    >>> from ipcverify import example
+    >>> d = example(50, seed=0).data
     >>> e = Ellipsoid(d.yhat, np.broadcast_to(np.eye(3) * 20.0, (50, 3, 3)))
     >>> len(plot_demo_sets(d, e, e).axes)
     3

@@ -20,8 +20,9 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from case_studies.quad_landing.settings import DEFAULTS_PATH, REPRODUCE_PATH, read_toml
 from case_studies.quad_landing.sim.camera import MAX_BUFFER_SIZE
 from case_studies.quad_landing.sim.config import SimConfig, load_config
-from ipcverify.cli.app import run_group
-from ipcverify.data import json_data
+from ipcverify.cli.app import CliGroup, run_group
+from ipcverify.cli.outputs import check_outputs, force_option
+from ipcverify.data._files import json_data
 from ipcverify.errors import InvalidInputError
 
 __all__ = ["quad", "main"]
@@ -53,6 +54,7 @@ _seed_option = click.option(
 
 
 @click.group(
+    cls=CliGroup,
     name="quad_landing",
     context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100},
 )
@@ -94,8 +96,9 @@ def quad() -> None:
     help="Worker processes (the data do not depend on it).",
 )
 @click.option("--quiet", is_flag=True, help="No progress bar.")
+@force_option
 def collect_command(buffer_size: int | None, n: int | None, seed: int, out: str,
-                    config_path: str | None, jobs: int, quiet: bool) -> None:  # fmt: skip
+                    config_path: str | None, jobs: int, quiet: bool, force: bool) -> None:  # fmt: skip
     """Fly the exploration paths and write a dataset of camera measurements."""
     from case_studies.quad_landing.data.collect import collect, write_dataset
 
@@ -104,6 +107,7 @@ def collect_command(buffer_size: int | None, n: int | None, seed: int, out: str,
         raise InvalidInputError(f"--out must end in .parquet or .csv, got {out_path.name!r}")
     if not out_path.parent.exists():
         raise InvalidInputError(f"--out directory {out_path.parent} does not exist; create it")
+    check_outputs([out_path, out_path.with_name(out_path.stem + ".stats.json")], force=force)
     cfg = _config(config_path)
     with Progress(
         TextColumn("collecting"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),

@@ -7,7 +7,7 @@ set of scores), :mod:`~ipcverify.calibration._protocol` (what every kind provide
 fits it: :class:`Global`, :class:`Mondrian`, :class:`Grouped`) and
 :mod:`~ipcverify.calibration._kinds` (their registry). The pipeline step that calibrates a
 model is :func:`ipcverify.contract.calibrate`, which takes a spec:
-``calibrate(model, data, epsilon, delta, Grouped(column="run", guarantee="sample"))``.
+``calibrate(model, data, epsilon, delta, Grouped(column="run"))``.
 
 The network's score ``g = ||C (y - c)||`` is computed on ``n`` calibration samples
 that were *not* used for training. The calibrated contract is ``E(c, C / s)`` with
@@ -35,9 +35,9 @@ violation rate is at most ``epsilon``.
 
 Grouped calibration (:mod:`~ipcverify.calibration._grouped`) treats groups of correlated
 samples (flights, runs; a column of the calibration data only) as the exchangeable units
-and gives one scale with a trajectory-level guarantee (every sample of a new flight inside)
-or a per-sample one valid under group exchangeability. Proofs:
-``proofs/group_calibration.md``.
+and gives one scale with a claim about a new run: its expected share of rows outside (the
+default), the share of new runs with more than epsilon outside, or every row inside. Proofs:
+``proofs/group_calibration.md`` and ``proofs/run_claims.md``.
 
 The stored scale is the order statistic times ``1 + SCALE_MARGIN``: a slightly
 larger set, so that float32 rounding differences between batch sizes cannot
@@ -51,122 +51,16 @@ from typing import TYPE_CHECKING
 from ipcverify._package import lazy_exports
 
 if TYPE_CHECKING:
-    from ipcverify.calibration._bounds import (
-        TAIL_MARGIN,
-        CalibrationMode,
-        clopper_pearson_interval,
-        clopper_pearson_lower,
-        clopper_pearson_upper,
-        marginal_conformal_index,
-        min_calibration_size,
-        pac_calibration_index,
-        pac_epsilon,
-        pac_rows_allowing,
-        smallest_epsilon,
-        smallest_marginal_epsilon,
-    )
-    from ipcverify.calibration._global_scale import (
-        Global,
-        GlobalCalibration,
-    )
-    from ipcverify.calibration._group_counts import (
-        GUARANTEES,
-        GroupViolations,
-        GuaranteeKind,
-        group_violation_counts,
-    )
-    from ipcverify.calibration._grouped import (
-        Grouped,
-        GroupedCalibration,
-    )
-    from ipcverify.calibration._kinds import (
-        KINDS,
-        METHODS,
-        calibration_from_dict,
-        register_kind,
-    )
-    from ipcverify.calibration._method import (
-        CalibrationMethod,
-        CalibrationRecord,
-        CalibrationSample,
-        CalibrationSpec,
-    )
-    from ipcverify.calibration._mondrian import (
-        GroupScale,
-        Mondrian,
-        MondrianCalibration,
-    )
-    from ipcverify.calibration._mondrian_groups import (
-        EDGE_FRACTION,
-        MAX_GROUPS,
-    )
-    from ipcverify.calibration._protocol import (
-        GROUP_UNITS,
-        AllowedRate,
-        Calibration,
-        CalibrationSummary,
-        GroupClaim,
-        GroupInfo,
-        GroupUnit,
-        TestCounts,
-    )
-    from ipcverify.calibration._risk_control import (
-        risk_control_threshold,
-    )
-    from ipcverify.calibration._threshold import (
-        MODES,
-        SCALE_MARGIN,
-        ScoreThreshold,
-        threshold_scores,
-    )
+    from ipcverify.calibration._global_scale import Global
+    from ipcverify.calibration._grouped_spec import Grouped
+    from ipcverify.calibration._mondrian import Mondrian
+    from ipcverify.calibration._run_plan import plan_runs
 
 __all__ = [
-    "EDGE_FRACTION",
-    "GROUP_UNITS",
-    "GUARANTEES",
-    "KINDS",
-    "MAX_GROUPS",
-    "METHODS",
-    "MODES",
-    "SCALE_MARGIN",
-    "TAIL_MARGIN",
-    "AllowedRate",
-    "Calibration",
-    "CalibrationMethod",
-    "CalibrationMode",
-    "CalibrationRecord",
-    "CalibrationSample",
-    "CalibrationSpec",
-    "CalibrationSummary",
     "Global",
-    "GlobalCalibration",
-    "GroupClaim",
-    "GroupInfo",
-    "GroupScale",
-    "GroupUnit",
-    "GroupViolations",
     "Grouped",
-    "GroupedCalibration",
-    "GuaranteeKind",
     "Mondrian",
-    "MondrianCalibration",
-    "ScoreThreshold",
-    "TestCounts",
-    "calibration_from_dict",
-    "clopper_pearson_interval",
-    "clopper_pearson_lower",
-    "clopper_pearson_upper",
-    "group_violation_counts",
-    "marginal_conformal_index",
-    "min_calibration_size",
-    "pac_calibration_index",
-    "pac_epsilon",
-    "pac_rows_allowing",
-    "register_kind",
-    "risk_control_threshold",
-    "smallest_epsilon",
-    "smallest_marginal_epsilon",
-    "threshold_scores",
+    "plan_runs",
 ]
 
 __getattr__, __dir__ = lazy_exports(__name__, __file__)

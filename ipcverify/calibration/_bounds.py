@@ -442,7 +442,7 @@ def smallest_marginal_epsilon(n: int) -> float:
 
     ``1 / (n + 1)`` rounded up to 3 significant digits and checked against
     :func:`min_calibration_size` (exact rational arithmetic), so that the value a message names
-    is accepted when it is given back: for the domain test's ``--domain-alpha`` with ``n``
+    is accepted when it is given back: for the domain test's ``--domain-flag-rate`` with ``n``
     calibration inputs (or groups).
 
     Parameters

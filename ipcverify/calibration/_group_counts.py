@@ -1,14 +1,17 @@
 """Violations of test data counted per group (flight, run), and the choice of one sample per group.
 
 Rows of one group are correlated, so a binomial bound on rows is not valid; one statistic per
-group is, if the groups are i.i.d. The two statistics (``GUARANTEES``) are the two guarantees
-of :class:`~ipcverify.calibration.GroupedCalibration`: any sample of the group outside its set
-(``"trajectory"``), or one sample drawn at random (seeded) from it outside (``"sample"``).
+group is, if the groups are i.i.d. The statistics (``GROUP_STATISTICS``): any sample of the group
+outside its set (``"trajectory"``), one sample drawn at random (seeded) from it outside
+(``"sample"``), its share of rows outside (``"share"``, a value in ``[0, 1]``), or whether that share
+exceeds a limit (``"share-of-runs"``). The guarantees of
+:class:`~ipcverify.calibration.GroupedCalibration` (``GUARANTEES``) are checked with them.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from fractions import Fraction
 from typing import Literal
 
 import numpy as np
@@ -18,18 +21,75 @@ from ipcverify.data._split import group_codes
 from ipcverify.errors import InvalidInputError
 
 IntArray = NDArray[np.intp]
-GuaranteeKind = Literal["trajectory", "sample"]  # = protocol.GroupUnit
-#: The two guarantees: every sample of a new group inside (trajectory), or a per-sample rate.
-GUARANTEES = ("trajectory", "sample")
+#: What a claim about runs bounds: a new run's expected share of rows outside, the share of new runs
+#: with more than epsilon of their rows outside, or the probability that a new run leaves its sets anywhere.
+GuaranteeKind = Literal["expected-share", "share-of-runs", "trajectory"]
+#: The three run-level guarantees.
+GUARANTEES: tuple[GuaranteeKind, ...] = ("expected-share", "share-of-runs", "trajectory")
+#: Earlier names of a guarantee, still read from model files and accepted from Python.
+LEGACY_GUARANTEES: dict[str, GuaranteeKind] = {"sample": "expected-share"}
+#: The count statistics of a test group (the ``"share"`` statistic is a value, not a count).
+CountStatistic = Literal["trajectory", "sample"]
 
 
-def check_guarantee(guarantee: str) -> None:
-    """Refuse a guarantee other than ``"trajectory"`` or ``"sample"``."""
+def check_guarantee(guarantee: str) -> GuaranteeKind:
+    """The guarantee's name, refused unless it is one of ``GUARANTEES`` (or an earlier name of one).
+
+    Examples
+    --------
+    >>> check_guarantee("sample")
+    'expected-share'
+    """
+    if guarantee in LEGACY_GUARANTEES:
+        return LEGACY_GUARANTEES[guarantee]
     if guarantee not in GUARANTEES:
         raise InvalidInputError(
-            f"guarantee must be 'trajectory' (every sample of a new group inside its set) or 'sample' "
-            f"(the expected fraction of a new group's samples outside); got {guarantee!r}"
+            "guarantee must be 'expected-share' (a new run's expected share of rows outside its sets), "
+            "'share-of-runs' (the share of new runs with more than epsilon of their rows outside) or "
+            f"'trajectory' (every row of a new run inside); got {guarantee!r}"
         )
+    return guarantee  # type: ignore[return-value]
+
+
+def allowed_outside(epsilon: float, size: int) -> int:
+    """``floor(epsilon * size)`` in exact arithmetic: the rows a run of ``size`` may have outside.
+
+    Examples
+    --------
+    >>> allowed_outside(0.1, 30), allowed_outside(0.1, 9), allowed_outside(0.29, 100)
+    (3, 0, 28)
+    """
+    return int(Fraction(epsilon) * int(size))
+
+
+def group_shares(
+    violated: ArrayLike, groups: ArrayLike, what: str = "test groups"
+) -> tuple[NDArray[np.float64], IntArray, IntArray]:
+    """Each group's share of rows outside their sets, its count of such rows and its size (label order).
+
+    Parameters
+    ----------
+    violated : array_like of bool, shape (N,)
+        Whether each row lies outside its set.
+    groups : array_like, shape (N,)
+        Each row's group label (flight, run; none missing).
+    what : str
+        How to name the labels in an error.
+
+    Examples
+    --------
+    >>> shares, outside, sizes = group_shares([True, False, False, False], ["a", "a", "b", "b"])
+    >>> shares.tolist(), outside.tolist(), sizes.tolist()
+    ([0.5, 0.0], [1, 0], [2, 2])
+    """
+    bad = np.asarray(violated, dtype=bool).ravel()
+    codes, labels = group_codes(groups, what)
+    if len(codes) != len(bad):
+        raise InvalidInputError(f"{len(bad)} violation flags but {len(codes)} group labels; give one per row")
+    G = len(labels)
+    sizes = np.bincount(codes, minlength=G).astype(np.intp)
+    outside = np.bincount(codes, weights=bad.astype(np.float64), minlength=G).astype(np.intp)
+    return outside / sizes, outside, sizes
 
 
 def group_layout(codes: IntArray, n_groups: int) -> tuple[IntArray, IntArray, IntArray]:
@@ -67,16 +127,21 @@ class GroupViolations:
 
     violations: int
     n_groups: int
-    unit: GuaranteeKind
+    unit: CountStatistic
 
     def __post_init__(self) -> None:
-        check_guarantee(self.unit)
+        _check_statistic(self.unit)
         if not (0 <= self.violations <= self.n_groups and self.n_groups >= 1):
             raise InvalidInputError(f"need 0 <= violations <= n_groups, n_groups >= 1; got {self}")
 
 
+def _check_statistic(unit: str) -> None:
+    if unit not in ("trajectory", "sample"):
+        raise InvalidInputError(f"a group count is 'trajectory' or 'sample'; got {unit!r}")
+
+
 def group_violation_counts(
-    violated: ArrayLike, groups: ArrayLike, unit: GuaranteeKind, seed: int = 0
+    violated: ArrayLike, groups: ArrayLike, unit: CountStatistic, seed: int = 0
 ) -> GroupViolations:
     """Count violations per test group, so that a binomial test is valid for correlated samples.
 
@@ -113,7 +178,7 @@ def group_violation_counts(
     >>> group_violation_counts(v, [1, 1, 2, 2, 3, 3], "trajectory")
     GroupViolations(violations=1, n_groups=3, unit='trajectory')
     """
-    check_guarantee(unit)
+    _check_statistic(unit)
     bad = np.asarray(violated, dtype=bool).ravel()
     codes, labels = group_codes(groups, "test groups")
     if len(codes) != len(bad):

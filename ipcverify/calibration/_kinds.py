@@ -14,7 +14,7 @@ from collections.abc import Mapping
 from typing import Any, TypeVar
 
 from ipcverify.calibration._global_scale import Global
-from ipcverify.calibration._grouped import Grouped
+from ipcverify.calibration._grouped_spec import Grouped
 from ipcverify.calibration._method import CalibrationMethod, CalibrationRecord
 from ipcverify.calibration._mondrian import Mondrian
 from ipcverify.calibration._protocol import Calibration
@@ -114,11 +114,9 @@ def calibration_from_dict(data: Mapping[str, Any]) -> Calibration:
 
     Examples
     --------
-    >>> import numpy as np
-    >>> from ipcverify.calibration._global_scale import GlobalCalibration
-    >>> from ipcverify.calibration._threshold import threshold_scores
-    >>> t = threshold_scores(np.linspace(0.1, 2.0, 200), epsilon=0.1, delta=0.1, mode="marginal")
-    >>> cal = GlobalCalibration(threshold=t, data_hash="d", network_hash="h")
+    >>> from ipcverify import calibrate, example
+    >>> ex = example(200)
+    >>> cal = calibrate(ex.model, ex.data, 0.1, 0.1, domain=None).calibration
     >>> calibration_from_dict(cal.to_dict()) == cal
     True
     """

@@ -45,10 +45,12 @@ from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import InvalidInputError
 
 FloatArray = NDArray[np.float64]
-#: The statistic of one group: any of its samples violates, or one random sample of it does.
-GroupUnit = Literal["trajectory", "sample"]
-#: The two group statistics.
-GROUP_UNITS: tuple[GroupUnit, ...] = ("trajectory", "sample")
+#: The statistic of one group (flight, run) that a claim about groups is checked and monitored with: any
+#: of its samples violates, one random sample of it does (earlier per-sample claims), its share of rows
+#: outside (a value in [0, 1]), or whether that share exceeds the claim's limit.
+GroupUnit = Literal["trajectory", "sample", "share", "share-of-runs"]
+#: The group statistics.
+GROUP_UNITS: tuple[GroupUnit, ...] = ("trajectory", "sample", "share", "share-of-runs")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -137,6 +139,9 @@ class TestCounts:
         Units counted, ``n >= 1`` (the binomial sample size).
     unit : str
         What was counted, for reports: ``"samples"`` or a description of the groups.
+    shares : tuple of float, optional
+        For a claim about the expected share of a run's rows outside: each test unit's share
+        (the test bounds their mean); ``violations`` then counts the units with some row outside.
 
     Examples
     --------
@@ -149,14 +154,22 @@ class TestCounts:
     violations: int
     n: int
     unit: str
+    shares: tuple[float, ...] | None = None
 
     def __post_init__(self) -> None:
         if not (0 <= self.violations <= self.n and self.n >= 1):
             raise InvalidInputError(f"need 0 <= violations <= n, n >= 1; got {self.violations}, {self.n}")
+        if self.shares is not None and (
+            len(self.shares) != self.n or not all(0.0 <= v <= 1.0 for v in self.shares)
+        ):
+            raise InvalidInputError(f"need one share in [0, 1] per unit ({self.n}); got {self.shares!r}")
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain data."""
-        return {"violations": self.violations, "n": self.n, "unit": self.unit}
+        """Plain data (with ``mean_share`` when the units are counted by their shares)."""
+        out: dict[str, Any] = {"violations": self.violations, "n": self.n, "unit": self.unit}
+        if self.shares is not None:
+            out["mean_share"] = sum(self.shares) / self.n
+        return out
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -167,21 +180,25 @@ class GroupClaim:
     ----------
     column : str
         The data column naming each sample's group.
-    unit : {"trajectory", "sample"}
-        The statistic of a group: any of its samples outside its set, or one sample drawn at
-        random (seeded) from it outside.
+    unit : {"trajectory", "sample", "share", "share-of-runs"}
+        The statistic of a group: any of its samples outside its set; one sample drawn at random
+        (seeded) from it outside; its share of rows outside; or whether that share exceeds
+        ``share_limit``.
     seed : int
         Seeds the choice of one sample per group (``unit="sample"``).
+    share_limit : float, optional
+        ``unit="share-of-runs"`` only: the share of a run's rows that may lie outside.
 
     Examples
     --------
-    >>> GroupClaim(column="run", unit="sample", seed=0).unit
-    'sample'
+    >>> GroupClaim(column="run", unit="share").unit
+    'share'
     """
 
     column: str
     unit: GroupUnit
     seed: int = 0
+    share_limit: float | None = None
 
     def __post_init__(self) -> None:
         if self.unit not in GROUP_UNITS or not self.column:
@@ -189,6 +206,8 @@ class GroupClaim:
                 f"a group claim needs a column name and a unit in {GROUP_UNITS}; got {self.column!r}, "
                 f"{self.unit!r}"
             )
+        if (self.unit == "share-of-runs") != (self.share_limit is not None):
+            raise InvalidInputError("a share limit goes with a 'share-of-runs' group claim, and only with it")
 
 
 def row_counts(violated: NDArray[np.bool_]) -> TestCounts:

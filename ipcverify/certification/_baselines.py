@@ -20,8 +20,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ipcverify.calibration import ScoreThreshold, threshold_scores
 from ipcverify.calibration._bounds import CalibrationMode
+from ipcverify.calibration._threshold import ScoreThreshold, threshold_scores
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import InvalidInputError
 from ipcverify.sets._ellipsoid import Ellipsoid
@@ -102,9 +102,9 @@ class GlobalMahalanobis:
 
     Examples
     --------
-    >>> from ipcverify.data._synthetic import make_lagged_perception
-    >>> base = fit_global_mahalanobis(make_lagged_perception(2000, seed=0))
-    >>> cal = base.calibrate(make_lagged_perception(2000, seed=1), epsilon=0.05, delta=0.01)
+    >>> from ipcverify import example
+    >>> base = fit_global_mahalanobis(example(2000, seed=0).data)
+    >>> cal = base.calibrate(example(2000, seed=1).data, epsilon=0.05, delta=0.01)
     >>> cal.predict(np.zeros((2, 6)), np.zeros((2, 3))).batch_size
     2
     """
@@ -185,9 +185,9 @@ class BonferroniBox:
 
     Examples
     --------
-    >>> from ipcverify.data._synthetic import make_lagged_perception
-    >>> box = fit_bonferroni_box(make_lagged_perception(2000, seed=0))
-    >>> box = box.calibrate(make_lagged_perception(3000, seed=1), epsilon=0.05, delta=0.01)
+    >>> from ipcverify import example
+    >>> box = fit_bonferroni_box(example(2000, seed=0).data)
+    >>> box = box.calibrate(example(3000, seed=1).data, epsilon=0.05, delta=0.01)
     >>> len(box.thresholds)
     3
     """

@@ -10,6 +10,8 @@ layout of ``certificate.json`` (written with the one JSON encoder of
   :class:`~ipcverify.certification._test_result.GroupTest` -- what the test data says
   (:mod:`ipcverify.certification._test_result`);
 * :class:`ModelIdentity`, :class:`DataIdentity`, :class:`VolumeSummary` -- provenance and size;
+  :class:`~ipcverify.certification._test_rows.TestRows` -- the test rows counted, and how they
+  were checked against the training and calibration rows;
 * :class:`Certificate` -- all of the above plus the calibration summary, Theorem 1, the unit of
   the claim and the executive summary (:class:`~ipcverify.certification.CertificateSummary`);
 * :class:`CertifyEvidence`, :class:`CertifyResult` -- the per-sample arrays behind it.
@@ -30,15 +32,21 @@ from ipcverify.calibration._protocol import CalibrationSummary, GroupClaim
 from ipcverify.certification._evaluation import BinCoverage, WorstBin
 from ipcverify.certification._summary import CertificateSummary
 from ipcverify.certification._test_result import Consistency, GroupTest, GroupTestResult, TestResult
+from ipcverify.certification._test_rows import TestRows
 from ipcverify.certification._theorem1 import Theorem1Result
 from ipcverify.guard._domain_report import DomainReport
 
 FloatArray = NDArray[np.float64]
 
-#: What every statement of a certificate assumes.
+#: What every statement of a certificate assumes (a claim about rows).
 ASSUMPTION = (
     "calibration, test and deployment samples are exchangeable (e.g. i.i.d. from the deployment "
     "distribution) and were not used for training"
+)
+#: What a claim about runs assumes.
+RUN_ASSUMPTION = (
+    "calibration, test and deployment runs are i.i.d. (rows within a run may be correlated), and no "
+    "calibration or test row was used for training"
 )
 
 
@@ -55,6 +63,10 @@ class CertificateStatus(Enum):
         "held-out data to obtain one"
     )
     UNCHECKED = "certified by calibration; consistency with the test data not checkable in this mode"
+    ROWS_ASSUMED = (
+        "row-level claim on rows that come in runs: it holds only if those rows are independent samples, "
+        "which rows of one run usually are not -- calibrate by runs for a claim that does not assume it"
+    )
     UNTESTED = (
         "certified by calibration; no test data was given, so nothing checked it independently -- "
         "pass --data with fresh held-out samples to add the test"
@@ -264,6 +276,15 @@ class Certificate:
         groups; empty without such columns.
     summary : CertificateSummary or None
         The executive summary.
+    runs : mapping or None
+        What the calibration data's runs support, as the model file recorded it at calibration
+        (:func:`ipcverify.contract._runs.run_record`: the unit of the claim, the smallest rate the
+        runs can certify, the runs the target needs, the within-run dependence); None if the
+        calibration data had no runs.
+    test_rows : TestRows or None
+        The test rows counted (each distinct row once) and how they were checked against the
+        training and calibration rows (:mod:`ipcverify.certification._test_rows`); None without
+        test data.
     """
 
     status: CertificateStatus
@@ -287,6 +308,8 @@ class Certificate:
     test_group_columns: Mapping[str, int] = field(default_factory=dict)
     calibration_group_columns: Mapping[str, int] = field(default_factory=dict)
     summary: CertificateSummary | None = None
+    runs: Mapping[str, Any] | None = None
+    test_rows: TestRows | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """The content of ``certificate.json``."""
@@ -313,7 +336,7 @@ class Certificate:
             "status": self.status.name,
             "status_text": self.status.value,
             "statement": self.statement,
-            "assumption": ASSUMPTION,
+            "assumption": ASSUMPTION if self.group_claim is None else RUN_ASSUMPTION,
             "n_parameters": self.model.n_parameters,
             "model": self.model.to_dict(),
             "calibration": None if self.calibration is None else self.calibration.to_dict(),
@@ -327,6 +350,8 @@ class Certificate:
             "group_test": None if self.group_test is None else self.group_test.to_dict(),
             "test_group_like_columns": dict(self.test_group_columns),
             "calibration_group_like_columns": dict(self.calibration_group_columns),
+            "runs": None if self.runs is None else dict(self.runs),
+            "test_rows": None if self.test_rows is None else self.test_rows.to_dict(),
             "data": {
                 "test": None if self.test_data is None else self.test_data.to_dict(),
                 "train": None if self.train_data is None else self.train_data.to_dict(),

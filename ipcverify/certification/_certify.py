@@ -9,6 +9,9 @@
    one-sided Clopper--Pearson upper bound on the violation rate at confidence
    ``1 - delta`` -- valid by itself when the test samples are i.i.d. from the
    deployment distribution and were not used to train, select or calibrate the model.
+   Test rows that are training or calibration rows (by the row fingerprints the model file
+   records, whatever their order, subset or repeats) are refused, and a repeated test row is
+   counted once (:func:`~ipcverify.certification._test_rows.fresh_test_rows`).
    If the test data contradicts the calibration claim (its lower bound exceeds what
    the calibration allows), the status says so.
    With a group column (flights, runs; ``group_column=``, or the column of a flight-level
@@ -55,10 +58,12 @@ from ipcverify.certification._certify_steps import (
 from ipcverify.certification._evaluation import BinCoverage, WorstBin, coverage_by_bin, worst_bin_coverage
 from ipcverify.certification._group_check import group_test_step
 from ipcverify.certification._report import render_report
-from ipcverify.certification._summarize import output_labels, summarize
+from ipcverify.certification._summarize import check_labels, output_labels, summarize
 from ipcverify.certification._test_result import Consistency, GroupTest, GroupTestResult, TestResult
-from ipcverify.contract._calibrate import CALIBRATION_GROUPS_KEY, mark_row_level
+from ipcverify.certification._test_rows import fresh_test_rows
+from ipcverify.contract._guarded import CALIBRATION_GROUPS_KEY, mark_row_level, mark_runs
 from ipcverify.contract._model import IPCModel
+from ipcverify.contract._runs import RUNS_KEY
 from ipcverify.data._checks import group_like_counts
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.data._files import atomic_write, file_sha256, write_json
@@ -139,20 +144,19 @@ def certify(
     bins: int = 10,
     group_column: str | None = None,
     lipschitz_radius: float = DEFAULT_RADIUS,
-    model_path: PathLike | None = None,
-    test_path: PathLike | None = None,
-    train_path: PathLike | None = None,
-    units: str | None = None,
-    labels: Sequence[str] | None = None,
 ) -> CertifyResult:
     """Certify a (preferably calibrated) IPC on fresh test data.
+
+    It takes the statistical inputs only. How the report names ``y`` (units, labels) and which
+    files the certificate records belong to the report: :func:`write_certificate`.
 
     Parameters
     ----------
     model : IPCModel
         The model; its calibration (if any) is what gets certified.
     test_data : PerceptionDataset, optional
-        Fresh samples, used neither for training nor for calibration. Without them the
+        Fresh samples, used neither for training nor for calibration (a row of either is
+        refused; a repeated row is counted once: the certificate's ``test_rows``). Without them the
         certificate holds what the model file holds: the calibration certificate, the
         domain of validity and Theorem 1 from the statistics stored at training.
     train_data : PerceptionDataset, optional
@@ -171,41 +175,35 @@ def certify(
         Default: the column of a flight-level calibration, if the test data has it.
     lipschitz_radius : float
         Parameter-ball radius of the sound Lipschitz bound (Theorem 1).
-    model_path, test_path, train_path : path-like, optional
-        Files to fingerprint (SHA-256) in the certificate.
-    units : str, optional
-        The units of ``y`` (e.g. ``"m"``), for the summary and every plot axis along ``y``;
-        default: none named (the page says "units of the data").
-    labels : sequence of str, optional
-        One label per coordinate of ``y`` (e.g. ``("forward", "left", "up")``); default: the
-        data's column names (:func:`output_labels`).
 
     Raises
     ------
     InvalidInputError
-        If dimensions disagree, the test data is the calibration or training data,
-        the calibration belongs to a different network, the group column is missing from
-        the test data, has one group only, or is given without test data, or the labels do
-        not name every coordinate of ``y`` or the units are empty.
+        If dimensions disagree, some test rows are calibration or training rows (or, for a
+        model file without row fingerprints, the test data is an exact copy of either), most
+        test rows repeat another, the calibration belongs to a different network, the group
+        column is missing from the test data, has one group only, or is given without test
+        data.
 
     Examples
     --------
-    >>> from ipcverify.data._synthetic import make_lagged_perception
-    >>> from ipcverify.network._modules import IPCNetwork
-    >>> from ipcverify.network._architecture import ModelConfig
-    >>> from ipcverify.contract._calibrate import calibrate
-    >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(8,), param="cholesky")))
-    >>> m = calibrate(m, make_lagged_perception(2000, seed=1), epsilon=0.05, delta=0.01)
-    >>> res = certify(m, make_lagged_perception(2000, seed=2))
+    >>> from ipcverify import example
+    >>> from ipcverify.network import ModelConfig
+    >>> from ipcverify import calibrate
+    >>> m = example(config=ModelConfig(x_dim=6, y_dim=3, hidden=(8,), param="cholesky")).model
+    >>> m = calibrate(m, example(2000, seed=1).data, epsilon=0.05, delta=0.01)
+    >>> res = certify(m, example(2000, seed=2).data)
     >>> res.certificate.status.name, res.certificate.test.n
     ('CERTIFIED', 2000)
     """
     delta = check_inputs(model, test_data, train_data, delta)
-    y_labels = output_labels(model, test_data, labels)
-    if units is not None and not units.strip():
-        raise InvalidInputError(
-            "the units of y must not be empty; name them (e.g. --units m) or leave them out"
-        )
+    given, rows = test_data, None  # the test data as given, and what its rows are
+    if test_data is not None:  # refuse training or calibration rows; count each distinct row once
+        test_data, rows = fresh_test_rows(model, test_data, train_data)
+    claim = None if model.calibration is None else model.calibration.group_claim()
+    if test_data is not None and claim is not None and group_column is not None:
+        test_data, group_column = _runs_named(test_data, claim.column, group_column)
+    y_labels = output_labels(model, test_data)
     if group_column is not None and test_data is None:
         raise InvalidInputError(f"group column {group_column!r} needs test data to count per group (--data)")
     cal = model.calibration
@@ -219,13 +217,21 @@ def certify(
         if test is None
         else Consistency.check(None if cal is None else cal.allowed_violation_rate(), test)
     )
-    checks = (consistency,) if group_test is None else (consistency, group_test.consistency)
-    status = certificate_status(cal, checks, tested is not None)
+    calibration_groups = dict(model.metadata.get(CALIBRATION_GROUPS_KEY) or {}) if cal else {}
+    test_groups = {} if test_data is None else group_like_counts(test_data)
+    # a row-level claim on rows that come in runs rests on independent rows: only a check by runs counts
+    in_doubt = cal is not None and cal.group_claim() is None and bool(calibration_groups or test_groups)
+    checks: tuple[Consistency, ...] = (
+        (consistency,) if group_test is None else (consistency, group_test.consistency)
+    )
+    if in_doubt:
+        checks = () if group_test is None else (group_test.consistency,)
+    status = certificate_status(cal, checks, tested is not None, rows_in_doubt=in_doubt)
     t1, t1_reason, t1_source = theorem1_step(model, train_data, delta, lipschitz_radius)
     cert = Certificate(
         status=status,
         statement=statement(cal, test, status, group_test),
-        model=_model_identity(model, model_path),
+        model=_model_identity(model, None),
         calibration=None if cal is None else cal.summary(),
         test=test,
         test_groups=() if tested is None else tested.groups,
@@ -238,22 +244,32 @@ def certify(
         worst_bin=None if tested is None else tested.worst_bin,
         domain=_domain(model, test_data, None if tested is None else tested.scores.violated),
         group_test=group_test,
-        test_data=None if test_data is None else _identity(test_data, test_path),
-        train_data=None if train_data is None else _identity(train_data, train_path, model),
+        test_data=None if given is None else _identity(given, None),
+        train_data=None if train_data is None else _identity(train_data, None, model),
         group_claim=None if cal is None else cal.group_claim(),
-        test_group_columns={} if test_data is None else group_like_counts(test_data),
-        calibration_group_columns=dict(model.metadata.get(CALIBRATION_GROUPS_KEY) or {}) if cal else {},
+        test_group_columns=test_groups,
+        calibration_group_columns=calibration_groups,
+        runs=model.metadata.get(RUNS_KEY) if cal else None,
+        test_rows=rows,
     )
     rows_outside = (
         None if tested is None else (int(tested.scores.violated.sum()), len(tested.scores.violated))
     )
-    summary = summarize(
-        cert, units=None if units is None else units.strip(), labels=y_labels, rows_outside=rows_outside
-    )
+    summary = summarize(cert, labels=y_labels, rows_outside=rows_outside)
     cert = replace(cert, summary=summary)
     return CertifyResult(
         cert, None if tested is None or test_data is None else _evidence(tested.scores, test_data)
     )
+
+
+def _runs_named(
+    test_data: PerceptionDataset, claim_column: str, column: str
+) -> tuple[PerceptionDataset, str]:
+    """Test data whose runs ``column`` names, for a claim about runs named ``claim_column`` at calibration."""
+    if claim_column in test_data.extra or column not in test_data.extra:
+        return test_data, column
+    extra = {**test_data.extra, claim_column: test_data.extra[column]}
+    return replace(test_data, extra=extra), claim_column
 
 
 @dataclass(frozen=True, eq=False)
@@ -306,10 +322,17 @@ def _domain(
         return None
     if test_data is None:
         return model.domain.describe()
-    return mark_row_level(model, model.domain.report(test_data.x, test_data.yhat, violated))
+    report = mark_row_level(model, model.domain.report(test_data.x, test_data.yhat, violated))
+    return mark_runs(model, report, test_data, ~model.domain.contains(test_data.x, test_data.yhat))
 
 
-def write_certificate(result: CertifyResult, out_dir: PathLike) -> tuple[Path, Path]:
+def write_certificate(
+    result: CertifyResult,
+    out_dir: PathLike,
+    *,
+    units: str | None = None,
+    labels: Sequence[str] | None = None,
+) -> tuple[Path, Path]:
     """Write ``certificate.json`` and ``report.html`` into ``out_dir`` (atomically); return their paths.
 
     Parameters
@@ -318,7 +341,30 @@ def write_certificate(result: CertifyResult, out_dir: PathLike) -> tuple[Path, P
         What :func:`certify` returned.
     out_dir : path-like
         The directory (created if missing).
+    units : str, optional
+        The units of ``y`` (e.g. ``"m"``), for the summary and every plot axis along ``y``;
+        default: none named (the page says "units of the data").
+    labels : sequence of str, optional
+        One label per coordinate of ``y`` (e.g. ``("forward", "left", "up")``); default: the
+        data's column names.
+
+    Raises
+    ------
+    InvalidInputError
+        If the labels do not name every coordinate of ``y`` or the units are empty.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from ipcverify import calibrate, certify, example
+    >>> m = calibrate(example().model, example(2000, seed=1).data, epsilon=0.05, delta=0.01)
+    >>> res = certify(m, example(2000, seed=2).data)
+    >>> with tempfile.TemporaryDirectory() as out:
+    ...     json_path, html_path = write_certificate(res, out, units="m", labels=("x", "y", "z"))
+    ...     (json_path.name, html_path.name)
+    ('certificate.json', 'report.html')
     """
+    result = labelled(result, units=units, labels=labels)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     cert_path, report_path = out / "certificate.json", out / "report.html"
@@ -326,6 +372,53 @@ def write_certificate(result: CertifyResult, out_dir: PathLike) -> tuple[Path, P
     html = render_report(result)
     atomic_write(report_path, lambda f: f.write(html), mode="w")
     return cert_path, report_path
+
+
+def labelled(
+    result: CertifyResult, *, units: str | None = None, labels: Sequence[str] | None = None
+) -> CertifyResult:
+    """``result`` with its summary naming the units and coordinates of ``y`` (nothing is re-decided)."""
+    cert = result.certificate
+    if cert.summary is None or (units is None and labels is None):
+        return result
+    if units is not None and not units.strip():
+        raise InvalidInputError(
+            "the units of y must not be empty; name them (e.g. --units m) or leave them out"
+        )
+    names = cert.summary.labels if labels is None else check_labels(labels, len(cert.summary.labels))
+    violated = None if result.evidence is None else result.evidence.violated
+    summary = summarize(
+        cert,
+        created_utc=cert.summary.date_utc,
+        units=None if units is None else units.strip(),
+        labels=names,
+        rows_outside=None if violated is None else (int(violated.sum()), len(violated)),
+    )
+    return replace(result, certificate=replace(cert, summary=summary))
+
+
+def with_files(
+    result: CertifyResult, model_path: PathLike, test_path: PathLike | None, train_path: PathLike | None
+) -> CertifyResult:
+    """``result`` with the SHA-256 of the files it was certified from (and its summary redone)."""
+    cert = result.certificate
+    cert = replace(
+        cert,
+        model=replace(cert.model, path=str(model_path), file_sha256=file_sha256(model_path)),
+        test_data=None
+        if cert.test_data is None or test_path is None
+        else replace(cert.test_data, file_sha256=file_sha256(test_path)),
+        train_data=None
+        if cert.train_data is None or train_path is None
+        else replace(cert.train_data, file_sha256=file_sha256(train_path)),
+    )
+    if cert.summary is not None:
+        violated = None if result.evidence is None else result.evidence.violated
+        cert = replace(cert, summary=summarize(
+            cert, created_utc=cert.summary.date_utc, units=cert.summary.units, labels=cert.summary.labels,
+            rows_outside=None if violated is None else (int(violated.sum()), len(violated)),
+        ))  # fmt: skip
+    return replace(result, certificate=cert)
 
 
 def certify_files(
@@ -354,8 +447,10 @@ def certify_files(
         Directory for ``certificate.json`` and ``report.html``.
     train_path : path-like, optional
         The training data file, for Theorem 1.
-    delta, bin_column, bins, group_column, lipschitz_radius, units, labels
+    delta, bin_column, bins, group_column, lipschitz_radius
         As for :func:`certify`.
+    units, labels
+        As for :func:`write_certificate`.
     """
     model = load_model(model_path)
     test_data = None if test_path is None else load_data_for_model(test_path, model)
@@ -369,11 +464,7 @@ def certify_files(
         bins=bins,
         group_column=group_column,
         lipschitz_radius=lipschitz_radius,
-        model_path=model_path,
-        test_path=test_path,
-        train_path=train_path,
-        units=units,
-        labels=labels,
     )
+    result = labelled(with_files(result, model_path, test_path, train_path), units=units, labels=labels)
     write_certificate(result, out_dir)
     return result

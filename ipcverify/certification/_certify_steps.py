@@ -146,7 +146,7 @@ def score_test_set(model: IPCModel, test_data: PerceptionDataset) -> TestScores:
     raw = np.linalg.norm(np.einsum("bij,bj->bi", shapes, test_data.y - centers), axis=1)
     cal = model.calibration
     scales = np.ones(len(raw)) if cal is None else np.asarray(cal.scale_for(test_data.x, test_data.yhat))
-    sets = model.predict(test_data.x, test_data.yhat)
+    sets = model.predict_unguarded(test_data.x, test_data.yhat)
     return TestScores(
         sets=sets,
         raw=raw,
@@ -175,7 +175,10 @@ def test_results(
         Confidence parameter of the bounds.
     """
     counts = row_counts(violated) if cal is None else cal.test_counts(violated, test_data)
-    test = TestResult.from_counts(counts.violations, counts.n, delta, counts.unit)
+    if counts.shares is not None:  # a claim about the expected share of a run's rows: bound the mean share
+        test = TestResult.from_shares(counts.shares, delta, counts.unit)
+    else:
+        test = TestResult.from_counts(counts.violations, counts.n, delta, counts.unit)
     if cal is None or len(cal.groups()) == 1:
         return test, ()
     gi = cal.group_index(test_data.x, test_data.yhat)
@@ -188,17 +191,24 @@ def test_results(
 
 
 def certificate_status(
-    cal: Calibration | None, checks: tuple[Consistency, ...], tested: bool
+    cal: Calibration | None, checks: tuple[Consistency, ...], tested: bool, rows_in_doubt: bool = False
 ) -> CertificateStatus:
-    """The verdict: no calibration or untested; CONTRADICTED if a check fails; UNCHECKED if none ran."""
+    """The verdict: no calibration or untested; CONTRADICTED if a check fails; UNCHECKED if none ran.
+
+    A row-level claim on rows that come in runs (``rows_in_doubt``) is never CERTIFIED: its
+    calibration counted correlated rows as independent samples, so it is ROWS_ASSUMED unless a
+    check (with runs as the units: the caller passes only those) contradicts it.
+    """
     if cal is None:
         return CertificateStatus.NOT_CALIBRATED
     if not tested:
         return CertificateStatus.UNTESTED
     done = [c for c in checks if c.checked]
-    if not done:
-        return CertificateStatus.UNCHECKED
-    return CertificateStatus.CERTIFIED if all(c.consistent for c in done) else CertificateStatus.CONTRADICTED
+    if any(not c.consistent for c in done):
+        return CertificateStatus.CONTRADICTED
+    if rows_in_doubt:
+        return CertificateStatus.ROWS_ASSUMED
+    return CertificateStatus.CERTIFIED if done else CertificateStatus.UNCHECKED
 
 
 def theorem1_step(
@@ -263,13 +273,23 @@ def _statement(cal: Calibration | None, test: TestResult | None, status: Certifi
         if cal is None:
             return "No calibration certificate and no test data: nothing is guaranteed about this model."
         return cal.guarantee() + " No test data was given: nothing here checks the calibration independently."
-    test_sentence = (
-        f"Independently, the ground truth fell outside its set for {test.violations} of {test.n} fresh "
-        f"test {test.unit}, so with "
-        f"confidence {1 - test.delta:.6g} the violation rate of this contract is at most "
-        f"{test.bound_text()} (Clopper-Pearson; valid if the test {test.unit} are i.i.d. from "
-        "deployment and unused in training and calibration)."
-    )
+    if test.statistic == "mean":
+        test_sentence = (
+            f"Independently, over {test.n} fresh test {test.unit} the mean share of rows whose ground truth "
+            f"fell outside its set was {100 * test.empirical_rate:.3g} %, so with confidence "
+            f"{1 - test.delta:.6g} "
+            f"the expected share of a new one's rows outside is at most {test.bound_text()} (betting bound; "
+            f"valid if the test {test.unit} are i.i.d. from deployment and unused in training and "
+            "calibration)."
+        )
+    else:
+        test_sentence = (
+            f"Independently, the ground truth fell outside its set for {test.violations} of {test.n} fresh "
+            f"test {test.unit}, so with "
+            f"confidence {1 - test.delta:.6g} the violation rate of this contract is at most "
+            f"{test.bound_text()} (Clopper-Pearson; valid if the test {test.unit} are i.i.d. from "
+            "deployment and unused in training and calibration)."
+        )
     if cal is None:
         return "No calibration certificate: the model was not calibrated. " + test_sentence
     text = cal.guarantee() + " " + test_sentence

@@ -9,8 +9,11 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
-from ipcverify.contract._calibrate import mark_row_level
+from ipcverify.calibration._group_counts import group_shares
+from ipcverify.certification._test_result import TestResult
+from ipcverify.contract._guarded import mark_row_level, mark_runs
 from ipcverify.contract._model import IPCModel
+from ipcverify.data._checks import group_like_counts
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import DataError, InvalidInputError
 from ipcverify.guard._domain_report import DomainReport
@@ -97,6 +100,9 @@ class Evaluation:
     domain : DomainReport or None
         How many samples lie outside the model's domain of validity, and the violations inside
         and outside it (None for a model without a domain test).
+    by_run : RunEvaluation or None
+        The same counted per run (flight), for data whose runs are named: the unit a claim about
+        runs is about (None for data without runs).
     """
 
     n: int
@@ -108,6 +114,7 @@ class Evaluation:
     calibrated: bool
     by_bin: BinCoverage | None = field(default=None)
     domain: DomainReport | None = field(default=None)
+    by_run: RunEvaluation | None = field(default=None)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form with keys ``n``, ``violations``, ``violation_rate``, ``log_volume``, ...,
@@ -121,7 +128,89 @@ class Evaluation:
             "calibrated": self.calibrated,
             "by_bin": None if self.by_bin is None else self.by_bin.to_dict(),
             "domain": None if self.domain is None else self.domain.to_dict(),
+            "by_run": None if self.by_run is None else self.by_run.to_dict(),
         }
+
+
+@dataclass(frozen=True, kw_only=True)
+class RunEvaluation:
+    """How an IPC did per run (flight): the unit of a claim about runs, valid for correlated rows.
+
+    Attributes
+    ----------
+    column : str
+        The column that names the runs.
+    n_runs : int
+        Runs in the data.
+    share : TestResult
+        The mean of the runs' shares of rows outside their sets, with betting bounds at
+        ``1 - delta`` (valid if the runs are i.i.d., whatever the correlation within a run).
+    max_share : float
+        The largest share of one run.
+    runs_with_violation : int
+        Runs with some row outside.
+    outside_domain : float or None
+        The mean of the runs' shares of queries outside the domain of validity (None without one).
+    """
+
+    column: str
+    n_runs: int
+    share: TestResult
+    max_share: float
+    runs_with_violation: int
+    outside_domain: float | None
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data."""
+        return {
+            "column": self.column,
+            "n_runs": self.n_runs,
+            "mean_share": self.share.empirical_rate,
+            "share": self.share.to_dict(),
+            "max_share": self.max_share,
+            "runs_with_violation": self.runs_with_violation,
+            "outside_domain": self.outside_domain,
+        }
+
+
+def evaluate_runs(
+    violated: NDArray[np.bool_],
+    runs: NDArray[Any],
+    column: str,
+    delta: float,
+    outside: NDArray[np.bool_] | None,
+) -> RunEvaluation:
+    """Count violations per run (see :class:`RunEvaluation`).
+
+    Parameters
+    ----------
+    violated : ndarray of bool, shape (N,)
+        Whether each row's truth fell outside its set.
+    runs : ndarray, shape (N,)
+        Each row's run label.
+    column : str
+        The runs' column name.
+    delta : float
+        One minus the confidence of the bounds on the mean share.
+    outside : ndarray of bool, shape (N,), optional
+        Whether each query lies outside the domain of validity.
+
+    Examples
+    --------
+    >>> ev = evaluate_runs(np.array([True, False, False, False]), np.array([1, 1, 2, 2]), "run", 0.05, None)
+    >>> ev.n_runs, ev.share.empirical_rate, ev.runs_with_violation
+    (2, 0.25, 1)
+    """
+    shares, counts, _ = group_shares(violated, runs, f"run column {column!r}")
+    away = None if outside is None else float(group_shares(outside, runs)[0].mean())
+    return RunEvaluation(
+        column=column,
+        n_runs=len(shares),
+        share=TestResult.from_shares(shares, delta, f"runs of {column}"),
+        max_share=float(shares.max()),
+        runs_with_violation=int((counts > 0).sum()),
+        outside_domain=away,
+    )
 
 
 def coverage_by_bin(
@@ -153,7 +242,7 @@ def coverage_by_bin(
     missing = pd.isna(raw)
     if missing.any():
         r = int(np.flatnonzero(missing)[0])
-        raise DataError(f"bin column {column!r}: row {r} has no value; every sample needs one")
+        raise DataError(f"bin column {column!r}: row {r} (0-based) has no value; every sample needs one")
     try:
         v = raw.astype(np.float64)
     except (TypeError, ValueError):  # text: flight or run names
@@ -167,7 +256,9 @@ def coverage_by_bin(
         return BinCoverage(column, (), tuple(int(c) for c in counts), tuple(int(c) for c in viol), names)
     if not np.isfinite(v).all():
         r = int(np.flatnonzero(~np.isfinite(v))[0])
-        raise DataError(f"bin column {column!r}: row {r} is {v[r]:g}; bin by a column of finite values")
+        raise DataError(
+            f"bin column {column!r}: row {r} (0-based) is {v[r]:g}; bin by a column of finite values"
+        )
     uniq = np.unique(v)
     if len(uniq) <= bins:
         edges = np.concatenate([uniq, [uniq[-1]]])
@@ -266,11 +357,15 @@ def evaluate(
     data: PerceptionDataset,
     bin_column: str | None = None,
     bins: int = 10,
+    group_column: str | None = None,
 ) -> Evaluation:
     """Empirical violation rate, set volumes and extents of ``model`` on ``data``.
 
     Uses the model's calibrated sets if it carries a calibration, and counts the samples outside
     its domain of validity (with the violations inside and outside) if it carries a domain test.
+    Data with runs (``group_column``, else the calibration's run column if the data have it, else
+    the data's one column that names runs) are also counted per run (:class:`RunEvaluation`, bounds
+    at the calibration's ``delta``, or 0.05 without one).
 
     Parameters
     ----------
@@ -282,12 +377,14 @@ def evaluate(
         A column to report the violation rate per bin of (:func:`coverage_by_bin`).
     bins : int
         Number of bins.
+    group_column : str, optional
+        The column that names the runs (default: see above).
 
     Examples
     --------
-    >>> from ipcverify.data._synthetic import make_lagged_perception
-    >>> from ipcverify.training._train import train, TrainConfig
-    >>> ds = make_lagged_perception(300, seed=0)
+    >>> from ipcverify import example
+    >>> from ipcverify.training import train, TrainConfig
+    >>> ds = example(300, seed=0).data
     >>> ev = evaluate(train(ds, train_config=TrainConfig(epochs=1)).model, ds)
     >>> ev.n
     300
@@ -297,7 +394,7 @@ def evaluate(
             f"{data.source}: data has x_dim={data.x_dim}, y_dim={data.y_dim} but the model "
             f"expects x_dim={model.config.x_dim}, y_dim={model.config.y_dim}"
         )
-    sets = model.predict(data.x, data.yhat)
+    sets = model.predict_unguarded(data.x, data.yhat)
     violated = ~sets.contains(data.y)
     logvol = sets.log_volume()
     extent = 2.0 * sets.half_widths()
@@ -305,6 +402,20 @@ def evaluate(
     if bin_column is not None:
         by_bin = coverage_by_bin(data.column(bin_column), violated, bin_column, bins)
     k = int(violated.sum())
+    claim = None if model.calibration is None else model.calibration.group_claim()
+    if group_column is None:
+        runs = group_like_counts(data)
+        if claim is not None and claim.column in data.extra:
+            group_column = claim.column
+        elif len(runs) == 1:
+            group_column = next(iter(runs))
+    outside = None if model.domain is None else ~model.domain.contains(data.x, data.yhat)
+    delta = 0.05 if model.calibration is None else model.calibration.delta
+    by_run = (
+        None
+        if group_column is None
+        else evaluate_runs(violated, data.column(group_column), group_column, delta, outside)
+    )
     return Evaluation(
         n=len(data),
         violations=k,
@@ -314,7 +425,10 @@ def evaluate(
         mean_extent=tuple(float(e) for e in extent.mean(axis=0)),
         calibrated=model.calibration is not None,
         by_bin=by_bin,
-        domain=mark_row_level(
-            model, None if model.domain is None else model.domain.report(data.x, data.yhat, violated)
+        domain=None
+        if model.domain is None or outside is None
+        else mark_runs(
+            model, mark_row_level(model, model.domain.report(data.x, data.yhat, violated)), data, outside
         ),
+        by_run=by_run,
     )

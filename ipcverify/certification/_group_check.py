@@ -15,10 +15,15 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from ipcverify.calibration._group_counts import group_violation_counts
-from ipcverify.calibration._protocol import GROUP_UNITS, Calibration, GroupUnit
+from ipcverify.calibration._group_counts import (
+    CountStatistic,
+    allowed_outside,
+    group_shares,
+    group_violation_counts,
+)
+from ipcverify.calibration._protocol import Calibration, GroupUnit
 from ipcverify.certification._test_result import Consistency, GroupTest, TestResult
-from ipcverify.data._checks import warn_correlated_rows
+from ipcverify.data._checks import group_like_counts
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.data._split import group_codes
 from ipcverify.errors import InvalidInputError
@@ -51,14 +56,17 @@ def group_test_step(
 ) -> GroupTest | None:
     """Step 3b: the test counted per group of a column (flights, runs), valid for correlated rows.
 
-    The column is ``group_column``, else the column of a flight-level calibration if the test
-    data has it, else there is no group test (None). Both statistics of
+    The column is ``group_column``, else the column of a run-level calibration if the test data
+    has it, else the test data's one column that names runs (:func:`group_like_counts`), else
+    there is no group test (None). The counts of
     :func:`~ipcverify.calibration.group_violation_counts` are bounded at ``1 - delta``
-    (one-sided Clopper--Pearson). The count checked against the calibration's allowed rate is
-    the one its claim is about: for a flight-level calibration its own unit (and seed); for a
-    row-level one ``sample`` (a random sample of a random group, which is what a row-level
-    claim promises when flight lengths are unrelated to their violations); the trajectory
-    count is then only reported (any violation in a long flight is no row-level event).
+    (one-sided Clopper--Pearson), and the mean of the groups' shares of rows outside by the
+    betting bounds (:meth:`TestResult.from_shares`). The statistic checked against the
+    calibration's allowed rate is the one its claim is about: for a run-level calibration its own
+    (and seed, or share limit); for a row-level one the mean share (the expected share of a
+    random group's rows, which is what a row-level claim promises when run lengths are unrelated
+    to their violations); the trajectory count is then only reported (any violation in a long
+    flight is no row-level event).
 
     Parameters
     ----------
@@ -74,31 +82,41 @@ def group_test_step(
 
     Examples
     --------
-    >>> from ipcverify.data._synthetic import make_lagged_perception
-    >>> ds = make_lagged_perception(40, seed=0)
+    >>> from ipcverify import example
+    >>> ds = example(40, seed=0).data
     >>> ds = PerceptionDataset(ds.x, ds.y, ds.yhat, extra={"run": np.repeat(np.arange(8), 5)})
     >>> violated = np.zeros(40, dtype=bool); violated[[0, 1, 7]] = True
     >>> g = group_test_step(None, ds, violated, 0.05, "run")
-    >>> g.n_groups, g.trajectory.violations, g.compared_unit
-    (8, 2, None)
+    >>> g.n_groups, g.trajectory.violations, round(g.share.empirical_rate, 4), g.compared_unit
+    (8, 2, 0.075, None)
     """
     claim = None if cal is None else cal.group_claim()
     if group_column is None:
         if claim is None or claim.column not in test_data.extra:
-            warn_correlated_rows(
-                test_data, "certifying", "to also count the test per group (valid for correlated rows)"
-            )
-            return None
-        group_column = claim.column
+            group_column = _run_column(test_data)
+            if group_column is None:
+                return None
+        else:
+            group_column = claim.column
     codes = _group_labels(test_data, group_column)
     own = claim is not None and claim.column == group_column
     seed = claim.seed if claim is not None and own else 0
-    counted = {u: group_violation_counts(violated, codes, u, seed) for u in GROUP_UNITS}
+    units: tuple[CountStatistic, ...] = ("trajectory", "sample")
+    counts = {u: group_violation_counts(violated, codes, u, seed) for u in units}
     what = {"trajectory": "any violation", "sample": "one random sample each"}
-    res = {
+    res: dict[GroupUnit, TestResult] = {
         u: TestResult.from_counts(c.violations, c.n_groups, delta, f"groups of {group_column} ({what[u]})")
-        for u, c in counted.items()
+        for u, c in counts.items()
     }
+    shares, outside, sizes = group_shares(violated, codes)
+    res["share"] = TestResult.from_shares(shares, delta, f"groups of {group_column}")
+    if own and claim is not None and claim.share_limit is not None:
+        over = sum(
+            int(o) > allowed_outside(claim.share_limit, int(m)) for o, m in zip(outside, sizes, strict=True)
+        )
+        res["share-of-runs"] = TestResult.from_counts(
+            over, len(sizes), delta, f"groups of {group_column} (more than {claim.share_limit:g} outside)"
+        )
     compared: GroupUnit | None = None
     if cal is None:
         consistency = Consistency(checked=False, reason="no calibration")
@@ -108,15 +126,23 @@ def group_test_step(
             reason=f"the calibration's claim is about groups of {claim.column!r}, not of {group_column!r}",
         )
     else:
-        compared = "sample" if claim is None else claim.unit
+        compared = "share" if claim is None else claim.unit
         consistency = Consistency.check(cal.allowed_violation_rate(), res[compared])
     return GroupTest(
         column=group_column,
-        n_groups=counted["trajectory"].n_groups,
+        n_groups=len(sizes),
         n_rows=int(len(codes)),
         seed=seed,
         trajectory=res["trajectory"],
         sample=res["sample"],
+        share=res["share"],
+        share_of_runs=res.get("share-of-runs"),
         compared_unit=compared,
         consistency=consistency,
     )
+
+
+def _run_column(test_data: PerceptionDataset) -> str | None:
+    """The test data's one column that names its runs (None: none, or several, which ask a choice)."""
+    runs = group_like_counts(test_data)
+    return next(iter(runs)) if len(runs) == 1 else None

@@ -68,11 +68,11 @@ def theorem1_unavailable(model: IPCModel) -> str | None:
 
     Examples
     --------
-    >>> from ipcverify.network._modules import build_network
-    >>> from ipcverify.network._architecture import ModelConfig
-    >>> theorem1_unavailable(IPCModel(build_network(ModelConfig.recipe("v1", x_dim=2, y_dim=3)))) is None
+    >>> from ipcverify import example
+    >>> from ipcverify.network import ModelConfig
+    >>> theorem1_unavailable(example(config=ModelConfig.recipe("v1", x_dim=2, y_dim=3)).model) is None
     True
-    >>> theorem1_unavailable(IPCModel(build_network(ModelConfig(x_dim=2, y_dim=3)))) is None
+    >>> theorem1_unavailable(example(config=ModelConfig(x_dim=2, y_dim=3)).model) is None
     True
     """
     return _unsupported(model.network)
@@ -152,9 +152,9 @@ def per_sample_gradient_norms(
 
     Examples
     --------
-    >>> from ipcverify.network._architecture import ModelConfig
-    >>> from ipcverify.network._modules import IPCNetwork
-    >>> net = IPCNetwork(ModelConfig(x_dim=2, y_dim=2, hidden=(4,), param="cholesky"))
+    >>> from ipcverify.network import ModelConfig
+    >>> from ipcverify import example
+    >>> net = example(config=ModelConfig(x_dim=2, y_dim=2, hidden=(4,), param="cholesky")).model.network
     >>> per_sample_gradient_norms(net, np.ones((3, 2)), np.ones((3, 2)), np.zeros((3, 2))).shape
     (3,)
     """
@@ -183,11 +183,10 @@ def empirical_lipschitz(
 
     Examples
     --------
-    >>> from ipcverify.data._synthetic import make_lagged_perception
-    >>> from ipcverify.network._modules import IPCNetwork
-    >>> from ipcverify.network._architecture import ModelConfig
-    >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(8,), param="cholesky")))
-    >>> est = empirical_lipschitz(m, make_lagged_perception(100, seed=0))
+    >>> from ipcverify import example
+    >>> from ipcverify.network import ModelConfig
+    >>> m = example(config=ModelConfig(x_dim=6, y_dim=3, hidden=(8,), param="cholesky")).model
+    >>> est = empirical_lipschitz(m, example(100, seed=0).data)
     >>> est.value > 0, est.n_samples
     (True, 100)
     """
@@ -221,11 +220,10 @@ def sound_lipschitz(
 
     Examples
     --------
-    >>> from ipcverify.data._synthetic import make_lagged_perception
-    >>> from ipcverify.network._modules import IPCNetwork
-    >>> from ipcverify.network._architecture import ModelConfig
-    >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(8,), param="cholesky")))
-    >>> ds = make_lagged_perception(100, seed=0)
+    >>> from ipcverify import example
+    >>> from ipcverify.network import ModelConfig
+    >>> m = example(config=ModelConfig(x_dim=6, y_dim=3, hidden=(8,), param="cholesky")).model
+    >>> ds = example(100, seed=0).data
     >>> sound_lipschitz(m, ds).value >= empirical_lipschitz(m, ds).value
     True
     """

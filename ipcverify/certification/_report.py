@@ -89,7 +89,7 @@ def _domain_section(cert: Certificate) -> list[str]:
     parts.append(f"<p>{html.escape(d.sentence())}</p>")
     rows: list[tuple[str, Any]] = [
         ("method", d.method),
-        ("false-alarm rate alpha", d.alpha),
+        ("false-alarm rate alpha", d.flag_rate),
         ("threshold (whitened distance)", d.threshold),
         ("calibration inputs (reference)", d.n_reference),
     ]
@@ -125,6 +125,13 @@ def _test_section(cert: Certificate, ev: CertifyEvidence | None, s: CertificateS
         (f"mean log-volume of the sets ({volume})", cert.volume.mean_log),
         (f"median log-volume ({volume})", cert.volume.median_log),
     ]
+    if (r := cert.test_rows) is not None:  # which rows were counted, and how they were checked
+        rows += [
+            ("rows of the test data", r.n),
+            ("repeated rows (each distinct row is counted once)", r.repeated),
+            ("checked against the training rows", r.how("training")),
+            ("checked against the calibration rows", r.how("calibration")),
+        ]
     parts.append(html_table(rows))
     if cert.consistency.checked:
         parts.append(_consistency_line("Consistency check: test", cert.consistency))
@@ -192,13 +199,24 @@ def _group_test_part(cert: Certificate) -> list[str]:
             "valid when the test groups are i.i.d., whatever the correlation within a group.</p>"
         )
     rows = ""
-    for unit, label, res in (
-        ("trajectory", "any violation in the group", g.trajectory),
-        ("sample", "one random row of the group (seeded)", g.sample),
-    ):
+    statistics = (
+        ("share", "share of the group's rows outside (mean over groups)"),
+        ("share-of-runs", "share of the group's rows above the claim's"),
+        ("trajectory", "any violation in the group"),
+        ("sample", "one random row of the group (seeded)"),
+    )
+    for unit, label in statistics:
+        res = g.result(unit)  # type: ignore[arg-type]
+        if res is None or (unit == "sample" and g.compared_unit != "sample"):
+            continue
         mark = "compared with the calibration" if g.compared_unit == unit else "reported"
+        counted = (
+            f"mean {html_value(res.empirical_rate)} over {html_value(res.n)}"
+            if res.statistic == "mean"
+            else f"{html_value(res.violations)} / {html_value(res.n)}"
+        )
         rows += (
-            f"<tr><td>{html.escape(label)}</td><td>{html_value(res.violations)} / {html_value(res.n)}</td>"
+            f"<tr><td>{html.escape(label)}</td><td>{counted}</td>"
             f"<td>{html_value(res.empirical_rate)}</td><td>{html.escape(res.bound_text())}</td>"
             f"<td>[{res.interval[0]:.4g}, {res.interval[1]:.4g}]</td><td>{mark}</td></tr>"
         )
@@ -213,8 +231,10 @@ def _group_test_part(cert: Certificate) -> list[str]:
     else:
         parts.append(f"<p class='small'>Not compared with the calibration: {html.escape(c.reason)}.</p>")
     parts.append(
-        f"<p class='small'>{g.n_groups:,} test groups, {g.n_rows:,} rows; the random row of each group "
-        f"is drawn with seed {g.seed}. Proof: proofs/group_calibration.md, section 6.</p>"
+        f"<p class='small'>{g.n_groups:,} test groups, {g.n_rows:,} rows; the mean share is bounded by "
+        "betting "
+        "bounds, the counts by Clopper-Pearson. Proofs: proofs/run_claims.md section 5, "
+        "proofs/group_calibration.md section 6.</p>"
     )
     return parts
 
@@ -306,13 +326,12 @@ def render_report(result: CertifyResult) -> str:
 
     Examples
     --------
-    >>> from ipcverify.data._synthetic import make_lagged_perception
-    >>> from ipcverify.contract._model import IPCModel
-    >>> from ipcverify.network._modules import IPCNetwork
-    >>> from ipcverify.network._architecture import ModelConfig
+    >>> from ipcverify import example
+    >>> from ipcverify import IPCModel
+    >>> from ipcverify.network import ModelConfig
     >>> from ipcverify.certification import certify  # certify imports this module, not the other way round
-    >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(8,), param="cholesky")))
-    >>> page = render_report(certify(m, make_lagged_perception(500, seed=2)))
+    >>> m = example(config=ModelConfig(x_dim=6, y_dim=3, hidden=(8,), param="cholesky")).model
+    >>> page = render_report(certify(m, example(500, seed=2).data))
     >>> page.startswith("<!DOCTYPE html>") and "http" not in page
     True
     """

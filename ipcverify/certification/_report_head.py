@@ -23,6 +23,7 @@ _COLORS = {
     CertificateStatus.UNTESTED: ("#1b5e7f", "#ffffff"),
     CertificateStatus.UNCHECKED: ("#1b5e7f", "#ffffff"),
     CertificateStatus.NOT_CALIBRATED: ("#9a6700", "#ffffff"),
+    CertificateStatus.ROWS_ASSUMED: ("#9a6700", "#ffffff"),
     CertificateStatus.CONTRADICTED: ("#b42318", "#ffffff"),
 }
 _WEAK = ("#f5b400", "#1f2328")
@@ -41,7 +42,6 @@ def banner_colors(status: CertificateStatus, summary: CertificateSummary) -> tup
 
     Examples
     --------
-    >>> from ipcverify.certification._summary import Check
     >>> s = CertificateSummary(status="CERTIFIED", status_detail="", claim="", epsilon=0.5,
     ...     certified_epsilon=0.45, delta=0.1, unit="row", checks=(), date_utc="2025-01-31T12:00:00Z",
     ...     ipcverify_version="0", model_sha256="0" * 64, model_sha256_of="network", labels=("y_0",))

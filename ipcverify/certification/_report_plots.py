@@ -201,7 +201,8 @@ def plot_projections(evidence: CertifyEvidence, axis_labels: Sequence[str] = ())
             ax.tick_params(labelsize=7)
             if col == 0:
                 ax.set_title(
-                    f"test row {int(evidence.example_index[r])} ({'inside' if inside else 'OUTSIDE'})",
+                    f"test row {int(evidence.example_index[r])} (0-based), "
+                    f"{'inside' if inside else 'OUTSIDE'}",
                     fontsize=8,
                     loc="left",
                 )

@@ -13,6 +13,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from ipcverify._package import VERSION
+from ipcverify.calibration._protocol import GroupUnit
 from ipcverify.certification._certificate import Certificate, CertificateStatus
 from ipcverify.certification._summary import CertificateSummary, Check, CheckLevel, target_strength, utc_now
 from ipcverify.certification._test_result import GroupTest, TestResult
@@ -54,9 +55,11 @@ def _shift_note(cert: Certificate) -> str:
     lay outside the domain of validity, for which the certificate promises nothing.
     """
     d = cert.domain
-    if cert.status is not CertificateStatus.CERTIFIED or d is None or not d.well_above_alpha:
+    if cert.status is not CertificateStatus.CERTIFIED or d is None or not d.well_above_flag_rate:
         return ""
     why = "a shift" if d.row_level_column is None else "a shift, or a row-level test on correlated rows"
+    if d.threshold == 0:
+        why = "a domain test of radius 0, fitted on repeated rows: recalibrate"
     return (
         f"; but {100 * d.outside_fraction:.0f} % of the test queries lie outside the domain of validity "
         f"({why}: the certificate promises nothing for them)"
@@ -105,10 +108,8 @@ def _calibration_check(cert: Certificate) -> Check:
 
 
 def _counted(t: TestResult) -> str:
-    return (
-        f"{t.violations:,} of {t.n:,} test {t.unit} outside ({100 * t.empirical_rate:.3g} %); upper bound "
-        f"{t.bound_text()} at confidence {1 - t.delta:.6g}"
-    )
+    rate = "" if t.statistic == "mean" else f" outside ({100 * t.empirical_rate:.3g} %)"
+    return f"{t.counted()}{rate}; upper bound {t.bound_text()} at confidence {1 - t.delta:.6g}"
 
 
 def _independence_check(cert: Certificate) -> Check:
@@ -129,6 +130,10 @@ def _independence_check(cert: Certificate) -> Check:
         counted = f"certify with --group-column {test_col} to also count the test per {test_col}"
     else:
         counted = "test data with a column naming its runs could also be counted per run"
+    runs = cert.runs or {}
+    worth = ""
+    if runs.get("unit") == "row" and runs.get("dependence"):
+        worth = f"; measured at calibration: {runs['dependence']['statement']}"
     return Check(
         name="independent rows",
         verdict="assumed, in doubt",
@@ -136,9 +141,29 @@ def _independence_check(cert: Certificate) -> Check:
         detail=(
             f"{' and '.join(found)}: rows of one {col} are usually correlated, but the row-level claim, "
             "and the calibration behind it, count every row as an independent sample, which their "
-            f"exact bounds need; {counted}, and recalibrate with --group-column {col} for a claim "
+            f"exact bounds need{worth}; {counted}, and recalibrate with --group-column {col} for a claim "
             f"about whole {col}s"
         ),
+    )
+
+
+def _runs_check(cert: Certificate) -> Check | None:
+    """What the calibration data's runs support: the floor, the smallest rate, the runs the target needs."""
+    runs = cert.runs
+    if not runs or not runs.get("plan"):
+        return None
+    plan, dep = runs["plan"], runs.get("dependence") or {}
+    lines = {c["guarantee"]: c for c in plan["claims"]}
+    share = lines["expected-share"]
+    detail = (
+        f"{runs['n_runs']} calibration runs of {runs['column']!r}: no claim about a new run goes below "
+        f"{plan['floor']:.3g} at delta = {plan['delta']:g}; the smallest certifiable expected share is "
+        f"{share['smallest']:g}, and epsilon = {plan['epsilon']:g} needs at least {share['runs_needed']} runs"
+    )
+    if dep.get("statement"):
+        detail += f"; {dep['statement']}"
+    return Check(
+        name="what the runs support", verdict=f"claim about {runs['unit']}s", level="info", detail=detail
     )
 
 
@@ -161,6 +186,8 @@ def _test_check(cert: Certificate, rows_outside: tuple[int, int] | None) -> Chec
         verdict, level = "CONTRADICTS the calibration", "fail"
         versus = f"lower bound {c.test_lower_bound:.4g} > allowed {c.allowed_rate:.4g}"
     detail = f"{_counted(t)}; {versus}"
+    if cert.test_rows is not None:
+        detail += f"; {cert.test_rows.sentence()}"
     if rows_outside is not None and t.unit != "samples":
         k, n = rows_outside
         detail += (
@@ -178,15 +205,23 @@ def _group_checks(g: GroupTest, test: TestResult | None = None) -> list[Check]:
     """
     rows = []
     c = g.consistency
-    for unit, what, res in (
-        ("sample", "one random row per group", g.sample),
-        ("trajectory", "any violation in a group", g.trajectory),
-    ):
-        counted = (
-            f"{res.violations:,} of {res.n:,} groups ({100 * res.empirical_rate:.3g} %)"
-            + (" have a truth outside its set somewhere" if unit == "trajectory" else " outside")
-            + f"; upper bound {res.bound_text()} at confidence {1 - res.delta:.6g}"
-        )
+    statistics: tuple[tuple[GroupUnit, str], ...] = (
+        ("share", "share of each group's rows outside"),
+        ("share-of-runs", "groups above the claim's share"),
+        ("sample", "one random row per group"),
+        ("trajectory", "any violation in a group"),
+    )
+    for unit, what in statistics:
+        res = g.result(unit)
+        if res is None or (unit == "sample" and g.compared_unit != "sample"):
+            continue  # the mean share counts every row; one random row per group only for a claim on it
+        if res.statistic == "mean":
+            counted = f"mean share {100 * res.empirical_rate:.3g} % outside over {res.n:,} groups"
+        else:
+            counted = f"{int(res.violations):,} of {res.n:,} groups ({100 * res.empirical_rate:.3g} %)" + (
+                " have a truth outside its set somewhere" if unit == "trajectory" else " outside"
+            )
+        counted += f"; upper bound {res.bound_text()} at confidence {1 - res.delta:.6g}"
         level: CheckLevel
         if g.compared_unit == unit and c.checked:
             verdict, level = (
@@ -198,6 +233,8 @@ def _group_checks(g: GroupTest, test: TestResult | None = None) -> list[Check]:
         else:
             if g.compared_unit is None or not c.checked:
                 why = c.reason or "the calibration claims no rate to compare with"
+            elif unit == "trajectory" and g.compared_unit in ("share", "share-of-runs"):
+                why = "the claim bounds a group's share of rows outside, not whether any row is"
             elif unit == "trajectory":
                 why = "the claim bounds single rows, not whole groups"
             else:
@@ -208,7 +245,7 @@ def _group_checks(g: GroupTest, test: TestResult | None = None) -> list[Check]:
             test is not None
             and test.unit != "samples"  # the held-out test counted the claim's groups ...
             and g.compared_unit == unit  # ... by this row's statistic
-            and (test.violations, test.n) == (res.violations, res.n)
+            and (test.violations, test.n, test.statistic) == (res.violations, res.n, res.statistic)
         ):
             counted += "; the same count as the held-out test above, not a second test"
         name = f"per-flight test ({g.column!r}): {what}"
@@ -225,11 +262,20 @@ def _domain_check(d: DomainReport | None) -> Check:
             level="warn",
             detail="the model carries no domain-of-validity test; recalibrate with a current ipcverify",
         )
-    fitted = f"fitted on {d.n_reference:,} calibration inputs, false-alarm rate alpha = {d.alpha:g}"
+    fitted = f"fitted on {d.n_reference:,} calibration inputs, flag rate = {d.flag_rate:g}"
+    if d.threshold == 0:  # only in a model file from before the test was fitted on distinct inputs
+        return Check(
+            name=name,
+            verdict="radius 0: flags every query not equal to a calibration input",
+            level="warn",
+            detail=f"{fitted}; its threshold is 0 because it was fitted on repeated calibration inputs by an "
+            "older ipcverify, so the queries it flags say nothing about a shift -- recalibrate to refit it "
+            "on the distinct inputs",
+        )
     if d.n == 0:
         return Check(name=name, verdict="not run", level="info", detail=f"{fitted}; {_NOT_RUN}")
     counted = f"{d.outside:,} of {d.n:,} test queries ({100 * d.outside_fraction:.3g} %) outside; {fitted}"
-    if d.well_above_alpha and d.row_level_column is not None:
+    if d.well_above_flag_rate and d.row_level_column is not None:
         col = d.row_level_column
         return Check(
             name=name,
@@ -240,7 +286,7 @@ def _domain_check(d: DomainReport | None) -> Check:
             f"row on calibration data with a column {col!r}: refit it by {col} ({d.regroup_command()}) "
             f"to tell a shift from a threshold too short for a new {col}",
         )
-    if d.well_above_alpha:
+    if d.well_above_flag_rate:
         return Check(
             name=name,
             verdict="SHIFT: far more queries outside than false alarms explain",
@@ -300,9 +346,9 @@ def output_labels(
 
     Examples
     --------
-    >>> from ipcverify.network._modules import IPCNetwork
-    >>> from ipcverify.network._architecture import ModelConfig
-    >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(4,), param="cholesky")))
+    >>> from ipcverify import example
+    >>> from ipcverify.network import ModelConfig
+    >>> m = example(config=ModelConfig(x_dim=2, y_dim=3, hidden=(4,), param="cholesky")).model
     >>> output_labels(m, None), output_labels(m, None, [" forward", "left", "up"])
     (('y_0', 'y_1', 'y_2'), ('forward', 'left', 'up'))
     """
@@ -311,6 +357,17 @@ def output_labels(
         names = tuple(test_data.y_columns) if test_data is not None else ()
         names = names or tuple(model.metadata.get("y_columns") or ())
         return names if len(names) == n else tuple(f"y_{i}" for i in range(n))
+    return check_labels(labels, n)
+
+
+def check_labels(labels: Sequence[str], n: int) -> tuple[str, ...]:
+    """``labels`` stripped, if they name ``n`` coordinates of ``y`` with a non-empty label each.
+
+    Examples
+    --------
+    >>> check_labels([" forward", "left", "up "], 3)
+    ('forward', 'left', 'up')
+    """
     given = tuple(str(label).strip() for label in labels)
     if len(given) != n or not all(given):
         example = (
@@ -366,15 +423,14 @@ def summarize(
 
     Examples
     --------
-    >>> from ipcverify.data._synthetic import make_lagged_perception
-    >>> from ipcverify.contract._model import IPCModel
-    >>> from ipcverify.network._modules import IPCNetwork
-    >>> from ipcverify.network._architecture import ModelConfig
-    >>> from ipcverify.contract._calibrate import calibrate
-    >>> from ipcverify.certification._certify import certify
-    >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(8,), param="cholesky")))
-    >>> m = calibrate(m, make_lagged_perception(2000, seed=1), epsilon=0.2, delta=0.01)
-    >>> s = summarize(certify(m, make_lagged_perception(2000, seed=2)).certificate, units="m")
+    >>> from ipcverify import example
+    >>> from ipcverify import IPCModel
+    >>> from ipcverify.network import ModelConfig
+    >>> from ipcverify import calibrate
+    >>> from ipcverify import certify
+    >>> m = example(config=ModelConfig(x_dim=6, y_dim=3, hidden=(8,), param="cholesky")).model
+    >>> m = calibrate(m, example(2000, seed=1).data, epsilon=0.2, delta=0.01)
+    >>> s = summarize(certify(m, example(2000, seed=2).data).certificate, units="m")
     >>> s.verdict_text()[:67]
     'CERTIFIED, WEAK TARGET (epsilon = 0.2: up to 20 % of the truths may'
     >>> [c.name for c in s.checks]
@@ -383,10 +439,14 @@ def summarize(
     cal = cert.calibration
     claim_of = cert.group_claim
     checks = [_calibration_check(cert), _test_check(cert, rows_outside)]
+    if cert.test_rows is not None and (rows_check := cert.test_rows.check()) is not None:
+        checks.append(rows_check)  # repeated test rows, or an overlap a model file too old cannot check
     if cert.group_test is not None:
         checks += _group_checks(cert.group_test, cert.test)
     if claim_of is None and (cert.test_group_columns or cert.calibration_group_columns):
         checks.append(_independence_check(cert))
+    if (runs_check := _runs_check(cert)) is not None:
+        checks.append(runs_check)
     checks += [_domain_check(cert.domain), _theorem1_check(cert)]
     y_dim = int(cert.model.architecture.get("y_dim", len(labels) or 1))
     delta = cal.delta if cal is not None else (None if cert.test is None else cert.test.delta)

@@ -75,6 +75,9 @@ def weak_target_phrase(epsilon: float, unit_statistic: str | None = None, symbol
     share = "half" if epsilon == 0.5 else f"{100 * epsilon:.3g} %"
     if unit_statistic == "trajectory":
         what = f"up to {share} of new groups may leave their sets somewhere"
+    elif unit_statistic == "share":
+        article = "the" if share == "half" else "of the"
+        what = f"up to {share} {article} truths of a new run may lie outside, on average"
     else:
         what = f"up to {share} {'the' if share == 'half' else 'of the'} truths may lie outside"
     return f"{symbol} = {epsilon:g}: {what}"
@@ -149,7 +152,7 @@ class CertificateSummary:
         What the claim counts: rows, or groups of ``unit_column`` (flights, runs).
     unit_column : str or None
         The group column of a claim about groups.
-    unit_statistic : {"sample", "trajectory"} or None
+    unit_statistic : {"share", "share-of-runs", "trajectory", "sample"} or None
         For a claim about groups: one random row of each, or any violation in it.
     checks : tuple of Check
         One per piece of evidence, in the order the page shows them.
@@ -190,7 +193,7 @@ class CertificateSummary:
     delta: float | None
     unit: Literal["row", "group"]
     unit_column: str | None = None
-    unit_statistic: Literal["sample", "trajectory"] | None = None
+    unit_statistic: Literal["share", "share-of-runs", "trajectory", "sample"] | None = None
     checks: tuple[Check, ...]
     date_utc: str
     ipcverify_version: str
@@ -240,7 +243,11 @@ class CertificateSummary:
         """The unit of the claim in words."""
         if self.unit == "row":
             return "row (every row counts once; the rows are assumed independent)"
-        each = "any violation in it" if self.unit_statistic == "trajectory" else "one random row of it"
+        each = {
+            "trajectory": "any violation in it",
+            "share": "its share of rows outside",
+            "share-of-runs": "whether its share of rows outside exceeds the claim's",
+        }.get(str(self.unit_statistic), "one random row of it")
         return f"group of {self.unit_column!r} (a flight or run; counted by {each})"
 
     @property

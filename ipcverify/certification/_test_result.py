@@ -12,7 +12,10 @@ proves the bounds and the consistency rule.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import ArrayLike
 
 from ipcverify.calibration._bounds import (
     clopper_pearson_interval,
@@ -20,7 +23,16 @@ from ipcverify.calibration._bounds import (
     clopper_pearson_upper,
 )
 from ipcverify.calibration._protocol import GROUP_UNITS, AllowedRate, GroupUnit
+from ipcverify.calibration._share_bound import share_lower_bound, share_upper_bound
 from ipcverify.errors import InvalidInputError
+
+#: What a test counted: units outside (a binomial count), or the mean of the units' shares outside.
+Statistic = Literal["count", "mean"]
+_BOUND = {
+    "count": "one-sided Clopper-Pearson upper bound at confidence 1 - delta",
+    "mean": "one-sided betting upper bound on the mean of the units' shares at confidence 1 - delta "
+    "(valid for i.i.d. units with shares in [0, 1])",
+}
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -29,12 +41,15 @@ class TestResult:
 
     Attributes
     ----------
-    n, violations : int
-        Test samples and samples whose truth lies outside its set.
+    n : int
+        Test units: samples, or groups (flights, runs).
+    violations : int or float
+        Units whose truth lies outside its set; for ``statistic="mean"`` the sum of the units'
+        shares of rows outside (so ``violations / n`` is their mean share).
     delta : float
         Confidence parameter of the bounds.
     upper_bound : float
-        One-sided Clopper--Pearson upper bound at ``1 - delta``.
+        One-sided upper bound at ``1 - delta`` (Clopper--Pearson, or a betting bound for a mean).
     lower_bound : float
         One-sided lower bound at ``1 - delta`` (used for the consistency check).
     interval : tuple of float
@@ -42,29 +57,39 @@ class TestResult:
     unit : str
         What was counted: ``"samples"``, or groups (flights, runs) for a calibration whose
         claim is about groups (their rows are correlated, so rows are not the unit).
+    statistic : {"count", "mean"}
+        A binomial count of units outside, or the mean of the units' shares outside
+        (:meth:`from_shares`).
 
     Examples
     --------
     >>> t = TestResult.from_counts(3, 1000, 0.001)
     >>> round(t.upper_bound, 4)
     0.013
+    >>> TestResult.from_shares([0.0, 0.1, 0.05, 0.05], 0.05, "runs").counted()
+    'mean share 5 % outside over 4 test runs'
     """
 
     __test__ = False  # not a pytest test class
 
     n: int
-    violations: int
+    violations: float
     delta: float
     upper_bound: float
     lower_bound: float
     interval: tuple[float, float]
     unit: str = "samples"
+    statistic: Statistic = "count"
 
     def __post_init__(self) -> None:
         if not (0 <= self.violations <= self.n and self.n >= 1):
             raise InvalidInputError(f"need 0 <= violations <= n, n >= 1; got {self.violations}, {self.n}")
         if not (self.lower_bound <= self.violations / self.n <= self.upper_bound):
             raise InvalidInputError("test bounds must bracket the empirical rate")
+        if self.statistic not in _BOUND or (
+            self.statistic == "count" and int(self.violations) != self.violations
+        ):
+            raise InvalidInputError(f"a test counts units ('count', a whole number) or a 'mean'; got {self}")
 
     @classmethod
     def from_counts(cls, violations: int, n: int, delta: float, unit: str = "samples") -> TestResult:
@@ -78,6 +103,37 @@ class TestResult:
             interval=clopper_pearson_interval(violations, n, delta),
             unit=unit,
         )
+
+    @classmethod
+    def from_shares(cls, shares: ArrayLike, delta: float, unit: str) -> TestResult:
+        """Bound the mean of the test units' shares of rows outside (betting bounds, i.i.d. units).
+
+        Parameters
+        ----------
+        shares : array_like of float
+            Each test unit's share of rows outside its sets, in ``[0, 1]``, in a fixed order.
+        delta : float
+            One minus the confidence of each one-sided bound (the interval is at ``1 - delta``).
+        unit : str
+            What the units are, for reports.
+        """
+        x = [float(v) for v in np.asarray(shares, dtype=np.float64).ravel()]
+        return cls(
+            n=len(x),
+            violations=float(sum(x)),
+            delta=float(delta),
+            upper_bound=share_upper_bound(x, delta),
+            lower_bound=share_lower_bound(x, delta),
+            interval=(share_lower_bound(x, delta / 2), share_upper_bound(x, delta / 2)),
+            unit=unit,
+            statistic="mean",
+        )
+
+    def counted(self) -> str:
+        """What was counted: "3 of 1,000 test samples" or "mean share 4.2 % outside over 4 test runs"."""
+        if self.statistic == "mean":
+            return f"mean share {100 * self.empirical_rate:.3g} % outside over {self.n:,} test {self.unit}"
+        return f"{int(self.violations):,} of {self.n:,} test {self.unit}"
 
     @property
     def empirical_rate(self) -> float:
@@ -120,7 +176,8 @@ class TestResult:
             "interval": list(self.interval),
             "delta": self.delta,
             "unit": self.unit,
-            "bound": "one-sided Clopper-Pearson upper bound at confidence 1 - delta",
+            "statistic": self.statistic,
+            "bound": _BOUND[self.statistic],
         }
 
 
@@ -242,10 +299,15 @@ class GroupTest:
     sample : TestResult
         Groups whose one randomly chosen sample violates: bounds on the expected share of a new
         group's samples outside their sets (a random sample of a random group).
-    compared_unit : {"trajectory", "sample"} or None
-        The count checked against the calibration's allowed rate (None: not checked).
+    compared_unit : {"trajectory", "sample", "share", "share-of-runs"} or None
+        The statistic checked against the calibration's allowed rate (None: not checked).
     consistency : Consistency
         That check (the same rule as the row-level one).
+    share : TestResult or None
+        The mean of the groups' shares of rows outside (betting bounds, every row counted): bounds
+        on the expected share of a new group's samples outside, as ``sample`` but tighter.
+    share_of_runs : TestResult or None
+        For a share-of-runs claim: groups with more than the claim's share of rows outside.
 
     Examples
     --------
@@ -267,9 +329,12 @@ class GroupTest:
     sample: TestResult
     compared_unit: GroupUnit | None
     consistency: Consistency
+    share: TestResult | None = None
+    share_of_runs: TestResult | None = None
 
     def __post_init__(self) -> None:
-        if not (2 <= self.n_groups <= self.n_rows) or self.trajectory.n != self.n_groups != self.sample.n:
+        sizes = {r.n for r in (self.trajectory, self.sample, self.share, self.share_of_runs) if r is not None}
+        if not (2 <= self.n_groups <= self.n_rows) or sizes != {self.n_groups}:
             raise InvalidInputError(
                 f"a group test needs 2 <= n_groups <= n_rows and both counts over n_groups; got "
                 f"n_groups={self.n_groups}, n_rows={self.n_rows}"
@@ -285,22 +350,43 @@ class GroupTest:
 
     @property
     def compared(self) -> TestResult | None:
-        """The count checked against the calibration (None if none was)."""
-        if self.compared_unit is None:
-            return None
-        return self.trajectory if self.compared_unit == "trajectory" else self.sample
+        """The statistic checked against the calibration (None if none was)."""
+        return None if self.compared_unit is None else self.result(self.compared_unit)
+
+    def result(self, unit: GroupUnit) -> TestResult | None:
+        """The test result of one statistic (None if it was not computed)."""
+        return {
+            "trajectory": self.trajectory,
+            "sample": self.sample,
+            "share": self.share,
+            "share-of-runs": self.share_of_runs,
+        }[unit]
 
     def sentence(self) -> str:
         """What the group counts say, in one or two sentences."""
         t, s = self.trajectory, self.sample
         conf = f"{1 - t.delta:.6g}"
+        if self.share is not None:
+            expected = (
+                f"the expected share of a new group's samples outside their sets is at most "
+                f"{self.share.bound_text()} (mean share {100 * self.share.empirical_rate:.3g} % over "
+                f"{self.share.n} "
+                "groups, every row counted)"
+            )
+        else:
+            expected = (
+                f"a random sample of a new group violates with probability at most {s.bound_text()} "
+                f"({s.violations} of {s.n} randomly chosen samples outside)"
+            )
         text = (
             f"Counted per group of {self.column!r} ({self.n_groups} test groups, {self.n_rows} rows; "
             "valid if the test groups are i.i.d., whatever the correlation within a group): with confidence "
-            f"{conf}, a random sample of a new group violates with probability at most {s.bound_text()} "
-            f"({s.violations} of {s.n} randomly chosen samples outside), and a new group leaves its sets "
-            f"somewhere with probability at most {t.bound_text()} ({t.violations} of {t.n} groups)."
+            f"{conf}, {expected}, and a new group leaves its sets somewhere with probability at most "
+            f"{t.bound_text()} ({t.violations} of {t.n} groups)."
         )
+        if self.share_of_runs is not None:
+            r = self.share_of_runs
+            text += f" {r.violations} of {r.n} groups have more of their rows outside than the claim allows."
         c = self.consistency
         if c.checked and not c.consistent:
             text += (
@@ -318,6 +404,8 @@ class GroupTest:
             "seed": self.seed,
             "trajectory": self.trajectory.to_dict(),
             "sample": self.sample.to_dict(),
+            "share": None if self.share is None else self.share.to_dict(),
+            "share_of_runs": None if self.share_of_runs is None else self.share_of_runs.to_dict(),
             "compared_unit": self.compared_unit,
             "consistency": self.consistency.to_dict(),
             "statement": self.sentence(),

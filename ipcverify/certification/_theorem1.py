@@ -80,9 +80,9 @@ class TrainingStatistics:
 
         Examples
         --------
-        >>> from ipcverify.data._synthetic import make_lagged_perception
-        >>> from ipcverify.training._train import train, TrainConfig
-        >>> ds = make_lagged_perception(200, seed=0)
+        >>> from ipcverify import example
+        >>> from ipcverify.training import train, TrainConfig
+        >>> ds = example(200, seed=0).data
         >>> model = train(ds, train_config=TrainConfig.recipe("v1", epochs=1), recipe="v1").model
         >>> stats = TrainingStatistics.compute(model, ds, 1.0)
         >>> stats.n, TrainingStatistics.from_dict(stats.to_dict()).to_dict() == stats.to_dict()
@@ -398,9 +398,9 @@ def theorem1(
 
     Examples
     --------
-    >>> from ipcverify.data._synthetic import make_lagged_perception
-    >>> from ipcverify.training._train import train, TrainConfig
-    >>> ds = make_lagged_perception(300, seed=0)
+    >>> from ipcverify import example
+    >>> from ipcverify.training import train, TrainConfig
+    >>> ds = example(300, seed=0).data
     >>> model = train(ds, train_config=TrainConfig.recipe("v1", epochs=1), recipe="v1").model
     >>> res = theorem1(model, ds, delta=0.01)
     >>> res.sound.vacuous, res.sound.lipschitz >= res.optimistic.lipschitz

@@ -12,6 +12,7 @@ from ipcverify.cli import core as _core  # noqa: F401
 from ipcverify.cli import data as _data  # noqa: F401
 from ipcverify.cli import export as _export  # noqa: F401
 from ipcverify.cli import ingest as _ingest  # noqa: F401
+from ipcverify.cli import plan as _plan  # noqa: F401
 from ipcverify.cli.app import app, run_group
 
 __all__ = ["app", "main"]

@@ -23,13 +23,16 @@ from pathlib import Path
 from typing import Any, NoReturn, TextIO
 
 import click
+from click.core import ParameterSource
 from rich.console import Console
 
+from ipcverify._wording import Audience, speaking
 from ipcverify.errors import Hint, InvalidInputError
 
 __all__ = [
     "app",
     "choice_option",
+    "given",
     "out_dir_option",
     "console",
     "err_console",
@@ -55,9 +58,23 @@ EXISTING_FILE = click.Path(exists=True, dir_okay=False, path_type=Path)
 OUTPUT_FILE = click.Path(dir_okay=False, path_type=Path)
 
 _DEBUG = [False]  # set by the global --debug option of the running command line
+_HINTS: list[str] = []  # the running command's hints, printed when it ends
+
+
+class CliGroup(click.Group):
+    """A click group whose commands speak CLI: library messages name flags, not parameters.
+
+    Every run (:func:`run_group`, or click's test runner calling :meth:`main`) happens inside
+    :func:`ipcverify._wording.speaking` for the command line, and the audience is restored after.
+    """
+
+    def main(self, *args: Any, **kwargs: Any) -> Any:  # noqa: D102 - as click.Group.main
+        with speaking(Audience.CLI):
+            return super().main(*args, **kwargs)
 
 
 @click.group(
+    cls=CliGroup,
     name="ipcverify",
     context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100},
 )
@@ -103,6 +120,28 @@ def choice_option(*param_decls: str, choices: list[str], default: str, help: str
     )
 
 
+def given(name: str) -> bool:
+    """Whether the running command's option ``name`` was set on the command line (not left at its default).
+
+    Parameters
+    ----------
+    name : str
+        The option's parameter name (``"bins"`` for ``--bins``).
+
+    Examples
+    --------
+    >>> @click.command()
+    ... @click.option("--bins", default=10)
+    ... def cmd(bins: int) -> None:
+    ...     click.echo(f"{bins} {given('bins')}")
+    >>> from click.testing import CliRunner
+    >>> CliRunner().invoke(cmd, []).output.strip(), CliRunner().invoke(cmd, ["--bins", "10"]).output.strip()
+    ('10 False', '10 True')
+    """
+    source = click.get_current_context().get_parameter_source(name)
+    return source is not None and source not in (ParameterSource.DEFAULT, ParameterSource.DEFAULT_MAP)
+
+
 def _set_debug(ctx: click.Context, param: click.Parameter, value: bool) -> None:
     _DEBUG[0] = bool(value)
 
@@ -130,8 +169,15 @@ def _show_warning(
     file: TextIO | None = None,
     line: str | None = None,
 ) -> None:
-    prefix = "hint" if issubclass(category, Hint) else "warning"
-    err_console.print(f"{prefix}: {_one_line(str(message))}", markup=False, highlight=False, soft_wrap=True)
+    if issubclass(category, Hint):  # advice: after the command's output, or its error
+        _HINTS.append(f"hint: {_one_line(str(message))}")
+        return
+    err_console.print(f"warning: {_one_line(str(message))}", markup=False, highlight=False, soft_wrap=True)
+
+
+def _print_hints() -> None:
+    while _HINTS:
+        err_console.print(_HINTS.pop(0), markup=False, highlight=False, soft_wrap=True)
 
 
 def run_group(group: click.Group, argv: list[str] | None, prog_name: str) -> NoReturn:
@@ -143,35 +189,47 @@ def run_group(group: click.Group, argv: list[str] | None, prog_name: str) -> NoR
     stderr and exits with 2; so does running out of memory (a ``MemoryError``: the input or an option
     asks for more than the machine has). Anything else is a bug: one ``error:`` line naming it, exit 3,
     and the traceback only with the global ``--debug`` flag. Python warnings are printed as one
-    ``warning:`` line each. Ctrl-C exits 130.
+    ``warning:`` line each, when they are raised; hints (:class:`~ipcverify.errors.Hint`) as one
+    ``hint:`` line each when the command ends -- after its output, or after its ``error:`` line.
+    Ctrl-C exits 130.
     """
     if not any(p.name == "debug" for p in group.params):
         group.params.append(_debug_option())
     _DEBUG[0] = False
+    _HINTS.clear()
     with warnings.catch_warnings():  # the filters stay as they are; only the display changes
         warnings.showwarning = _show_warning
         try:
-            rc: Any = group.main(args=argv, prog_name=prog_name, standalone_mode=False)
-        except InvalidInputError as exc:
-            _fail(str(exc), EXIT_USER, exc)
-        except click.exceptions.NoArgsIsHelpError as exc:  # the bare program name: its help, as --help does
-            click.echo(exc.ctx.get_help() if exc.ctx is not None else exc.format_message())
-            sys.exit(0)
-        except click.UsageError as exc:
-            _fail(exc.format_message(), EXIT_USER, exc)
-        except click.ClickException as exc:  # FileError, BadParameter outside parsing, ...
-            _fail(exc.format_message(), EXIT_USER, exc)
-        except click.exceptions.Abort as exc:
-            _fail("interrupted", EXIT_INTERRUPTED, exc)
-        except OSError as exc:
-            if exc.filename is None:
-                _fail(_internal(exc), EXIT_INTERNAL, exc)
-            _fail(_os_message(exc), EXIT_USER, exc)
-        except MemoryError as exc:  # the input or an option asks for more than the machine has
-            _fail(_memory_message(exc), EXIT_USER, exc)
-        except Exception as exc:  # noqa: BLE001 -- the last resort of the exit-status contract
+            rc = _main(group, argv, prog_name)
+        finally:  # also after an error line, or a verdict's sys.exit inside the command
+            _print_hints()
+    sys.exit(rc)
+
+
+def _main(group: click.Group, argv: list[str] | None, prog_name: str) -> int:
+    """Run the group; a user error or a bug prints its one line and exits (see :func:`run_group`)."""
+    try:
+        rc: Any = group.main(args=argv, prog_name=prog_name, standalone_mode=False)
+    except InvalidInputError as exc:
+        _fail(str(exc), EXIT_USER, exc)
+    except click.exceptions.NoArgsIsHelpError as exc:  # the bare program name: its help, as --help does
+        click.echo(exc.ctx.get_help() if exc.ctx is not None else exc.format_message())
+        sys.exit(0)
+    except click.UsageError as exc:
+        _fail(exc.format_message(), EXIT_USER, exc)
+    except click.ClickException as exc:  # FileError, BadParameter outside parsing, ...
+        _fail(exc.format_message(), EXIT_USER, exc)
+    except click.exceptions.Abort as exc:
+        _fail("interrupted", EXIT_INTERRUPTED, exc)
+    except OSError as exc:
+        if exc.filename is None:
             _fail(_internal(exc), EXIT_INTERNAL, exc)
-    sys.exit(rc if isinstance(rc, int) else 0)
+        _fail(_os_message(exc), EXIT_USER, exc)
+    except MemoryError as exc:  # the input or an option asks for more than the machine has
+        _fail(_memory_message(exc), EXIT_USER, exc)
+    except Exception as exc:  # noqa: BLE001 -- the last resort of the exit-status contract
+        _fail(_internal(exc), EXIT_INTERNAL, exc)
+    return rc if isinstance(rc, int) else 0
 
 
 def _os_message(exc: OSError) -> str:

@@ -14,16 +14,12 @@ from typing import Any
 import click
 
 from ipcverify.cli.app import EXISTING_FILE, OUTPUT_FILE, app, console
-from ipcverify.data._files import atomic_write, refuse_overwriting_input
-from ipcverify.decision.containment import (
-    ContainmentCertificate,
-    Method,
-    certificate_from_dict,
-    problem_from_dict,
-    prove,
-    verify,
-)
-from ipcverify.decision.containment._status import check_method
+from ipcverify.cli.outputs import check_outputs, force_option
+from ipcverify.data._files import atomic_write
+from ipcverify.decision.containment import prove, verify
+from ipcverify.decision.containment._certificate import ContainmentCertificate, certificate_from_dict
+from ipcverify.decision.containment._io import problem_from_dict
+from ipcverify.decision.containment._status import Method, check_method
 from ipcverify.errors import InvalidInputError
 
 __all__ = ["load_json_items"]
@@ -35,7 +31,7 @@ def load_json_items(path: Path, what: str) -> list[Any]:
     Raises
     ------
     InvalidInputError
-        If the file is not valid JSON or not an object / list of objects.
+        If the file is not valid JSON, not an object or a list, or an empty list (nothing to do).
     """
     try:
         text = path.read_text(encoding="utf-8")
@@ -56,6 +52,10 @@ def load_json_items(path: Path, what: str) -> list[Any]:
         ) from None
     if isinstance(data, dict):
         return [data]
+    if isinstance(data, list) and not data:
+        raise InvalidInputError(
+            f"{path}: an empty list, no {what} in it; give one {what} object or a list of them"
+        )
     if isinstance(data, list):
         return data
     raise InvalidInputError(f"{path}: expected one {what} object or a list of them")
@@ -71,8 +71,9 @@ def _fmt_margin(m: float | None) -> str:
     "--out",
     type=OUTPUT_FILE,
     required=True,
-    help="Where to write the certificates (JSON list, same order as the problems).",
+    help="Where to write the certificates (.json: a list, same order as the problems).",
 )
+@force_option
 @click.option(
     "--method",
     type=click.Choice([m.value for m in Method]),
@@ -81,16 +82,19 @@ def _fmt_margin(m: float | None) -> str:
     "the default), socp (cross-check) or sdp (S-lemma by Clarabel, re-checked exactly; the only "
     "one for ellipsoids).",
 )
-def prove_containment_cmd(problems: Path, out: Path, method: str | None) -> None:
+def prove_containment_cmd(problems: Path, out: Path, force: bool, method: str | None) -> None:
     """Prove or refute 'inner ellipsoid inside outer set' for every problem in PROBLEMS.
 
     PROBLEMS is a JSON object {"inner": ..., "outer": ...} or a list of them; the
     outer set is a box, a polytope or an ellipsoid. Each certificate says PROVEN,
     REFUTED (with a witness point) or UNKNOWN; re-check them with check-certificate.
     """
-    refuse_overwriting_input(out, {"PROBLEMS": problems})
+    outputs = check_outputs(
+        [out], force=force, suffixes=(".json",), what="a JSON list", inputs={"PROBLEMS": problems}
+    )
     items = load_json_items(problems, "problem")
     parsed = []
+    names_own = []  # whether each problem names its own method (then --method is not used for it)
     for i, item in enumerate(items):
         try:
             inner, outer, own = problem_from_dict(item)
@@ -104,12 +108,18 @@ def prove_containment_cmd(problems: Path, out: Path, method: str | None) -> None
                 hint = f"--method {method}; or give the problem its own 'method'"
                 raise InvalidInputError(f"{problems}: problem {i}: {exc} ({hint})") from None
         parsed.append((inner, outer, chosen))
+        names_own.append(own is not None)
+    if method is not None and all(names_own):
+        raise InvalidInputError(
+            f"--method {method} applies to no problem: every problem in {problems} names its own 'method'; "
+            "leave --method out"
+        )
     certs: list[ContainmentCertificate] = []
     for inner, outer, chosen in parsed:
         certs.append(prove(inner, outer, method=chosen))
     # one certificate per line: readable, and floats round-trip exactly (json uses repr)
     lines = [json.dumps(c.to_dict(), allow_nan=False) for c in certs]
-    payload = "[\n" + ",\n".join(lines) + "\n]\n" if lines else "[]\n"
+    payload = "[\n" + ",\n".join(lines) + "\n]\n"
     atomic_write(out, lambda f: f.write(payload), mode="w")
     for i, c in enumerate(certs):
         console.print(
@@ -124,6 +134,7 @@ def prove_containment_cmd(problems: Path, out: Path, method: str | None) -> None
         markup=False,
         highlight=False,
     )
+    outputs.announce()
 
 
 @app.command("check-certificate")

@@ -24,8 +24,10 @@ from ipcverify.cli.app import (
     choice_option,
     console,
     err_console,
+    given,
     out_dir_option,
 )
+from ipcverify.cli.outputs import check_model_output, check_outputs, force_option
 from ipcverify.errors import InvalidInputError
 from ipcverify.network._architecture import DEFAULT_RECIPE, RECIPES
 from ipcverify.training._threads import DEFAULT_THREADS, THREADS_VARIABLE, check_threads
@@ -80,6 +82,19 @@ def _print_evaluation(ev: Evaluation, title: str) -> None:
             f"{d.violations_inside} of {inside} / {d.violations_outside} of {d.outside}",
         )
     console.print(table)
+    if ev.by_run is not None:
+        r = ev.by_run
+        rt = Table(title=f"per run of {r.column} (the unit of a claim about runs)", show_header=False)
+        rt.add_row("runs", f"{r.n_runs} ({r.runs_with_violation} with some row outside)")
+        rt.add_row(
+            "mean share of a run's rows outside",
+            f"{100 * r.share.empirical_rate:.2f} % (bounds {100 * r.share.lower_bound:.2f} to "
+            f"{100 * r.share.upper_bound:.2f} % at confidence {1 - r.share.delta:g} each; largest run "
+            f"{100 * r.max_share:.1f} %)",
+        )
+        if r.outside_domain is not None:
+            rt.add_row("mean share outside the domain", f"{100 * r.outside_domain:.2f} %")
+        console.print(rt)
     if ev.by_bin is not None:
         bt = Table(title=f"violation rate by {ev.by_bin.column}")
         bt.add_column("bin")
@@ -93,7 +108,7 @@ def _print_evaluation(ev: Evaluation, title: str) -> None:
 
 def _warn_domain(report: DomainReport | None) -> None:
     """A shifted batch (far more queries outside the domain than false alarms explain) is a warning."""
-    if report is not None and report.well_above_alpha:
+    if report is not None and report.well_above_flag_rate:
         err_console.print(f"[bold yellow]warning:[/] {report.sentence()}", soft_wrap=True, highlight=False)
 
 
@@ -104,7 +119,8 @@ def _given(**values: object) -> dict[str, object]:
 
 @app.command("train")
 @click.argument("data", type=EXISTING_FILE)
-@click.option("--out", type=OUTPUT_FILE, required=True, help="Model file.")
+@click.option("--out", type=OUTPUT_FILE, required=True, help="Model file (.pt).")
+@force_option
 @choice_option(
     "--recipe",
     choices=list(RECIPES),
@@ -164,6 +180,7 @@ def _given(**values: object) -> dict[str, object]:
 def train_cmd(
     data: Path,
     out: Path,
+    force: bool,
     recipe: str,
     hidden: str | None,
     epochs: int | None,
@@ -196,12 +213,11 @@ def train_cmd(
     needs in the model file.
     """
     from ipcverify.data._dataset import load_dataset
-    from ipcverify.data._files import refuse_overwriting_input
     from ipcverify.io._modelio import save_model
     from ipcverify.network._architecture import ModelConfig
     from ipcverify.training._train import HingeSelection, TrainConfig, train
 
-    refuse_overwriting_input(out, {"DATA": data})
+    outputs = check_model_output(out, force=force, inputs={"DATA": data})
     if threads is not None:
         check_threads(threads)  # before the data are read
     ds = load_dataset(data, _columns(x_columns), _columns(y_columns), _columns(yhat_columns))
@@ -233,6 +249,14 @@ def train_cmd(
             schedule=schedule,
         ),
     )
+    hinge_only = [name for name, v in (("--alpha", alpha), ("--lam", lam)) if v is not None]
+    if hinge_only and tc.loss != "hinge":
+        which = f"--loss {tc.loss}" if loss is not None else f"recipe {recipe}'s {tc.loss} loss"
+        names, them = " and ".join(hinge_only), "them" if len(hinge_only) > 1 else "it"
+        raise InvalidInputError(
+            f"{names} {'belong' if len(hinge_only) > 1 else 'belongs'} to the hinge loss, but this run "
+            f"trains with {which} and would ignore {them}: add --loss hinge, or leave {them} out"
+        )
     chosen_by_hand = alpha is not None or lam is not None or batch_size is not None
     if group_column is not None and (recipe != "paper" or chosen_by_hand):
         raise InvalidInputError(
@@ -250,6 +274,7 @@ def train_cmd(
         f"-> {out}; calibrate it before use",
         markup=False,
     )
+    outputs.announce()
     if "selection" in result.model.metadata:
         console.print(f"chosen on held-out training rows: {result.model.metadata['selection']['summary']}",
                       markup=False)  # fmt: skip
@@ -260,16 +285,38 @@ def train_cmd(
 @click.argument("data", type=EXISTING_FILE)
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of tables.")
 @click.option("--bin-column", default=None, help="Report the violation rate per bin of this column.")
-@click.option("--bins", default=10, show_default=True, type=int)
-def evaluate_cmd(model: Path, data: Path, as_json: bool, bin_column: str | None, bins: int) -> None:
-    """Empirical violation rate and set sizes of MODEL on labelled DATA."""
+@click.option(
+    "--bins",
+    default=10,
+    show_default=True,
+    type=int,
+    help="With --bin-column: quantile bins of a numeric column (a text column has one bin per value).",
+)
+@click.option(
+    "--group-column",
+    default=None,
+    help="Count per run of this column [default: the calibration's run column, or the data's one "
+    "column that names runs].",
+)
+def evaluate_cmd(
+    model: Path, data: Path, as_json: bool, bin_column: str | None, bins: int, group_column: str | None
+) -> None:
+    """Empirical violation rate and set sizes of MODEL on labelled DATA (per run too, for data with runs)."""
     from ipcverify.certification._evaluation import evaluate
     from ipcverify.data._files import json_data
     from ipcverify.io._modelio import load_data_for_model, load_model
 
+    if given("bins") and bin_column is None:
+        raise InvalidInputError(
+            "--bins sets the number of bins of --bin-column COL; give the column, or leave --bins out"
+        )
     m = load_model(model)
     ds = load_data_for_model(data, m)
-    ev = evaluate(m, ds, bin_column=bin_column, bins=bins)
+    ev = evaluate(m, ds, bin_column=bin_column, bins=bins, group_column=group_column)
+    if given("bins") and ev.by_bin is not None and ev.by_bin.labels:
+        raise InvalidInputError(
+            f"--bins does not apply to the text column {bin_column!r} (one bin per value); leave --bins out"
+        )
     if as_json:
         click.echo(json.dumps(json_data(ev.to_dict())))
     else:
@@ -281,7 +328,8 @@ def evaluate_cmd(model: Path, data: Path, as_json: bool, bin_column: str | None,
 @click.argument("model", type=EXISTING_FILE)
 @click.argument("data", type=EXISTING_FILE)
 @click.option("--out", type=OUTPUT_FILE, required=True, help="Output .npz.")
-def predict_cmd(model: Path, data: Path, out: Path) -> None:
+@force_option
+def predict_cmd(model: Path, data: Path, out: Path, force: bool) -> None:
     """Write the IPC's sets for the queries in DATA to an NPZ.
 
     Arrays: `center` (B, n), `shape` (B, n, n) with E_i = {y : ||shape_i (y - center_i)|| <= 1},
@@ -289,12 +337,9 @@ def predict_cmd(model: Path, data: Path, out: Path) -> None:
     `domain_distance` (B,) and `singular` (B,). DATA needs only the state and estimate columns.
     """
     from ipcverify.contract._prediction import predict_sets, write_predictions
-    from ipcverify.data._files import refuse_overwriting_input
     from ipcverify.io._modelio import load_inputs_for_model, load_model
 
-    if out.suffix.lower() != ".npz":
-        raise InvalidInputError(f"--out must end in .npz; got {out.name}")
-    refuse_overwriting_input(out, {"MODEL": model, "DATA": data})
+    outputs = check_outputs([out], force=force, suffixes=(".npz",), inputs={"MODEL": model, "DATA": data})
     m = load_model(model)
     pred = predict_sets(m, load_inputs_for_model(data, m))
     write_predictions(pred, out)
@@ -304,8 +349,8 @@ def predict_cmd(model: Path, data: Path, out: Path) -> None:
     if report is None:
         console.print("no domain-of-validity test in this model: every query is in_domain", markup=False)
     elif report.outside:
-        target = err_console if report.well_above_alpha else console
-        prefix = "[bold yellow]warning:[/] " if report.well_above_alpha else ""
+        target = err_console if report.well_above_flag_rate else console
+        prefix = "[bold yellow]warning:[/] " if report.well_above_flag_rate else ""
         target.print(prefix + report.sentence(), soft_wrap=True, highlight=False)
     if pred.singular.any():
         console.print(
@@ -313,28 +358,33 @@ def predict_cmd(model: Path, data: Path, out: Path) -> None:
             "they are marked in_domain = False",
             markup=False,
         )
+    outputs.announce()
 
 
 @app.command("monitor")
 @click.argument("model", type=EXISTING_FILE)
 @click.argument("log", type=EXISTING_FILE)
 @out_dir_option("monitor", help="Directory for monitor.json and monitor.png.")
+@force_option
 @click.option(
     "--delta", type=float, default=None, help="False-alarm bound (default: the calibration's delta)."
 )
 @click.option(
     "--group-column",
     default=None,
-    help="One observation per group of this column (flights, runs), taken at its last row. Default: "
-    "a flight-level calibration's column; otherwise one observation per row.",
+    help="The column of LOG that names its runs: one observation per run, taken at its last row. "
+    "Default: a run-level calibration's column; otherwise one observation per row.",
 )
-def monitor_cmd(model: Path, log: Path, out: Path, delta: float | None, group_column: str | None) -> None:
+def monitor_cmd(
+    model: Path, log: Path, out: Path, force: bool, delta: float | None, group_column: str | None
+) -> None:
     """Replay a labelled deployment LOG (rows in time order) through the online monitor.
 
     An anytime-valid test of "the violation rate is at most the calibrated rate": it raises an
     alarm at the first observation where the violations so far refute the certificate, with a
-    false-alarm probability of at most --delta. A flight-level model is monitored one flight at a
-    time. Exits with status 1 on an alarm.
+    false-alarm probability of at most --delta. A run-level model is monitored one run at a time,
+    with its claim as the null, and, with a domain test fitted by runs, the runs' shares outside
+    the domain are tested too. Exits with status 1 on an alarm of either test.
     """
     from ipcverify.certification._report_plots import figure_to_png
     from ipcverify.contract._prediction import monitor_log
@@ -343,30 +393,35 @@ def monitor_cmd(model: Path, log: Path, out: Path, delta: float | None, group_co
     from ipcverify.guard._monitor import plot_monitor
     from ipcverify.io._modelio import load_data_for_model, load_model
 
+    json_path, png_path = out / "monitor.json", out / "monitor.png"
+    outputs = check_outputs(
+        [json_path, png_path], force=force, folder=out, inputs={"MODEL": model, "LOG": log}
+    )
     m = load_model(model)
     data = load_data_for_model(log, m)
-    warn_out_of_time_order(data, "the monitor replays")
     res = monitor_log(m, data, delta=delta, group_column=group_column)
+    warn_out_of_time_order(data, "the monitor replays")
     if not res.labels:
         warn_correlated_rows(data, "monitoring", "to monitor one observation per group")
-    write_json(out / "monitor.json", res)
     png = figure_to_png(plot_monitor(res.result, title=f"{log.name}: anytime-valid test of the certificate"))
-    atomic_write(out / "monitor.png", lambda f: f.write(png))
-    target, style = (err_console, "bold red") if res.alarm_index is not None else (console, "bold green")
-    # the alarm's sentence starts with "ALARM at ..."; "No alarm ..." gets an "OK" in front
-    head, rest = (
-        ("ALARM", res.sentence().removeprefix("ALARM"))
-        if res.alarm_index is not None
-        else ("OK", " " + res.sentence())
-    )
+    write_json(json_path, res)
+    atomic_write(png_path, lambda f: f.write(png))
+    alarm = res.alarm_index is not None or res.domain_alarm_index is not None
+    target, style = (err_console, "bold red") if alarm else (console, "bold green")
+    # an alarm's sentence starts with "ALARM at ..." or "DOMAIN ALARM at ..."; "No alarm ..." gets an "OK"
+    sentence = res.sentence()
+    head = next((h for h in ("ALARM", "DOMAIN ALARM") if sentence.startswith(h)), None)
+    head, rest = (head, sentence.removeprefix(head)) if head else ("OK", " " + sentence)
     target.print(f"[{style}]{head}[/]{rest}", soft_wrap=True)
-    console.print(f"wrote {out / 'monitor.json'} and {out / 'monitor.png'}", markup=False)
-    if res.alarm_index is not None:
+    console.print(f"wrote {json_path} and {png_path}", markup=False)
+    outputs.announce()
+    if alarm:
         sys.exit(EXIT_VERDICT)
 
 
 @app.command("demo")
 @out_dir_option("ipcverify-demo", help="Directory for the example data and model.")
+@force_option
 @click.option(
     "--n",
     "n_samples",
@@ -376,10 +431,15 @@ def monitor_cmd(model: Path, log: Path, out: Path, delta: float | None, group_co
     help="Training samples (100 to 10,000,000).",
 )
 @click.option("--seed", default=0, show_default=True, type=int)
-def demo_cmd(out: Path, n_samples: int, seed: int) -> None:
-    """Generate synthetic lagged-perception data, train an IPC, calibrate it, evaluate it."""
-    from ipcverify.demo import run_demo
+def demo_cmd(out: Path, force: bool, n_samples: int, seed: int) -> None:
+    """Generate synthetic lagged-perception data, train an IPC, calibrate it, evaluate it.
 
+    The six files go into --out; a folder that already holds one of them (an earlier demo's) is
+    refused unless --force is given.
+    """
+    from ipcverify.demo import DEMO_FILES, run_demo
+
+    outputs = check_outputs([out / name for name in DEMO_FILES], force=force, folder=out)
     s = run_demo(out, n_train=n_samples, seed=seed, progress=True)
     table = Table(title=f"on {s.calibrated.n} fresh test samples")
     table.add_column("sets")
@@ -398,4 +458,5 @@ def demo_cmd(out: Path, n_samples: int, seed: int) -> None:
         f"the calibrated IPC's sets are {np.exp(s.global_log_volume - s.calibrated.log_volume_mean):.1f}x "
         "smaller than the global ellipsoid's (geometric mean of volumes), at the same certified level"
     )
-    console.print(f"files in {out}/: train.csv, calibration.csv, test.csv, model.pt, calibrated.pt, sets.png")
+    console.print(f"files in {out}/: {', '.join(DEMO_FILES)}", markup=False)
+    outputs.announce()

@@ -7,16 +7,13 @@ inside the command, so that ``ipcverify --help`` does not load pandas.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import click
 from rich.table import Table
 
 from ipcverify.cli.app import EXISTING_FILE, app, choice_option, console, err_console, out_dir_option
+from ipcverify.cli.outputs import check_outputs, force_option
 from ipcverify.errors import InvalidInputError
-
-if TYPE_CHECKING:
-    from ipcverify.data._split_files import SplitFiles
 
 __all__ = ["parse_fractions"]
 
@@ -41,27 +38,22 @@ def parse_fractions(text: str) -> tuple[float, float, float]:
     return values[0], values[1], values[2]
 
 
-def _row_split_hint(result: SplitFiles) -> str:
-    """The ways to keep correlated rows together that the log's columns allow, for the row-split hint.
+def _row_split_hint(other_columns: tuple[str, ...]) -> str:
+    """The ways to keep correlated rows together that the log's other columns allow, for the row-split hint.
 
     Examples
     --------
-    >>> from pathlib import Path
-    >>> from ipcverify.data._split_files import PART_NAMES, SplitFiles, SplitPart
-    >>> parts = tuple(SplitPart(n, None, 0, None, None) for n in PART_NAMES)
-    >>> s = SplitFiles(Path("log.csv"), "0", parts, (0.6, 0.2, 0.2), 0, (), None, (), ("run", "t"), Path("s"))
-    >>> for part in _row_split_hint(s).split("; ")[1:]:
+    >>> for part in _row_split_hint(("run", "t")).split("; ")[1:]:
     ...     print(part)
     if run names runs or flights, split by it with --by
     or keep stretches of time whole with --block SECONDS (blocks of t)
-    >>> s = SplitFiles(Path("log.csv"), "0", parts, (0.6, 0.2, 0.2), 0, (), None, (), ("t",), Path("s"))
-    >>> _row_split_hint(s)
+    >>> _row_split_hint(("t",))
     '; keep stretches of time whole with --block SECONDS (blocks of t)'
     """
     from ipcverify.data._checks import TIME_NAMES
 
-    times = [c for c in result.other_columns if c.strip().lower() in TIME_NAMES]
-    others = [c for c in result.other_columns if c not in times]
+    times = [c for c in other_columns if c.strip().lower() in TIME_NAMES]
+    others = [c for c in other_columns if c not in times]
     hint = ""
     if others:
         which = ("one of " if len(others) > 1 else "") + ", ".join(others)
@@ -75,6 +67,7 @@ def _row_split_hint(result: SplitFiles) -> str:
 @app.command("split")
 @click.argument("data", type=EXISTING_FILE)
 @out_dir_option("split", help="Directory for train, calibration and test files and split.json.")
+@force_option
 @click.option(
     "--by",
     "group_column",
@@ -121,6 +114,7 @@ def _row_split_hint(result: SplitFiles) -> str:
 def split_cmd(
     data: Path,
     out: Path,
+    force: bool,
     group_column: str | None,
     group_name: str | None,
     block: float | None,
@@ -136,9 +130,10 @@ def split_cmd(
     a training row into the test part. A log of one or a few long runs splits into time
     blocks with --block. --out/split.json names the source and every part by SHA-256.
     """
-    from ipcverify.data._split_files import split_file
+    from ipcverify.data._split_files import split_file, split_outputs
 
     suffix = None if fmt == "same" else f".{fmt}"
+    outputs = check_outputs(split_outputs(data, out, suffix), force=force, folder=out, inputs={"DATA": data})
     columns = None if group_column is None else [c.strip() for c in group_column.split(",") if c.strip()]
     result = split_file(
         data, out, parse_fractions(fractions), seed, columns, suffix, group_name, block, time_column
@@ -158,10 +153,10 @@ def split_cmd(
         table.add_row(*cells, "-" if p.path is None else str(p.path))
     console.print(table)
     if not by_groups:
-        err_console.print(
-            f"hint: rows were split at random, which assumes independent rows{_row_split_hint(result)}"
-        )
+        hint = _row_split_hint(result.other_columns)
+        err_console.print(f"hint: rows were split at random, which assumes independent rows{hint}")
     if result.dropped_columns:
         dropped = ", ".join(result.dropped_columns)
         err_console.print(f"warning: the npz parts hold x, y and yhat only; not written: {dropped}")
-    console.print(f"record: {result.record}")
+    console.print(f"record: {result.record}", markup=False)
+    outputs.announce()

@@ -6,13 +6,20 @@ ONNX Runtime is installed -- :func:`ipcverify.io.check_onnx` on random inputs.
 
 from __future__ import annotations
 
+import os
+import tempfile
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 import numpy as np
 
 from ipcverify.cli.app import EXISTING_FILE, OUTPUT_FILE, app, choice_option, console, err_console
+from ipcverify.cli.outputs import check_outputs, force_option
 from ipcverify.errors import InvalidInputError
+
+if TYPE_CHECKING:
+    from ipcverify.contract._model import IPCModel
 
 __all__: list[str] = []
 
@@ -29,8 +36,9 @@ TORCH_TOLERANCE = 1e-4
     "onnx_path",
     type=OUTPUT_FILE,
     required=True,
-    help="Write the model's (calibrated) sets as an ONNX graph here.",
+    help="Write the model's (calibrated) sets as an ONNX graph here (.onnx).",
 )
+@force_option
 @click.option(
     "--no-domain",
     is_flag=True,
@@ -43,21 +51,49 @@ TORCH_TOLERANCE = 1e-4
     default="float64",
     help="float64 reproduces the calibrated sets to ~1e-15; float32 is smaller and faster for big batches.",
 )
-def export_cmd(model: Path, onnx_path: Path, dtype: str, no_domain: bool) -> None:
+def export_cmd(model: Path, onnx_path: Path, force: bool, dtype: str, no_domain: bool) -> None:
     """Export MODEL to ONNX: inputs x (B, d), yhat (B, n); outputs center (B, n), shape (B, n, n).
 
     A global calibration is included (shape = C / scale); a Mondrian calibration is refused. The
     domain-of-validity test is not in the graph: a model with one needs --no-domain.
     """
-    from ipcverify.data._files import refuse_overwriting_input
     from ipcverify.io._modelio import load_model
+
+    outputs = check_outputs(
+        [onnx_path],
+        force=force,
+        option="--onnx",
+        suffixes=(".onnx",),
+        what="an ONNX graph",
+        inputs={"MODEL": model},
+    )
+    m = load_model(model)
+    if no_domain and m.domain is None:
+        raise InvalidInputError(
+            f"--no-domain: {model} has no domain-of-validity test to leave out; leave --no-domain out"
+        )
+    scratch = onnx_path
+    if onnx_path.exists():  # --force: written beside, checked, then put in place; a failed check keeps it
+        fd, name = tempfile.mkstemp(prefix=f".{onnx_path.name}.", suffix=".onnx", dir=onnx_path.parent)
+        os.close(fd)
+        scratch = Path(name)
+    try:
+        _export_checked(m, scratch, onnx_path, dtype, no_domain)
+    except BaseException:
+        scratch.unlink(missing_ok=True)
+        raise
+    outputs.announce()
+
+
+def _export_checked(m: IPCModel, scratch: Path, onnx_path: Path, dtype: str, no_domain: bool) -> None:
+    """Export ``m`` to ``scratch``, check it in ONNX Runtime if installed, then move it to ``onnx_path``.
+
+    ``scratch`` is ``onnx_path`` itself when no file is there to keep; the caller removes it if this fails.
+    """
     from ipcverify.io._onnx import check_onnx, export_onnx
 
-    refuse_overwriting_input(onnx_path, {"MODEL": model}, option="--onnx")
-    m = load_model(model)
-    info = export_onnx(m, onnx_path, dtype=dtype, without_domain=no_domain)  # type: ignore[arg-type]
+    info = export_onnx(m, scratch, dtype=dtype, without_domain=no_domain)  # type: ignore[arg-type]
     what = f"calibrated (scale {info.scale:.6g})" if info.calibrated else "UNCALIBRATED raw network sets"
-    console.print(f"wrote {info.path} ({info.nbytes:,} bytes, {dtype}, {what})", markup=False)
     if m.domain is not None:
         err_console.print(
             "warning: the ONNX graph has no domain-of-validity test (--no-domain): its sets carry the "
@@ -70,20 +106,23 @@ def export_cmd(model: Path, onnx_path: Path, dtype: str, no_domain: bool) -> Non
     try:
         import onnxruntime  # noqa: F401
     except ImportError:
+        os.replace(scratch, onnx_path)
+        console.print(f"wrote {onnx_path} ({info.nbytes:,} bytes, {dtype}, {what})", markup=False)
         console.print("onnxruntime is not installed: export not checked (pip install 'ipcverify[onnx]')")
         return
     rng = np.random.default_rng(0)
     eng = m.engine
     d = m.config.x_dim
     z = eng.in_mean + rng.standard_normal((256, len(eng.in_mean))) / eng.in_scale
-    chk = check_onnx(m, info.path, z[:, :d], z[:, d:])
+    chk = check_onnx(m, scratch, z[:, :d], z[:, d:])
     worst = max(chk.vs_engine_center, chk.vs_engine_shape)
     if worst > CHECK_TOLERANCE[dtype] or not chk.passes(TORCH_TOLERANCE):
-        info.path.unlink(missing_ok=True)
         raise InvalidInputError(
             f"the ONNX graph disagrees with the model (relative difference {worst:.3g} to the float64 "
-            "engine); the file was removed -- please report this with the model file"
+            f"engine); nothing was written to {onnx_path} -- please report this with the model file"
         )
+    os.replace(scratch, onnx_path)
+    console.print(f"wrote {onnx_path} ({info.nbytes:,} bytes, {dtype}, {what})", markup=False)
     console.print(
         f"checked in ONNX Runtime on {chk.samples} inputs: max relative difference {worst:.2g} to the "
         f"float64 engine, {max(chk.vs_torch_center, chk.vs_torch_shape):.2g} to the float32 torch network",

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from ipcverify.cli.app import OUTPUT_FILE, app, choice_option, console
+from ipcverify.cli.outputs import Outputs, check_outputs, force_option
 from ipcverify.errors import InvalidInputError
 
 if TYPE_CHECKING:
@@ -44,6 +45,7 @@ def _sampling(f: Callable[..., Any]) -> Callable[..., Any]:
             required=True,
             help="Output table (.csv or .parquet); NAME.manifest.json goes beside it.",
         ),
+        force_option,
         click.option(
             "--quantity",
             type=_QUANTITY,
@@ -110,16 +112,18 @@ def _common(sampling: dict[str, Any]) -> tuple[Path, IngestOptions, list[str] | 
     return sampling["out"], options, list(sampling["runs"]) or None, _tags(sampling["tags"])
 
 
-def _refuse_overwriting(out: Path, **inputs: tuple[Path, ...] | Path | None) -> None:
-    """Refuse an --out that is one of the input files (``--truth``, ``--estimate``, a bag ...)."""
-    from ipcverify.data._files import refuse_overwriting_input
+def _check_outputs(out: Path, force: bool, **inputs: tuple[Path, ...] | Path | None) -> Outputs:
+    """Check --out and its manifest (:func:`~ipcverify.cli.outputs.check_outputs`): not one of the input
+    files (``--truth``, ``--estimate``, a bag ...), a table's extension, not there unless --force."""
+    from ipcverify.io.ingest._manifest import TABLE_SUFFIXES, manifest_path
 
     named: dict[str, Path | None] = {}
     for label, given in inputs.items():
         paths = given if isinstance(given, tuple) else (given,)
         for i, path in enumerate(paths):
             named[label if len(paths) == 1 else f"{label} #{i + 1}"] = path
-    refuse_overwriting_input(out, named)
+    check_outputs([out], force=force, suffixes=TABLE_SUFFIXES, what="a table", inputs=named)
+    return check_outputs([out, manifest_path(out)], force=force, inputs=named)
 
 
 def _tags(items: tuple[str, ...]) -> dict[str, str]:
@@ -170,7 +174,10 @@ def topics_cmd(path: Path, typestore: str | None) -> None:
     """List the topics of a bag or MCAP file: type, message count and time span (receive times)."""
     from ipcverify.io.ingest import list_topics
 
-    for info in list_topics(path, typestore):
+    topics = list_topics(path, typestore)
+    if not topics:
+        raise InvalidInputError(f"{path}: no topic in it (the recording is empty)")
+    for info in topics:
         console.print(info.describe(), markup=False, highlight=False, soft_wrap=True)
 
 
@@ -216,7 +223,13 @@ def bag_cmd(
     from ipcverify.io.ingest import ingest_bags, write_ingested
 
     out, options, runs, tags = _common(sampling)
-    _refuse_overwriting(out, PATH=paths)
+    outputs = _check_outputs(out, sampling["force"], PATH=paths)
+    if state_fields and state_topic is None:
+        raise InvalidInputError("--state-fields names fields of the --state topic; give --state TOPIC too")
+    if child_frame is not None and truth_child_frame is not None and estimate_child_frame is not None:
+        raise InvalidInputError(
+            "--child-frame is overridden by both --truth-child-frame and --estimate-child-frame; leave it out"
+        )
     frame = ingest_bags(
         list(paths),
         truth_topic=truth_topic,
@@ -233,6 +246,7 @@ def bag_cmd(
         options=options,
     )
     _report(frame, out, write_ingested(frame, out))
+    outputs.announce()
 
 
 @ingest_group.command("trajectories")
@@ -270,7 +284,12 @@ def trajectories_cmd(
     from ipcverify.io.ingest import ingest_trajectories, write_ingested
 
     out, options, runs, tags = _common(sampling)
-    _refuse_overwriting(out, **{"--truth": truth, "--estimate": estimates, "--times": times})
+    inputs = {"--truth": truth, "--estimate": estimates, "--times": times}
+    outputs = _check_outputs(out, sampling["force"], **inputs)
+    if fmt is not None and truth_format is not None and estimate_format is not None:
+        raise InvalidInputError(
+            "--format is overridden by both --truth-format and --estimate-format; leave it out"
+        )
     frame = ingest_trajectories(
         list(truth),
         list(estimates),
@@ -282,3 +301,4 @@ def trajectories_cmd(
         options=options,
     )
     _report(frame, out, write_ingested(frame, out))
+    outputs.announce()

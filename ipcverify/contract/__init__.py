@@ -11,30 +11,16 @@ from typing import TYPE_CHECKING
 from ipcverify._package import lazy_exports
 
 if TYPE_CHECKING:
-    from ipcverify.contract._calibrate import (
-        calibrate,
-    )
-    from ipcverify.contract._model import (
-        IPCModel,
-        network_fingerprint,
-    )
-    from ipcverify.contract._prediction import (
-        LogMonitoring,
-        Predictions,
-        monitor_log,
-        predict_sets,
-        write_predictions,
-    )
+    from ipcverify.contract._calibrate import calibrate
+    from ipcverify.contract._guarded import Predictions
+    from ipcverify.contract._model import IPCModel
+    from ipcverify.contract._prediction import monitor_log
 
 __all__ = [
     "IPCModel",
-    "LogMonitoring",
     "Predictions",
     "calibrate",
     "monitor_log",
-    "network_fingerprint",
-    "predict_sets",
-    "write_predictions",
 ]
 
 __getattr__, __dir__ = lazy_exports(__name__, __file__)

@@ -13,36 +13,28 @@ proved in ``proofs/pac_calibration.md``.
 from __future__ import annotations
 
 import warnings
-from dataclasses import replace
+
+import numpy as np
+from numpy.typing import NDArray
 
 from ipcverify.calibration._bounds import pac_rows_allowing
-from ipcverify.calibration._global_scale import Global
 from ipcverify.calibration._kinds import check_registered
 from ipcverify.calibration._method import CalibrationMethod, CalibrationSample
 from ipcverify.calibration._protocol import Calibration
 from ipcverify.calibration._threshold import check_eps_delta
+from ipcverify.contract._guarded import CALIBRATION_GROUPS_KEY
 from ipcverify.contract._model import IPCModel
-from ipcverify.data._checks import (
-    check_informative,
-    group_like_counts,
-    warn_correlated_rows,
-    warn_outside_training,
-)
+from ipcverify.contract._runs import RUNS_KEY, choose_method, run_record
+from ipcverify.data._checks import check_informative, group_like_counts, warn_outside_training
 from ipcverify.data._dataset import PerceptionDataset
+from ipcverify.data._fingerprints import count_recorded, recorded_rows, row_fingerprints, with_recorded_rows
 from ipcverify.errors import Hint, InvalidInputError, SampleSizeError
 from ipcverify.guard._domain import DomainModel
-from ipcverify.guard._domain_report import DomainReport
 from ipcverify.guard._domain_spec import DomainSpec
 
-#: The default calibration: one scale for every query, PAC.
-DEFAULT_METHOD = Global()
-#: The default domain test: alpha = ``ipcverify.guard.DEFAULT_ALPHA``, rows as the units.
+#: The default domain test: flag rate ``DEFAULT_FLAG_RATE`` of :mod:`ipcverify.guard._domain` (or the
+#: smallest the runs allow), with the calibration's units.
 DEFAULT_DOMAIN = DomainSpec()
-
-
-#: Model metadata of a row-level calibration whose data had columns naming runs or flights
-#: (:func:`ipcverify.data._checks.group_like_counts`): ``{column: number of groups}``.
-CALIBRATION_GROUPS_KEY = "calibration_group_like_columns"
 
 
 def calibrate(
@@ -50,7 +42,7 @@ def calibrate(
     calibration_data: PerceptionDataset,
     epsilon: float,
     delta: float,
-    method: CalibrationMethod = DEFAULT_METHOD,
+    method: CalibrationMethod | None = None,
     *,
     domain: DomainSpec | None = DEFAULT_DOMAIN,
     recalibrate: bool = False,
@@ -69,17 +61,21 @@ def calibrate(
         Target violation probability, e.g. 0.01.
     delta : float
         Confidence parameter of the PAC guarantee, e.g. 0.001 (recorded in marginal mode).
-    method : CalibrationMethod
+    method : CalibrationMethod, optional
         The kind of calibration and its options, a registered spec (it fits itself):
-        ``Global(mode="pac")`` (the default: one scale, PAC or ``mode="marginal"``),
+        ``Global(mode="pac")`` (one scale, rows as the units, PAC or ``mode="marginal"``),
         ``Mondrian(column=..., bins=..., edge_fraction=..., seed=..., mode=...)`` (one scale per
-        group of an ``x`` or ``yhat`` column) or ``Grouped(column=..., guarantee=..., seed=...,
+        group of an ``x`` or ``yhat`` column) or ``Grouped(column=..., guarantee=..., gamma=...,
         mode=...)`` (flights or runs as the exchangeable units,
-        :class:`~ipcverify.calibration.GroupedCalibration`, ``proofs/group_calibration.md``).
+        :class:`~ipcverify.calibration.GroupedCalibration`, ``proofs/run_claims.md``). Default:
+        by runs when the data have one column that names them (``run``, ``flight``, ...:
+        ``Grouped(column=...)``, expected share), else ``Global()``. A row-level claim on data
+        with runs is then an explicit choice, recorded in the model as an assumption with the
+        data's effective number of independent rows.
     domain : DomainSpec or None
         How to fit the domain-of-validity test on the calibration inputs
         (:class:`~ipcverify.guard.DomainModel`, attached to the model): its false-alarm rate
-        ``alpha`` and the column whose groups are its units (default: the method's, e.g. a
+        ``flag_rate`` and the column whose groups are its units (default: the method's, e.g. a
         ``Grouped`` calibration's column); None fits none.
     recalibrate : bool
         Allow replacing an existing calibration.
@@ -88,41 +84,57 @@ def calibrate(
     ------
     SampleSizeError
         If there are too few samples (overall or in a group) for ``(epsilon, delta)``, or for
-        the domain test at its ``alpha``; every unmet requirement is named in one message.
+        the domain test at its ``flag_rate``; every unmet requirement is named in one message.
     InvalidInputError
-        If the model is already calibrated, the dimensions disagree, the data is the
-        training data, is made mostly of repeated rows, the group column cannot be seen at
-        predict time, or ``method`` is not a registered calibration spec.
+        If the model is already calibrated, the dimensions disagree, some calibration rows are
+        training rows (whatever their order or repeats: by the row fingerprints the model file
+        records, :mod:`ipcverify.data._fingerprints`), the data is made mostly of repeated rows,
+        the group column cannot be seen at predict time, ``method`` is not a registered
+        calibration spec, or no method is given and several columns could name the runs.
 
     Warns
     -----
     DataWarning
-        If most calibration inputs lie outside the ranges of the training inputs, if rows repeat,
-        or if a column is constant.
+        If most calibration inputs lie outside the ranges of the training inputs, if rows repeat
+        (which breaks the exchangeability the guarantee rests on), or if a column is constant.
     Hint
-        If the data have a ``run``, ``flight``, ``sequence`` or ``group`` column and are
-        calibrated row by row (neither the method nor the domain test has a group column).
+        When the model file records no fingerprints of its training rows (only an exact copy of
+        the training file is then recognised); when ipcverify chose to calibrate by runs; when a
+        row-level claim is made on data with runs (with their effective number of independent
+        rows); when the domain test takes the smallest false-alarm rate the runs allow.
 
     Examples
     --------
     >>> from ipcverify.calibration import Grouped
-    >>> from ipcverify.data._synthetic import make_lagged_perception
-    >>> from ipcverify.network._modules import IPCNetwork
-    >>> from ipcverify.network._architecture import ModelConfig
-    >>> net = IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(8,), param="cholesky"))
-    >>> cal = calibrate(IPCModel(net), make_lagged_perception(1000, seed=1), 0.05, 0.01)
-    >>> cal.calibration.groups()[0].k, cal.domain.alpha
+    >>> from ipcverify import example
+    >>> from ipcverify.network import ModelConfig
+    >>> net = example(config=ModelConfig(x_dim=6, y_dim=3, hidden=(8,), param="cholesky")).model.network
+    >>> cal = calibrate(IPCModel(net), example(1000, seed=1).data, 0.05, 0.01)
+    >>> cal.calibration.groups()[0].k, cal.domain.flag_rate
     (966, 0.01)
     >>> import numpy as np
     >>> from ipcverify.data import PerceptionDataset
-    >>> d = make_lagged_perception(1000, seed=2)
+    >>> d = example(1000, seed=2).data
     >>> flights = PerceptionDataset(d.x, d.y, d.yhat, extra={"flight": np.arange(1000) // 10})  # 100 flights
     >>> by_flight = calibrate(IPCModel(net), flights, 0.1, 0.05, Grouped(column="flight"),
-    ...                       domain=DomainSpec(alpha=0.05))
+    ...                       domain=DomainSpec(flag_rate=0.05))
     >>> by_flight.calibration.n_groups, by_flight.domain.n_groups  # the domain test's units too
     (100, 100)
+    >>> import warnings
+    >>> with warnings.catch_warnings():
+    ...     warnings.simplefilter("ignore")
+    ...     auto = calibrate(IPCModel(net), flights, 0.1, 0.05)    # the data name their runs
+    >>> auto.calibration.guarantee_kind, auto.metadata["calibration_runs"]["unit"]
+    ('expected-share', 'run')
     """
+    if domain is not None and not isinstance(domain, DomainSpec):
+        raise InvalidInputError(
+            "domain must be a DomainSpec (ipcverify.guard), e.g. DomainSpec(flag_rate=0.01), or None; "
+            f"got {domain!r}"
+        )
+    method, chosen = choose_method(calibration_data, method)
     _check_inputs(model, calibration_data, epsilon, delta, method, domain, recalibrate)
+    rows = _fresh_rows(model, calibration_data)
     sample = CalibrationSample(
         scores=model.raw_scores(calibration_data.x, calibration_data.y, calibration_data.yhat),
         data=calibration_data,
@@ -133,16 +145,9 @@ def calibrate(
     )
     unmet: list[str] = []  # every sample-size requirement is reported at once
     cal: Calibration | None = None
-    try:
-        cal = method.fit(sample)
-    except SampleSizeError as exc:
-        unmet.append(str(exc))
-    dom: DomainModel | None = None
-    if domain is not None:
-        try:
-            dom = domain.fit(calibration_data, method.unit_column)
-        except SampleSizeError as exc:
-            unmet.append(str(exc))
+    with warnings.catch_warnings(record=True) as caught:  # a hint is shown only if no error follows
+        warnings.simplefilter("always")
+        cal, dom = _fit(method, domain, sample, calibration_data, chosen, unmet)
     if unmet:
         raise SampleSizeError(
             unmet[0]
@@ -152,46 +157,56 @@ def calibrate(
         )
     if cal is None:  # unreachable: the fit above assigns or raises
         raise SampleSizeError("no calibration was fitted")
-    if method.unit_column is None and (domain is None or domain.group_column is None):
-        remedy = (
-            "to calibrate with whole groups as the exchangeable units; or keep the row-level claim and "
-            "fit only the domain test by group with --domain-group-column and the same column (Python: "
-            "domain=DomainSpec(group_column=...); fitted row by row on correlated rows, it flags the "
-            "rows of a new run too often)"
+    if chosen and method.unit_column is not None:
+        warnings.warn(
+            Hint(
+                f"{calibration_data.source}: its rows come in runs of {method.unit_column!r}, so the claim "
+                "is "
+                "about runs (the expected share of a new run's rows outside their sets); for a row-level "
+                "claim, which assumes independent rows, choose Global() (CLI: --unit row)"
+            ),
+            stacklevel=2,
         )
-        warn_correlated_rows(calibration_data, "calibrating", remedy, python="Grouped(column={col!r})")
+    for w in caught:
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     if method.unit_column is None and cal.mode == "pac":
         warn_largest_score(cal, calibration_data.source)
     warn_outside_training(model.metadata, calibration_data)
-    # what the certificate's "independent rows" check needs to know of a row-level calibration
-    metadata = {k: v for k, v in model.metadata.items() if k != CALIBRATION_GROUPS_KEY}
+    # what the certificate's "independent rows" check needs to know of a row-level calibration, and
+    # what the runs of the calibration data support
+    metadata = {k: v for k, v in model.metadata.items() if k not in (CALIBRATION_GROUPS_KEY, RUNS_KEY)}
+    metadata = with_recorded_rows(metadata, "calibration", rows)  # certify refuses test rows among them
     if method.unit_column is None and (counts := group_like_counts(calibration_data)):
         metadata[CALIBRATION_GROUPS_KEY] = counts
+    normalized = sample.scores / cal.scale_for(calibration_data.x, calibration_data.yhat)
+    by_rows = domain is not None and domain.units(method.unit_column) is None
+    if (record := run_record(cal, calibration_data, normalized, method, chosen, by_rows)) is not None:
+        metadata[RUNS_KEY] = record
     return IPCModel(model.source, cal, metadata, dom)
 
 
-def mark_row_level(model: IPCModel, report: DomainReport | None) -> DomainReport | None:
-    """``report`` with the run-like column of a row-level domain test's calibration data, if recorded.
-
-    A domain test fitted row by row on calibration data whose model file records a column naming
-    runs (:data:`CALIBRATION_GROUPS_KEY`) flags the rows of a new run too often; the report then
-    names that column and its groups, so that every statement of a shift (certify, evaluate,
-    predict) also gives that explanation and the command that tells the two apart.
-
-    Parameters
-    ----------
-    model : IPCModel
-        The model whose domain test made ``report``.
-    report : DomainReport or None
-        What the test found on a batch (None: the model has no domain test).
-    """
-    if report is None or model.domain is None or model.domain.n_groups is not None:
-        return report
-    recorded = dict(model.metadata.get(CALIBRATION_GROUPS_KEY) or {})
-    if not recorded:
-        return report
-    column = next(iter(recorded))
-    return replace(report, row_level_column=column, row_level_groups=int(recorded[column]))
+def _fit(
+    method: CalibrationMethod,
+    domain: DomainSpec | None,
+    sample: CalibrationSample,
+    data: PerceptionDataset,
+    chosen: bool,
+    unmet: list[str],
+) -> tuple[Calibration | None, DomainModel | None]:
+    """Fit the calibration and the domain test; every unmet sample-size requirement goes to ``unmet``."""
+    cal: Calibration | None = None
+    try:
+        cal = method.fit(sample)
+    except SampleSizeError as exc:
+        row_claim = " or make a row-level claim explicitly with Global() (CLI: --unit row)"
+        unmet.append(str(exc).rstrip(".") + (row_claim if chosen and method.unit_column is not None else ""))
+    dom: DomainModel | None = None
+    if domain is not None:
+        try:
+            dom = domain.fit(data, method.unit_column)
+        except SampleSizeError as exc:
+            unmet.append(str(exc))
+    return cal, dom
 
 
 def warn_largest_score(cal: Calibration, source: str) -> None:
@@ -211,15 +226,12 @@ def warn_largest_score(cal: Calibration, source: str) -> None:
     Examples
     --------
     >>> import warnings
-    >>> import numpy as np
-    >>> from ipcverify.calibration import Global
-    >>> from ipcverify.calibration._method import CalibrationSample
-    >>> sample = CalibrationSample(scores=np.linspace(0.1, 3.0, 50), data=None, epsilon=0.1, delta=0.01,
-    ...                            data_hash="", network_hash="")
+    >>> from ipcverify import example
+    >>> ex = example(50)
     >>> with warnings.catch_warnings(record=True) as w:
     ...     warnings.simplefilter("always")
-    ...     warn_largest_score(Global().fit(sample), "cal.csv")
-    >>> print(str(w[0].message)[:77])
+    ...     warn_largest_score(calibrate(ex.model, ex.data, 0.1, 0.01, domain=None).calibration, "cal.csv")
+    >>> print(str(w[-1].message)[:77])
     cal.csv: the calibrated scale is the largest of the 50 calibration scores: at
     """
     for g in cal.groups():
@@ -249,11 +261,6 @@ def _check_inputs(
 ) -> None:
     """Refuse a calibration that could not carry its guarantee."""
     check_registered(method)
-    if domain is not None and not isinstance(domain, DomainSpec):
-        raise InvalidInputError(
-            "domain must be a DomainSpec (ipcverify.guard), e.g. DomainSpec(alpha=0.01), or None; "
-            f"got {domain!r}"
-        )
     check_eps_delta(epsilon, delta)
     if model.calibration is not None and not recalibrate:
         raise InvalidInputError(
@@ -268,8 +275,40 @@ def _check_inputs(
             f"y_dim={calibration_data.y_dim} but the model expects x_dim={cfg.x_dim}, y_dim={cfg.y_dim}"
         )
     check_informative(calibration_data, "calibration")
-    if calibration_data.content_hash() == model.metadata.get("train_data_hash"):
-        raise InvalidInputError(
-            f"{calibration_data.source}: this is the model's training data; calibration needs held-out "
-            "samples that were not used for training (e.g. the calibration part of a split)"
+
+
+def _fresh_rows(model: IPCModel, data: PerceptionDataset) -> NDArray[np.uint64]:
+    """The calibration rows' fingerprints; refuse rows that are training rows (in any order, subset, repeats).
+
+    With the training rows' fingerprints recorded in the model, every row is looked up; a model
+    trained by an ipcverify that did not record them is checked only against an exact copy of the
+    training file (its content hash), with a :class:`~ipcverify.errors.Hint` that says so.
+    """
+    rows = row_fingerprints(data)
+    recorded = recorded_rows(model.metadata, "training")
+    held_out = (
+        "calibration needs held-out samples that were not used for training (e.g. the calibration part of "
+        "a split)"
+    )
+    if recorded is not None:
+        reused = count_recorded(rows, recorded)
+        if reused:
+            raise InvalidInputError(
+                f"{data.source}: {reused:,} of {len(rows):,} calibration rows are rows of the model's "
+                f"training data (by the fingerprints of the {len(recorded):,} training rows the model file "
+                "records); "
+                f"{held_out} -- remove those rows"
+            )
+    elif (train_hash := model.metadata.get("train_data_hash")) is not None:
+        if data.content_hash() == train_hash:
+            raise InvalidInputError(f"{data.source}: this is the model's training data; {held_out}")
+        warnings.warn(
+            Hint(
+                f"{data.source}: the model file records no fingerprints of its training rows (an ipcverify "
+                "before row fingerprints trained it), so only an exact copy of the training file is "
+                "recognised, not a shuffled, partial or repeated one: make sure no calibration row was a "
+                "training row, or retrain with this ipcverify"
+            ),
+            stacklevel=3,
         )
+    return rows

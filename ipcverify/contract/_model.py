@@ -24,7 +24,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ipcverify.calibration._protocol import Calibration
-from ipcverify.data._dataset import query_rows
+from ipcverify.contract._guarded import Predictions, predict_sets
+from ipcverify.data._dataset import PerceptionInputs, query_rows
 from ipcverify.errors import InvalidInputError, SetError
 from ipcverify.guard._domain import DomainModel
 from ipcverify.network._architecture import ModelConfig
@@ -70,10 +71,11 @@ class IPCModel:
     Examples
     --------
     >>> import numpy as np
-    >>> from ipcverify.network._modules import build_network
-    >>> m = IPCModel(build_network(ModelConfig(x_dim=2, y_dim=3, hidden=(8,))))
-    >>> m.predict(np.zeros((4, 2)), np.zeros((4, 3))).batch_size
-    4
+    >>> from ipcverify import example
+    >>> m = example(config=ModelConfig(x_dim=2, y_dim=3, hidden=(8,))).model
+    >>> p = m.predict(np.zeros((4, 2)), np.zeros((4, 3)))
+    >>> p.sets.batch_size, p.in_domain.tolist()  # no domain model: every query counts as inside
+    (4, [True, True, True, True])
     """
 
     source: Network | NetworkWeights
@@ -157,8 +159,46 @@ class IPCModel:
         """The network's own sets, ignoring any calibration."""
         return checked_ellipsoid(*self.raw_arrays(x, yhat))
 
-    def predict(self, x: Any, yhat: Any) -> Ellipsoid:
-        """The contract's sets: calibrated if the model carries a calibration.
+    def predict(self, x: Any, yhat: Any, chunk: int | None = None) -> Predictions:
+        """The contract's sets with the domain verdict: the documented way to get sets.
+
+        Every query gets its set (calibrated if the model carries a calibration) and an
+        ``in_domain`` flag: the calibration's guarantee covers only the queries inside the
+        domain of validity fitted at calibration, and a query whose set degenerates is kept,
+        marked outside, instead of stopping the batch. ``Predictions.sets`` is the
+        :class:`~ipcverify.Ellipsoid` batch, ``Predictions.domain`` the count outside.
+
+        Parameters
+        ----------
+        x : array_like, shape (B, d) or (d,)
+        yhat : array_like, shape (B, n) or (n,)
+        chunk : int, optional
+            Rows evaluated together (default: a cache-sized chunk).
+
+        Returns
+        -------
+        Predictions
+
+        Examples
+        --------
+        >>> from ipcverify import calibrate, example
+        >>> ex = example(2000, seed=0)
+        >>> parts = ex.data.split((0.0, 0.5, 0.5), seed=0)
+        >>> contract = calibrate(ex.model, parts.calibration, epsilon=0.1, delta=0.05)
+        >>> p = contract.predict(parts.test.x, parts.test.yhat)
+        >>> p.sets.batch_size == len(parts.test), p.in_domain.dtype.name
+        (True, 'bool')
+        """
+        xa, ya = self._check(x, yhat)
+        return predict_sets(self, PerceptionInputs(xa, ya, source="queries"), chunk)
+
+    def predict_unguarded(self, x: Any, yhat: Any) -> Ellipsoid:
+        """The contract's sets WITHOUT the domain-of-validity test: use :meth:`predict` instead.
+
+        A query outside the domain fitted at calibration gets a set like any other, and that
+        set carries no guarantee; nothing here says which queries those are. This path exists
+        for code that applies the domain test itself (``certify``, ``evaluate``) and for
+        measuring the network alone.
 
         The shapes are divided by the calibration's scales (as :meth:`Ellipsoid.scaled` does)
         and validated once, by the cheap equivalent of the SVD test
@@ -192,8 +232,8 @@ class IPCModel:
 
         Examples
         --------
-        >>> from ipcverify.network._modules import build_network
-        >>> m = IPCModel(build_network(ModelConfig(x_dim=1, y_dim=1, hidden=(2,))))
+        >>> from ipcverify import example
+        >>> m = example(config=ModelConfig(x_dim=1, y_dim=1, hidden=(2,))).model
         >>> m.require_calibration()  # doctest: +ELLIPSIS
         Traceback (most recent call last):
         ...
@@ -217,6 +257,7 @@ def _out_of_domain_message(error: str, domain: DomainModel | None, x: FloatArray
     """Blame the input, not the model, when the network's set degenerates far from its data."""
     where = error.split(":", 1)[0].replace("ellipsoid", "input row")
     row = int(where.rsplit(" ", 1)[-1]) if where.rsplit(" ", 1)[-1].isdigit() else None
+    where += "" if row is None else " (0-based)"
     far = ""
     if domain is not None and row is not None:
         d = float(domain.distance(x[row : row + 1], yhat[row : row + 1])[0])
@@ -245,8 +286,8 @@ def network_fingerprint(network: Network | NetworkWeights) -> str:
 
     Examples
     --------
-    >>> from ipcverify.network._modules import build_network
-    >>> len(network_fingerprint(build_network(ModelConfig(x_dim=1, y_dim=1, hidden=(2,)))))
+    >>> from ipcverify import example
+    >>> len(network_fingerprint(example(config=ModelConfig(x_dim=1, y_dim=1, hidden=(2,))).model.network))
     64
     """
     return NetworkWeights.of(network).fingerprint()

@@ -1,22 +1,16 @@
-"""Deployment: a contract's sets for many queries (marked in or out of its domain), and logs replayed
-through the online monitor.
+"""Deployment: a contract's sets written to a file, and logs replayed through the online monitor.
 
-:func:`predict_sets` needs only the queries ``(x, yhat)`` -- a deployment log has no ground
-truth. Every query gets its calibrated ellipsoid, its distance to the calibration inputs and
-an ``in_domain`` flag (:mod:`ipcverify.guard._domain`); a query whose set degenerates (singular shape
-matrix, which happens far from the training data) is kept, marked ``in_domain = False`` and
-counted, instead of stopping the batch. :func:`write_predictions` writes the arrays to NPZ.
+The sets themselves come from :meth:`IPCModel.predict <ipcverify.IPCModel.predict>`
+(:mod:`ipcverify.contract._guarded`). :func:`write_predictions` writes them to NPZ;
 :func:`monitor_log` replays a labelled log, in order, through the anytime-valid monitor.
 
 Examples
 --------
 >>> import numpy as np
->>> from ipcverify.network._architecture import ModelConfig
->>> from ipcverify.data._dataset import PerceptionDataset, PerceptionInputs
->>> from ipcverify.data._split import group_codes
->>> from ipcverify.contract._model import IPCModel, IPCNetwork
->>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(8,), param="cholesky")))
->>> p = predict_sets(m, PerceptionInputs(np.zeros((4, 2)), np.zeros((4, 3))))
+>>> from ipcverify import example
+>>> from ipcverify.network import ModelConfig
+>>> m = example(config=ModelConfig(x_dim=2, y_dim=3, hidden=(8,), param="cholesky")).model
+>>> p = m.predict(np.zeros((4, 2)), np.zeros((4, 3)))
 >>> p.centers.shape, p.in_domain.tolist()   # no domain model: every query counts as inside
 ((4, 3), [True, True, True, True])
 """
@@ -24,145 +18,23 @@ Examples
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
-from dataclasses import dataclass, field
-from functools import cached_property
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ipcverify.contract._calibrate import mark_row_level
+from ipcverify.calibration._group_counts import allowed_outside
+from ipcverify.contract._guarded import Predictions, predict_sets
 from ipcverify.contract._model import IPCModel
 from ipcverify.data._dataset import PerceptionDataset, PerceptionInputs
 from ipcverify.data._files import atomic_write
 from ipcverify.data._split import group_codes
 from ipcverify.errors import InvalidInputError
 from ipcverify.guard._clustering import ViolationRuns
-from ipcverify.guard._domain import DomainModel, DomainReport
-from ipcverify.guard._index import one_blas_thread
 from ipcverify.guard._monitor import MonitorResult, ViolationMonitor
-from ipcverify.network._nonsingular import nonsingular
 
 FloatArray = NDArray[np.float64]
-
-
-@dataclass(frozen=True, eq=False)
-class Predictions:
-    """Sets for a batch of queries and what is known about their validity.
-
-    Attributes
-    ----------
-    centers : ndarray (B, n)
-    shapes : ndarray (B, n, n)
-        ``E_i = {y : ||shapes_i (y - centers_i)|| <= 1}`` (calibrated if the model is).
-    in_domain : bool ndarray (B,)
-        The query is inside the domain of validity and its set is non-degenerate; the
-        calibration certificate covers only these queries.
-    singular : bool ndarray (B,)
-        The set is degenerate (singular or non-finite shape matrix).
-    calibrated : bool
-        Whether the model's calibration was applied.
-    domain : DomainReport or None
-        How many queries the domain test flags (None without a domain model).
-    distances : callable or None
-        Computes the queries' distances to the calibration inputs on demand (:attr:`distance`;
-        None without a domain model).
-    """
-
-    centers: FloatArray
-    shapes: FloatArray
-    in_domain: NDArray[np.bool_]
-    singular: NDArray[np.bool_]
-    calibrated: bool
-    domain: DomainReport | None = None
-    distances: Callable[[], FloatArray] | None = field(default=None, repr=False)
-
-    @cached_property
-    def distance(self) -> FloatArray:
-        """Each query's distance to the calibration inputs (B,), computed on first access.
-
-        :meth:`ipcverify.guard.DomainModel.distance` (the ``k``-th neighbour distance; at most the
-        threshold exactly where the domain test says inside). ``in_domain`` does not need it:
-        the distance costs a search over every reference per query (a float32 BLAS product),
-        the domain test alone about one leaf of a k-d tree. NaN without a domain model.
-        """
-        if self.distances is None:
-            return np.full(len(self.centers), np.nan)
-        return self.distances()
-
-    @property
-    def outside(self) -> int:
-        """Queries outside the domain (or with a degenerate set)."""
-        return int((~self.in_domain).sum())
-
-
-def predict_sets(model: IPCModel, inputs: PerceptionInputs, chunk: int | None = None) -> Predictions:
-    """The model's sets for every query, with the domain test applied.
-
-    The sets come from :meth:`IPCModel.raw_arrays` (``chunk`` rows at a time; default: the engine's
-    cache-sized chunk), scaled by the calibration in place; the singular test is
-    :func:`ipcverify.network.nonsingular` (the SVD test, settled cheaply where it can be);
-    ``in_domain`` comes from :meth:`DomainModel.contains <ipcverify.guard.DomainModel.contains>`
-    (the exact test's answer, about one k-d tree leaf per in-distribution query). The distances
-    themselves are computed only when ``Predictions.distance`` is read. NumPy's BLAS runs on one
-    thread meanwhile (:func:`ipcverify.guard.one_blas_thread`): every product here is a
-    block sized to the cache, which a second thread only slows down.
-
-    Parameters
-    ----------
-    model : IPCModel
-        The model.
-    inputs : PerceptionInputs
-        The queries.
-    chunk : int, optional
-        Rows per batch.
-
-    Raises
-    ------
-    InvalidInputError
-        If the inputs' dimensions are not the model's.
-    """
-    cfg = model.config
-    if (inputs.x.shape[1], inputs.yhat.shape[1]) != (cfg.x_dim, cfg.y_dim):
-        raise InvalidInputError(
-            f"{inputs.source}: the queries have x_dim={inputs.x.shape[1]}, yhat_dim={inputs.yhat.shape[1]} "
-            f"but the model expects x_dim={cfg.x_dim}, y_dim={cfg.y_dim}"
-        )
-    with one_blas_thread():
-        return _predict_sets(model, inputs, chunk)
-
-
-def _predict_sets(model: IPCModel, inputs: PerceptionInputs, chunk: int | None) -> Predictions:
-    centers, shapes = model.raw_arrays(inputs.x, inputs.yhat, batch_size=chunk)
-    if model.calibration is not None:
-        shapes /= model.calibration.scale_for(inputs.x, inputs.yhat)[:, None, None]
-    finite = np.asarray(np.isfinite(shapes).all(axis=(1, 2)) & np.isfinite(centers).all(axis=1))
-    singular = np.asarray(~finite, dtype=np.bool_)
-    if finite.any():  # the SVD test of Ellipsoid, with an SVD only where a cheap bound does not settle it
-        singular[np.flatnonzero(finite)] = ~nonsingular(shapes[finite])[0]
-    report = None
-    domain = model.domain
-    if domain is None:
-        in_domain = np.asarray(~singular, dtype=np.bool_)
-    else:
-        inside = domain.contains(inputs.x, inputs.yhat)
-        in_domain = np.asarray(inside & ~singular, dtype=np.bool_)
-        report = mark_row_level(model, domain.summarize_outside(~inside))
-    return Predictions(
-        centers=centers,
-        shapes=shapes,
-        in_domain=in_domain,
-        singular=singular,
-        calibrated=model.calibration is not None,
-        domain=report,
-        distances=None if domain is None else (lambda: _distances(domain, inputs)),
-    )
-
-
-def _distances(domain: DomainModel, inputs: PerceptionInputs) -> FloatArray:
-    with one_blas_thread():
-        return domain.distance(inputs.x, inputs.yhat)
 
 
 def write_predictions(predictions: Predictions, path: str | os.PathLike[str]) -> None:
@@ -219,6 +91,11 @@ class LogMonitoring:
     runs : ViolationRuns or None
         For a log monitored row by row: whether its violations come in runs (then an alarm says
         that correlated rows can raise it; :mod:`ipcverify.guard._clustering`). None per group.
+    null : str
+        The hypothesis the violation test rejects when it alarms, in words.
+    domain_rate : float or None
+        Per group, with a domain test fitted by groups: the out-of-domain test's null rate (a new
+        group's expected share of queries outside the domain is at most this); None otherwise.
     """
 
     result: MonitorResult
@@ -232,14 +109,23 @@ class LogMonitoring:
     n_rows: int = 0
     row_in_domain_fraction: float = 1.0
     runs: ViolationRuns | None = None
+    null: str = ""
+    domain_rate: float | None = None
 
     @property
     def alarm_index(self) -> int | None:
         """Observation (row, or group in ``labels``) at which the certificate was refuted, or None."""
         return self.result.alarm_index
 
+    @property
+    def domain_alarm_index(self) -> int | None:
+        """Group (in ``labels``) at which the out-of-domain rate was refuted, or None (or no such test)."""
+        return self.result.final.domain_alarm_index
+
     def _where(self, i: int) -> str:
-        return f"row {i}" if not self.labels else f"group {self.labels[i]!r} (observation {i} of {self.unit})"
+        if not self.labels:
+            return f"row {i} (0-based)"
+        return f"group {self.labels[i]!r} (observation {i} of {self.unit}, 0-based)"
 
     def sentence(self) -> str:
         """The outcome in words."""
@@ -249,26 +135,41 @@ class LogMonitoring:
             if not self.labels
             else f"{len(self.labels)} {self.unit} ({self.n_rows} rows)"
         )
+        domain = self._domain_sentence()
+        null = self.null or f"a violation rate of at most {self.epsilon:.4g}"
         if self.alarm_index is None:
-            return (
-                f"No alarm over {what}: the log is consistent with a violation rate of at most "
-                f"{self.epsilon:.4g} (anytime-valid test, false-alarm probability at most {self.delta:g}); "
-                f"{share}."
+            quiet = (
+                f"the log is consistent with {null} (anytime-valid test, false-alarm probability at most "
+                f"{self.delta:g}); {share}."
             )
+            if self.domain_alarm_index is not None:  # the domain alarm leads, the violation test follows
+                return f"{domain.strip()} No violation alarm over {what}: {quiet}"
+            return f"No alarm over {what}: {quiet}{domain}"
         text = (
-            f"ALARM at {self._where(self.alarm_index)}: the violations up to there refute a violation rate "
-            f"of at most {self.epsilon:.4g} (false-alarm probability at most {self.delta:g}, given a "
-            f"calibration whose claim holds, which it does with probability at least "
-            f"{1 - self.calibration_delta:g}"
+            f"ALARM at {self._where(self.alarm_index)}: the violations up to there refute "
+            f"{null} (false-alarm probability at most "
+            f"{self.delta:g}, given a calibration whose claim holds, which it does with probability at least "
+            f"{1 - self.calibration_delta:g})"
         )
         if self.runs is not None and self.runs.clustered:
-            text += (
-                ", and every row violating with probability at most that given the rows before it); "
-                f"but {self.runs.sentence()}"
+            text += f"; but {self.runs.sentence()}"
+        return f"{text}; {share}.{domain}"
+
+    def _domain_sentence(self) -> str:
+        if self.domain_rate is None:
+            return ""
+        i = self.domain_alarm_index
+        if i is None:
+            return (
+                " The out-of-domain test raised no alarm (a new group's expected share of queries outside "
+                "the "
+                f"domain of validity at most {self.domain_rate:g})."
             )
-        else:
-            text += ")"
-        return f"{text}; {share}."
+        return (
+            f" DOMAIN ALARM at {self._where(i)}: the groups' shares of queries outside the domain of "
+            "validity "
+            f"refute an expected share of at most {self.domain_rate:g} (the domain test's false-alarm rate)."
+        )
 
     def to_dict(self) -> dict[str, Any]:
         """Plain data for ``monitor.json`` (``unit``, ``observations`` and ``groups`` added for groups)."""
@@ -284,11 +185,25 @@ class LogMonitoring:
             "calibration_delta": self.calibration_delta,
             "alarm": self.alarm_index is not None,
             "alarm_index": self.alarm_index,
+            "null": self.null,
+            "domain_rate": self.domain_rate,
+            "domain_alarm": self.domain_alarm_index is not None,
+            "domain_alarm_index": self.domain_alarm_index,
             "in_domain_fraction": self.row_in_domain_fraction,
             "violation_runs": None if self.runs is None else self.runs.to_dict(),
             "statement": self.sentence(),
             "monitor": self.result.to_dict(),
         }
+
+
+@dataclass(frozen=True, eq=False)
+class _GroupObservations:
+    """One observation per group, in the order the groups end (an observation exists only then)."""
+
+    statistic: FloatArray
+    mostly_inside: NDArray[np.bool_]
+    outside_share: FloatArray
+    labels: tuple[str, ...]
 
 
 def _per_group(
@@ -297,8 +212,9 @@ def _per_group(
     statistic: str,
     violated: NDArray[np.bool_],
     in_domain: NDArray[np.bool_],
-) -> tuple[FloatArray, NDArray[np.bool_], tuple[str, ...]]:
-    """One observation per group, in the order the groups end (an observation exists only then)."""
+    share_limit: float | None,
+) -> _GroupObservations:
+    """Each group's statistic (any violation, its share outside, or that share above the limit)."""
     codes, distinct = group_codes(data.column(column), f"{data.source}: group column {column!r}")
     G = len(distinct)
     last = np.full(G, -1)
@@ -307,8 +223,32 @@ def _per_group(
     size = np.bincount(codes, minlength=G)
     bad = np.bincount(codes, weights=violated.astype(np.float64), minlength=G)
     inside = np.bincount(codes, weights=in_domain.astype(np.float64), minlength=G)
-    stat = (bad > 0).astype(np.float64) if statistic == "trajectory" else bad / size
-    return stat[order], (2 * inside > size)[order], tuple(str(v) for v in distinct[order])
+    if statistic == "trajectory":
+        stat = (bad > 0).astype(np.float64)
+    elif statistic == "share-of-runs" and share_limit is not None:
+        stat = np.array(
+            [b > allowed_outside(share_limit, int(m)) for b, m in zip(bad, size, strict=True)], float
+        )
+    else:
+        stat = bad / size
+    return _GroupObservations(
+        statistic=stat[order],
+        mostly_inside=(2 * inside > size)[order],
+        outside_share=(1.0 - inside / size)[order],
+        labels=tuple(str(v) for v in distinct[order]),
+    )
+
+
+#: The null hypothesis of the monitor's violation test, by the statistic of one observation.
+_NULLS = {
+    "rows": "each row violating with probability at most {rate:.4g} given the rows before it",
+    "trajectory": "each new group leaving its sets somewhere with probability at most {rate:.4g} given the "
+    "groups before it",
+    "share": "each new group's expected share of rows outside at most {rate:.4g} given the groups before it",
+    "sample": "each new group's expected share of rows outside at most {rate:.4g} given the groups before it",
+    "share-of-runs": "each new group having more than {limit:g} of its rows outside with probability at "
+    "most {rate:.4g} given the groups before it",
+}
 
 
 def monitor_log(
@@ -319,13 +259,19 @@ def monitor_log(
     The tested rate is the calibration's allowed rate (:meth:`Calibration.allowed_violation_rate`,
     or its epsilon when it makes no per-draw claim). A row-level calibration is monitored row by
     row (every row an observation, in the domain or not, since the claim covers every
-    exchangeable query). A flight-level calibration (its claim is about groups) is monitored with
-    one observation per group of its column, taken when the group's last row arrives: whether the
-    group left its sets anywhere (``guarantee="trajectory"``), or the share of its rows outside
-    their sets (``"sample"``, whose expectation is what the claim bounds). ``group_column`` names
-    that column (it must be the calibration's), or, for a row-level calibration, monitors one
-    observation per group of it (the share of its rows outside), which stays valid when the rows
-    of a group are correlated but the groups are independent.
+    exchangeable query); its null, stated where it alarms, is that every row violates with at most
+    that probability given the rows before it, which correlated rows can break. A run-level
+    calibration (its claim is about groups) is monitored with one observation per group of its
+    column, taken when the group's last row arrives: whether the group left its sets anywhere
+    (``guarantee="trajectory"``), the share of its rows outside their sets (``"expected-share"``,
+    whose expectation is what the claim bounds), or whether that share exceeds the claim's
+    (``"share-of-runs"``); the null is then the claim itself, and bursts of violations within a
+    run raise no alarm. With a domain test fitted by groups, a second e-process tests the groups'
+    shares of queries outside the domain against its false-alarm rate. ``group_column`` names the
+    log's runs when its column is not the calibration's; for a row-level calibration it monitors
+    one observation per group of it (the share of its rows outside), which stays valid when the
+    rows of a group are correlated but the groups are independent. Proofs: ``proofs/monitor.md``
+    and ``proofs/run_claims.md``.
 
     Parameters
     ----------
@@ -341,21 +287,23 @@ def monitor_log(
     Raises
     ------
     InvalidInputError
-        If the model is not calibrated, the group column is not in the log, or differs from a
-        flight-level calibration's.
+        If the model is not calibrated, or the runs' column (the claim's, or ``group_column``) is
+        not in the log.
     """
     cal = model.require_calibration()
     allowed = cal.allowed_violation_rate()
     epsilon = allowed.rate if allowed.rate is not None else cal.epsilon
     delta = cal.delta if delta is None else float(delta)
     claim = cal.group_claim()
-    if claim is not None and group_column not in (None, claim.column):
+    column = group_column if group_column is not None else None if claim is None else claim.column
+    if claim is not None and column not in data.extra:
         raise InvalidInputError(
-            f"this calibration's claim is about groups of {claim.column!r}: monitor with --group-column "
-            f"{claim.column} (or leave --group-column out), not {group_column!r}"
+            f"{data.source}: the calibration's claim is about runs (its calibration data named them "
+            f"{claim.column!r}), and the log has no column {column!r}; name the column of the log's runs "
+            "(CLI: --group-column COL)"
         )
-    column = claim.column if claim is not None else group_column
-    statistic = claim.unit if claim is not None else "sample"
+    statistic = claim.unit if claim is not None else "share"
+    limit = None if claim is None else claim.share_limit
     if column is not None:
         data.column(column)  # a missing column is refused before any work, naming the available ones
     pred = predict_sets(model, PerceptionInputs(data.x, data.yhat, data.source))
@@ -363,8 +311,8 @@ def monitor_log(
     g = np.linalg.norm(np.einsum("bij,bj->bi", pred.shapes, d), axis=1)
     violated = np.asarray(~(g <= 1.0), dtype=np.bool_)
     row_share = float(pred.in_domain.mean())
-    monitor = ViolationMonitor(epsilon, delta, in_domain_only=False)
     if column is None:
+        monitor = ViolationMonitor(epsilon, delta, in_domain_only=False)
         return LogMonitoring(
             result=monitor.run(violated, pred.in_domain),
             violated=violated,
@@ -375,18 +323,28 @@ def monitor_log(
             n_rows=len(violated),
             row_in_domain_fraction=row_share,
             runs=ViolationRuns.of(violated),
+            null=_NULLS["rows"].format(rate=epsilon),
         )
-    obs, inside, labels = _per_group(data, column, statistic, violated, pred.in_domain)
-    what = "any violation" if statistic == "trajectory" else "share of rows outside"
+    obs = _per_group(data, column, statistic, violated, pred.in_domain, limit)
+    # a domain test fitted by groups bounds a new group's expected share of queries outside: test it per group
+    dom = model.domain
+    domain_rate = dom.flag_rate if dom is not None and dom.n_groups is not None else None
+    monitor = ViolationMonitor(epsilon, delta, in_domain_only=False, domain_rate=domain_rate)
+    what = {
+        "trajectory": "any violation",
+        "share-of-runs": f"more than {limit:g} of its rows outside" if limit is not None else "",
+    }.get(statistic, "share of rows outside")
     return LogMonitoring(
-        result=monitor.run(obs, inside),
-        violated=obs,
-        in_domain=inside,
+        result=monitor.run(obs.statistic, obs.mostly_inside, obs.outside_share),
+        violated=obs.statistic,
+        in_domain=obs.mostly_inside,
         epsilon=epsilon,
         delta=delta,
         calibration_delta=cal.delta,
         unit=f"groups of {column} ({what})",
-        labels=labels,
+        labels=obs.labels,
         n_rows=len(violated),
         row_in_domain_fraction=row_share,
+        null=_NULLS[statistic].format(rate=epsilon, limit=limit or 0.0),
+        domain_rate=domain_rate,
     )

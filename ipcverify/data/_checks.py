@@ -46,7 +46,8 @@ def check_informative(data: PerceptionDataset, purpose: Purpose) -> None:
 
     * Fewer distinct rows (of ``x``, ``y``, ``yhat``) than half the rows, or fewer than 2:
       repeated rows are not independent samples -- refused.
-    * Some rows repeat an earlier one: a :class:`~ipcverify.errors.DataWarning`.
+    * Some rows repeat an earlier one: a :class:`~ipcverify.errors.DataWarning` that says how many
+      (for calibration: that the repeats break the exchangeability its guarantee rests on).
     * A constant column: refused for training (the network cannot learn how the errors depend on
       it, and extrapolates on any other value); a warning for calibration (the domain of validity
       then flags every query with another value).
@@ -74,6 +75,11 @@ def check_informative(data: PerceptionDataset, purpose: Purpose) -> None:
     block, names = _blocks(data)
     n = len(block)
     distinct = len(np.unique(block, axis=0))
+    if n < 2:
+        raise DataError(
+            f"{data.source}: only {n} row; {purpose} needs at least 2 distinct rows (independent samples), "
+            "and far more for a useful contract"
+        )
     if distinct < max(2, math.ceil(MIN_DISTINCT_SHARE * n)):
         raise DataError(
             f"{data.source}: only {distinct} distinct row{'s' if distinct != 1 else ''} among {n}: repeated "
@@ -82,13 +88,7 @@ def check_informative(data: PerceptionDataset, purpose: Purpose) -> None:
             "was assembled"
         )
     if distinct < n:
-        warnings.warn(
-            DataWarning(
-                f"{data.source}: {n - distinct} of {n} rows repeat an earlier row; repeated rows are not "
-                "independent samples -- remove them unless the data really repeat"
-            ),
-            stacklevel=2,
-        )
+        warnings.warn(DataWarning(_repeats_text(data.source, n, distinct, purpose)), stacklevel=2)
     constant = [i for i in range(block.shape[1]) if block[0, i] == block[:, i].min() == block[:, i].max()]
     if not constant:
         return
@@ -108,6 +108,23 @@ def check_informative(data: PerceptionDataset, purpose: Purpose) -> None:
             "every other one"
         ),
         stacklevel=2,
+    )
+
+
+def _repeats_text(source: str, n: int, distinct: int, purpose: Purpose) -> str:
+    """The warning for ``n - distinct`` repeated rows; for calibration, what they break."""
+    repeats = (
+        f"{source}: {n - distinct:,} of {n:,} {purpose} rows repeat an earlier row ({distinct:,} distinct)"
+    )
+    if purpose == "calibration":
+        return (
+            f"{repeats}; the guarantee rests on the calibration rows being exchangeable with deployment "
+            "rows, and a repeated row is one sample counted again, which breaks that exchangeability -- "
+            "remove the repeats unless the data really repeat (the domain of validity is fitted on the "
+            "distinct inputs)"
+        )
+    return (
+        f"{repeats}; repeated rows are not independent samples -- remove them unless the data really repeat"
     )
 
 
@@ -351,8 +368,8 @@ def warn_out_of_time_order(data: PerceptionDataset, what: str) -> None:
     )
     warnings.warn(
         Hint(
-            f"{data.source}: column {col!r} goes back in time at row {r}{where} ({t[r - 1]:g} then "
-            f"{t[r]:g}); {what} the rows in file order, so sort the log by time{new_run}"
+            f"{data.source}: column {col!r} goes back in time at row {r} (0-based){where}, from {t[r - 1]:g} "
+            f"to {t[r]:g}; {what} the rows in file order, so sort the log by time{new_run}"
         ),
         stacklevel=3,
     )

@@ -66,16 +66,16 @@ def _checked_blocks(
                 else ""
             )
             raise DataError(
-                f"{source}: row {int(r)}, column {cols[kind][int(c)]!r}: non-finite value "
+                f"{source}: row {int(r)} (0-based), column {cols[kind][int(c)]!r}: non-finite value "
                 f"{value}{read_as}; drop or repair that row"
             )
         big = np.abs(a) > MAX_ABS_VALUE
         if big.any():
             r, c = np.argwhere(big)[0]
             raise DataError(
-                f"{source}: row {int(r)}, column {cols[kind][int(c)]!r}: value {float(a[r, c]):g} is too "
-                f"large (|value| > {MAX_ABS_VALUE:g}; the network computes in float32) -- express the "
-                "column in other units"
+                f"{source}: row {int(r)} (0-based), column {cols[kind][int(c)]!r}: value "
+                f"{float(a[r, c]):g} is too large (|value| > {MAX_ABS_VALUE:g}; the network computes in "
+                "float32) -- express the column in other units"
             )
         a.setflags(write=False)
     return arrays, cols

@@ -209,7 +209,7 @@ def json_data(obj: Any) -> Any:
     if isinstance(obj, (list, tuple, set, frozenset)):
         items = sorted(obj) if isinstance(obj, (set, frozenset)) else obj
         return [json_data(v) for v in items]
-    raise TypeError(f"cannot write a {type(obj).__name__} as JSON")
+    raise TypeError(f"cannot write an object of type {type(obj).__name__} as JSON")
 
 
 def json_float(value: Any) -> float:

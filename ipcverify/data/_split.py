@@ -67,19 +67,7 @@ def split_parts(
         codes, labels = group_codes(groups, what)
         G = len(labels)
         counts = _part_sizes(fr, G)
-        empty = [
-            name
-            for name, f, c in zip(("train", "calibration", "test"), fr, counts, strict=True)
-            if f > 0 and c == 0
-        ]
-        if empty:
-            need = max(math.ceil(1 / f) for f in fr if f > 0)
-            parts_text = " and ".join(empty) + (" parts" if len(empty) > 1 else " part")
-            raise DataError(
-                f"{what} has {G} group(s), too few for split "
-                f"fractions {list(fractions)}: the {parts_text} would get no group; "
-                f"use about {need} or more groups, or change the fractions"
-            )
+        refuse_empty_parts(fr.tolist(), counts, f"{what} has", "group", fractions)
         group_perm = np.random.default_rng(seed).permutation(G)
         part_of_group = np.empty(G, dtype=np.intp)
         for j, ids in enumerate(np.split(group_perm, np.cumsum(counts)[:2])):
@@ -87,6 +75,53 @@ def split_parts(
         part = part_of_group[codes]
         parts = [np.flatnonzero(part == j) for j in range(3)]
     return parts
+
+
+def refuse_empty_parts(
+    fractions: Sequence[float], counts: Sequence[int], who: str, unit: str, given: Sequence[float]
+) -> None:
+    """Refuse a split in which a part with a positive share gets nothing (too few rows or groups).
+
+    Parameters
+    ----------
+    fractions : sequence of float
+        The checked shares of train, calibration and test.
+    counts : sequence of int
+        The rows or groups each part got.
+    who : str
+        The start of the message, naming the data (``"log.csv has"``).
+    unit : str
+        What was split: ``"row"`` or ``"group"``.
+    given : sequence of float
+        The shares as the user gave them, for the message.
+
+    Raises
+    ------
+    DataError
+        Naming the empty parts and about how many rows or groups every part needs.
+
+    Examples
+    --------
+    >>> shares = [0.6, 0.2, 0.2]
+    >>> refuse_empty_parts(shares, [1, 0, 0], "one_row.csv has", "row", shares)  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    ipcverify.errors.DataError: one_row.csv has 1 row, too few ... get no row; use about 5 or more rows, ...
+    """
+    empty = [
+        name
+        for name, f, c in zip(("train", "calibration", "test"), fractions, counts, strict=True)
+        if f > 0 and c == 0
+    ]
+    if not empty:
+        return
+    n = sum(counts)
+    need = max(math.ceil(1 / f) for f in fractions if f > 0)
+    parts_text = " and ".join(empty) + (" parts" if len(empty) > 1 else " part")
+    raise DataError(
+        f"{who} {n} {unit}{'' if n == 1 else 's'}, too few for split fractions {list(given)}: the "
+        f"{parts_text} would get no {unit}; use about {need} or more {unit}s, or change the fractions"
+    )
 
 
 def split_fractions(fractions: Sequence[float]) -> NDArray[np.float64]:
@@ -153,7 +188,9 @@ def group_codes(labels: ArrayLike, what: str = "group column") -> tuple[NDArray[
     missing = pd.isna(arr)
     if missing.any():
         r = int(np.flatnonzero(missing)[0])
-        raise DataError(f"{what}: row {r} has no group label (it is empty); every sample needs its group")
+        raise DataError(
+            f"{what}: row {r} (0-based) has no group label (it is empty); every sample needs its group"
+        )
     try:
         distinct, codes = np.unique(arr, return_inverse=True)
     except TypeError:  # mixed types in an object array: compare as text
@@ -220,7 +257,9 @@ def time_blocks(
     bad = ~np.isfinite(times)
     if times.ndim != 1 or bad.any():
         r = int(np.flatnonzero(bad)[0]) if times.ndim == 1 else 0
-        raise DataError(f"{what}: row {r} has no finite time; every row needs one to cut time blocks")
+        raise DataError(
+            f"{what}: row {r} (0-based) has no finite time; every row needs one to cut time blocks"
+        )
     codes = np.zeros(len(times), dtype=np.intp) if groups is None else group_codes(groups, group_what)[0]
     start = np.full(int(codes.max(initial=-1)) + 1, np.inf)
     np.minimum.at(start, codes, times)

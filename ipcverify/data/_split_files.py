@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 from ipcverify.data._checks import TIME_NAMES, time_column
 from ipcverify.data._dataset import PerceptionDataset, load_dataset, save_dataset
 from ipcverify.data._files import file_sha256, refuse_overwriting_input, write_json
-from ipcverify.data._split import group_codes, split_fractions, split_parts, time_blocks
+from ipcverify.data._split import group_codes, refuse_empty_parts, split_fractions, split_parts, time_blocks
 from ipcverify.data._tables import SUFFIXES
 from ipcverify.errors import DataError, InvalidInputError
 
@@ -149,8 +149,40 @@ class SplitFiles:
         }
 
 
+def _part_suffix(source: Path, suffix: str | None) -> str:
+    """The parts' extension: ``suffix`` or the source's (``.pq`` written as ``.parquet``)."""
+    ext = (suffix or source.suffix).lower()
+    ext = ".parquet" if ext == ".pq" else ext
+    if ext not in SUFFIXES:
+        raise DataError(f"unknown data format {ext!r} for the parts; use one of .csv, .parquet, .npz")
+    return ext
+
+
 def _part_paths(out_dir: Path, suffix: str) -> dict[str, Path]:
     return {name: out_dir / f"{name}{suffix}" for name in PART_NAMES}
+
+
+def split_outputs(
+    path: str | os.PathLike[str], out_dir: str | os.PathLike[str], suffix: str | None = None
+) -> tuple[Path, ...]:
+    """The files :func:`split_file` may write: one per part and the record (a part whose share is 0 is not).
+
+    Parameters
+    ----------
+    path : path-like
+        The log to split.
+    out_dir : path-like
+        The folder of the parts.
+    suffix : str, optional
+        The parts' format, as for :func:`split_file`.
+
+    Examples
+    --------
+    >>> [p.name for p in split_outputs("log.pq", "parts")]
+    ['train.parquet', 'calibration.parquet', 'test.parquet', 'split.json']
+    """
+    out = Path(out_dir)
+    return (*_part_paths(out, _part_suffix(Path(path), suffix)).values(), out / RECORD_NAME)
 
 
 def _check_targets(source: Path, paths: dict[str, Path], empty: Sequence[str]) -> None:
@@ -281,7 +313,8 @@ def split_file(
     Raises
     ------
     DataError
-        If the log cannot be read, the group column is missing, or there are too few groups.
+        If the log cannot be read, the group column is missing, or there are too few rows or groups
+        to give every part with a positive share one.
     InvalidInputError
         If a part would overwrite the input, or a stale part file would be left beside the split.
 
@@ -299,10 +332,7 @@ def split_file(
     source = Path(path)
     data = load_dataset(source)
     fr = tuple(float(f) for f in split_fractions(fractions))
-    ext = (suffix or source.suffix).lower()
-    ext = ".parquet" if ext == ".pq" else ext
-    if ext not in SUFFIXES:
-        raise DataError(f"unknown data format {ext!r} for the parts; use one of .csv, .parquet, .npz")
+    ext = _part_suffix(source, suffix)
     columns = (group_column,) if isinstance(group_column, str) else tuple(group_column or ())
     blocks, t_col = None, None
     if block is not None:
@@ -326,6 +356,8 @@ def split_file(
         if blocks is None:
             raise
         raise DataError(f"{e}; shorter --block gives more blocks") from None
+    if labels is None:  # of rows: a part with a share must get one (groups are checked by split_parts)
+        refuse_empty_parts(fr, [len(i) for i in index], f"{source} has", "row", fractions)
     parts_data: list[PerceptionDataset | None] = [
         data.subset(np.sort(i), name) if len(i) else None for i, name in zip(index, PART_NAMES, strict=True)
     ]

@@ -207,7 +207,7 @@ def frame_blocks(
                         "as a numeric (float) column"
                     )
                 r = int(np.flatnonzero(bad.to_numpy())[0])
-                raise DataError(f"{p}: row {r}, column {c!r}: not a number ({block[c].iloc[r]!r})")
+                raise DataError(f"{p}: row {r} (0-based), column {c!r}: not a number ({block[c].iloc[r]!r})")
         arrays[kind] = block.to_numpy(dtype=np.float64)
     used = {c for ks in chosen.values() for c in ks}
     extra = {c: df[c].to_numpy() for c in cols if c not in used}
@@ -270,7 +270,7 @@ def refuse_unknown_columns(source: str, extra: Mapping[str, Any], known: Mapping
     >>> refuse_unknown_columns("log.csv", {"x_6": None}, {"x": ["x_0", "x_1"]})  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
-    ipcverify.errors.DataError: log.csv: column x_6 looks like a x column but the model knows only x_0, ...
+    ipcverify.errors.DataError: log.csv: column x_6 looks like an x column but the model knows only x_0, ...
     """
     for kind, names in known.items():
         pat = re.compile(rf"^{re.escape(kind)}_(\d+)$")
@@ -278,7 +278,7 @@ def refuse_unknown_columns(source: str, extra: Mapping[str, Any], known: Mapping
         if unknown:
             raise DataError(
                 f"{source}: column{'s' if len(unknown) > 1 else ''} {', '.join(unknown)} look"
-                f"{'' if len(unknown) > 1 else 's'} like a {kind} column but the model knows only "
+                f"{'' if len(unknown) > 1 else 's'} like {_a(kind)} column but the model knows only "
                 f"{', '.join(names)} -- drop {'them' if len(unknown) > 1 else 'it'}, or retrain and "
                 "recalibrate with them"
             )

@@ -51,9 +51,9 @@ class LandingQuery:
 
     Examples
     --------
-    >>> from ipcverify.network._architecture import ModelConfig
-    >>> from ipcverify.network._modules import build_network
-    >>> untrained = IPCModel(build_network(ModelConfig.recipe("v1", x_dim=2, y_dim=3, hidden=(8,))))
+    >>> from ipcverify.network import ModelConfig
+    >>> from ipcverify import example
+    >>> untrained = example(config=ModelConfig.recipe("v1", x_dim=2, y_dim=3, hidden=(8,))).model
     >>> q = LandingQuery(IPCQuery(untrained), Box([-0.05, -0.05, 0.0], [0.05, 0.05, 0.05]))
     >>> d = q.decide([0.0, 1.0], [0.1, 0.2, 0.3])
     >>> d.verdict.name, d.accept, d.proven   # its sets are far too large to land on

@@ -21,8 +21,8 @@ arrays; :meth:`IPCQuery.values` the same as Python floats (what a decision rule 
 
 Examples
 --------
->>> from ipcverify.network._modules import IPCNetwork
->>> q = IPCQuery(IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=2, hidden=(8,), param="cholesky"))))
+>>> from ipcverify import example
+>>> q = IPCQuery(example(config=ModelConfig(x_dim=2, y_dim=2, hidden=(8,), param="cholesky")).model)
 >>> s = q.evaluate(np.zeros(2), np.zeros(2))
 >>> s.center.shape, s.shape.shape, s.in_domain      # a 2-D output; no domain test: every query is in
 ((2,), (2, 2), True)
@@ -81,10 +81,10 @@ class IPCQuery:
 
     Examples
     --------
-    >>> from ipcverify.network._modules import build_network
-    >>> m = IPCModel(build_network(ModelConfig(x_dim=2, y_dim=3, hidden=(8,), members=2)))
+    >>> from ipcverify import example
+    >>> m = example(config=ModelConfig(x_dim=2, y_dim=3, hidden=(8,), members=2)).model
     >>> c, C = IPCQuery(m).ellipsoid([0.0, 1.0], [0.1, 0.2, 0.3])
-    >>> bool(np.allclose(C, m.predict([0.0, 1.0], [0.1, 0.2, 0.3]).shapes[0]))
+    >>> bool(np.allclose(C, m.predict_unguarded([0.0, 1.0], [0.1, 0.2, 0.3]).shapes[0]))
     True
     """
 
@@ -184,7 +184,7 @@ class IPCQuery:
     def ellipsoid(self, x: ArrayLike, yhat: ArrayLike) -> tuple[FloatArray, FloatArray]:
         """Centre (n,) and calibrated shape matrix (n, n) for one query (no domain test).
 
-        The same sets as ``model.predict(x, yhat)`` (float64 engine, calibration
+        The same sets as ``model.predict_unguarded(x, yhat)`` (float64 engine, calibration
         applied), without building an :class:`~ipcverify.sets.Ellipsoid`.
 
         Raises
@@ -199,8 +199,8 @@ class IPCQuery:
 
         Examples
         --------
-        >>> from ipcverify.network._modules import build_network
-        >>> q = IPCQuery(IPCModel(build_network(ModelConfig(x_dim=1, y_dim=2, hidden=(4,)))))
+        >>> from ipcverify import example
+        >>> q = IPCQuery(example(config=ModelConfig(x_dim=1, y_dim=2, hidden=(4,))).model)
         >>> s = q.evaluate([0.5], [0.0, 1.0])
         >>> s.shape.shape, s.in_domain
         ((2, 2), True)

@@ -4,16 +4,16 @@ Every certificate ipcverify issues assumes that deployment queries are exchangea
 the calibration samples. :class:`DomainModel` makes that assumption checkable per query:
 it is fitted on the calibration inputs ``z = (x, yhat)`` and flags a query whose distance
 to the calibration inputs is larger than the calibration inputs' own distances are,
-except for a share ``alpha``.
+except for a share ``flag_rate``.
 
 * **Distance.** ``z`` is whitened with the calibration inputs' mean and covariance (an
   eigenvalue floor keeps near-constant directions from dominating), and the score of a
   query is its Euclidean distance to its ``k``-th nearest calibration input.
-* **Threshold (conformal, leave-one-out).** Each calibration input's score is its distance
-  to its ``k``-th nearest *other* calibration input; the threshold is the
-  ``ceil((n + 1)(1 - alpha))``-th smallest of these ``n`` scores.
+* **Threshold (conformal, leave-one-out).** On the ``n`` *distinct* calibration inputs, each one's
+  score is its distance to its ``k``-th nearest other; the threshold is the
+  ``ceil((n + 1)(1 - flag_rate))``-th smallest of these scores, and never 0 (:func:`_positive`).
 * **Guarantee.** If a query is exchangeable with the ``n`` calibration inputs, it is
-  flagged with probability at most ``alpha`` (proof: ``proofs/domain.md``). A range check
+  flagged with probability at most ``flag_rate`` (proof: ``proofs/domain.md``). A range check
   alone cannot do this: a query can lie inside every column's range and far from all data.
 * **Evaluation.** :meth:`DomainModel.contains` answers "score <= threshold" without computing
   the score: a k-d tree search that stops at the ``k``-th reference within the threshold, a
@@ -21,19 +21,18 @@ except for a share ``alpha``.
   ``1e-9`` of the threshold (:mod:`ipcverify.guard._index`) -- the exact test's answer for
   every query, at about a leaf of the tree per in-distribution query.
 
-A flagged query is *outside the domain of validity*: the calibration certificate promises
-nothing for it. The test says nothing, either way, about queries it does not flag -- no
-finite sample can certify that the world did not change; the online monitor
-(:mod:`ipcverify.guard._monitor`) watches for that. :class:`DomainReport`
-(:mod:`ipcverify.guard._domain_report`) counts the queries of a batch outside the domain;
-:func:`~ipcverify.guard._neighbours.other_group_distances` gives the leave-one-group-out scores.
+A flagged query is *outside the domain of validity*: the calibration certificate promises nothing
+for it. The test says nothing about queries it does not flag -- no finite sample can certify that
+the world did not change; the online monitor (:mod:`ipcverify.guard._monitor`) watches for that.
+:class:`DomainReport` (:mod:`ipcverify.guard._domain_report`) counts the queries of a batch outside
+the domain, :func:`~ipcverify.guard._neighbours.other_group_distances` the leave-one-group-out scores.
 
 Examples
 --------
 >>> import numpy as np
 >>> rng = np.random.default_rng(0)
 >>> x, yhat = rng.normal(size=(2000, 2)), rng.normal(size=(2000, 3))
->>> dom = DomainModel.fit(x, yhat, alpha=0.01)
+>>> dom = DomainModel.fit(x, yhat, flag_rate=0.01)
 >>> dom.contains(x[:5] * 0.5, yhat[:5] * 0.5).tolist()
 [True, True, True, True, True]
 >>> bool(dom.contains(np.full((1, 2), 8.0), np.zeros((1, 3)))[0])   # far from every sample
@@ -52,6 +51,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
+from ipcverify._wording import flag_rate_floor, option
 from ipcverify.calibration._bounds import (
     marginal_conformal_index,
     min_calibration_size,
@@ -59,8 +59,9 @@ from ipcverify.calibration._bounds import (
 )
 from ipcverify.calibration._risk_control import risk_control_threshold
 from ipcverify.data._dataset import query_rows
+from ipcverify.data._fingerprints import first_distinct_rows
 from ipcverify.data._split import group_codes
-from ipcverify.errors import InvalidInputError, SampleSizeError
+from ipcverify.errors import DataError, InvalidInputError, SampleSizeError
 from ipcverify.guard._domain_report import DomainReport
 from ipcverify.guard._index import BAND, MAX_INPUTS, DomainIndex, levels
 from ipcverify.guard._kernels import domain_one, whiten_one, whiten_rows
@@ -68,8 +69,8 @@ from ipcverify.guard._neighbours import other_group_distances
 
 FloatArray = NDArray[np.float64]
 
-#: Default false-alarm rate of the domain test (share of in-distribution queries flagged).
-DEFAULT_ALPHA = 0.01
+#: Default flag rate of the domain test (the share of in-distribution queries it flags).
+DEFAULT_FLAG_RATE = 0.01
 #: Default neighbour rank: the distance to the nearest calibration input (chosen on the real log and
 #: synthetic shifts: docs/domain.md).
 DEFAULT_K = 1
@@ -93,18 +94,12 @@ def _stack(x: ArrayLike, yhat: ArrayLike) -> FloatArray:
     return np.concatenate([xa, ya], axis=1)
 
 
-def alpha_floor_text(n: int, units: str) -> str:
-    """What ``n`` calibration inputs (or groups) allow the domain test's alpha, for a message.
-
-    Examples
-    --------
-    >>> alpha_floor_text(57, "inputs")
-    'with 57 inputs alpha must be at least 1/58: --domain-alpha 0.0173 works'
-    """
-    return (
-        f"with {n} {units} alpha must be at least 1/{n + 1}: --domain-alpha "
-        f"{smallest_marginal_epsilon(n):g} works"
-    )
+def _positive(threshold: float, scores: FloatArray) -> float:
+    """The threshold, or if it is 0 the smallest positive score (it flags less: ``proofs/domain.md``)."""
+    if threshold <= 0 and not (scores > 0).any():
+        raise DataError("domain test: the whitened calibration inputs lie at distance 0 from each other in "
+                        "float64, so no radius can be set; calibrate on data whose inputs vary")  # fmt: skip
+    return threshold if threshold > 0 else float(scores[scores > 0].min())
 
 
 @dataclass(frozen=True, eq=False)
@@ -121,7 +116,7 @@ class DomainModel:
         The whitened calibration inputs.
     k : int
         Neighbour rank of the score.
-    alpha : float
+    flag_rate : float
         False-alarm rate the threshold was set for.
     threshold : float
         Queries with a score above it are outside the domain.
@@ -138,7 +133,7 @@ class DomainModel:
     whitening: FloatArray
     reference: FloatArray
     k: int
-    alpha: float
+    flag_rate: float
     threshold: float
     n: int
     method: str = METHOD
@@ -161,8 +156,8 @@ class DomainModel:
             raise InvalidInputError("domain model: non-finite entries")
         if not (1 <= self.k < len(ref)) or self.n != len(ref):
             raise InvalidInputError(f"domain model: need 1 <= k < n = {len(ref)}; got k={self.k}")
-        if not (0.0 < self.alpha < 1.0) or not (math.isfinite(self.threshold) and self.threshold >= 0):
-            raise InvalidInputError("domain model: alpha must lie in (0, 1) and the threshold be finite")
+        if not (0.0 < self.flag_rate < 1.0) or not (math.isfinite(self.threshold) and self.threshold >= 0):
+            raise InvalidInputError("domain model: flag_rate must lie in (0, 1) and the threshold be finite")
         if self.n_groups is not None and not (2 <= self.n_groups <= self.n):
             raise InvalidInputError(f"domain model: need 2 <= n_groups <= n = {self.n}; got {self.n_groups}")
         for name, value in (("mean", mean), ("whitening", w), ("reference", ref)):
@@ -191,39 +186,39 @@ class DomainModel:
         x: ArrayLike,
         yhat: ArrayLike,
         *,
-        alpha: float = DEFAULT_ALPHA,
+        flag_rate: float = DEFAULT_FLAG_RATE,
         k: int = DEFAULT_K,
         max_reference: int = MAX_REFERENCE,
         seed: int = 0,
         groups: ArrayLike | None = None,
     ) -> DomainModel:
-        """Fit the test on calibration inputs (leave-one-out conformal threshold at ``alpha``).
+        """Fit the test on calibration inputs (leave-one-out conformal threshold at ``flag_rate``).
 
         With ``groups`` (one label per input: flight, run, sequence) the inputs of one group are
         correlated and a new group's queries lie farther from the calibration inputs than the
         inputs of a calibration group lie from each other; a row-level threshold then flags far
-        more than ``alpha`` of a new group's queries. The score of each calibration input is
+        more than ``flag_rate`` of a new group's queries. The score of each calibration input is
         its distance to the ``k``-th nearest input of *another* group, and the threshold is
         set by conformal risk control over the groups
         (:func:`~ipcverify.calibration.risk_control_threshold`): if the groups are
-        exchangeable, the expected share of a new group's queries flagged is at most ``alpha``
+        exchangeable, the expected share of a new group's queries flagged is at most ``flag_rate``
         (``proofs/domain.md``).
 
         Raises
         ------
         SampleSizeError
-            If there are too few inputs for ``alpha`` (``n >= (1 - alpha) / alpha`` is needed),
-            or with ``groups`` too few groups (``G >= 1 / alpha - 1``).
+            If there are too few inputs for ``flag_rate`` (``n >= (1 - flag_rate) / flag_rate`` is needed),
+            or with ``groups`` too few groups (``G >= 1 / flag_rate - 1``).
 
         Examples
         --------
         >>> rng = np.random.default_rng(1)
         >>> flight = np.repeat(np.arange(150), 20)  # 150 flights, each with its own offset
         >>> z = rng.normal(size=(150, 4))[flight] + 0.1 * rng.normal(size=(3000, 4))
-        >>> rows = DomainModel.fit(z[:, :2], z[:, 2:], alpha=0.05)
-        >>> by_flight = DomainModel.fit(z[:, :2], z[:, 2:], alpha=0.05, groups=flight)
+        >>> rows = DomainModel.fit(z[:, :2], z[:, 2:], flag_rate=0.05)
+        >>> by_flight = DomainModel.fit(z[:, :2], z[:, 2:], flag_rate=0.05, groups=flight)
         >>> new = rng.normal(size=(200, 4))[np.repeat(np.arange(200), 5)] + 0.1 * rng.normal(size=(1000, 4))
-        >>> float((~rows.contains(new[:, :2], new[:, 2:])).mean()) > 0.2     # far above alpha
+        >>> float((~rows.contains(new[:, :2], new[:, 2:])).mean()) > 0.2     # far above flag_rate
         True
         >>> float((~by_flight.contains(new[:, :2], new[:, 2:])).mean()) < 0.1
         True
@@ -233,24 +228,26 @@ class DomainModel:
             raise InvalidInputError("domain test: calibration inputs must be finite")
         if not (isinstance(k, (int, np.integer)) and k >= 1):
             raise InvalidInputError(f"domain test: k must be a positive integer; got {k!r}")
-        if not (isinstance(alpha, (int, float)) and 0.0 < alpha < 1.0):
-            raise InvalidInputError(f"domain test: alpha must lie strictly between 0 and 1; got {alpha!r}")
+        if not (isinstance(flag_rate, (int, float)) and 0.0 < flag_rate < 1.0):
+            raise InvalidInputError(
+                f"domain test: {option('flag_rate')} must lie strictly between 0 and 1; got {flag_rate!r}"
+            )
         labels = None if groups is None else np.asarray(groups)
         if labels is not None and labels.shape != (len(z),):
             raise InvalidInputError(
                 f"domain test: {len(z)} calibration inputs but groups of shape {labels.shape}"
             )
-        if len(z) > max_reference:
-            keep = np.sort(np.random.default_rng(seed).choice(len(z), max_reference, replace=False))
-            z = z[keep]
-            labels = None if labels is None else labels[keep]
+        keep = first_distinct_rows(z)  # a repeated input is one point (of its first group)
+        if len(keep) > max_reference:
+            keep = keep[np.sort(np.random.default_rng(seed).choice(len(keep), max_reference, replace=False))]
+        z, labels = z[keep], None if labels is None else labels[keep]
         n = len(z)
-        need = min_calibration_size(alpha, 0.5, "marginal")  # ceil((1 - alpha) / alpha), exactly
+        need = min_calibration_size(flag_rate, 0.5, "marginal")  # ceil((1 - flag_rate) / flag_rate), exactly
         if n < max(need, k + 1):
             raise SampleSizeError(
-                f"the domain test at alpha={alpha:g} needs at least {max(need, k + 1)} calibration inputs; "
-                f"got {n} -- use more calibration data or a larger --domain-alpha"
-                + ("" if n < k + 1 else f" ({alpha_floor_text(n, 'inputs')})")
+                f"the domain test at flag rate {flag_rate:g} needs at least {max(need, k + 1)} calibration "
+                f"inputs; got {n} -- use more calibration data or a larger {option('flag_rate')}"
+                + ("" if n < k + 1 else f" ({flag_rate_floor(n, 'inputs', smallest_marginal_epsilon(n))})")
             )
         mean = z.mean(axis=0)
         cov = np.atleast_2d(np.cov(z, rowvar=False))
@@ -264,21 +261,22 @@ class DomainModel:
             codes, distinct = group_codes(labels, "domain test groups")
             scores = other_group_distances(tree, ref, codes, k)
             try:
-                threshold, _ = risk_control_threshold(scores, codes, alpha)
+                threshold, _ = risk_control_threshold(scores, codes, flag_rate)
             except SampleSizeError:
                 raise SampleSizeError(
-                    f"the group-aware domain test at alpha={alpha:g} needs at least "
-                    f"{math.ceil(1 / alpha - 1)} groups; got {len(distinct)} -- use more groups "
-                    f"(flights, runs) or a larger --domain-alpha "
-                    f"({alpha_floor_text(len(distinct), 'groups')})"
+                    f"the group-aware domain test at flag rate {flag_rate:g} needs at least "
+                    f"{math.ceil(1 / flag_rate - 1)} groups; got {len(distinct)} -- use more groups "
+                    f"(flights, runs) or a larger {option('flag_rate')} "
+                    f"({flag_rate_floor(len(distinct), 'groups', smallest_marginal_epsilon(len(distinct)))})"
                 ) from None
-            return cls(mean=mean, whitening=whitening, reference=ref, k=int(k), alpha=float(alpha),
-                       threshold=threshold, n=n, method=GROUP_METHOD, n_groups=len(distinct))  # fmt: skip
+            return cls(mean=mean, whitening=whitening, reference=ref, k=int(k), flag_rate=float(flag_rate),
+                       threshold=_positive(threshold, scores), n=n, method=GROUP_METHOD,
+                       n_groups=len(distinct))  # fmt: skip
         dist, _ = tree.query(ref, k=k + 1)  # the first neighbour is the point itself
         loo = np.asarray(dist, dtype=np.float64).reshape(n, k + 1)[:, k]
-        rank = marginal_conformal_index(n, alpha)
-        threshold = float(np.partition(loo, rank - 1)[rank - 1])
-        return cls(mean=mean, whitening=whitening, reference=ref, k=int(k), alpha=float(alpha),
+        rank = marginal_conformal_index(n, flag_rate)
+        threshold = _positive(float(np.partition(loo, rank - 1)[rank - 1]), loo)
+        return cls(mean=mean, whitening=whitening, reference=ref, k=int(k), flag_rate=float(flag_rate),
                    threshold=threshold, n=n)  # fmt: skip
 
     # ------------------------------------------------------------------- queries
@@ -446,7 +444,7 @@ class DomainModel:
         v = None if violated is None else np.asarray(violated, dtype=bool)
         return DomainReport(
             method=self.method,
-            alpha=self.alpha,
+            flag_rate=self.flag_rate,
             threshold=self.threshold,
             n_reference=self.n,
             n=len(out),
@@ -458,7 +456,12 @@ class DomainModel:
     def describe(self) -> DomainReport:
         """The test itself, for a certificate without test queries (``n = 0``)."""
         return DomainReport(
-            method=self.method, alpha=self.alpha, threshold=self.threshold, n_reference=self.n, n=0, outside=0
+            method=self.method,
+            flag_rate=self.flag_rate,
+            threshold=self.threshold,
+            n_reference=self.n,
+            n=0,
+            outside=0,
         )
 
     def to_dict(self) -> dict[str, Any]:
@@ -466,7 +469,7 @@ class DomainModel:
         return {
             "method": self.method,
             "k": self.k,
-            "alpha": self.alpha,
+            "flag_rate": self.flag_rate,
             "threshold": self.threshold,
             "n": self.n,
             "mean": self.mean.tolist(),
@@ -483,7 +486,7 @@ class DomainModel:
             whitening=np.asarray(data["whitening"], dtype=np.float64),
             reference=np.asarray(data["reference"], dtype=np.float64),
             k=int(data["k"]),
-            alpha=float(data["alpha"]),
+            flag_rate=float(data["flag_rate" if "flag_rate" in data else "alpha"]),  # "alpha": earlier files
             threshold=float(data["threshold"]),
             n=int(data["n"]),
             method=str(data.get("method", METHOD)),

@@ -8,6 +8,7 @@ from typing import Any
 from scipy import stats
 
 from ipcverify.calibration._bounds import smallest_marginal_epsilon
+from ipcverify.calibration._share_bound import share_lower_bound
 from ipcverify.errors import InvalidInputError
 
 #: Level of the one-sided binomial test behind "far more queries outside than false alarms explain".
@@ -22,8 +23,8 @@ class DomainReport:
     ----------
     method : str
         The test, in words.
-    alpha : float
-        Its false-alarm rate.
+    flag_rate : float
+        Its flag rate: the share of in-distribution queries it flags.
     threshold : float
         The whitened distance beyond which a query is flagged.
     n_reference : int
@@ -35,22 +36,28 @@ class DomainReport:
     row_level_column : str or None
         A column of the calibration data that names runs (flights, segments), when the test was
         fitted row by row. Rows of one run are near-copies of each other, so a row-level
-        threshold is short, and queries of a new run fall outside more often than ``alpha``
-        even without a shift; a share well above ``alpha`` then has two explanations. None: the
+        threshold is short, and queries of a new run fall outside more often than ``flag_rate``
+        even without a shift; a share well above ``flag_rate`` then has two explanations. None: the
         test was fitted with whole groups, or no such column is known.
     row_level_groups : int or None
         How many groups of ``row_level_column`` the calibration data held (None: not known),
-        for the smallest ``--domain-alpha`` a test fitted by group allows.
+        for the smallest ``--domain-flag-rate`` a test fitted by group allows.
+    run_column : str or None
+        When the queries come in runs: the column that names them (the claim's, or the queries'
+        one run-like column); then "far more outside than false alarms explain" is decided with
+        the runs as the units (their shares outside), not the correlated rows.
+    run_shares : tuple of float or None
+        Each run's share of queries outside the domain (with ``run_column``).
 
     Examples
     --------
-    >>> r = DomainReport(method="knn", alpha=0.01, threshold=2.0, n_reference=100, n=50, outside=5)
-    >>> r.outside_fraction, r.well_above_alpha
+    >>> r = DomainReport(method="knn", flag_rate=0.01, threshold=2.0, n_reference=100, n=50, outside=5)
+    >>> r.outside_fraction, r.well_above_flag_rate
     (0.1, True)
     """
 
     method: str
-    alpha: float
+    flag_rate: float
     threshold: float
     n_reference: int
     n: int
@@ -59,8 +66,14 @@ class DomainReport:
     violations_outside: int | None = None
     row_level_column: str | None = None
     row_level_groups: int | None = None
+    run_column: str | None = None
+    run_shares: tuple[float, ...] | None = None
 
     def __post_init__(self) -> None:
+        if (self.run_column is None) != (self.run_shares is None) or (
+            self.run_shares is not None and not all(0.0 <= v <= 1.0 for v in self.run_shares)
+        ):
+            raise InvalidInputError("run shares in [0, 1] go with the run column, and only with it")
         if not (0 <= self.outside <= self.n):
             raise InvalidInputError(f"need 0 <= outside <= n; got {self.outside}, {self.n}")
         if self.row_level_column is not None and not self.row_level_column.strip():
@@ -76,11 +89,11 @@ class DomainReport:
             return (
                 f"The domain of validity is the region within distance {self.threshold:.3g} (whitened) of "
                 f"the {self.n_reference} calibration inputs; queries beyond it are flagged, and "
-                f"in-distribution queries are flagged at a rate of at most {self.alpha:g}."
+                f"in-distribution queries are flagged at a rate of at most {self.flag_rate:g}."
             )
         text = (
             f"{self.outside} of {self.n} queries ({100 * self.outside_fraction:.2f} %) lie outside the "
-            f"domain of validity (in-distribution queries are flagged at most {100 * self.alpha:g} % of "
+            f"domain of validity (in-distribution queries are flagged at most {100 * self.flag_rate:g} % of "
             "the time)"
         )
         if self.outside == 0:
@@ -98,7 +111,12 @@ class DomainReport:
                 + (f", {100 * rate_in:.2f} %" if inside else "")
                 + ")"
             )
-        if self.well_above_alpha:
+        if self.run_shares is not None:
+            text += (
+                f"; counted by its {len(self.run_shares)} runs of {self.run_column!r}, a run's mean share "
+                f"outside is {100 * sum(self.run_shares) / len(self.run_shares):.2f} %"
+            )
+        if self.well_above_flag_rate:
             text += ". That is far more than false alarms explain: the deployment data have shifted"
             if (col := self.row_level_column) is not None:
                 text += (
@@ -109,21 +127,21 @@ class DomainReport:
         return text + "."
 
     def regroup_command(self) -> str:
-        """The ``calibrate`` options that fit the test by :attr:`row_level_column`, with a large enough alpha.
+        """The ``calibrate`` options that fit the test by :attr:`row_level_column`, with a large enough rate.
 
         Examples
         --------
-        >>> DomainReport(method="knn", alpha=0.01, threshold=1.0, n_reference=400, n=0, outside=0,
+        >>> DomainReport(method="knn", flag_rate=0.01, threshold=1.0, n_reference=400, n=0, outside=0,
         ...              row_level_column="run", row_level_groups=10).regroup_command()
-        'calibrate --domain-group-column run --domain-alpha 0.091'
+        'calibrate --domain-group-column run --domain-flag-rate 0.091'
         """
         if self.row_level_column is None:
             raise InvalidInputError("a domain test fitted by group has no row-level column to regroup by")
         text = f"calibrate --domain-group-column {self.row_level_column}"
         if self.row_level_groups is not None:
             smallest = smallest_marginal_epsilon(self.row_level_groups)
-            if smallest > self.alpha:
-                text += f" --domain-alpha {smallest:g}"
+            if smallest > self.flag_rate:
+                text += f" --domain-flag-rate {smallest:g}"
         return text
 
     @property
@@ -132,26 +150,38 @@ class DomainReport:
         return self.outside / self.n if self.n else 0.0
 
     @property
-    def well_above_alpha(self) -> bool:
-        """The outside share is above what false alarms explain (one-sided binomial test at 0.001)."""
+    def well_above_flag_rate(self) -> bool:
+        """The outside share is above what false alarms explain, at level 0.001.
+
+        With the queries' runs known (:attr:`run_shares`, two or more runs), the runs' mean share
+        outside is tested (its betting lower bound exceeds ``flag_rate``), since the rows of a run are
+        correlated; otherwise the rows (a one-sided binomial test).
+        """
         if self.n == 0 or self.outside == 0:
             return False
-        return bool(stats.binom.sf(self.outside - 1, self.n, self.alpha) < WELL_ABOVE_LEVEL)
+        if self.run_shares is not None and len(self.run_shares) >= 2:
+            return bool(share_lower_bound(self.run_shares, WELL_ABOVE_LEVEL) > self.flag_rate)
+        return bool(stats.binom.sf(self.outside - 1, self.n, self.flag_rate) < WELL_ABOVE_LEVEL)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain-data form (the keys of ``certificate.json["domain"]``)."""
         return {
             "method": self.method,
-            "alpha": self.alpha,
+            "flag_rate": self.flag_rate,
             "threshold": self.threshold,
             "n_reference": self.n_reference,
             "n": self.n,
             "outside": self.outside,
             "outside_fraction": self.outside_fraction,
-            "well_above_alpha": self.well_above_alpha,
+            "well_above_flag_rate": self.well_above_flag_rate,
             "violations_inside": self.violations_inside,
             "violations_outside": self.violations_outside,
             "row_level_column": self.row_level_column,
             "row_level_groups": self.row_level_groups,
+            "run_column": self.run_column,
+            "runs": None if self.run_shares is None else len(self.run_shares),
+            "run_mean_outside": None
+            if self.run_shares is None
+            else sum(self.run_shares) / len(self.run_shares),
             "statement": self.sentence(),
         }

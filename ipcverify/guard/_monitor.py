@@ -236,8 +236,8 @@ def _observations(violated: ArrayLike, in_domain: ArrayLike | None) -> tuple[Flo
     if not (np.isfinite(x).all() and (x >= 0).all() and (x <= 1).all()):
         bad = int(np.flatnonzero(~(np.isfinite(x) & (x >= 0) & (x <= 1)))[0])
         raise InvalidInputError(
-            f"observation {bad}: violated={v[bad].item()!r} is not in [0, 1]; pass True/False (truth "
-            "outside its set) or, for one observation per group, the fraction of its samples outside"
+            f"observation {bad} (0-based): violated={v[bad].item()!r} is not in [0, 1]; pass True/False "
+            "(truth outside its set) or, for one observation per group, the fraction of its samples outside"
         )
     if in_domain is None:
         return x, np.ones(len(x), dtype=bool)
@@ -326,11 +326,24 @@ class ViolationMonitor:
         """Consume one observation; returns the new state."""
         return self.run([violated], [in_domain]).final
 
-    def run(self, violated: ArrayLike, in_domain: ArrayLike | None = None) -> MonitorResult:
+    def run(
+        self, violated: ArrayLike, in_domain: ArrayLike | None = None, outside: ArrayLike | None = None
+    ) -> MonitorResult:
         """Consume a batch of observations (vectorised); returns its trajectory.
 
         The monitor continues from its current state, so a stream may be fed in batches of any
         size (also one at a time through :meth:`update`) with the same result.
+
+        Parameters
+        ----------
+        violated : array_like
+            Per observation: 1 (or True) if the truth fell outside its set, or for one observation
+            per run the run's share of rows outside, in ``[0, 1]``.
+        in_domain : array_like of bool, optional
+            Per observation: inside the domain of validity (default: every one).
+        outside : array_like, optional
+            What the out-of-domain test observes, in ``[0, 1]`` (for one observation per run: its
+            share of queries outside the domain); default ``1 - in_domain``.
 
         Raises
         ------
@@ -338,6 +351,11 @@ class ViolationMonitor:
             If an observation is not a bool or a number in ``[0, 1]``, or the shapes differ.
         """
         x, d = _observations(violated, in_domain)
+        away = 1.0 - d if outside is None else _observations(outside, None)[0]
+        if away.shape != x.shape:
+            raise InvalidInputError(
+                f"outside has shape {away.shape} but violated has {x.shape}; give one each"
+            )
         s, cfg, m = self._state, self.config, len(x)
         tested = d if cfg.in_domain_only else np.ones(m, dtype=bool)
         steps = self._violation.advance(x[tested])
@@ -348,7 +366,7 @@ class ViolationMonitor:
             alarm_index = s.index + 1 + hit
         dom_path, dom_alarm = None, s.domain_alarm_index
         if self._domain is not None:
-            dom_path = self._domain.advance(1.0 - d)
+            dom_path = self._domain.advance(away)
             level = cfg.domain_alarm_level
             if (
                 dom_alarm is None

@@ -4,7 +4,8 @@ A model file is a ``torch.save`` of a dict holding only tensors and plain data::
 
     {"format": "ipcverify-model", "format_version": 1 or 2,
      "config": {...}, "state_dict": {name: tensor}, "metadata": {...},
-     "calibration": {...} or None}
+     "calibration": {...} or None, "domain": {...} or None,
+     "row_fingerprints": {"scheme": str, "training": tensor, "calibration": tensor} or None}
 
 Version 2 holds a low-rank network (:class:`~ipcverify.network.LowRankEnsemble`: every
 member's weights are in the state dict, stacked, and the config has ``param="lowrank"``,
@@ -18,6 +19,11 @@ is refused before anything in it executes. A file in a part of torch's format th
 not know is read with ``torch.load(..., weights_only=True)``, which refuses the same. The
 weights become a :class:`~ipcverify.network.NetworkWeights` (names, shapes and dtypes checked
 against the architecture, values finite), so that ``predict`` and ``monitor`` run without torch.
+
+The fingerprints of the training and calibration rows (:mod:`ipcverify.data._fingerprints`; the
+model's metadata holds them under ``row_fingerprints`` as sorted uint64 arrays) are stored as
+int64 tensors of the same bits, 8 bytes a row, beside the metadata; a reader that does not know
+them ignores the entry, and a file without them reads with none (their overlap is then unchecked).
 """
 
 from __future__ import annotations
@@ -39,6 +45,7 @@ from ipcverify.data._dataset import (
     load_inputs,
 )
 from ipcverify.data._files import atomic_write
+from ipcverify.data._fingerprints import ROWS_KEY, SCHEME
 from ipcverify.data._tables import refuse_unknown_columns
 from ipcverify.errors import InvalidInputError, ModelFileError
 from ipcverify.guard._domain import DomainModel
@@ -97,8 +104,8 @@ def save_model(model: IPCModel, path: str | os.PathLike[str]) -> None:
     Examples
     --------
     >>> import tempfile, os, numpy as np
-    >>> from ipcverify.network._modules import build_network
-    >>> m = IPCModel(build_network(ModelConfig(x_dim=2, y_dim=3, hidden=(8,))))
+    >>> from ipcverify import example
+    >>> m = example(config=ModelConfig(x_dim=2, y_dim=3, hidden=(8,))).model
     >>> p = os.path.join(tempfile.mkdtemp(), "model.pt")
     >>> save_model(m, p)
     >>> load_model(p).config.hidden
@@ -106,7 +113,8 @@ def save_model(model: IPCModel, path: str | os.PathLike[str]) -> None:
     """
     import torch
 
-    metadata = _plain(dict(model.metadata))
+    rows = {k: v for k, v in (model.metadata.get(ROWS_KEY) or {}).items() if v is not None}
+    metadata = _plain({k: v for k, v in model.metadata.items() if k != ROWS_KEY})
     calibration = None if model.calibration is None else _plain(model.calibration.to_dict())
     _check_plain(metadata, "metadata")
     _check_plain(calibration, "calibration")
@@ -124,6 +132,7 @@ def save_model(model: IPCModel, path: str | os.PathLike[str]) -> None:
         "metadata": metadata,
         "calibration": calibration,
         "domain": domain,
+        "row_fingerprints": None if not rows else _rows_payload(rows, torch.from_numpy),
     }
     atomic_write(path, lambda f: torch.save(payload, f))
 
@@ -193,10 +202,42 @@ def load_model(path: str | os.PathLike[str]) -> IPCModel:
             domain = DomainModel.from_dict(dict(payload["domain"]))
         except (KeyError, TypeError, ValueError, AttributeError) as exc:
             raise ModelFileError(f"{p}: damaged domain-of-validity record ({exc})") from None
+    metadata = dict(payload.get("metadata") or {})
+    if payload.get("row_fingerprints") is not None:
+        try:
+            metadata[ROWS_KEY] = _rows_record(payload["row_fingerprints"])
+        except (KeyError, TypeError, ValueError, AttributeError) as exc:
+            raise ModelFileError(f"{p}: damaged row-fingerprint record ({exc})") from None
     try:
-        return IPCModel(weights, calibration, payload.get("metadata") or {}, domain)
+        return IPCModel(weights, calibration, metadata, domain)
     except InvalidInputError as exc:
         raise ModelFileError(f"{p}: inconsistent model file ({exc})") from None
+
+
+def _rows_payload(rows: Mapping[str, Any], to_tensor: Any) -> dict[str, Any]:
+    """The row fingerprints as the model file holds them: each array's uint64 bits as an int64 tensor."""
+    out: dict[str, Any] = {"scheme": str(rows.get("scheme", SCHEME))}
+    for role, value in rows.items():
+        if role != "scheme":
+            out[role] = to_tensor(np.array(value, dtype=np.uint64).view(np.int64))  # a writable copy
+    return out
+
+
+def _rows_record(stored: Mapping[str, Any]) -> dict[str, Any]:
+    """The metadata record of the fingerprints a file holds (sorted distinct uint64 arrays, read-only)."""
+    record: dict[str, Any] = {"scheme": str(stored["scheme"])}
+    for role, value in stored.items():
+        if role == "scheme":
+            continue
+        arr = np.asarray(value)
+        if arr.dtype != np.int64 or arr.ndim != 1:
+            raise ValueError(f"{role}: expected a 1-D int64 array, got {arr.dtype} of shape {arr.shape}")
+        bits = np.ascontiguousarray(arr).view(np.uint64)
+        if len(bits) > 1 and not (bits[1:] > bits[:-1]).all():
+            raise ValueError(f"{role}: the fingerprints are not sorted and distinct")
+        bits.setflags(write=False)
+        record[str(role)] = bits
+    return record
 
 
 _REFUSED = (
@@ -265,13 +306,12 @@ def load_data_for_model(path: str | os.PathLike[str], model: IPCModel) -> Percep
     Examples
     --------
     >>> import tempfile, os
-    >>> from ipcverify.data._synthetic import make_lagged_perception
-    >>> from ipcverify.data._dataset import save_dataset
-    >>> from ipcverify.network._architecture import ModelConfig
+    >>> from ipcverify import example
+    >>> from ipcverify.data import save_dataset
+    >>> from ipcverify.network import ModelConfig
     >>> p = os.path.join(tempfile.mkdtemp(), "d.csv")
-    >>> save_dataset(make_lagged_perception(5, seed=0), p)
-    >>> from ipcverify.network._modules import build_network
-    >>> len(load_data_for_model(p, IPCModel(build_network(ModelConfig(x_dim=6, y_dim=3)))))
+    >>> save_dataset(example(5, seed=0).data, p)
+    >>> len(load_data_for_model(p, example(config=ModelConfig(x_dim=6, y_dim=3)).model))
     5
     """
     if Path(path).suffix.lower() == ".npz":
@@ -296,11 +336,11 @@ def load_inputs_for_model(path: str | os.PathLike[str], model: IPCModel) -> Perc
     --------
     >>> import tempfile, os
     >>> import numpy as np, pandas as pd
-    >>> from ipcverify.network._architecture import ModelConfig
+    >>> from ipcverify.network import ModelConfig
     >>> p = os.path.join(tempfile.mkdtemp(), "q.csv")
     >>> pd.DataFrame({"x_0": [0.0, 1.0], "yhat_0": [0.5, 0.5]}).to_csv(p, index=False)
-    >>> from ipcverify.network._modules import build_network
-    >>> load_inputs_for_model(p, IPCModel(build_network(ModelConfig(x_dim=1, y_dim=1)))).x.shape
+    >>> from ipcverify import example
+    >>> load_inputs_for_model(p, example(config=ModelConfig(x_dim=1, y_dim=1)).model).x.shape
     (2, 1)
     """
     if Path(path).suffix.lower() == ".npz":

@@ -36,10 +36,10 @@ the float64 engine.
 Examples
 --------
 >>> import os, tempfile
->>> from ipcverify.contract._model import IPCModel
->>> from ipcverify.network._modules import IPCNetwork
->>> from ipcverify.network._architecture import ModelConfig
->>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(8,), param="cholesky")))
+>>> from ipcverify import IPCModel
+>>> from ipcverify import example
+>>> from ipcverify.network import ModelConfig
+>>> m = example(config=ModelConfig(x_dim=2, y_dim=3, hidden=(8,), param="cholesky")).model
 >>> info = export_onnx(m, os.path.join(tempfile.mkdtemp(), "ipc.onnx"))  # doctest: +SKIP
 >>> info.calibrated  # doctest: +SKIP
 False
@@ -228,10 +228,10 @@ def check_domain_export(model: IPCModel, without_domain: bool) -> None:
 
     Examples
     --------
-    >>> from ipcverify.contract._model import IPCModel
-    >>> from ipcverify.network._modules import IPCNetwork
-    >>> from ipcverify.network._architecture import ModelConfig
-    >>> net = IPCNetwork(ModelConfig(x_dim=1, y_dim=1, hidden=(2,), param="cholesky"))
+    >>> from ipcverify import IPCModel
+    >>> from ipcverify import example
+    >>> from ipcverify.network import ModelConfig
+    >>> net = example(config=ModelConfig(x_dim=1, y_dim=1, hidden=(2,), param="cholesky")).model.network
     >>> check_domain_export(IPCModel(net), False)  # no domain test: nothing to leave out
     """
     dom = model.domain
@@ -355,7 +355,7 @@ def check_onnx(model: IPCModel, path: str | os.PathLike[str], x: FloatArray, yha
     sess = onnx_session(path)
     dtype = np.float64 if sess.get_inputs()[0].type == "tensor(double)" else np.float32
     center, shape = sess.run(["center", "shape"], {"x": x.astype(dtype), "yhat": yhat.astype(dtype)})
-    ref = model.predict(x, yhat)
+    ref = model.predict_unguarded(x, yhat)
     scale = _scale(model) or 1.0
     with torch.inference_mode():
         tc, tC, _ = model.network(

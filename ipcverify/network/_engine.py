@@ -136,9 +136,9 @@ class InferenceEngine(Engine):
     Examples
     --------
     >>> import numpy as np
-    >>> from ipcverify.network._modules import IPCNetwork
-    >>> from ipcverify.network._architecture import ModelConfig
-    >>> net = IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(8,), param="cholesky"))
+    >>> from ipcverify import example
+    >>> from ipcverify.network import ModelConfig
+    >>> net = example(config=ModelConfig(x_dim=2, y_dim=3, hidden=(8,), param="cholesky")).model.network
     >>> eng = InferenceEngine.from_network(net)
     >>> c, C = eng.batch(np.zeros((4, 2)), np.zeros((4, 3)))
     >>> c.shape, C.shape
@@ -263,8 +263,8 @@ class InferenceEngine(Engine):
 
         Examples
         --------
-        >>> from ipcverify.network._modules import IPCNetwork
-        >>> net = IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(8,), param="cholesky"))
+        >>> from ipcverify import example
+        >>> net = example(config=ModelConfig(x_dim=2, y_dim=3, hidden=(8,), param="cholesky")).model.network
         >>> eng = InferenceEngine.from_network(net)
         >>> c, C = eng.single_values(np.array([0.0, 1.0, 0.1, 0.2, 0.3]))
         >>> bool(np.allclose(C, eng.batch(np.array([[0.0, 1.0]]), np.array([[0.1, 0.2, 0.3]]))[1].ravel()))

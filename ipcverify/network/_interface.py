@@ -8,9 +8,9 @@ ipcverify uses that interface alone: it never asks which kind a network is.
 Examples
 --------
 >>> import numpy as np
->>> from ipcverify.network._architecture import ModelConfig
->>> from ipcverify.network._modules import build_network
->>> eng = engine_for(build_network(ModelConfig(x_dim=2, y_dim=3, hidden=(8,))))
+>>> from ipcverify.network import ModelConfig
+>>> from ipcverify import example
+>>> eng = engine_for(example(config=ModelConfig(x_dim=2, y_dim=3, hidden=(8,))).model.network)
 >>> isinstance(eng, Engine), type(eng).__name__
 (True, 'LowRankEngine')
 >>> center, shape = eng.single_values(np.zeros(5))
@@ -62,10 +62,9 @@ def engine_for(source: Network | NetworkWeights) -> Engine:
     Examples
     --------
     >>> import numpy as np
-    >>> from ipcverify.network._architecture import ModelConfig
-    >>> from ipcverify.network._weights import state_layout
-    >>> cfg = ModelConfig(x_dim=1, y_dim=2, hidden=(4,), members=2)
-    >>> w = NetworkWeights(cfg, {k: np.ones(s, t) for k, (s, t, _) in state_layout(cfg).items()})
+    >>> from ipcverify import example
+    >>> from ipcverify.network import ModelConfig
+    >>> w = example(config=ModelConfig(x_dim=1, y_dim=2, hidden=(4,), members=2)).model.weights
     >>> type(engine_for(w)).__name__
     'LowRankEngine'
     """

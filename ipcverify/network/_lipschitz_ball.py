@@ -55,8 +55,8 @@ class DataBox:
 
     Examples
     --------
-    >>> from ipcverify.data._synthetic import make_lagged_perception
-    >>> box = DataBox.from_dataset(make_lagged_perception(50, seed=0))
+    >>> from ipcverify import example
+    >>> box = DataBox.from_dataset(example(50, seed=0).data)
     >>> box.x_lo.shape, box.y_hi.shape
     ((6,), (3,))
     """

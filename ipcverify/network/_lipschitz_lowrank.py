@@ -77,7 +77,7 @@ def ensemble_scores(
 
     Examples
     --------
-    >>> from ipcverify.network._architecture import ModelConfig
+    >>> from ipcverify.network import ModelConfig
     >>> net = LowRankEnsemble(ModelConfig(x_dim=2, y_dim=3, hidden=(4,)))
     >>> x, y = torch.zeros(2, 2, dtype=torch.float64), torch.ones(2, 3, dtype=torch.float64)
     >>> g = ensemble_scores(net, x, y, torch.zeros(2, 3, dtype=torch.float64))
@@ -143,7 +143,7 @@ def ensemble_gradient_norms(
 
     Examples
     --------
-    >>> from ipcverify.network._architecture import ModelConfig
+    >>> from ipcverify.network import ModelConfig
     >>> net = LowRankEnsemble(ModelConfig(x_dim=2, y_dim=2, hidden=(4,), members=2))
     >>> ensemble_gradient_norms(net, np.ones((3, 2)), np.ones((3, 2)), np.zeros((3, 2))).shape
     (3,)
@@ -261,9 +261,9 @@ def sound_lipschitz_lowrank(network: LowRankEnsemble, box: DataBox, radius: floa
 
     Examples
     --------
-    >>> from ipcverify.network._architecture import ModelConfig
-    >>> from ipcverify.data._synthetic import make_lagged_perception
-    >>> ds = make_lagged_perception(100, seed=0)
+    >>> from ipcverify.network import ModelConfig
+    >>> from ipcverify import example
+    >>> ds = example(100, seed=0).data
     >>> net = LowRankEnsemble(ModelConfig(x_dim=6, y_dim=3, hidden=(8,), members=2))
     >>> _ = net.fit_normalisation(ds.x, ds.y, ds.yhat, ridge=1e-3)
     >>> bound = sound_lipschitz_lowrank(net, DataBox.from_dataset(ds), radius=0.1)

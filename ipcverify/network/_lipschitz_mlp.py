@@ -75,8 +75,9 @@ def mlp_gradient_norms(
 
     Examples
     --------
-    >>> from ipcverify.network._architecture import ModelConfig
-    >>> net = IPCNetwork(ModelConfig(x_dim=2, y_dim=2, hidden=(4,), param="cholesky"))
+    >>> from ipcverify import example
+    >>> from ipcverify.network import ModelConfig
+    >>> net = example(config=ModelConfig(x_dim=2, y_dim=2, hidden=(4,), param="cholesky")).model.network
     >>> mlp_gradient_norms(net, np.ones((3, 2)), np.ones((3, 2)), np.zeros((3, 2))).shape
     (3,)
     """
@@ -119,10 +120,10 @@ def sound_lipschitz_mlp(net: IPCNetwork, box: DataBox, radius: float) -> Lipschi
 
     Examples
     --------
-    >>> from ipcverify.network._architecture import ModelConfig
-    >>> from ipcverify.data._synthetic import make_lagged_perception
-    >>> net = IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(8,), param="cholesky"))
-    >>> ds = make_lagged_perception(100, seed=0)
+    >>> from ipcverify.network import ModelConfig
+    >>> from ipcverify import example
+    >>> net = example(config=ModelConfig(x_dim=6, y_dim=3, hidden=(8,), param="cholesky")).model.network
+    >>> ds = example(100, seed=0).data
     >>> bound = sound_lipschitz_mlp(net, DataBox.from_dataset(ds), 0.1)
     >>> bool(bound.value >= mlp_gradient_norms(net, ds.x, ds.y, ds.yhat).max())
     True

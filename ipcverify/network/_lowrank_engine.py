@@ -130,8 +130,8 @@ class LowRankEngine(Engine):
 
     Examples
     --------
-    >>> from ipcverify.network._lowrank import LowRankEnsemble
-    >>> net = LowRankEnsemble(ModelConfig(x_dim=2, y_dim=3, hidden=(8,)))
+    >>> from ipcverify import example
+    >>> net = example(config=ModelConfig(x_dim=2, y_dim=3, hidden=(8,))).model.network  # a low-rank ensemble
     >>> c, C = LowRankEngine.from_network(net).batch(np.zeros((4, 2)), np.zeros((4, 3)))
     >>> c.shape, C.shape
     ((4, 3), (4, 3, 3))

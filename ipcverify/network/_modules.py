@@ -102,7 +102,7 @@ class IPCNetwork(ScoredNetwork):
         last = self.body[-1]
         if not isinstance(last, nn.Linear):
             raise InvalidInputError(
-                f"the network's last layer is a {type(last).__name__}, not a Linear layer"
+                f"the network's last layer is of type {type(last).__name__}, not a Linear layer"
             )
         return last
 

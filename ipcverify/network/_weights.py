@@ -10,7 +10,7 @@ builds the torch network when training, the Lipschitz bound or the export need i
 
 Examples
 --------
->>> from ipcverify.network._architecture import ModelConfig
+>>> from ipcverify.network import ModelConfig
 >>> layout = state_layout(ModelConfig.recipe("v1", x_dim=2, y_dim=3, hidden=(4,)))
 >>> [(name, shape) for name, (shape, dtype, parameter) in layout.items() if parameter]
 [('body.0.weight', (4, 5)), ('body.0.bias', (4,)), ('body.2.weight', (9, 4)), ('body.2.bias', (9,))]

@@ -14,40 +14,13 @@ from ipcverify._package import lazy_exports
 
 if TYPE_CHECKING:
     from ipcverify.sets._box import Box
-    from ipcverify.sets._ellipsoid import Ellipsoid, unit_ball_log_volume
-    from ipcverify.sets._exact import (
-        ExactVector,
-        dyadic,
-        exact_vector,
-        float_up,
-        inverse,
-        matmul,
-        sqrt_upper,
-    )
-    from ipcverify.sets._faces import FacedSet
-    from ipcverify.sets._json import json_field, json_number, json_vector
-    from ipcverify.sets._outer import OuterSet, register_shape, registered_shapes
+    from ipcverify.sets._ellipsoid import Ellipsoid
     from ipcverify.sets._polytope import Polytope
 
 __all__ = [
     "Box",
     "Ellipsoid",
-    "ExactVector",
-    "FacedSet",
-    "OuterSet",
     "Polytope",
-    "dyadic",
-    "exact_vector",
-    "float_up",
-    "inverse",
-    "json_field",
-    "json_number",
-    "json_vector",
-    "matmul",
-    "register_shape",
-    "registered_shapes",
-    "sqrt_upper",
-    "unit_ball_log_volume",
 ]
 
 __getattr__, __dir__ = lazy_exports(__name__, __file__)

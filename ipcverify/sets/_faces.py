@@ -18,7 +18,7 @@ of the face's slack ``b - a^T c - ||C^{-T} a||`` (``proofs/containment.md``):
 Examples
 --------
 >>> import numpy as np
->>> from ipcverify.sets._polytope import Polytope
+>>> from ipcverify.sets import Polytope
 >>> p = Polytope([[1.0, 0.0], [0.0, 1.0]], [1.0, 2.0])
 >>> p.face_offsets(np.array([0.5, 0.5])).tolist()
 [0.5, 1.5]

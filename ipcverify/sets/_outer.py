@@ -19,7 +19,7 @@ A new shape is one file: a frozen dataclass that subclasses :class:`~ipcverify.s
 
 Examples
 --------
->>> from ipcverify.sets._box import Box
+>>> from ipcverify.sets import Box
 >>> b = Box([0.0], [1.0])
 >>> isinstance(b, OuterSet), b.kind, b.proof_form, b.methods[0]
 (True, 'box', 'faces', 'closed-form')

@@ -11,41 +11,11 @@ from typing import TYPE_CHECKING
 from ipcverify._package import lazy_exports
 
 if TYPE_CHECKING:
-    from ipcverify.training._objectives import (
-        Loss,
-        NonFiniteLossError,
-        Schedule,
-        TrainConfig,
-        hinge,
-        ipc_loss,
-        likelihood_loss,
-        objective,
-    )
-    from ipcverify.training._selection import (
-        Candidate,
-        HingeSelection,
-        SelectionRecord,
-    )
-    from ipcverify.training._train import (
-        TrainResult,
-        select_hinge,
-        train,
-    )
+    from ipcverify.training._objectives import TrainConfig
+    from ipcverify.training._train import train
 
 __all__ = [
-    "Candidate",
-    "HingeSelection",
-    "Loss",
-    "NonFiniteLossError",
-    "Schedule",
-    "SelectionRecord",
     "TrainConfig",
-    "TrainResult",
-    "hinge",
-    "ipc_loss",
-    "likelihood_loss",
-    "objective",
-    "select_hinge",
     "train",
 ]
 

@@ -103,8 +103,8 @@ def train_lowrank(
 
     Examples
     --------
-    >>> from ipcverify.data._synthetic import make_lagged_perception
-    >>> net, hist = train_lowrank(make_lagged_perception(300, seed=0), ModelConfig(x_dim=6, y_dim=3),
+    >>> from ipcverify import example
+    >>> net, hist = train_lowrank(example(300, seed=0).data, ModelConfig(x_dim=6, y_dim=3),
     ...                           TrainConfig(epochs=2))
     >>> net.members, len(hist)
     (5, 2)

@@ -24,6 +24,7 @@ from ipcverify.certification._theorem1 import TrainingStatistics
 from ipcverify.contract._model import IPCModel
 from ipcverify.data._checks import check_informative, input_ranges
 from ipcverify.data._dataset import PerceptionDataset
+from ipcverify.data._fingerprints import row_fingerprints, with_recorded_rows
 from ipcverify.errors import InvalidInputError
 from ipcverify.network._architecture import DEFAULT_RECIPE, ModelConfig
 from ipcverify.network._modules import IPCNetwork, Network
@@ -254,8 +255,8 @@ def select_hinge(
 
     Examples
     --------
-    >>> from ipcverify.data._synthetic import make_lagged_perception
-    >>> ds = make_lagged_perception(300, seed=0)
+    >>> from ipcverify import example
+    >>> ds = example(300, seed=0).data
     >>> mc = ModelConfig.recipe("paper", x_dim=6, y_dim=3, hidden=(8, 8))
     >>> tc, rec = select_hinge(ds, mc, TrainConfig.recipe("paper", epochs=1),
     ...                        HingeSelection(alphas=(0.1, 1.0), lams=(0.01,)))
@@ -389,8 +390,8 @@ def train(
 
     Examples
     --------
-    >>> from ipcverify.data._synthetic import make_lagged_perception
-    >>> ds = make_lagged_perception(200, seed=0)
+    >>> from ipcverify import example
+    >>> ds = example(200, seed=0).data
     >>> res = train(ds, train_config=TrainConfig(epochs=2))
     >>> len(res.history), res.model.config.members
     (2, 5)
@@ -439,6 +440,8 @@ def _train(
     }
     if record is not None:
         metadata["selection"] = record.to_dict()
+    # every training row's fingerprint: calibrate and certify refuse rows that are training rows
+    metadata = with_recorded_rows(metadata, "training", row_fingerprints(train_data))
     return TrainResult(IPCModel(net, None, metadata), history)
 
 

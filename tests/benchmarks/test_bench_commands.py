@@ -35,7 +35,7 @@ def test_the_commands_are_the_documented_ones(tmp_path):
     assert "reproduce_full" not in bench_commands.commands(tmp_path)  # only with --full
     assert described["certify_euroc"].startswith("docs/certify.md's EuRoC example")
     script = names["certify_euroc"][2]  # the same commands as docs/certify.md's example
-    for step in ("train train.csv --out model.pt", "--group-column flight", "--domain-alpha 0.2"):
+    for step in ("train train.csv --out model.pt", "--group-column flight", "--domain-flag-rate 0.2"):
         assert step in script and step in (Path(__file__).parents[2] / "docs" / "certify.md").read_text()
     assert set(bench_commands.TARGETS) == {"reproduce_quick", "reproduce_full"}
 

@@ -8,7 +8,7 @@ import numpy as np
 
 from benchmarks.docs_certify import FIGURES, main, run_example
 from ipcverify import load_model
-from ipcverify.contract import predict_sets
+from ipcverify.contract._prediction import predict_sets
 from ipcverify.data import PerceptionInputs, load_dataset
 
 QUICK = ("--epochs", "2")

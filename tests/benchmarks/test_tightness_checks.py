@@ -82,7 +82,7 @@ def test_the_default_recipe_beats_the_global_ellipsoid_by_a_fixed_margin():
     cal_data = make_hetlag(2000, 101)[0]
     test = make_hetlag(2000, 102)[0]
     model = train(train_data, train_config=TrainConfig(seed=0)).model
-    ipc = calibrate(model, cal_data, 0.05, 0.01).predict(test.x, test.yhat)
+    ipc = calibrate(model, cal_data, 0.05, 0.01).predict_unguarded(test.x, test.yhat)
     gm = fit_global_mahalanobis(train_data).calibrate(cal_data, 0.05, 0.01).predict(test.x, test.yhat)
     ratio = float(np.exp(ipc.log_volume()).mean() / np.exp(gm.log_volume()).mean())
     assert ratio < 0.25, ratio

@@ -19,6 +19,7 @@ from __future__ import annotations
 import ast
 import importlib
 import os
+import re
 import subprocess
 import sys
 import tomllib
@@ -33,7 +34,7 @@ from ipcverify._package import exported_names
 ROOT = Path(__file__).resolve().parents[2]
 LIBRARY = ROOT / "ipcverify"
 MAX_LINES = 500
-MAX_TOP_LEVEL_ENTRIES = 14
+MAX_TOP_LEVEL_ENTRIES = 15
 
 
 MODULE_FILES = module_files(ROOT, "ipcverify")
@@ -63,7 +64,7 @@ def _layers(graph: dict[str, set[str]]) -> dict[str, set[str]]:
 
 
 LAYERS = {
-    "data", "sets", "network", "training", "calibration", "guard", "contract", "io",
+    "data", "sets", "network", "training", "calibration", "guard", "contract", "io", "_wording",
     "certification", "decision", "cli", "demo", "errors", "_package",
 }  # fmt: skip
 
@@ -217,3 +218,36 @@ def test_license_file_matches_pyproject():
     text = (ROOT / "LICENSE").read_text(encoding="utf-8")
     assert project["license"] == "MIT" and text.startswith("MIT License")
     assert "Permission is hereby granted, free of charge" in text
+
+
+#: The public API's size (issue 39): every name a package, its sub-packages and ``ipcverify.errors`` export.
+MAX_PUBLIC_NAMES = 60
+
+
+def public_names() -> set[str]:
+    """Every name of the ``__all__`` of ipcverify's packages and of ``ipcverify.errors`` (no dunders)."""
+    names: set[str] = set()
+    for name, path in MODULES.items():
+        if path.name == "__init__.py" or name == "ipcverify.errors":
+            module = importlib.import_module(name)
+            names |= {n for n in getattr(module, "__all__", ()) if not n.startswith("__")}
+    return names
+
+
+def test_the_public_api_has_at_most_sixty_names():
+    names = public_names()
+    assert len(names) <= MAX_PUBLIC_NAMES, sorted(names)
+    assert {"train", "calibrate", "certify", "example", "IPCModel", "Grouped", "plan_runs"} <= names
+
+
+DOCTEST_IMPORT = re.compile(r"^\s*(?:>>>|\.\.\.)\s+(?:from|import)\s+(ipcverify[\w.]*)")
+
+
+def test_no_doctest_imports_a_private_module():
+    found = []
+    for path in MODULES.values():
+        for i, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
+            m = DOCTEST_IMPORT.match(line)
+            if m and any(part.startswith("_") for part in m.group(1).split(".")):
+                found.append(f"{path.relative_to(ROOT)}:{i}: {line.strip()}")
+    assert not found, "\n".join(found)

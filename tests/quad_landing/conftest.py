@@ -31,7 +31,8 @@ def make_ipc() -> Callable[[bool], IPCModel]:
             m = IPCModel(IPCNetwork(ModelConfig(x_dim=12, y_dim=3, hidden=(4,), param="cholesky")))
         if not calibrated:
             return m
-        from ipcverify.calibration import GlobalCalibration, threshold_scores
+        from ipcverify.calibration._global_scale import GlobalCalibration
+        from ipcverify.calibration._threshold import threshold_scores
         from ipcverify.contract._model import network_fingerprint
 
         t = threshold_scores(np.linspace(0.1, 1.0, 200), 0.1, 0.1, "marginal")

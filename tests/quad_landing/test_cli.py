@@ -26,6 +26,15 @@ def test_cli_collect_writes_the_dataset(tmp_path, capsys):
     assert code == 0 and out.exists() and (tmp_path / "data.stats.json").exists()
     assert len(pd.read_parquet(out)) == 25
     assert "25 samples" in stdout and "detection rate" in stdout
+    (tmp_path / "data.stats.json").write_text("{}", encoding="utf-8")  # an earlier run's
+    code, _, stderr = _run(capsys, "collect", "--n", "5", "--out", out, "--quiet")
+    assert code == 2 and stderr == (
+        f"error: --out {out}: data.parquet and data.stats.json exist; pass --force to replace them, or "
+        "choose another path\n"
+    )
+    assert len(pd.read_parquet(out)) == 25
+    code, _, _ = _run(capsys, "collect", "--n", "5", "--seed", "3", "--out", out, "--quiet", "--force")
+    assert code == 0 and len(pd.read_parquet(out)) == 5
 
 
 @pytest.mark.parametrize(

@@ -36,7 +36,7 @@ from case_studies.quad_landing.sim.camera import check_buffer_size
 from case_studies.quad_landing.sim.config import SimConfig, load_config
 from case_studies.quad_landing.sim.flight import Flight
 from case_studies.quad_landing.sim.paths import TEMPLATES, ExplorationPath, fit_to_view, make_path
-from ipcverify.data import atomic_write
+from ipcverify.data._files import atomic_write
 from ipcverify.errors import InvalidInputError
 
 __all__ = [

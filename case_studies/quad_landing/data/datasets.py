@@ -63,7 +63,8 @@ from case_studies.quad_landing.sim.camera import (
 )
 from case_studies.quad_landing.sim.config import SimConfig, load_config
 from case_studies.quad_landing.sim.flight import Flight
-from ipcverify.data import PerceptionDataset, atomic_write
+from ipcverify.data import PerceptionDataset
+from ipcverify.data._files import atomic_write
 from ipcverify.errors import InvalidInputError
 
 __all__ = [

@@ -33,7 +33,8 @@ import numpy as np
 from case_studies.quad_landing.sim.flight import Measurement
 from case_studies.quad_landing.sim.frames import transform_ellipsoid
 from ipcverify.contract import IPCModel
-from ipcverify.decision import IPCQuery, LandingQuery, LandingRule, QueryDecision
+from ipcverify.decision import IPCQuery, LandingQuery
+from ipcverify.decision._landing import LandingRule, QueryDecision
 from ipcverify.errors import InvalidInputError
 from ipcverify.sets import Box
 

@@ -66,10 +66,12 @@ from case_studies.quad_landing.sim.config import SimConfig
 from case_studies.quad_landing.sim.flight import Flight, Measurement
 from case_studies.quad_landing.sim.legs import clamp_to_workspace, fly_leg
 from case_studies.quad_landing.sim.lqr import SettleParams
-from ipcverify.decision import QueryDecision, check_landing
+from ipcverify.decision import check_landing
+from ipcverify.decision._landing import QueryDecision
 from ipcverify.decision.containment import Status
 from ipcverify.errors import InvalidInputError, SetError
-from ipcverify.sets import Box, Ellipsoid, ExactVector, exact_vector
+from ipcverify.sets import Box, Ellipsoid
+from ipcverify.sets._exact import ExactVector, exact_vector
 
 __all__ = [
     "LandingParams",

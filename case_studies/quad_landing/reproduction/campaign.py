@@ -49,7 +49,7 @@ from case_studies.quad_landing.landing.scenario import ScenarioParams, draw_scen
 from case_studies.quad_landing.landing.state_machine import LandingParams, run_landing
 from case_studies.quad_landing.sim.config import SimConfig
 from case_studies.quad_landing.sim.flight import Flight
-from ipcverify.calibration import (
+from ipcverify.calibration._bounds import (
     clopper_pearson_interval,
     clopper_pearson_lower,
     clopper_pearson_upper,

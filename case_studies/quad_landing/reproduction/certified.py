@@ -46,7 +46,7 @@ from typing import Any
 import numpy as np
 
 from case_studies.quad_landing.landing.runs import LandingRun, Outcome
-from ipcverify.calibration import (
+from ipcverify.calibration._bounds import (
     clopper_pearson_interval,
     clopper_pearson_lower,
     clopper_pearson_upper,

@@ -46,8 +46,9 @@ from case_studies.quad_landing.settings import (
 )
 from case_studies.quad_landing.sim.camera import BufferSize, check_buffer_size
 from ipcverify.errors import InvalidInputError
-from ipcverify.network import RECIPES
-from ipcverify.training import HingeSelection, TrainConfig
+from ipcverify.network._architecture import RECIPES
+from ipcverify.training import TrainConfig
+from ipcverify.training._selection import HingeSelection
 
 __all__ = [
     "IpcParams",

@@ -33,7 +33,7 @@ from case_studies.quad_landing.reproduction.certified import CertifiedBound, Emp
 from case_studies.quad_landing.reproduction.claims import Claim, table1_claims
 from case_studies.quad_landing.reproduction.run import CertificateRecord
 from case_studies.quad_landing.reproduction.table1 import Table1
-from ipcverify.calibration import CalibrationSummary
+from ipcverify.calibration._protocol import CalibrationSummary
 from ipcverify.errors import InvalidInputError
 from ipcverify.sets import Box
 

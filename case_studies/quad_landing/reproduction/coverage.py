@@ -25,7 +25,7 @@ import numpy as np
 from case_studies.quad_landing.arrays import FloatArray
 from case_studies.quad_landing.landing.runs import LandingRun
 from case_studies.quad_landing.reproduction.record import Record
-from ipcverify.calibration import clopper_pearson_interval, clopper_pearson_lower
+from ipcverify.calibration._bounds import clopper_pearson_interval, clopper_pearson_lower
 from ipcverify.contract import IPCModel
 from ipcverify.data import PerceptionDataset
 from ipcverify.errors import InvalidInputError
@@ -144,10 +144,10 @@ def coverage_check(
     )
     common: dict[str, Any] = {
         "method": domain.method,
-        "quantile": 1.0 - domain.alpha,
+        "quantile": 1.0 - domain.flag_rate,
         "threshold": domain.threshold,
         "test": held_out,
-        "null_rate": domain.alpha,
+        "null_rate": domain.flag_rate,
         "confidence": 1 - delta,
     }
     qs = [(i, q) for r in runs for i, q in enumerate(r.queries) if q.detected and q.x_c is not None]
@@ -174,7 +174,7 @@ def coverage_check(
     return CoverageCheck(
         **common,
         groups=groups,
-        shift_detected=bool(any(g.lower > domain.alpha for g in groups.values())),
+        shift_detected=bool(any(g.lower > domain.flag_rate for g in groups.values())),
         distances={"queries": d.tolist(), "test": np.sort(test_d).tolist()},
         feature_range=_feature_ranges(calibration_data, test_data, x, yh),
     )

@@ -32,7 +32,7 @@ from case_studies.quad_landing.reproduction.coverage import CoverageCheck
 from case_studies.quad_landing.reproduction.learn import FlightLevelCheck
 from case_studies.quad_landing.reproduction.record import Record
 from case_studies.quad_landing.reproduction.run import CertificateRecord
-from ipcverify.calibration import CalibrationSummary
+from ipcverify.calibration._protocol import CalibrationSummary
 from ipcverify.errors import InvalidInputError
 
 __all__ = [

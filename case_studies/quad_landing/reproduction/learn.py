@@ -44,9 +44,11 @@ import torch
 
 from case_studies.quad_landing.reproduction.config import IpcParams
 from case_studies.quad_landing.reproduction.record import Record
-from ipcverify.calibration import CalibrationSummary, Global, Grouped
+from ipcverify.calibration import Global, Grouped, plan_runs
+from ipcverify.calibration._protocol import CalibrationSummary
 from ipcverify.contract import IPCModel, calibrate
-from ipcverify.data import PerceptionDataset, atomic_write
+from ipcverify.data import PerceptionDataset
+from ipcverify.data._files import atomic_write
 from ipcverify.errors import Hint, ModelFileError, SampleSizeError
 from ipcverify.guard import DomainSpec
 from ipcverify.io import load_model, save_model
@@ -118,7 +120,7 @@ def row_level_calibration(
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", Hint)
         return calibrate(model, calibration_data, epsilon, delta, Global(mode="pac"),
-                         domain=DomainSpec(alpha=alpha, group_column=by))  # fmt: skip
+                         domain=DomainSpec(flag_rate=alpha, group_column=by))  # fmt: skip
 
 
 def domain_groups(calibration_data: PerceptionDataset, alpha: float) -> str | None:
@@ -175,6 +177,11 @@ class FlightLevelCheck(Record):
     flight_scale: float | None = None
     flight_guarantee: str | None = None
     flight_mean_violation_fraction: Any = None
+    run_floor: float | None = None
+    run_epsilon: float | None = None
+    run_scale: float | None = None
+    run_guarantee: str | None = None
+    run_mean_share: float | None = None
 
 
 def flight_level_check(
@@ -210,9 +217,22 @@ def flight_level_check(
         row_guarantee=row.guarantee,
         row_scale_mean_violation_fraction=_mean_flight_violations(model, calibration_data, row_scale),
     )
+    plan = plan_runs(check.n_flights, row.delta)
+    target = max(float(epsilon), float(plan.claim("expected-share").smallest or 1.0))
+    if target < 1.0:
+        pac = calibrate(model, calibration_data, target, row.delta, Grouped(column="flight"), domain=None,
+                        recalibrate=True).require_calibration().summary()  # fmt: skip
+        check = dataclasses.replace(
+            check,
+            run_floor=plan.floor,
+            run_epsilon=target,
+            run_scale=float(pac.groups[0].scale),
+            run_guarantee=pac.guarantee,
+            run_mean_share=pac.details.get("risk"),
+        )
     try:
         by_flight = calibrate(model, calibration_data, epsilon, row.delta,
-                              Grouped(column="flight", guarantee="sample", mode="marginal"),
+                              Grouped(column="flight", guarantee="expected-share", mode="marginal"),
                               domain=None, recalibrate=True)  # fmt: skip
     except SampleSizeError:
         return check

@@ -48,7 +48,8 @@ from case_studies.quad_landing.reproduction.figures import figure_png
 from case_studies.quad_landing.reproduction.table1 import table1
 from case_studies.quad_landing.sim.config import SimConfig, load_config
 from ipcverify.contract import IPCModel
-from ipcverify.data import PerceptionDataset, atomic_write, write_json
+from ipcverify.data import PerceptionDataset
+from ipcverify.data._files import atomic_write, write_json
 from ipcverify.errors import InvalidInputError
 from ipcverify.io import load_model
 from ipcverify.network import ModelConfig

@@ -30,7 +30,8 @@ import torch
 from case_studies.quad_landing.reproduction.config import PaperParams
 from case_studies.quad_landing.reproduction.learn import row_level_calibration
 from ipcverify.contract import IPCModel
-from ipcverify.data import PerceptionDataset, atomic_write
+from ipcverify.data import PerceptionDataset
+from ipcverify.data._files import atomic_write
 from ipcverify.errors import ModelFileError
 from ipcverify.io import load_model, save_model
 from ipcverify.network import ModelConfig

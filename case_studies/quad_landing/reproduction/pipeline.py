@@ -74,7 +74,8 @@ from case_studies.quad_landing.reproduction.variants import (
 )
 from case_studies.quad_landing.sim.config import SimConfig, load_config
 from ipcverify.contract import IPCModel
-from ipcverify.data import PerceptionDataset, atomic_write, json_data, write_json
+from ipcverify.data import PerceptionDataset
+from ipcverify.data._files import atomic_write, json_data, write_json
 from ipcverify.errors import InvalidInputError
 
 __all__ = ["SEEDS", "PAPER_LANDING", "REPORT_DELTA", "ReproduceResult", "reproduce"]

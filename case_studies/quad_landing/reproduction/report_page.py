@@ -330,6 +330,13 @@ def _flight_scale(fl: Mapping[str, Any]) -> str:
     return f"not attainable: ε = {fl['epsilon']:g} needs at least {need} flights, {fl['n_flights']} given"
 
 
+def _run_claim(fl: Mapping[str, Any]) -> str:
+    """The run-level PAC claim of a contract's network: its epsilon and scale (or why there is none)."""
+    if not fl or fl.get("run_scale") is None:
+        return "—"
+    return f"ε = {fl['run_epsilon']:.3g}, scale {fl['run_scale']:.3g} (floor {fl['run_floor']:.3g})"
+
+
 def _ipcs(summary: Mapping[str, Any]) -> str:
     rows = []
     for info in (summary.get("ipc") or {}).values():
@@ -341,7 +348,7 @@ def _ipcs(summary: Mapping[str, Any]) -> str:
             num(c["certified_epsilon"]),
             esc(cert["status"]), esc(f"{cert['test']['violations']}/{cert['test']['n']}"),
             esc(_flights_out(cert.get("group_test"))),
-            esc(f"{fl['row_scale']:.3g}" if fl else "—"), esc(by_flight),
+            esc(f"{fl['row_scale']:.3g}" if fl else "—"), esc(by_flight), esc(_run_claim(fl)),
         ])  # fmt: skip
     if not rows:
         return ""
@@ -351,12 +358,17 @@ def _ipcs(summary: Mapping[str, Any]) -> str:
         "exchangeable units (conformal risk control, marginal: a new flight's expected share of "
         "samples outside is at most ε). With about a hundred flights that guarantee must leave "
         "room for a whole new flight outside its sets, so its scale is larger; the landing keeps "
-        "the row-level PAC calibration its certified bound is derived for.</p>"
+        "the row-level PAC calibration its certified bound is derived for. The last column is the "
+        "run-level PAC claim (proofs/run_claims.md): with probability 1 − δ a new flight's expected share "
+        "of samples outside is at most the ε shown, the smallest its flights can certify when they "
+        "cannot certify the row-level ε (no claim about a new flight goes below 1 − δ^(1/G)).</p>"
     )
     return "<h2>5. The learned IPCs</h2>" + table(
         ["IPC", "parameters", "calibration", "certified ε", "certificate", "held-out violations",
-         "held-out flights with a violation", "scale (rows)", "scale (flights)"], rows,
-        "Table 7. The IPCs and their certificates (ipcverify certify on held-out data).", text=(0, 2, 4, 8),
+         "held-out flights with a violation", "scale (rows)", "scale (flights)",
+         "run-level PAC claim (flights)"], rows,
+        "Table 7. The IPCs and their certificates (ipcverify certify on held-out data).",
+        text=(0, 2, 4, 8, 9),
     ) + note  # fmt: skip
 
 

@@ -32,7 +32,7 @@ from ipcverify.data import PerceptionDataset
 from ipcverify.errors import InvalidInputError
 
 if TYPE_CHECKING:
-    from ipcverify.certification import GroupTest, TestResult
+    from ipcverify.certification._test_result import GroupTest, TestResult
 
 __all__ = [
     "SEEDS",

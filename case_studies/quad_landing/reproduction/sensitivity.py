@@ -38,7 +38,7 @@ from case_studies.quad_landing.reproduction.variants import (
     variant_tables,
 )
 from case_studies.quad_landing.sim.config import SimConfig, load_config
-from ipcverify.data import atomic_write, json_data, write_json
+from ipcverify.data._files import atomic_write, json_data, write_json
 from ipcverify.errors import InvalidInputError
 
 __all__ = ["run_sensitivity", "study_markdown"]

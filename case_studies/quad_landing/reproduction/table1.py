@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from case_studies.quad_landing.reproduction.record import Record
-from ipcverify.calibration import clopper_pearson_interval, clopper_pearson_upper
+from ipcverify.calibration._bounds import clopper_pearson_interval, clopper_pearson_upper
 from ipcverify.contract import IPCModel
 from ipcverify.data import PerceptionDataset
 from ipcverify.errors import InvalidInputError
@@ -166,9 +166,9 @@ def table1(model: IPCModel, tests: Mapping[int, PerceptionDataset], delta: float
 
     Examples
     --------
-    >>> from ipcverify.network import IPCNetwork
+    >>> from ipcverify import example
     >>> from ipcverify.network import ModelConfig
-    >>> m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(4,), param="cholesky")))
+    >>> m = example(10, config=ModelConfig(x_dim=2, y_dim=3, hidden=(4,), param="cholesky")).model
     >>> ds = PerceptionDataset(np.zeros((10, 2)), np.ones((10, 3)) * 100, np.zeros((10, 3)))
     >>> table1(m, {1: ds}).row(1).violations
     10
@@ -182,7 +182,7 @@ def table1(model: IPCModel, tests: Mapping[int, PerceptionDataset], delta: float
 
 
 def _row(model: IPCModel, b: int, data: PerceptionDataset, each: float, confidence: float) -> Table1Row:
-    violated = ~model.predict(data.x, data.yhat).contains(data.y)
+    violated = ~model.predict_unguarded(data.x, data.yhat).contains(data.y)
     n, k = len(data), int(violated.sum())
     paths = hit = None
     if "path" in data.extra:

@@ -67,75 +67,13 @@ from typing import TYPE_CHECKING
 from ipcverify._package import lazy_exports
 
 if TYPE_CHECKING:
-    from ipcverify.decision.containment._certificate import (
-        ContainmentCertificate,
-        Verification,
-        certificate_from_dict,
-        verify,
-    )
-    from ipcverify.decision.containment._closed_form import (
-        prove_closed_form,
-    )
-    from ipcverify.decision.containment._face_lmi import (
-        FaceSystem,
-        face_centre,
-    )
-    from ipcverify.decision.containment._face_sdp import (
-        POLISH_TOLERANCE,
-        prove_sdp_faces,
-        solve_face_sdp,
-    )
-    from ipcverify.decision.containment._io import (
-        problem_from_dict,
-        set_from_dict,
-        set_to_dict,
-    )
-    from ipcverify.decision.containment._margin import (
-        contained_float,
-        support_slack,
-    )
-    from ipcverify.decision.containment._prove import (
-        prove,
-        prove_batch,
-    )
-    from ipcverify.decision.containment._rounding import (
-        support_slack_bounds,
-    )
-    from ipcverify.decision.containment._sdp import (
-        normalised,
-        prove_sdp,
-        sdp_problem,
-        trust_region_maximiser,
-    )
-    from ipcverify.decision.containment._status import (
-        Method,
-        Status,
-    )
+    from ipcverify.decision.containment._certificate import verify
+    from ipcverify.decision.containment._prove import prove
+    from ipcverify.decision.containment._status import Status
 
 __all__ = [
-    "POLISH_TOLERANCE",
-    "ContainmentCertificate",
-    "FaceSystem",
-    "Method",
     "Status",
-    "Verification",
-    "certificate_from_dict",
-    "contained_float",
-    "face_centre",
-    "normalised",
-    "problem_from_dict",
     "prove",
-    "prove_batch",
-    "prove_closed_form",
-    "prove_sdp",
-    "prove_sdp_faces",
-    "sdp_problem",
-    "set_from_dict",
-    "set_to_dict",
-    "solve_face_sdp",
-    "support_slack",
-    "support_slack_bounds",
-    "trust_region_maximiser",
     "verify",
 ]
 

@@ -8,7 +8,7 @@ registered ones (:func:`~ipcverify.sets.register_shape`).
 
 Examples
 --------
->>> from ipcverify.sets._box import Box
+>>> from ipcverify.sets import Box
 >>> set_from_dict(set_to_dict(Box([0.0], [1.0]))).upper
 array([1.])
 """
@@ -37,12 +37,14 @@ def set_to_dict(s: OuterSet) -> dict[str, Any]:
 
     Examples
     --------
-    >>> from ipcverify.sets._box import Box
+    >>> from ipcverify.sets import Box
     >>> set_to_dict(Box([0.0], [1.0]))
     {'type': 'box', 'lower': [0.0], 'upper': [1.0]}
     """
     if not isinstance(s, OuterSet):
-        raise SetError(f"cannot serialise a {type(s).__name__}; expected Box, Polytope or Ellipsoid")
+        raise SetError(
+            f"cannot serialise an object of type {type(s).__name__}; expected Box, Polytope or Ellipsoid"
+        )
     return s.to_set_dict()
 
 

@@ -38,7 +38,7 @@ def support_slack(inner: Ellipsoid, outer: FacedSet) -> FloatArray:
     Examples
     --------
     >>> import numpy as np
-    >>> from ipcverify.sets._box import Box
+    >>> from ipcverify.sets import Box
     >>> e = Ellipsoid(np.zeros((1, 1)), np.full((1, 1, 1), 2.0))  # [-0.5, 0.5]
     >>> support_slack(e, Box([-1.0], [1.0]))
     array([[0.5, 0.5]])
@@ -76,7 +76,7 @@ def contained_float(inner: Ellipsoid, outer: FacedSet) -> NDArray[np.bool_]:
     Examples
     --------
     >>> import numpy as np
-    >>> from ipcverify.sets._box import Box
+    >>> from ipcverify.sets import Box
     >>> e = Ellipsoid(np.zeros((2, 1)), np.array([[[2.0]], [[0.5]]]))
     >>> contained_float(e, Box([-1.0], [1.0])).tolist()
     [True, False]

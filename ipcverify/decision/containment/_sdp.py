@@ -9,7 +9,7 @@ trust-region maximiser of the normalised problem, checked exactly.
 Examples
 --------
 >>> import numpy as np
->>> from ipcverify.sets._ellipsoid import Ellipsoid
+>>> from ipcverify.sets import Ellipsoid
 >>> ball = Ellipsoid(np.zeros(2), np.eye(2))
 >>> prove_sdp(ball, ball.scaled(2.0)).status.name, prove_sdp(ball.scaled(2.0), ball).status.name
 ('PROVEN', 'REFUTED')

@@ -86,8 +86,8 @@ def check_method(method: Method, outer: OuterSet) -> None:
     Examples
     --------
     >>> import numpy as np
-    >>> from ipcverify.sets._box import Box
-    >>> from ipcverify.sets._ellipsoid import Ellipsoid
+    >>> from ipcverify.sets import Box
+    >>> from ipcverify.sets import Ellipsoid
     >>> check_method(Method.SOCP, Ellipsoid(np.zeros(1), np.eye(1)))  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
@@ -111,7 +111,7 @@ def default_method(outer: OuterSet) -> Method:
     Examples
     --------
     >>> import numpy as np
-    >>> from ipcverify.sets._ellipsoid import Ellipsoid
+    >>> from ipcverify.sets import Ellipsoid
     >>> default_method(Ellipsoid(np.zeros(1), np.eye(1))).value
     'sdp'
     """

@@ -17,57 +17,16 @@ from typing import TYPE_CHECKING
 from ipcverify._package import lazy_exports
 
 if TYPE_CHECKING:
-    from ipcverify.io.ingest._align import (
-        Alignment,
-    )
-    from ipcverify.io.ingest._api import (
-        ingest_bags,
-        ingest_trajectories,
-    )
-    from ipcverify.io.ingest._bagio import (
-        BagContents,
-        PoseRequest,
-        TopicInfo,
-        list_topics,
-        read_bag,
-    )
-    from ipcverify.io.ingest._formats import (
-        FORMATS,
-        FileTrajectory,
-        read_trajectory,
-    )
-    from ipcverify.io.ingest._manifest import (
-        write_ingested,
-    )
-    from ipcverify.io.ingest._quantity import (
-        QUANTITIES,
-        STATE_COLUMNS,
-    )
-    from ipcverify.io.ingest._samples import (
-        IngestOptions,
-        RunData,
-    )
-    from ipcverify.io.ingest._trajectory import (
-        Trajectory,
-    )
+    from ipcverify.io.ingest._api import ingest_bags, ingest_trajectories
+    from ipcverify.io.ingest._bagio import list_topics
+    from ipcverify.io.ingest._manifest import write_ingested
+    from ipcverify.io.ingest._samples import IngestOptions
 
 __all__ = [
-    "FORMATS",
-    "QUANTITIES",
-    "STATE_COLUMNS",
-    "Alignment",
-    "BagContents",
-    "FileTrajectory",
     "IngestOptions",
-    "PoseRequest",
-    "RunData",
-    "TopicInfo",
-    "Trajectory",
     "ingest_bags",
     "ingest_trajectories",
     "list_topics",
-    "read_bag",
-    "read_trajectory",
     "write_ingested",
 ]
 

@@ -164,7 +164,7 @@ def field_reader(path: str) -> Callable[[Any], float]:
             return float(value)
         except (TypeError, ValueError):
             raise DataError(
-                f"state field {path!r} is not a number (it is a {type(value).__name__})"
+                f"state field {path!r} is not a number (its type is {type(value).__name__})"
             ) from None
 
     return read

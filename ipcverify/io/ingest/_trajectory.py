@@ -72,17 +72,22 @@ class Trajectory:
             bad = ~np.isfinite(a)
             if bad.any():
                 row = int(np.argwhere(bad)[0][0])
-                raise DataError(f"{self.source}: pose {row}: non-finite {name}; drop or repair that pose")
+                raise DataError(
+                    f"{self.source}: pose {row} (0-based): non-finite {name}; drop or repair that pose"
+                )
         norm = np.linalg.norm(q, axis=1)
         if (norm == 0).any():
             row = int(np.flatnonzero(norm == 0)[0])
-            raise DataError(f"{self.source}: pose {row}: quaternion of length 0; drop or repair that pose")
+            raise DataError(
+                f"{self.source}: pose {row} (0-based): quaternion of length 0; drop or repair that pose"
+            )
         back = np.flatnonzero(np.diff(t) <= 0)
         if back.size:
             i = int(back[0]) + 1
             raise DataError(
-                f"{self.source}: pose {i}: stamp {float(t[i])!r} does not follow {float(t[i - 1])!r}; "
-                "stamps must increase (Trajectory.from_unsorted sorts and drops repeated stamps)"
+                f"{self.source}: pose {i} (0-based): stamp {float(t[i])!r} does not follow "
+                f"{float(t[i - 1])!r}; stamps must increase (Trajectory.from_unsorted sorts and drops "
+                "repeated stamps)"
             )
         q = q / norm[:, None]
         for a in (t, p, q):

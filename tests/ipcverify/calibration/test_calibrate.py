@@ -10,16 +10,12 @@ import pytest
 import torch
 from scipy import stats
 
-from ipcverify.calibration import (
-    SCALE_MARGIN,
-    Global,
-    GlobalCalibration,
-    Mondrian,
-    MondrianCalibration,
-    calibration_from_dict,
-    threshold_scores,
-)
+from ipcverify.calibration import Global, Mondrian
 from ipcverify.calibration._bounds import marginal_conformal_index, pac_calibration_index
+from ipcverify.calibration._global_scale import GlobalCalibration
+from ipcverify.calibration._kinds import calibration_from_dict
+from ipcverify.calibration._mondrian import MondrianCalibration
+from ipcverify.calibration._threshold import SCALE_MARGIN, threshold_scores
 from ipcverify.contract._calibrate import calibrate
 from ipcverify.contract._model import network_fingerprint
 from ipcverify.data._dataset import PerceptionDataset
@@ -84,7 +80,7 @@ def test_calibrate_attaches_a_global_scale(model, cal_data):
     assert cal.data_hash == cal_data.content_hash()
     assert cal.network_hash == network_fingerprint(model.network)
     # predict uses E(c, C / s): a truth is inside iff its raw score is <= s
-    sets = cal_model.predict(cal_data.x, cal_data.yhat)
+    sets = cal_model.predict_unguarded(cal_data.x, cal_data.yhat)
     raw = model.predict_raw(cal_data.x, cal_data.yhat)
     np.testing.assert_allclose(sets.shapes, raw.shapes / cal.threshold.scale, rtol=1e-12)
     assert (sets.contains(cal_data.y) == (scores <= cal.threshold.scale)).all()
@@ -97,7 +93,8 @@ def test_calibration_survives_the_model_file(model, cal_data, tmp_path):
     back = load_model(tmp_path / "m.pt")
     assert back.calibration == cal_model.calibration
     np.testing.assert_array_equal(
-        back.predict(cal_data.x, cal_data.yhat).shapes, cal_model.predict(cal_data.x, cal_data.yhat).shapes
+        back.predict_unguarded(cal_data.x, cal_data.yhat).shapes,
+        cal_model.predict_unguarded(cal_data.x, cal_data.yhat).shapes,
     )
 
 
@@ -160,7 +157,9 @@ def test_refusals_have_messages(model, cal_data):
 def test_refuses_the_training_data():
     data = make_lagged_perception(900, seed=5)
     m = train(data, ModelConfig(x_dim=6, y_dim=3, hidden=(4,)), TrainConfig(epochs=1)).model
-    with pytest.raises(InvalidInputError, match=r"this is the model's training data"):
+    with pytest.raises(
+        InvalidInputError, match=r"900 of 900 calibration rows are rows of the model's training data"
+    ):
         calibrate(m, data, 0.05, 0.01)
 
 
@@ -183,7 +182,7 @@ def test_mondrian_discrete_groups(model):
     unseen = data.x[:5].copy()
     unseen[:, 2] = 7.0
     with pytest.raises(InvalidInputError, match=r"value 7, a group never seen in calibration"):
-        cm.predict(unseen, data.yhat[:5])
+        cm.predict_unguarded(unseen, data.yhat[:5])
 
 
 def test_mondrian_too_small_group_is_refused(model):
@@ -249,7 +248,7 @@ def test_end_to_end_pac_through_calibrate(model, pool):
         s = cm.calibration.threshold.scale
         bad += np.mean(scores > s) > eps
         if i == 0:  # the sets the model predicts agree with the score rule
-            inside = cm.predict(data.x[:5000], data.yhat[:5000]).contains(data.y[:5000])
+            inside = cm.predict_unguarded(data.x[:5000], data.yhat[:5000]).contains(data.y[:5000])
             assert (inside == (scores[:5000] <= s)).all()
     assert stats.binom.sf(bad - 1, reps, delta) >= ALPHA_E2E
 

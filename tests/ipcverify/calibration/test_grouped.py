@@ -28,15 +28,14 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from ipcverify.calibration import (
-    CalibrationSummary,
-    GroupedCalibration,
-    calibration_from_dict,
-    group_violation_counts,
-    risk_control_threshold,
-    threshold_scores,
-)
 from ipcverify.calibration._bounds import min_calibration_size, smallest_epsilon
+from ipcverify.calibration._group_counts import group_violation_counts
+from ipcverify.calibration._group_fit import runs_needed, smallest_run_rate
+from ipcverify.calibration._grouped import GroupedCalibration
+from ipcverify.calibration._kinds import calibration_from_dict
+from ipcverify.calibration._protocol import CalibrationSummary
+from ipcverify.calibration._risk_control import risk_control_threshold
+from ipcverify.calibration._threshold import threshold_scores
 from ipcverify.errors import DataError, InvalidInputError, SampleSizeError
 
 SB, SE = 1.0, 0.5
@@ -68,6 +67,19 @@ def _sample_violation(t: np.ndarray, sb: float = SB) -> np.ndarray:
     return 2.0 * stats.norm.sf(np.asarray(t) / math.hypot(sb, SE))
 
 
+#: The within-run share of the share-of-runs claim tested here (its gamma is each case's epsilon).
+SHARE = 0.2
+
+
+def _runs_over(t: np.ndarray, share: float = SHARE) -> np.ndarray:
+    """P(a new flight has more than ``share`` of its samples with score > t), by quadrature over its bias."""
+    t = np.asarray(t, dtype=float)[:, None]
+    b = SB * _NODES[None, :]
+    outside = 1.0 - (stats.norm.cdf((t - b) / SE) - stats.norm.cdf((-t - b) / SE))  # (T, nodes)
+    over = [stats.binom.sf(int(Fraction(share) * int(n)), int(n), outside) @ _W for n in LENGTHS]
+    return np.mean(over, axis=0)
+
+
 def _flight_violation(t: np.ndarray) -> np.ndarray:
     """P(a new flight has some sample with score > t), by quadrature over the flight's bias."""
     t = np.asarray(t, dtype=float)[:, None]
@@ -77,7 +89,7 @@ def _flight_violation(t: np.ndarray) -> np.ndarray:
     return 1.0 - all_in
 
 
-def _fit(scores, runs, eps, delta, mode, guarantee, seed=0):
+def _fit(scores, runs, eps, delta, mode, guarantee, seed=0, gamma=None):
     return GroupedCalibration.fit(
         scores,
         runs,
@@ -86,6 +98,7 @@ def _fit(scores, runs, eps, delta, mode, guarantee, seed=0):
         mode,
         guarantee=guarantee,
         column="run",
+        gamma=gamma,
         seed=seed,
         data_hash="d",
         network_hash="h",
@@ -97,13 +110,19 @@ def _fit(scores, runs, eps, delta, mode, guarantee, seed=0):
 
 
 def _pac_draws(G, eps, delta, guarantee, seed, sb=SB):
-    """Per draw: the grouped order statistic, its k, and the row-level PAC threshold on all rows."""
+    """Per draw: the grouped order statistic, its k, and the row-level PAC threshold on all rows.
+
+    ``"share-of-runs"`` is calibrated with the within-run share :data:`SHARE` and gamma = ``eps``.
+    """
     rng = np.random.default_rng(seed)
     stat, scale, row_t = np.empty(R_PAC), np.empty(R_PAC), np.empty(R_PAC)
     ks = set()
     for r in range(R_PAC):
         s, runs = _flights(rng, G, sb)
-        cal = _fit(s, runs, eps, delta, "pac", guarantee, seed=r)
+        if guarantee == "share-of-runs":
+            cal = _fit(s, runs, SHARE, delta, "pac", guarantee, seed=r, gamma=eps)
+        else:
+            cal = _fit(s, runs, eps, delta, "pac", guarantee, seed=r)
         stat[r], scale[r] = cal.order_statistic, cal.scale
         ks.add(cal.k_groups)
         row_t[r] = threshold_scores(s, eps, delta, "pac").order_statistic
@@ -111,16 +130,16 @@ def _pac_draws(G, eps, delta, guarantee, seed, sb=SB):
     return stat, scale, k, row_t
 
 
-@pytest.mark.parametrize("guarantee", ["trajectory", "sample"])
+@pytest.mark.parametrize("guarantee", ["trajectory", "share-of-runs"])
 @pytest.mark.parametrize(("G", "eps", "delta"), PAC_CASES)
 def test_pac_grouped_fraction_of_bad_calibrations_is_at_most_delta(G, eps, delta, guarantee):
     stat, scale, k, _ = _pac_draws(G, eps, delta, guarantee, seed=3000 + G + len(guarantee))
-    truth = _flight_violation if guarantee == "trajectory" else _sample_violation
+    truth = _flight_violation if guarantee == "trajectory" else _runs_over
     fail_stat = int((truth(stat) > eps).sum())
     fail_scale = int((truth(scale) > eps).sum())
     assert fail_scale <= fail_stat
-    # the group statistics (maxima, or one random sample per flight) are i.i.d. and continuous, so a
-    # draw is bad with probability exactly q = P(Binomial(G, eps) <= G - k) <= delta
+    # the group statistics (maxima, or each flight's within-flight quantile) are i.i.d. and continuous,
+    # so a draw is bad with probability exactly q = P(Binomial(G, eps) <= G - k) <= delta
     q = stats.binom.cdf(G - k, G, eps)
     assert q <= delta
     assert stats.binom.sf(fail_stat - 1, R_PAC, delta) >= LEVEL, (
@@ -159,7 +178,7 @@ def _crc_risks(G, eps, seed, plug_in=False):
         if plug_in:  # a wrong method: the empirical mean risk <= eps, without risk control's +1
             t = _empirical_risk_threshold(s, runs, eps)
         else:
-            t = _fit(s, runs, eps, 0.5, "marginal", "sample").order_statistic
+            t = _fit(s, runs, eps, 0.5, "marginal", "expected-share").order_statistic
         risk[r] = _sample_violation(t)
     return risk
 
@@ -188,7 +207,7 @@ def test_risk_control_expected_violation_fraction_is_at_most_epsilon(G, eps):
 
 def test_row_level_pac_under_covers_correlated_flights():
     G, eps, delta = PAC_CASES[0]
-    _, _, _, row_t = _pac_draws(G, eps, delta, "sample", seed=77)
+    _, _, _, row_t = _pac_draws(G, eps, delta, "trajectory", seed=77)
     fails = int((_sample_violation(row_t) > eps).sum())
     # a row-level PAC calibration claims at most delta bad draws; on correlated flights it has far more
     assert stats.binom.sf(fails - 1, R_PAC, delta) < LEVEL, f"only {fails}/{R_PAC} bad draws"
@@ -198,7 +217,7 @@ def test_row_level_pac_under_covers_correlated_flights():
 def test_row_level_pac_is_valid_when_flights_are_uncorrelated():
     """Control for the power check: without a shared bias the same row-level calibration is valid."""
     G, eps, delta = PAC_CASES[0]
-    _, _, _, row_t = _pac_draws(G, eps, delta, "sample", seed=78, sb=0.0)
+    _, _, _, row_t = _pac_draws(G, eps, delta, "trajectory", seed=78, sb=0.0)
     fails = int((_sample_violation(row_t, sb=0.0) > eps).sum())
     assert stats.binom.sf(fails - 1, R_PAC, delta) >= LEVEL, f"{fails}/{R_PAC} bad draws"
 
@@ -250,14 +269,30 @@ def test_trajectory_threshold_is_the_kth_group_maximum():
         assert cal.n == cal.n_rows == len(s) and cal.n_inside == int((s <= cal.order_statistic).sum())
 
 
-def test_one_sample_per_group_is_seeded_and_one_per_group():
+def test_a_legacy_one_sample_per_group_record_is_read_and_checked_as_before():
+    """Model files written before the share bound hold ``guarantee_kind="sample"`` without a method."""
     s, runs = _toy()
-    a, b, c = (_fit(s, runs, 0.1, 0.1, "pac", "sample", seed=k) for k in (1, 1, 2))
-    assert a == b and a.order_statistic != c.order_statistic
-    assert a.n == a.n_groups == 60 and a.n_rows == len(s)
-    # the threshold is one of the scores, an order statistic of 60 of them, one per flight
-    assert a.order_statistic in s
-    assert a.k_groups == threshold_scores(np.arange(60.0), 0.1, 0.1, "pac").k
+    used = s[np.array([np.flatnonzero(runs == g)[0] for g in range(60)])]  # one row per flight
+    t = threshold_scores(used, 0.1, 0.1, "pac")
+    legacy = {
+        "kind": "grouped", "column": "run", "guarantee_kind": "sample", "mode": "pac", "epsilon": 0.1,
+        "delta": 0.1, "n_groups": 60, "k_groups": t.k, "order_statistic": t.order_statistic, "scale": t.scale,
+        "risk": None, "n_rows": len(s), "n_used": 60, "n_inside": int((used <= t.order_statistic).sum()),
+        "size_min": int(np.bincount(runs).min()), "size_median": float(np.median(np.bincount(runs))),
+        "size_max": int(np.bincount(runs).max()), "seed": 1, "data_hash": "d", "network_hash": "h",
+    }  # fmt: skip
+    cal = calibration_from_dict(legacy)
+    assert (cal.method, cal.guarantee_kind, cal.n, cal.k_groups) == (
+        "one-per-group",
+        "expected-share",
+        60,
+        t.k,
+    )
+    assert cal.group_claim().unit == "sample" and cal.certified_epsilon == t.certified_epsilon
+    assert "one seeded random row of each group used" in cal.summary().grouping
+    assert calibration_from_dict(json.loads(json.dumps(cal.to_dict()))) == cal
+    with pytest.raises(InvalidInputError, match="inconsistent with method 'one-per-group'"):
+        calibration_from_dict(legacy | {"n_used": len(s)})
 
 
 def test_risk_control_matches_a_brute_force_reference():
@@ -273,17 +308,17 @@ def test_risk_control_matches_a_brute_force_reference():
 
         ok = [u for u in np.unique(s) if risk_sum(u) + 1 <= Fraction(eps) * (G + 1)]
         assert t == ok[0] and risk == pytest.approx(float(risk_sum(t) / G), rel=1e-12)
-        cal = _fit(s, runs, eps, 0.5, "marginal", "sample")
+        cal = _fit(s, runs, eps, 0.5, "marginal", "expected-share")
         assert cal.order_statistic == t and cal.risk == risk and cal.k_groups is None
 
 
-@pytest.mark.parametrize(
-    ("mode", "guarantee"),
-    [("pac", "trajectory"), ("marginal", "trajectory"), ("pac", "sample"), ("marginal", "sample")],
-)
+@pytest.mark.parametrize("guarantee", ["trajectory", "expected-share", "share-of-runs"])
+@pytest.mark.parametrize("mode", ["pac", "marginal"])
 def test_record_round_trips_and_protocol(mode, guarantee):
-    s, runs = _toy(seed=1)
-    cal = _fit(s, runs, 0.1, 0.05, mode, guarantee, seed=4)
+    s, runs = _toy(seed=1, G=80)
+    gamma = 0.1 if guarantee == "share-of-runs" else None
+    eps = 0.2 if guarantee == "share-of-runs" else 0.1
+    cal = _fit(s, runs, eps, 0.05, mode, guarantee, seed=4, gamma=gamma)
     back = calibration_from_dict(json.loads(json.dumps(cal.to_dict())))
     assert back == cal and back.to_dict() == cal.to_dict() and back.kind == "grouped"
     x, yhat = np.zeros((5, 2)), np.zeros((5, 1))
@@ -294,26 +329,30 @@ def test_record_round_trips_and_protocol(mode, guarantee):
     summary = cal.summary()
     assert isinstance(summary, CalibrationSummary)
     d = summary.to_dict()
-    assert d["kind"] == "grouped" and d["n_groups"] == 60 and d["group_column"] == "run"
+    assert d["kind"] == "grouped" and d["n_groups"] == 80 and d["group_column"] == "run"
     assert d["guarantee_kind"] == guarantee and d["group_size_min"] >= 10 and d["group_size_max"] <= 40
-    assert d["min_groups"] == min_calibration_size(0.1, 0.05, mode)
+    assert d["min_groups"] == runs_needed(guarantee, mode, eps, 0.05, gamma)
     allowed = cal.allowed_violation_rate()
-    if (mode, guarantee) == ("marginal", "sample"):
+    if (mode, guarantee) == ("marginal", "expected-share"):
         assert allowed.rate is None and "no per-draw claim" in allowed.reason
         assert d["method"] == "risk-control"
     else:
-        assert allowed.rate is not None and "per test group" in allowed.reason
-    if mode == "pac":
+        assert allowed.rate is not None and "test group" in allowed.reason
+    if mode == "pac" and guarantee == "share-of-runs":
+        assert allowed.rate == cal.certified_gamma <= gamma and cal.certified_epsilon == eps
+    elif mode == "pac":
         assert allowed.rate == cal.certified_epsilon <= 0.1
-    # the summary says what its n counts: the rows used of how many, which differ by method
-    rows_used = {"one-per-group": (60, "one seeded random row of each group used")}
-    n, used = rows_used.get(d["method"], (d["n_rows"], "every row used"))
-    assert d["n"] == n and used in d["grouping"]
-    assert f"60 groups of run ({d['n_rows']:,} rows)" in d["grouping"]
+    # every run-level method uses every row
+    assert d["n"] == d["n_rows"] and "every row used" in d["grouping"]
+    assert f"80 groups of run ({d['n_rows']:,} rows)" in d["grouping"]
+    assert d["smallest_epsilon"] == cal.smallest_epsilon
+    if mode == "pac":  # no PAC claim about a new run goes below the floor; a marginal one averages
+        assert d["floor"] < cal.smallest_epsilon
     sentence = cal.guarantee()
-    assert "60 calibration groups (by 'run')" in sentence
+    assert "80 calibration groups (by 'run')" in sentence
     assert ("i.i.d." if mode == "pac" else "exchangeable") in sentence
     assert ("at some sample" in sentence) == (guarantee == "trajectory")
+    assert ("of new groups have more than 0.2" in sentence) == (guarantee == "share-of-runs")
 
 
 def test_too_few_groups_names_the_minimum_and_says_rows_do_not_help():
@@ -324,12 +363,23 @@ def test_too_few_groups_names_the_minimum_and_says_rows_do_not_help():
     msg = str(info.value)
     assert "20 groups of column 'run' are too few" in msg and "at least 688 groups are needed" in msg
     assert "more rows per group do not help" in msg and "--mode marginal (needs 99 groups)" in msg
-    assert "the smallest is 0.293" in msg
-    with pytest.raises(SampleSizeError, match=r"at least 99 groups .* the smallest is 0\.048\)$"):
-        _fit(scores, runs, 0.01, 0.001, "marginal", "sample")
-    # the suggested epsilon works
-    for mode in ("pac", "marginal"):
-        assert _fit(scores, runs, smallest_epsilon(20, 0.001, mode), 0.001, mode, "trajectory").n_groups == 20
+    assert "the smallest is 0.293" in msg and "no claim about a new group goes below 0.292" in msg
+    with pytest.raises(SampleSizeError, match=r"at least 99 groups .* the smallest is 0\.0477\)$"):
+        _fit(scores, runs, 0.01, 0.001, "marginal", "expected-share")
+    with pytest.raises(
+        SampleSizeError, match=r"at least 46 groups .* --epsilon \(with 20 groups the smallest is 0\.212"
+    ):
+        _fit(scores, runs, 0.1, 0.01, "pac", "expected-share")
+    with pytest.raises(
+        SampleSizeError, match=r"at least 44 groups .* --gamma \(with 20 groups the smallest is 0\.206"
+    ):
+        _fit(scores, runs, 0.1, 0.01, "pac", "share-of-runs", gamma=0.1)
+    # the suggested rate works
+    for mode, guarantee in (("pac", "trajectory"), ("marginal", "trajectory"), ("pac", "expected-share")):
+        smallest = smallest_run_rate(guarantee, mode, 20, 0.001)
+        assert _fit(scores, runs, smallest, 0.001, mode, guarantee).n_groups == 20
+    gamma = smallest_run_rate("share-of-runs", "pac", 20, 0.001)
+    assert _fit(scores, runs, 0.1, 0.001, "pac", "share-of-runs", gamma=gamma).n_groups == 20
 
 
 def test_smallest_epsilon_is_the_smallest_on_its_grid():
@@ -348,7 +398,9 @@ def test_smallest_epsilon_is_the_smallest_on_its_grid():
 @pytest.mark.parametrize(
     ("kwargs", "error", "match"),
     [
-        ({"guarantee": "row"}, InvalidInputError, "guarantee must be 'trajectory'"),
+        ({"guarantee": "row"}, InvalidInputError, "guarantee must be 'expected-share'"),
+        ({"guarantee": "share-of-runs"}, InvalidInputError, "a share-of-runs claim needs gamma"),
+        ({"gamma": 0.1}, InvalidInputError, "gamma goes with the share-of-runs claim only"),
         ({"mode": "bayes"}, InvalidInputError, "mode must be 'pac' or 'marginal'"),
         ({"epsilon": 1.5}, InvalidInputError, "epsilon must lie strictly between 0 and 1"),
         ({"seed": 1.5}, InvalidInputError, "seed must be an integer"),
@@ -358,7 +410,7 @@ def test_smallest_epsilon_is_the_smallest_on_its_grid():
             InvalidInputError,
             "600 calibration scores but 5 labels in group column 'run'",
         ),
-        ({"groups": np.r_[np.nan, np.ones(599)]}, DataError, "row 0 has no group label"),
+        ({"groups": np.r_[np.nan, np.ones(599)]}, DataError, r"row 0 \(0-based\) has no group label"),
     ],
 )
 def test_fit_refuses_bad_input(kwargs, error, match):
@@ -383,6 +435,8 @@ def test_fit_refuses_bad_input(kwargs, error, match):
         ("size_max", 9, "group sizes disagree"),
         ("scale", -1.0, "scale must be finite"),
         ("guarantee_kind", "row", "guarantee must be"),
+        ("method", "share-bound", "does not fit a pac trajectory claim"),
+        ("gamma", 0.2, "gamma goes with a share-of-runs claim only"),
     ],
 )
 def test_inconsistent_records_are_refused(field, value, match):
@@ -394,11 +448,16 @@ def test_inconsistent_records_are_refused(field, value, match):
 
 def test_inconsistent_risk_control_record_is_refused():
     s, runs = _toy(seed=2)
-    d = _fit(s, runs, 0.1, 0.1, "marginal", "sample").to_dict()
+    d = _fit(s, runs, 0.1, 0.1, "marginal", "expected-share").to_dict()
     with pytest.raises(InvalidInputError, match=r"breaks \(G \* risk \+ 1\) / \(G \+ 1\) <= epsilon"):
         calibration_from_dict(d | {"risk": 0.2})
     with pytest.raises(InvalidInputError, match="needs k_groups"):
         calibration_from_dict(_fit(s, runs, 0.1, 0.1, "pac", "trajectory").to_dict() | {"risk": 0.01})
+    share = _fit(s, runs, 0.2, 0.1, "pac", "expected-share").to_dict()
+    with pytest.raises(InvalidInputError, match="must lie between the mean share"):
+        calibration_from_dict(share | {"bound": 0.25})
+    with pytest.raises(InvalidInputError, match="must lie between the mean share"):
+        calibration_from_dict(share | {"bound": None})
 
 
 def test_risk_control_refuses_too_few_groups():
@@ -417,7 +476,7 @@ def test_group_violation_counts():
     )
     with pytest.raises(InvalidInputError, match="8 violation flags but 3 group labels"):
         group_violation_counts(v, ["a", "b", "c"], "trajectory")
-    with pytest.raises(InvalidInputError, match="guarantee must be"):
+    with pytest.raises(InvalidInputError, match="a group count is 'trajectory' or 'sample'"):
         group_violation_counts(v, runs, "rows")  # type: ignore[arg-type]
 
 
@@ -427,7 +486,7 @@ def test_grouped_calibration_survives_a_model_file(tmp_path):
     from ipcverify.network._architecture import ModelConfig
 
     s, runs = _toy(seed=3)
-    cal = _fit(s, runs, 0.1, 0.1, "pac", "sample", seed=9)
+    cal = _fit(s, runs, 0.2, 0.1, "pac", "expected-share", seed=9)
     model = IPCModel(
         IPCNetwork(ModelConfig(x_dim=2, y_dim=1, hidden=(4,), param="cholesky"))
     ).with_calibration(cal)

@@ -10,23 +10,14 @@ from typing import ClassVar
 import numpy as np
 import pytest
 
-from ipcverify.calibration import (
-    KINDS,
-    METHODS,
-    CalibrationRecord,
-    CalibrationSample,
-    CalibrationSpec,
-    Global,
-    GlobalCalibration,
-    Grouped,
-    GroupedCalibration,
-    GroupInfo,
-    Mondrian,
-    MondrianCalibration,
-    calibration_from_dict,
-    register_kind,
-    threshold_scores,
-)
+from ipcverify.calibration import Global, Grouped, Mondrian
+from ipcverify.calibration._global_scale import GlobalCalibration
+from ipcverify.calibration._grouped import GroupedCalibration
+from ipcverify.calibration._kinds import KINDS, METHODS, calibration_from_dict, register_kind
+from ipcverify.calibration._method import CalibrationRecord, CalibrationSample, CalibrationSpec
+from ipcverify.calibration._mondrian import MondrianCalibration
+from ipcverify.calibration._protocol import GroupInfo
+from ipcverify.calibration._threshold import threshold_scores
 from ipcverify.certification import certify
 from ipcverify.contract import IPCModel, calibrate
 from ipcverify.data import PerceptionDataset
@@ -101,7 +92,7 @@ def test_a_registered_toy_kind_is_fitted_saved_read_back_and_certified(registere
     assert cal.threshold == threshold_scores(scores[::2], 0.1, 0.05, "pac")
     assert cal.data_hash == cal_data.content_hash()
     # the rest of the pipeline reads it through the protocol only
-    sets = cal_model.predict(cal_data.x[:50], cal_data.yhat[:50])
+    sets = cal_model.predict_unguarded(cal_data.x[:50], cal_data.yhat[:50])
     raw = model.predict_raw(cal_data.x[:50], cal_data.yhat[:50])
     np.testing.assert_allclose(sets.shapes, raw.shapes / cal.threshold.scale, rtol=1e-12)
     save_model(cal_model, tmp_path / "toy.pt")
@@ -194,16 +185,17 @@ def test_each_spec_fits_what_its_calibration_class_fits():
 
 def test_the_domain_spec_fits_what_domain_model_fits(model):
     data = _flights(make_lagged_perception(2000, seed=44), 10)
-    with pytest.warns(Hint, match=r"\(Python: Grouped\(column='flight'\)\) to calibrate with whole groups"):
-        rows = calibrate(model, data, 0.1, 0.05, domain=DomainSpec(alpha=0.05, k=2))
-    ref = DomainModel.fit(data.x, data.yhat, alpha=0.05, k=2, seed=0)
+    with pytest.warns(Hint, match=r"a row-level claim on data with runs of 'flight' \(chosen explicitly\)"):
+        rows = calibrate(model, data, 0.1, 0.05, Global(), domain=DomainSpec(flag_rate=0.05, k=2))
+    ref = DomainModel.fit(data.x, data.yhat, flag_rate=0.05, k=2, seed=0)
     assert (rows.domain.threshold, rows.domain.k, rows.domain.n_groups) == (ref.threshold, 2, ref.n_groups)
     # a grouped calibration's column is the domain test's units unless the spec names another
-    by_flight = calibrate(model, data, 0.1, 0.05, Grouped(column="flight"), domain=DomainSpec(alpha=0.05))
-    grouped_ref = DomainModel.fit(data.x, data.yhat, alpha=0.05, groups=data.column("flight"))
+    by_flight = calibrate(model, data, 0.1, 0.05, Grouped(column="flight"), domain=DomainSpec(flag_rate=0.05))
+    grouped_ref = DomainModel.fit(data.x, data.yhat, flag_rate=0.05, groups=data.column("flight"))
     assert by_flight.domain.n_groups == 200 and by_flight.domain.threshold == grouped_ref.threshold
-    with pytest.warns(Hint, match=r"'flight' column \(200 groups\)"):
-        assert calibrate(model, data, 0.1, 0.05, domain=None).domain is None
+    with pytest.warns(Hint, match=r"its rows come in runs of 'flight', so the claim is about runs"):
+        auto = calibrate(model, data, 0.1, 0.05, domain=None)
+    assert auto.domain is None and auto.calibration.kind == "grouped" and auto.calibration.n_groups == 200
 
 
 @pytest.mark.parametrize(
@@ -215,11 +207,23 @@ def test_the_domain_spec_fits_what_domain_model_fits(model):
         (lambda: Mondrian(column="x_1", bins=True), r"bins must be a positive integer; got True"),
         (lambda: Mondrian(column="x_1", edge_fraction=1.0), r"edge_fraction must lie in \(0, 1\); got 1.0"),
         (lambda: Mondrian(column="x_1", seed=1.5), r"seed must be an integer; got 1.5"),
-        (lambda: Grouped(column="run", guarantee="always"), r"guarantee must be 'trajectory'.*got 'always'"),
+        (
+            lambda: Grouped(column="run", guarantee="always"),
+            r"guarantee must be 'expected-share'.*got 'always'",
+        ),
+        (lambda: Grouped(column="run", guarantee="share-of-runs"), r"a share-of-runs claim needs gamma"),
+        (lambda: Grouped(column="run", gamma=0.2), r"gamma goes with the share-of-runs claim only"),
+        (
+            lambda: Grouped(column="run", guarantee="share-of-runs", gamma=1.0),
+            r"gamma must lie strictly between 0 and 1; got 1.0",
+        ),
         (lambda: Grouped(column=None), r"a grouped calibration needs a group column name; got None"),
         (lambda: Grouped(column="run", seed=True), r"seed must be an integer; got True"),
         (lambda: Grouped(column="run", mode="conformal"), r"mode must be 'pac' or 'marginal'"),
-        (lambda: DomainSpec(alpha=0.0), r"domain test: alpha must lie strictly between 0 and 1; got 0.0"),
+        (
+            lambda: DomainSpec(flag_rate=0.0),
+            r"domain test: flag_rate must lie strictly between 0 and 1; got 0.0",
+        ),
         (lambda: DomainSpec(k=0), r"domain test: k must be a positive integer; got 0"),
         (lambda: DomainSpec(group_column=""), r"domain test: group_column must be a column name"),
     ],
@@ -235,5 +239,5 @@ def test_specs_are_frozen_and_keyword_only():
         spec.column = "flight"  # type: ignore[misc]
     with pytest.raises(TypeError):
         Grouped("run")  # type: ignore[misc]
-    assert (spec.guarantee, spec.seed, spec.mode) == ("sample", 0, "pac")
+    assert (spec.guarantee, spec.gamma, spec.seed, spec.mode) == ("expected-share", None, 0, "pac")
     assert Mondrian(column="x_0") == Mondrian(column="x_0", bins=None, edge_fraction=0.2, seed=0, mode="pac")

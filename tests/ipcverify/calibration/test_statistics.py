@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from ipcverify.calibration import threshold_scores
 from ipcverify.calibration._bounds import marginal_conformal_index, pac_calibration_index
+from ipcverify.calibration._threshold import threshold_scores
 
 LAW = stats.chi(df=3)
 ALPHA = 1e-3

@@ -33,7 +33,7 @@ def test_calibrated_ipc_on_synthetic_data_beats_global_ellipsoid():
     model = train(train_data, train_config=TrainConfig(epochs=10, seed=0)).model
     cal_model = calibrate(model, cal_data, EPS, DELTA)
 
-    sets = cal_model.predict(test_data.x, test_data.yhat)
+    sets = cal_model.predict_unguarded(test_data.x, test_data.yhat)
     k = int((~sets.contains(test_data.y)).sum())
     upper = clopper_pearson_upper(k, len(test_data), 1e-3)
     assert upper <= EPS, f"{k} violations in {len(test_data)}: upper bound {upper:.4g} > {EPS}"

@@ -1,10 +1,10 @@
 """A row-level domain test on correlated rows: the certificate names it as a second explanation of a "shift".
 
 Rows of one run are near-copies of each other, so a domain test fitted row by row has a short
-threshold, and the rows of a new run fall outside it far more often than alpha although the runs
+threshold, and the rows of a new run fall outside it far more often than the flag rate although the runs
 are exchangeable. The certificate must not call that a shift without saying so: it names the
 run-like column and the remedy (fit the test by group), and the group-aware test on the same
-data flags about alpha of the queries.
+data flags about the flag rate of the queries.
 """
 
 from __future__ import annotations
@@ -14,13 +14,15 @@ import pytest
 import torch
 
 from ipcverify import calibrate
+from ipcverify.calibration import Global
 from ipcverify.certification._certify import certify
 from ipcverify.certification._summarize import summarize
 from ipcverify.contract import IPCModel
 from ipcverify.data import PerceptionDataset
 from ipcverify.errors import Hint
 from ipcverify.guard import DomainReport, DomainSpec
-from ipcverify.network import IPCNetwork, ModelConfig
+from ipcverify.network import ModelConfig
+from ipcverify.network._modules import IPCNetwork
 
 ALPHA = 0.05
 #: certify's hint that the test rows have a run column is the subject of other tests
@@ -51,19 +53,19 @@ def data() -> dict[str, PerceptionDataset]:
 def _calibrated(net: IPCModel, cal: PerceptionDataset, group_column: str | None) -> IPCModel:
     from ipcverify import calibrate
 
-    domain = DomainSpec(alpha=ALPHA, group_column=group_column)
+    domain = DomainSpec(flag_rate=ALPHA, group_column=group_column)
     if group_column is not None:
-        return calibrate(net, cal, 0.2, 0.05, domain=domain)
-    with pytest.warns(Hint, match="--domain-group-column"):  # the correlated-rows hint names the remedy
-        return calibrate(net, cal, 0.2, 0.05, domain=domain)
+        return calibrate(net, cal, 0.2, 0.05, Global(), domain=domain)
+    with pytest.warns(Hint, match="--domain-group-column"):  # the row-level claim's hint names the remedy
+        return calibrate(net, cal, 0.2, 0.05, Global(), domain=domain)
 
 
 def test_a_row_level_test_on_correlated_rows_is_named_beside_the_shift(net, data):
     model = _calibrated(net, data["cal"], None)
     d = certify(model, data["test"]).certificate.domain
-    assert d is not None and d.well_above_alpha and d.outside_fraction > 0.5  # nearly every new run
+    assert d is not None and d.well_above_flag_rate and d.outside_fraction > 0.5  # nearly every new run
     assert d.row_level_column == "run" and d.to_dict()["row_level_column"] == "run"
-    # 60 calibration runs allow a test by run at this alpha (0.05) as it is: no --domain-alpha named
+    # 60 calibration runs allow a test by run at this flag rate (0.05) as it is: no --domain-flag-rate named
     assert d.row_level_groups == 60
     assert "refit it with whole groups (calibrate --domain-group-column run) to tell" in d.sentence()
     cert = certify(model, data["test"]).certificate
@@ -75,23 +77,23 @@ def test_a_row_level_test_on_correlated_rows_is_named_beside_the_shift(net, data
 def test_the_same_runs_fitted_by_group_are_not_a_shift(net, data):
     model = _calibrated(net, data["cal"], "run")
     d = certify(model, data["test"]).certificate.domain
-    assert d is not None and d.row_level_column is None and not d.well_above_alpha
+    assert d is not None and d.row_level_column is None and not d.well_above_flag_rate
     assert "shifted" not in d.sentence()
 
 
-def test_the_remedy_names_the_alpha_the_calibration_groups_allow():
-    r = DomainReport(method="knn", alpha=0.01, threshold=1.0, n_reference=800, n=600, outside=180,
+def test_the_remedy_names_the_flag_rate_the_calibration_groups_allow():
+    r = DomainReport(method="knn", flag_rate=0.01, threshold=1.0, n_reference=800, n=600, outside=180,
                      row_level_column="segment", row_level_groups=10)  # fmt: skip
-    assert "(calibrate --domain-group-column segment --domain-alpha 0.091) to tell" in r.sentence()
+    assert "(calibrate --domain-group-column segment --domain-flag-rate 0.091) to tell" in r.sentence()
     assert r.to_dict()["row_level_groups"] == 10
 
 
 @pytest.mark.parametrize(("outside", "named"), [(40, True), (1, False)])
-def test_the_remedy_is_said_only_for_a_share_well_above_alpha(outside, named):
-    r = DomainReport(method="knn", alpha=0.01, threshold=1.0, n_reference=100, n=100, outside=outside,
+def test_the_remedy_is_said_only_for_a_share_well_above_flag_rate(outside, named):
+    r = DomainReport(method="knn", flag_rate=0.01, threshold=1.0, n_reference=100, n=100, outside=outside,
                      row_level_column="segment")  # fmt: skip
     assert ("--domain-group-column segment" in r.sentence()) is named
-    plain = DomainReport(method="knn", alpha=0.01, threshold=1.0, n_reference=100, n=100, outside=outside)
+    plain = DomainReport(method="knn", flag_rate=0.01, threshold=1.0, n_reference=100, n=100, outside=outside)
     assert "--domain-group-column" not in plain.sentence()
 
 
@@ -99,9 +101,9 @@ def test_a_run_column_of_the_test_data_alone_names_no_row_level_test(net, data):
     # calibration data without a run column (nothing recorded in the model file), test data with one
     cal = data["cal"]
     plain = PerceptionDataset(cal.x, cal.y, cal.yhat, source="no runs")
-    model = calibrate(net, plain, 0.2, 0.05, domain=DomainSpec(alpha=ALPHA))
+    model = calibrate(net, plain, 0.2, 0.05, Global(), domain=DomainSpec(flag_rate=ALPHA))
     d = certify(model, data["test"]).certificate.domain
-    assert d is not None and d.well_above_alpha and d.row_level_column is None
+    assert d is not None and d.well_above_flag_rate and d.row_level_column is None
     assert "--domain-group-column" not in d.sentence()
 
 
@@ -120,7 +122,7 @@ def test_the_cli_warning_names_the_remedy(net, data, tmp_path, run_cli):
 
 def test_predict_and_evaluate_give_the_same_second_explanation(net, data):
     from ipcverify.certification import evaluate
-    from ipcverify.contract import predict_sets
+    from ipcverify.contract._prediction import predict_sets
     from ipcverify.data import PerceptionInputs
 
     model = _calibrated(net, data["cal"], None)
@@ -129,5 +131,5 @@ def test_predict_and_evaluate_give_the_same_second_explanation(net, data):
         predict_sets(model, PerceptionInputs(test.x, test.yhat)).domain,
         evaluate(model, test).domain,
     ):
-        assert report is not None and report.well_above_alpha and report.row_level_column == "run"
+        assert report is not None and report.well_above_flag_rate and report.row_level_column == "run"
         assert "(calibrate --domain-group-column run) to tell the two apart" in report.sentence()

@@ -24,7 +24,7 @@ import pytest
 import torch
 from scipy import stats
 
-from ipcverify.calibration import Grouped
+from ipcverify.calibration import Global, Grouped
 from ipcverify.calibration._bounds import clopper_pearson_lower, clopper_pearson_upper
 from ipcverify.certification._certificate import CertificateStatus
 from ipcverify.certification._certify import certify, write_certificate
@@ -142,11 +142,13 @@ def flights():
     return {"cal": _flight_data(150, 12, seed=1), "test": _flight_data(120, 15, seed=2)}
 
 
-def test_row_level_calibration_reports_both_and_compares_the_per_flight_sample(net, flights, tmp_path):
-    model = calibrate(net, flights["cal"], 0.1, 0.05)
+def test_row_level_calibration_reports_both_and_compares_the_per_flight_share(net, flights, tmp_path):
+    model = calibrate(net, flights["cal"], 0.1, 0.05, Global())  # a row-level claim, chosen explicitly
     res = certify(model, flights["test"], group_column="flight")
     cert, g = res.certificate, res.certificate.group_test
-    assert g is not None and g.column == "flight" and g.compared_unit == "sample"
+    assert g is not None and g.column == "flight" and g.compared_unit == "share"
+    # the row-level claim rests on independent rows: it is never CERTIFIED on flights
+    assert cert.status in (CertificateStatus.ROWS_ASSUMED, CertificateStatus.CONTRADICTED)
     d = cert.to_dict()["group_test"]
     assert set(d) >= {
         "column",
@@ -168,7 +170,11 @@ def test_row_level_calibration_reports_both_and_compares_the_per_flight_sample(n
     per_flight = np.bincount(flights["test"].extra["flight"], weights=res.evidence.violated.astype(float))
     assert d["trajectory"]["violations"] == int((per_flight > 0).sum())
     assert d["sample"]["violations"] <= d["trajectory"]["violations"] <= cert.test.violations
+    shares = np.bincount(flights["test"].extra["flight"], weights=res.evidence.violated.astype(float)) / 15
+    assert d["share"]["empirical_rate"] == pytest.approx(shares.mean()) and d["share"]["statistic"] == "mean"
+    assert d["share"]["lower_bound"] <= d["share"]["empirical_rate"] <= d["share"]["upper_bound"]
     assert d["consistency"]["allowed_rate"] == cert.consistency.allowed_rate
+    assert d["consistency"]["test_lower_bound"] == d["share"]["lower_bound"]
     assert "assumes independent rows" in cert.statement and "Counted per group of 'flight'" in cert.statement
     cert_path, report_path = write_certificate(res, tmp_path)
     on_disk = json.loads(cert_path.read_text())
@@ -176,13 +182,14 @@ def test_row_level_calibration_reports_both_and_compares_the_per_flight_sample(n
     assert "test" in on_disk and on_disk["test"]["unit"] == "samples"  # existing keys unchanged
     page = report_path.read_text()
     assert "assumes <b>independent rows</b>" in page and "compared with the calibration" in page
-    # without the column: no group test, the certificate is as before
-    plain = certify(model, flights["test"]).certificate
-    assert plain.group_test is None and plain.to_dict()["group_test"] is None
+    # without the option the test data's one column that names runs is counted alike
+    assert certify(model, flights["test"]).certificate.group_test == g
 
 
-@pytest.mark.parametrize("guarantee", ["sample", "trajectory"])
-def test_flight_level_calibration_defaults_to_its_column_and_unit(net, flights, guarantee):
+@pytest.mark.parametrize(
+    ("guarantee", "statistic"), [("expected-share", "share"), ("trajectory", "trajectory")]
+)
+def test_flight_level_calibration_defaults_to_its_column_and_unit(net, flights, guarantee, statistic):
     model = calibrate(
         net,
         flights["cal"],
@@ -193,15 +200,16 @@ def test_flight_level_calibration_defaults_to_its_column_and_unit(net, flights, 
     )
     cert = certify(model, flights["test"]).certificate  # no group_column: the calibration's
     g = cert.group_test
-    assert g is not None and g.column == "flight" and g.compared_unit == guarantee and g.seed == 3
+    assert g is not None and g.column == "flight" and g.compared_unit == statistic and g.seed == 3
     assert (g.compared.violations, g.compared.n) == (cert.test.violations, cert.test.n)
+    assert cert.status is not CertificateStatus.ROWS_ASSUMED
     assert g.consistency == cert.consistency
     assert certify(model, flights["test"], group_column="flight").certificate.group_test == g
 
 
 def test_group_level_contradiction_is_flagged_when_the_row_level_test_is_consistent(net, flights):
     """Many short flights all violating, one long clean flight: rows look fine, flights do not."""
-    model = calibrate(net, flights["cal"], 0.1, 0.05)
+    model = calibrate(net, flights["cal"], 0.1, 0.05, Global())
     clean = _flight_data(1, 6000, seed=5, bias=0.0)
     shifted = _flight_data(40, 2, seed=6, bias=0.0)
     shift = PerceptionDataset(
@@ -218,9 +226,8 @@ def test_group_level_contradiction_is_flagged_when_the_row_level_test_is_consist
         source="mixed",
         extra={"flight": np.concatenate([clean.extra["flight"], shift.extra["flight"]])},
     )
-    row_only = certify(model, test).certificate
-    assert row_only.status is CertificateStatus.CERTIFIED and row_only.consistency.consistent
     cert = certify(model, test, group_column="flight").certificate
+    assert certify(model, test).certificate.group_test == cert.group_test  # its one run column, by default
     assert cert.consistency.consistent  # the row-level check alone still passes
     assert cert.group_test.consistency.checked and cert.group_test.consistency.consistent is False
     assert cert.status is CertificateStatus.CONTRADICTED
@@ -250,14 +257,14 @@ def test_refusals(net, flights):
 
 
 def test_cli_group_column_and_its_errors(net, flights, run_cli, tmp_path):
-    model = calibrate(net, flights["cal"], 0.1, 0.05)
+    model = calibrate(net, flights["cal"], 0.1, 0.05, Global())
     save_model(model, tmp_path / "m.pt")
     save_dataset(flights["test"], tmp_path / "test.csv")
     res = run_cli("certify", tmp_path / "m.pt", "--data", tmp_path / "test.csv", "--group-column", "flight",
                   "--out", tmp_path / "c")  # fmt: skip
     assert res.code in (0, 1), res.stderr
     d = json.loads((tmp_path / "c" / "certificate.json").read_text())
-    assert d["group_test"]["n_groups"] == 120 and "per group: any violation (flight)" in res.stdout
+    assert d["group_test"]["n_groups"] == 120 and "per flight: share of rows outside" in res.stdout
     assert res.code == (1 if d["status"] == "CONTRADICTED" else 0)
     save_dataset(flights["test"].subset(flights["test"].extra["flight"] < 1, "one"), tmp_path / "one.csv")
     for args, message in (
@@ -290,17 +297,17 @@ def test_real_log_end_to_end_with_group_column(run_cli, tmp_path):
     ).model
     save_model(model, tmp_path / "model.pt")
     res = run_cli("calibrate", tmp_path / "model.pt", tmp_path / "cal.csv", "--epsilon", "0.05", "--delta",
-                  "0.01", "--out", tmp_path / "cal.pt")  # fmt: skip
+                  "0.01", "--unit", "row", "--out", tmp_path / "cal.pt")  # fmt: skip
     assert res.code == 0, res.stderr
     res = run_cli("certify", tmp_path / "cal.pt", "--data", tmp_path / "test.csv", "--group-column", "flight",
                   "--out", tmp_path / "cert")  # fmt: skip
     assert res.code in (0, 1), res.stderr
     d = json.loads((tmp_path / "cert" / "certificate.json").read_text())
     g, test = d["group_test"], df[parts["test"]]
-    assert (g["column"], g["n_groups"], g["n_rows"], g["compared_unit"]) == ("flight", 6, len(test), "sample")
+    assert (g["column"], g["n_groups"], g["n_rows"], g["compared_unit"]) == ("flight", 6, len(test), "share")
     # the flights with a violation, counted independently from the calibrated sets
     calibrated = load_model(tmp_path / "cal.pt")
-    sets = calibrated.predict(
+    sets = calibrated.predict_unguarded(
         test[[f"x_{i}" for i in range(5)]].to_numpy(), test[[f"yhat_{i}" for i in range(3)]].to_numpy()
     )
     violated = ~sets.contains(test[[f"y_{i}" for i in range(3)]].to_numpy())

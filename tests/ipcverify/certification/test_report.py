@@ -20,7 +20,7 @@ import pytest
 from PIL import Image
 
 import ipcverify
-from ipcverify.certification._certify import certify, write_certificate
+from ipcverify.certification._certify import certify, labelled, write_certificate
 from ipcverify.certification._report_head import display_text
 from ipcverify.contract._calibrate import calibrate
 from ipcverify.contract._model import IPCModel, IPCNetwork
@@ -121,7 +121,9 @@ STRONG_GREEN, WEAK_AMBER = (0x1B, 0x7F, 0x3B), (0xF5, 0xB4, 0x00)
 def weak(trained, tmp_path_factory):
     """The same network calibrated to a weak target (epsilon = 0.5), with units and labels."""
     cal = calibrate(trained[0], make_lagged_perception(1500, seed=61), 0.5, 0.01)
-    res = certify(cal, make_lagged_perception(2000, seed=62), units="m", labels=("forward", "left", "up"))
+    res = labelled(
+        certify(cal, make_lagged_perception(2000, seed=62)), units="m", labels=("forward", "left", "up")
+    )
     out = tmp_path_factory.mktemp("weak")
     write_certificate(res, out)
     return out / "report.html", res

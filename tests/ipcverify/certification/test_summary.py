@@ -14,9 +14,9 @@ import pytest
 from matplotlib.figure import Figure
 
 import ipcverify
-from ipcverify.calibration import Grouped
+from ipcverify.calibration import Global, Grouped
 from ipcverify.certification._certificate import CertificateStatus
-from ipcverify.certification._certify import certify, write_certificate
+from ipcverify.certification._certify import certify, labelled, with_files, write_certificate
 from ipcverify.certification._report import render_report
 from ipcverify.certification._report_plots import plot_coverage, plot_projections, plot_scores
 from ipcverify.certification._summary import WEAK_EPSILON, CertificateSummary, target_strength
@@ -85,7 +85,7 @@ def test_summary_of_a_strong_certificate(files):
     model = load_model(files / "strong.pt")
     test = load_data_for_model(files / "test.csv", model)
     before = datetime.now(UTC).replace(microsecond=0)
-    cert = certify(model, test, model_path=files / "strong.pt", test_path=files / "test.csv").certificate
+    cert = with_files(certify(model, test), files / "strong.pt", files / "test.csv", None).certificate
     after = datetime.now(UTC)
     s = cert.summary
     assert isinstance(s, CertificateSummary) and cert.status is CertificateStatus.CERTIFIED
@@ -126,12 +126,13 @@ def test_certificate_json_adds_the_summary_and_keeps_every_key(files, tmp_path):
     from ipcverify.io._modelio import load_data_for_model, load_model
 
     model = load_model(files / "weak.pt")
-    res = certify(
-        model, load_data_for_model(files / "test.csv", model), units="m", labels=("fwd", "left", "up")
-    )
-    write_certificate(res, tmp_path)
+    res = certify(model, load_data_for_model(files / "test.csv", model))
+    write_certificate(res, tmp_path, units="m", labels=("fwd", "left", "up"))  # the report names y
+    res = labelled(res, units="m", labels=("fwd", "left", "up"))
     d = json.loads((tmp_path / "certificate.json").read_text())
-    assert OLD_KEYS | {"summary", "test_group_like_columns", "calibration_group_like_columns"} == set(d)
+    new_keys = {"summary", "test_group_like_columns", "calibration_group_like_columns", "runs", "test_rows"}
+    assert OLD_KEYS | new_keys == set(d)
+    assert d["runs"] is None  # no runs in the calibration data
     s = d["summary"]
     assert s == json.loads(json.dumps(res.certificate.summary.to_dict()))
     assert s["verdict"].startswith(
@@ -222,18 +223,20 @@ def test_per_flight_result_is_a_row_of_its_own(net):
         == [
             NAMES[0],
             NAMES[1],
-            "per-flight test ('flight'): one random row per group",
+            "per-flight test ('flight'): share of each group's rows outside",
             "per-flight test ('flight'): any violation in a group",
             "independent rows",  # the claim is about rows, and the test rows come in flights
             *NAMES[2:],
         ]
     )
-    sample, trajectory = rows[2], rows[3]
-    assert g.compared_unit == "sample" and g.consistency.checked
-    assert sample.verdict == (
+    share, trajectory = rows[2], rows[3]
+    assert g.compared_unit == "share" and g.consistency.checked
+    assert share.verdict == (
         "consistent with the calibration" if g.consistency.consistent else "CONTRADICTS the calibration"
     )
-    assert f"{g.sample.violations:,} of {g.sample.n:,} groups" in sample.detail
+    assert (
+        f"mean share {100 * g.share.empirical_rate:.3g} % outside over {g.share.n:,} groups" in share.detail
+    )
     assert trajectory.verdict == "reported only" and trajectory.level == "info"
     assert f"{g.trajectory.violations:,} of {g.trajectory.n:,} groups" in trajectory.detail
     assert f"{g.trajectory.upper_bound:.4g}" in trajectory.detail
@@ -246,25 +249,23 @@ def test_a_claim_about_flights_has_flights_as_its_unit(net):
         0.2,
         0.05,
         Grouped(column="flight"),
-        domain=DomainSpec(alpha=0.1),
+        domain=DomainSpec(flag_rate=0.1),
     )
     test = _flights(make_lagged_perception(1000, seed=84), 25)
     res = certify(model, test)
     cert, s = res.certificate, res.certificate.summary
-    assert (s.unit, s.unit_column, s.unit_statistic) == ("group", "flight", "sample")
-    assert "group of 'flight'" in s.unit_text() and s.strength == "weak"
+    assert (s.unit, s.unit_column, s.unit_statistic) == ("group", "flight", "share")
+    assert "group of 'flight'" in s.unit_text() and "share of rows outside" in s.unit_text()
+    assert s.strength == "weak"
     held = s.checks[1].detail
     k = int(res.evidence.violated.sum())
     assert f"all test rows: {k:,} of 1,000 outside" in held and "descriptive only" in held
     # the per-flight row that repeats the held-out test's own count says so; the other does not
     same = "the same count as the held-out test above, not a second test"
     rows = {c.name: c.detail for c in s.checks if c.name.startswith("per-flight test")}
-    sample_row = rows["per-flight test ('flight'): one random row per group"]
-    assert (cert.test.violations, cert.test.n) == (
-        cert.group_test.sample.violations,
-        cert.group_test.sample.n,
-    )
-    assert same in sample_row
+    share_row = rows["per-flight test ('flight'): share of each group's rows outside"]
+    assert (cert.test.violations, cert.test.n) == (cert.group_test.share.violations, cert.group_test.share.n)
+    assert same in share_row
     assert same not in rows["per-flight test ('flight'): any violation in a group"]
     # flights are not called samples; no internal function name reaches the user
     assert "test samples" not in cert.test_bound_note
@@ -274,14 +275,15 @@ def test_a_claim_about_flights_has_flights_as_its_unit(net):
 
 def test_labels_and_units_are_checked(net):
     test = make_lagged_perception(300, seed=85)
-    s = certify(net, test, units=" m ", labels=[" forward", "left", "up "]).certificate.summary
+    res = certify(net, test)
+    s = labelled(res, units=" m ", labels=[" forward", "left", "up "]).certificate.summary
     assert s.units == "m" and s.labels == ("forward", "left", "up") and s.axis_label(2) == "up [m]"
     with pytest.raises(InvalidInputError, match=r"labels must name the 3 coordinates of y .* got 2"):
-        certify(net, test, labels=["forward", "left"])
+        labelled(res, labels=["forward", "left"])
     with pytest.raises(InvalidInputError, match="one non-empty label each"):
-        certify(net, test, labels=["forward", "", "up"])
+        labelled(res, labels=["forward", "", "up"])
     with pytest.raises(InvalidInputError, match="units of y must not be empty"):
-        certify(net, test, units="  ")
+        labelled(res, units="  ")
 
 
 def _labels(fig: Figure) -> list[str]:
@@ -319,12 +321,13 @@ def test_every_plot_axis_says_what_it_measures_and_in_which_units(net, monkeypat
         return fig
 
     monkeypatch.setattr(report, "plot_projections", spy)
-    named = certify(calibrate(net, make_lagged_perception(800, seed=87), 0.05, 0.05), test, units="m",
-                    labels=("forward", "left", "up"))  # fmt: skip
+    named = labelled(certify(calibrate(net, make_lagged_perception(800, seed=87), 0.05, 0.05), test),
+                     units="m", labels=("forward", "left", "up"))  # fmt: skip
     report.render_report(named)
     assert len(seen) == 1 and len(seen[0]) == 3 * 2 * len(named.evidence.example_index)
     assert set(seen[0]) == {"forward [m]", "left [m]", "up [m]"}
-    one_d = PerceptionDataset(np.zeros((50, 2)), np.ones((50, 1)), np.ones((50, 1)) + 0.01)
+    y1 = np.arange(50.0)[:, None] / 50.0  # distinct rows: a file of one repeated row is refused
+    one_d = PerceptionDataset(np.zeros((50, 2)), y1, y1 + 0.01)
     m1 = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=1, hidden=(4,), param="cholesky")))
     ev1 = certify(m1, one_d).evidence
     assert _labels(plot_projections(ev1, ("range [m]",))) == ["range [m]"] * len(ev1.example_index)
@@ -357,19 +360,25 @@ def test_a_row_level_claim_on_test_rows_grouped_by_flight_is_flagged_as_an_assum
     cert = certify(row_level, test).certificate
     assert dict(cert.test_group_columns) == {"flight": 12}
     assert cert.to_dict()["test_group_like_columns"] == {"flight": 12}
+    assert cert.status is not CertificateStatus.CERTIFIED  # never on a row-level claim on flights
     check = next(c for c in cert.summary.checks if c.name == "independent rows")
     assert (check.verdict, check.level) == ("assumed, in doubt", "warn")
     assert "'flight' column (12 groups in 600 test rows)" in check.detail
-    assert "certify with --group-column flight" in check.detail
     assert "recalibrate with --group-column flight" in check.detail
-    # counted per flight as well: the row says so instead of asking for it
-    counted = certify(row_level, test, group_column="flight").certificate
-    check = next(c for c in counted.summary.checks if c.name == "independent rows")
+    # the test data's one flight column: counted per flight by default, and the row says so
     assert "counted per group of 'flight' above" in check.detail
+    assert certify(row_level, test, group_column="flight").certificate.group_test == cert.group_test
+    # two columns that could name the runs: none is chosen, and the row asks for one
+    two = PerceptionDataset(
+        test.x, test.y, test.yhat, extra={"flight": test.extra["flight"], "run": test.extra["flight"] % 3}
+    )
+    asked = certify(row_level, two).certificate
+    check = next(c for c in asked.summary.checks if c.name == "independent rows")
+    assert asked.group_test is None and "certify with --group-column flight" in check.detail
     # no such row for a claim about flights, nor for test data without a run or flight column
     by_flight = calibrate(
         net, _flights(make_lagged_perception(3000, seed=83), 10), 0.2, 0.05, Grouped(column="flight"),
-        domain=DomainSpec(alpha=0.05),
+        domain=DomainSpec(flag_rate=0.05),
     )  # fmt: skip
     names = [c.name for c in certify(by_flight, test).certificate.summary.checks]
     assert "independent rows" not in names
@@ -379,9 +388,17 @@ def test_a_row_level_claim_on_test_rows_grouped_by_flight_is_flagged_as_an_assum
 
 def test_a_row_level_calibration_on_rows_grouped_by_flight_is_recorded_and_flagged(net, tmp_path):
     cal = _flights(make_lagged_perception(1500, seed=91), 50)  # 30 flights, calibrated row by row
-    with pytest.warns(Hint, match="'flight' column"):
-        model = calibrate(net, cal, 0.1, 0.01)
+    with pytest.warns(Hint, match="a row-level claim on data with runs of 'flight' \\(chosen explicitly\\)"):
+        model = calibrate(net, cal, 0.1, 0.01, Global())
     assert model.metadata["calibration_group_like_columns"] == {"flight": 30}
+    runs = model.metadata["calibration_runs"]
+    assert (runs["column"], runs["n_runs"], runs["unit"], runs["row_claim_chosen"]) == (
+        "flight",
+        30,
+        "row",
+        True,
+    )
+    assert runs["dependence"]["n_rows"] == 1500 and runs["plan"]["n_runs"] == 30
     save_model(model, tmp_path / "m.pt")  # the record survives the model file
     from ipcverify.io._modelio import load_model
 
@@ -389,10 +406,17 @@ def test_a_row_level_calibration_on_rows_grouped_by_flight_is_recorded_and_flagg
     # test data without a flight column: the calibration's record alone raises the check
     cert = certify(model, make_lagged_perception(600, seed=92)).certificate
     assert cert.to_dict()["calibration_group_like_columns"] == {"flight": 30}
+    assert cert.to_dict()["runs"]["unit"] == "row" and cert.status is CertificateStatus.ROWS_ASSUMED
     check = next(c for c in cert.summary.checks if c.name == "independent rows")
     assert (
         check.level == "warn"
         and "the calibration data had a 'flight' column (30 groups in 1,500 rows)" in check.detail
+        and "are worth about" in check.detail
+    )
+    runs_check = next(c for c in cert.summary.checks if c.name == "what the runs support")
+    assert (
+        "30 calibration runs of 'flight'" in runs_check.detail
+        and "needs at least 46 runs" in runs_check.detail
     )
     assert (
         "could also be counted per run" in check.detail
@@ -400,7 +424,7 @@ def test_a_row_level_calibration_on_rows_grouped_by_flight_is_recorded_and_flagg
     )
     # recalibrated by flight, the record is dropped and the check is gone
     by_flight = calibrate(
-        model, cal, 0.2, 0.05, Grouped(column="flight"), domain=DomainSpec(alpha=0.05), recalibrate=True
+        model, cal, 0.2, 0.05, Grouped(column="flight"), domain=DomainSpec(flag_rate=0.05), recalibrate=True
     )
     assert "calibration_group_like_columns" not in by_flight.metadata
     names = [
@@ -443,9 +467,9 @@ def test_a_certified_verdict_on_queries_mostly_outside_the_domain_says_so():
     shifted = certify(model, far).certificate
     assert inside.summary is not None and shifted.summary is not None
     assert inside.status is CertificateStatus.CERTIFIED and shifted.status is CertificateStatus.CERTIFIED
-    assert inside.domain is not None and not inside.domain.well_above_alpha
+    assert inside.domain is not None and not inside.domain.well_above_flag_rate
     assert "outside the domain" not in inside.summary.verdict_text()
-    assert shifted.domain is not None and shifted.domain.well_above_alpha
+    assert shifted.domain is not None and shifted.domain.well_above_flag_rate
     pct = f"{100 * shifted.domain.outside_fraction:.0f} %"
     assert shifted.summary.verdict_text().endswith(
         f"; but {pct} of the test queries lie outside the domain of validity (a shift: the certificate "
@@ -455,3 +479,13 @@ def test_a_certified_verdict_on_queries_mostly_outside_the_domain_says_so():
 
     banner = shifted.summary.verdict_text().split(": ", 1)[1]  # the report's banner: title, then this
     assert html.escape(banner) in render_report(certify(model, far))
+
+
+def test_certify_takes_the_statistical_inputs_and_the_report_names_y():
+    """Issue 39, item 4: units, labels and files belong to the report, not to certify()."""
+    import inspect
+
+    assert list(inspect.signature(certify).parameters) == [
+        "model", "test_data", "train_data", "delta", "bin_column", "bins", "group_column", "lipschitz_radius",
+    ]  # fmt: skip
+    assert {"units", "labels"} <= set(inspect.signature(write_certificate).parameters)

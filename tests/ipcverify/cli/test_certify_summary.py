@@ -95,7 +95,7 @@ def test_the_set_size_is_printed_beside_the_error_of_the_estimate(run_cli, files
     assert res.code == 0, res.stderr
     vol = json.loads((tmp_path / "certificate.json").read_text())["volume"]
     test = load_dataset(files / "test.csv")
-    half = load_model(files / "weak.pt").predict(test.x, test.yhat).half_widths()
+    half = load_model(files / "weak.pt").predict_unguarded(test.x, test.yhat).half_widths()
     np.testing.assert_allclose(vol["median_half_width"], np.median(half, axis=0), rtol=1e-6)
     np.testing.assert_allclose(
         vol["estimate_error_q90"], np.quantile(np.abs(test.y - test.yhat), 0.9, axis=0)

@@ -41,7 +41,17 @@ def test_train_loss_and_center_warm_start_flags(files, tmp_path):
     from ipcverify.cli import main
 
     p = tmp_path / "lik.pt"
-    argv = ["train", str(files / "train.parquet"), "--out", str(p), "--epochs", "2", "--hidden", "8"]
+    argv = [
+        "train",
+        str(files / "train.parquet"),
+        "--out",
+        str(p),
+        "--epochs",
+        "2",
+        "--hidden",
+        "8",
+        "--force",
+    ]
     with pytest.raises(SystemExit) as exc:
         main([*argv, "--recipe", "v1", "--loss", "likelihood", "--center-warm-start"])
     assert exc.value.code == 0
@@ -60,7 +70,7 @@ def test_train_recipes_by_name_and_explicit_options_override_them(files, tmp_pat
     from ipcverify.training._train import TrainConfig
 
     p = tmp_path / "m.pt"
-    base = ["train", str(files / "train.parquet"), "--out", str(p), "--hidden", "8"]
+    base = ["train", str(files / "train.parquet"), "--out", str(p), "--hidden", "8", "--force"]
     expected = {
         "tight": ("lowrank", "offset", 5, "likelihood", 0.15),
         "v1": ("cholesky", "offset", 1, "hinge", 0.0),
@@ -85,11 +95,11 @@ def test_train_recipes_by_name_and_explicit_options_override_them(files, tmp_pat
         assert m.config == ModelConfig.recipe(recipe, x_dim=6, y_dim=3, hidden=(8,))
     # the default recipe is "tight"; --members and --no-linear-center override it
     with pytest.raises(SystemExit) as exc:
-        main([*base, "--epochs", "1", "--members", "2", "--no-linear-center", "--alpha", "0.5"])
+        main([*base, "--epochs", "1", "--members", "2", "--no-linear-center", "--batch-size", "32"])
     assert exc.value.code == 0
     m = load_model(p)
     assert (m.config.param, m.config.members, m.config.linear_center) == ("lowrank", 2, False)
-    assert m.metadata["train_config"]["alpha"] == 0.5
+    assert m.metadata["train_config"]["batch_size"] == 32
 
 
 def test_evaluate_json(run_cli, files, model_path):
@@ -123,7 +133,7 @@ def test_predict_npz(run_cli, files, model_path, tmp_path):
     from ipcverify.data._dataset import load_dataset
 
     ds = load_dataset(files / "test.csv")
-    e = load_model(model_path).predict(ds.x, ds.yhat)
+    e = load_model(model_path).predict_unguarded(ds.x, ds.yhat)
     assert np.array_equal(z["center"], e.centers) and np.array_equal(z["shape"], e.shapes)
 
 
@@ -179,6 +189,14 @@ def test_demo(run_cli, tmp_path):
         assert (tmp_path / "demo" / name).is_file()
     cal = load_model(tmp_path / "demo" / "calibrated.pt")
     assert cal.calibration is not None and cal.calibration.n == 5000
+    from ipcverify.demo import DEMO_FILES
+
+    assert sorted(p.name for p in (tmp_path / "demo").iterdir()) == sorted(DEMO_FILES)
+    assert f"created the folder {tmp_path / 'demo'}" in res.stdout
+    again = run_cli("demo", "--out", tmp_path / "demo", "--n", "400")  # refused before computing anything
+    assert (
+        again.code == 2 and "already holds train.csv, calibration.csv, test.csv, model.pt, " in again.stderr
+    )
 
 
 def test_demo_calibrated_sets_keep_their_guarantee(tmp_path):
@@ -227,8 +245,8 @@ def test_demo_calibrated_sets_keep_their_guarantee(tmp_path):
         (["no-such-command"], "No such command"),
         (["predict", "{text}", "{test}", "--out", "{tmp}/s.npz"], "not a readable model file: it is not the"),
         (["certify", "{text}"], "not a readable model file"),
-        (["predict", "{model}", "{extra_x}", "--out", "{tmp}/s.npz"], "column x_6 looks like a x column"),
-        (["evaluate", "{model}", "{extra_x}"], "column x_6 looks like a x column"),
+        (["predict", "{model}", "{extra_x}", "--out", "{tmp}/s.npz"], "column x_6 looks like an x column"),
+        (["evaluate", "{model}", "{extra_x}"], "column x_6 looks like an x column"),
         (["predict", "{model}", "{no_x5}", "--out", "{tmp}/s.npz"], "missing column(s) x_5"),
     ],
 )
@@ -275,7 +293,7 @@ def test_train_paper_recipe_reports_p_and_how_its_unstated_settings_were_chosen(
     assert m.n_parameters == 9 * 64 + 64 + 64 * 128 + 128 + 128 * 12 + 12 and m.config.n_outputs == 12
     assert len(m.metadata["selection"]["candidates"]) == 9
     r = run_cli("train", files / "train.parquet", "--out", p, "--recipe", "paper", "--epochs", "1",
-                "--alpha", "0.5")  # fmt: skip
+                "--alpha", "0.5", "--force")  # fmt: skip
     assert r.code == 0 and "chosen on held-out" not in r.stdout
     m = load_model(p)
     assert "selection" not in m.metadata and m.metadata["train_config"]["alpha"] == 0.5

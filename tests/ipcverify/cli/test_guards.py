@@ -39,7 +39,7 @@ def setup(tmp_path_factory):
     save_model(model, f["model"])
     save_model(calibrate(model, cal_ds, 0.05, 0.01), f["calibrated"])
     flight_cal = calibrate(
-        model, _flights(cal_ds, 100), 0.3, 0.1, Grouped(column="flight"), domain=DomainSpec(alpha=0.1)
+        model, _flights(cal_ds, 100), 0.3, 0.1, Grouped(column="flight"), domain=DomainSpec(flag_rate=0.1)
     )
     save_model(flight_cal, f["flight_model"])
     test = make_lagged_perception(600, seed=2)
@@ -65,7 +65,7 @@ def test_evaluate_reports_the_domain_in_its_table_and_json_and_warns_when_all_is
     dom = json.loads(res.stdout)["domain"]
     assert dom["n"] == 600 and dom["outside"] == 600 and dom["outside_fraction"] == 1.0
     assert dom["violations_inside"] == 0 and dom["violations_outside"] == json.loads(res.stdout)["violations"]
-    assert dom["well_above_alpha"] is True
+    assert dom["well_above_flag_rate"] is True
     assert res.stderr.startswith("warning: 600 of 600 queries (100.00 %) lie outside the domain of validity")
     table = run_cli("evaluate", setup["calibrated"], setup["far"])
     assert "outside the domain of validity │ 600 (100.00 %)" in table.stdout
@@ -112,31 +112,36 @@ def test_calibrate_warns_when_the_inputs_lie_outside_the_training_inputs(setup, 
     )
 
 
-def test_a_run_column_calibrated_or_certified_row_by_row_gets_a_hint(setup, run_cli, tmp_path):
+def test_a_run_column_is_calibrated_by_runs_unless_rows_are_chosen_and_certified_by_runs(
+    setup, run_cli, tmp_path
+):
     args = ["--epsilon", "0.05", "--delta", "0.01", "--out", tmp_path / "c.pt"]
+    # the data name 30 runs: the claim is about runs, and 30 runs cannot certify 5 %; the refusal says why
     res = run_cli("calibrate", setup["model"], setup["cal_runs"], *args)
-    assert res.code == 0
-    hints = [line for line in res.stderr.splitlines() if line.startswith("hint:")]
-    assert len(hints) == 1 and "'run' column (30 groups)" in hints[0] and "--group-column run" in hints[0]
+    assert res.code == 2 and len(res.stderr.strip().splitlines()) == 1, res.stderr
+    assert "30 groups of column 'run' are too few" in res.stderr and "--unit row" in res.stderr
+    assert "hint:" not in res.stderr  # no hint before the error it belongs to
+    rows = run_cli("calibrate", setup["model"], setup["cal_runs"], *args, "--unit", "row")
+    assert rows.code == 0, rows.stderr
+    hints = [line for line in rows.stderr.splitlines() if line.startswith("hint:")]
+    assert len(hints) == 1 and "a row-level claim on data with runs of 'run' (chosen explicitly)" in hints[0]
+    assert "3,000 rows in 30 runs of 'run' are worth about" in hints[0] and "--unit run" in hints[0]
+    assert "Within-run dependence: 3,000 rows in 30 runs" in rows.stdout
     grouped = run_cli(
         "calibrate", setup["model"], setup["cal_runs"], *args, "--group-column", "run", "--epsilon", "0.3",
-        "--delta", "0.2", "--domain-alpha", "0.2",
+        "--delta", "0.2", "--domain-flag-rate", "0.2", "--force",
     )  # fmt: skip
     assert grouped.code == 0, grouped.stderr
-    assert "hint:" not in grouped.stderr
+    assert "hint:" not in grouped.stderr and "From 30 independent runs at delta=0.2" in grouped.stdout
+    # the test data's flights are counted per flight, with or without --group-column
     cert = run_cli("certify", setup["calibrated"], "--data", setup["flights"], "--out", tmp_path / "cert")
-    assert cert.code == 0 and "hint: " in cert.stderr and "--group-column flight" in cert.stderr
     counted = run_cli(
-        "certify",
-        setup["calibrated"],
-        "--data",
-        setup["flights"],
-        "--group-column",
-        "flight",
-        "--out",
-        tmp_path / "c2",
-    )
-    assert counted.code == 0 and "hint:" not in counted.stderr
+        "certify", setup["calibrated"], "--data", setup["flights"], "--group-column", "flight",
+        "--out", tmp_path / "c2",
+    )  # fmt: skip
+    assert cert.code == counted.code == 0 and "hint:" not in cert.stderr + counted.stderr
+    first, second = (json.loads((tmp_path / d / "certificate.json").read_text()) for d in ("cert", "c2"))
+    assert first["group_test"]["column"] == "flight" and first["group_test"] == second["group_test"]
 
 
 def test_monitor_takes_a_flight_level_model_one_observation_per_flight(setup, run_cli, tmp_path):

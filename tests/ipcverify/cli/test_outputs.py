@@ -97,7 +97,7 @@ def test_a_failed_demo_leaves_no_files_and_keeps_the_old_ones(tmp_path, run_cli,
     out = tmp_path / "demo"
     out.mkdir()
     (out / "train.csv").write_text("an earlier run's file\n", encoding="utf-8")
-    res = run_cli("demo", "--n", "3", "--out", out)
+    res = run_cli("demo", "--n", "3", "--out", out, "--force")
     assert res.code == 2 and "the demo needs n_train (--n) between 100 and 10,000,000; got 3" in res.stderr
     assert [p.name for p in out.iterdir()] == ["train.csv"]
 

@@ -98,7 +98,7 @@ def test_the_defaults_written_out_in_the_cli_are_the_librarys():
     """Defaults and choices the CLI spells out (so that --help imports nothing heavy) match their owners."""
     from ipcverify.certification._lipschitz import DEFAULT_RADIUS
     from ipcverify.cli import app
-    from ipcverify.guard._domain import DEFAULT_ALPHA
+    from ipcverify.guard._domain import DEFAULT_FLAG_RATE
     from ipcverify.io.ingest._formats import FORMATS
     from ipcverify.io.ingest._quantity import QUANTITIES, UP_AXES
 
@@ -109,7 +109,10 @@ def test_the_defaults_written_out_in_the_cli_are_the_librarys():
             cmd = cmd.commands[word]
         return next(p for p in cmd.params if p.name == name)
 
-    assert option(("calibrate",), "domain_alpha").default == DEFAULT_ALPHA
+    domain_flag_rate = option(("calibrate",), "domain_flag_rate")
+    assert domain_flag_rate.default is None and f"[default: {DEFAULT_FLAG_RATE:g}," in str(
+        domain_flag_rate.help
+    )
     assert option(("certify",), "lipschitz_radius").default == DEFAULT_RADIUS
     for path in (("ingest", "bag"), ("ingest", "trajectories")):
         quantity = option(path, "quantity").type

@@ -75,14 +75,14 @@ BAD_FILES = [
     pytest.param("e.csv", "x_0,y_0,yhat_0\n1,2,3\n", {"x_columns": ["speed"]}, r"missing column\(s\) speed",
                  id="explicit-missing-column"),
     pytest.param("f.csv", "x_0,y_0,yhat_0\n1,2,3\n1,nan,3\n", {},
-                 r"f\.csv: row 1, column 'y_0': non-finite value", id="non-finite"),
+                 r"f\.csv: row 1 \(0-based\), column 'y_0': non-finite value", id="non-finite"),
     pytest.param("na.csv", "x_0,y_0,yhat_0\n1,2,3\nn/a,2,3\n", {},
-                 r"row 1, column 'x_0': non-finite value nan \(an empty cell, or text such as NA or n/a",
+                 r"row 1 \(0-based\), column 'x_0': non-finite value nan \(an empty cell, or text such as NA",
                  id="na-text"),
     pytest.param("inf.csv", "x_0,y_0,yhat_0\n1,2,3\ninf,2,3\n", {},
-                 r"row 1, column 'x_0': non-finite value inf; drop", id="infinite"),
+                 r"row 1 \(0-based\), column 'x_0': non-finite value inf; drop", id="infinite"),
     pytest.param("t.csv", "x_0,y_0,yhat_0\n1,2,3\n1,2,abc\n", {},
-                 r"t\.csv: row 1, column 'yhat_0': not a number \('abc'\)", id="non-numeric"),
+                 r"t\.csv: row 1 \(0-based\), column 'yhat_0': not a number \('abc'\)", id="non-numeric"),
     pytest.param("empty.csv", "", {}, r"empty\.csv: the file is empty", id="empty-file"),
     pytest.param("h.csv", "x_0,y_0,yhat_0\n", {}, r"h\.csv: the file has a header but no samples",
                  id="header-only"),
@@ -229,13 +229,11 @@ def test_group_split_refuses_unknown_column_and_too_few_groups():
         ds.split(group_column="flight")
     with pytest.raises(
         DataError,
-        match=r"log: group column 'run' has 2 group\(s\), too few for split fractions \[0\.6, 0\.2, 0\.2\]: "
+        match=r"log: group column 'run' has 2 groups, too few for split fractions \[0\.6, 0\.2, 0\.2\]: "
         r"the calibration part would get no group; use about 5 or more groups",
     ):
         ds.split((0.6, 0.2, 0.2), group_column="run")
-    with pytest.raises(
-        DataError, match=r"has 1 group\(s\).*the calibration and test parts would get no group"
-    ):
+    with pytest.raises(DataError, match=r"has 1 group, .*the calibration and test parts would get no group"):
         _with_runs(1).split((0.6, 0.2, 0.2), group_column="run")
     # a zero share may be empty
     parts = ds.split((0.5, 0.5, 0.0), group_column="run")
@@ -247,12 +245,12 @@ def test_group_split_refuses_missing_labels():
     runs = np.array(ds.column("run"), dtype=object)
     runs[7] = None
     bad = PerceptionDataset(ds.x, ds.y, ds.yhat, source="log", extra={"run": runs})
-    with pytest.raises(DataError, match=r"log: group column 'run': row 7 has no group label \(it is empty\)"):
+    with pytest.raises(DataError, match=r"log: group column 'run': row 7 \(0-based\) has no group label"):
         bad.split(group_column="run")
     numeric = np.repeat(np.arange(4.0), len(ds) // 4 + 1)[: len(ds)]
     numeric[3] = np.nan  # a numeric group column with a missing value: no np.float64(nan) in the message
     bad = PerceptionDataset(ds.x, ds.y, ds.yhat, source="log", extra={"run": numeric})
-    with pytest.raises(DataError, match=r"row 3 has no group label \(it is empty\); every") as info:
+    with pytest.raises(DataError, match=r"row 3 \(0-based\) has no group label \(it is empty\)") as info:
         bad.split(group_column="run")
     assert "np." not in str(info.value) and "nan" not in str(info.value)
 

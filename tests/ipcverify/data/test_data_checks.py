@@ -7,7 +7,7 @@ import warnings
 import numpy as np
 import pytest
 
-from ipcverify.calibration import Grouped
+from ipcverify.calibration import Global, Grouped
 from ipcverify.contract._calibrate import calibrate
 from ipcverify.contract._model import IPCModel, IPCNetwork
 from ipcverify.data._checks import (
@@ -48,7 +48,7 @@ def test_mostly_repeated_rows_are_refused_and_a_few_are_a_warning():
     with pytest.raises(DataError, match="only 49 distinct rows among 100"):
         check_informative(half, "calibration")
     few = base.subset(np.r_[np.arange(100), [3, 4]])
-    with pytest.warns(DataWarning, match="2 of 102 rows repeat an earlier row"):
+    with pytest.warns(DataWarning, match="2 of 102 training rows repeat an earlier row"):
         check_informative(few, "training")
     with warnings.catch_warnings():
         warnings.simplefilter("error")
@@ -106,14 +106,15 @@ def test_calibrate_warns_far_from_training_and_hints_at_runs(recwarn):
     far = PerceptionDataset(
         cal.x - np.r_[50.0, 0, 0, 0, 0, 0], cal.y, cal.yhat, source="cal.csv", extra={"run": runs}
     )
-    calibrate(model, far, 0.05, 0.01)
+    calibrate(model, far, 0.05, 0.01, Global())  # a row-level claim on runs, chosen explicitly
     messages = [(w.category, str(w.message)) for w in recwarn]
     assert any("lie outside the ranges of the training inputs" in m for c, m in messages if c is DataWarning)
     hint = [m for c, m in messages if c is Hint]
-    assert len(hint) == 1 and "'run' column (15 groups)" in hint[0] and "--group-column run" in hint[0]
+    assert len(hint) == 1 and "a row-level claim on data with runs of 'run'" in hint[0]
+    assert "1,500 rows in 15 runs of 'run'" in hint[0] and "CLI: --unit run" in hint[0]
     recwarn.clear()
-    calibrate(model, far, 0.3, 0.2, Grouped(column="run"), domain=DomainSpec(alpha=0.1))
-    assert not [w for w in recwarn if w.category is Hint]  # grouped: no hint
+    calibrate(model, far, 0.3, 0.2, Grouped(column="run"), domain=DomainSpec(flag_rate=0.1))
+    assert not [w for w in recwarn if w.category is Hint]  # grouped by choice: no hint
 
 
 def test_group_like_counts_need_a_fitting_name_and_more_than_one_group():
@@ -149,11 +150,12 @@ def test_a_log_out_of_time_order_within_a_run_gets_a_hint_and_one_in_order_none(
         warn_out_of_time_order(log, "the monitor replays")
     swapped = np.arange(len(log))
     swapped[[10, 11]] = [11, 10]  # two rows of run 0 swapped
-    with pytest.warns(Hint, match=r"column 't' goes back in time at row 11 within run 0 \(2\.75 then 2\.5\)"):
+    back = r"column 't' goes back in time at row 11 \(0-based\) within run 0, from 2\.75 to 2\.5"
+    with pytest.warns(Hint, match=back):
         warn_out_of_time_order(log.subset(swapped), "the monitor replays")
     # without a column naming runs, a restart of the clock may be a new run: the hint says so
     flat = _ds(np.arange(4), t=np.array([0.0, 1.0, 0.0, 1.0]))
-    with pytest.warns(Hint, match=r"at row 2 \(1 then 0\).*or a new run starts there"):
+    with pytest.warns(Hint, match=r"at row 2 \(0-based\), from 1 to 0.*or a new run starts there"):
         warn_out_of_time_order(flat, "the monitor replays")
     # text in a column called t is not a clock
     with warnings.catch_warnings():

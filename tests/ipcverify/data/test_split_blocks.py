@@ -109,7 +109,7 @@ def test_a_missing_time_is_refused_with_its_row(tmp_path):
     z = np.zeros((4, 1))
     t = np.array([0.0, 1.0, np.nan, 3.0])
     save_dataset(PerceptionDataset(z, z, z, extra={"t": t}), tmp_path / "log.csv")
-    with pytest.raises(DataError, match="row 2 has no finite time"):
+    with pytest.raises(DataError, match=r"row 2 \(0-based\) has no finite time"):
         split_file(tmp_path / "log.csv", tmp_path / "out", block=1.0)
 
 
@@ -142,7 +142,7 @@ def test_a_block_length_may_be_any_real_number_type(seconds):
     [
         ({"seconds": True}, "positive number of seconds; got True"),
         ({"seconds": 1e-300}, "give a block length in seconds of the same order"),
-        ({"seconds": 1.0, "groups": [None, "a", "a"]}, "group column: row 0 has no group label"),
+        ({"seconds": 1.0, "groups": [None, "a", "a"]}, r"group column: row 0 \(0-based\) has no group label"),
     ],
 )
 def test_block_inputs_that_make_no_sense_are_refused_naming_what_is_wrong(kwargs, match):

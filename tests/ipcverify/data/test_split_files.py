@@ -9,7 +9,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from ipcverify.data import PerceptionDataset, file_sha256, load_dataset, save_dataset, split_file
+from ipcverify.data import PerceptionDataset, load_dataset, save_dataset, split_file
+from ipcverify.data._files import file_sha256
 from ipcverify.errors import DataError, InvalidInputError
 
 LOG = Path(__file__).resolve().parents[3] / "data" / "euroc_mh04_vislam.csv"
@@ -56,6 +57,7 @@ def test_the_record_names_the_source_and_every_part_by_sha256(tmp_path):
 
 def test_the_record_matches_what_train_calibrate_and_certify_record_of_their_data(tmp_path):
     from ipcverify import calibrate, certify, train
+    from ipcverify.calibration import Global
     from ipcverify.network import ModelConfig
     from ipcverify.training import TrainConfig
 
@@ -63,7 +65,7 @@ def test_the_record_matches_what_train_calibrate_and_certify_record_of_their_dat
     train_part, cal_part, test_part = (load_dataset(p.path) for p in s.parts)
     config = ModelConfig(x_dim=5, y_dim=3, hidden=(8,), param="cholesky")
     model = train(train_part, config, TrainConfig(epochs=1, seed=0)).model
-    model = calibrate(model, cal_part, epsilon=0.2, delta=0.05)
+    model = calibrate(model, cal_part, epsilon=0.2, delta=0.05, method=Global())
     cert = certify(model, test_part).certificate
     hashes = [p.content_sha256 for p in s.parts]
     assert hashes == [

@@ -45,7 +45,7 @@ def test_query_sets_are_the_models_sets(trained, data, calibrated):
     model = calibrate(trained, data[1], 0.05, 0.01) if calibrated else trained
     q = LandingQuery(IPCQuery(model), G)
     test = make_lagged_perception(50, seed=2)
-    ref = model.predict(test.x, test.yhat)
+    ref = model.predict_unguarded(test.x, test.yhat)
     for i in range(len(test)):
         c, C = q.ellipsoid(test.x[i], test.yhat[i])
         np.testing.assert_allclose(c, ref.centers[i], rtol=1e-12, atol=1e-15)
@@ -56,7 +56,7 @@ def test_mondrian_calibration_is_applied_per_query(data):
     model = train(data[0], ModelConfig(x_dim=6, y_dim=3, hidden=(8,)), TrainConfig(epochs=1)).model
     cal = calibrate(model, make_lagged_perception(3000, seed=5), 0.1, 0.05, Mondrian(column="x_5", bins=2))
     test = make_lagged_perception(20, seed=3)
-    ref = cal.predict(test.x, test.yhat)
+    ref = cal.predict_unguarded(test.x, test.yhat)
     q = LandingQuery(IPCQuery(cal), G)
     for i in range(len(test)):
         np.testing.assert_allclose(q.ellipsoid(test.x[i], test.yhat[i])[1], ref.shapes[i], rtol=1e-12)
@@ -265,7 +265,7 @@ def test_the_query_path_works_on_a_model_with_a_two_dimensional_output(param):
     test = _two_dimensional(40, 2)
     # half the queries moved far from the data: outside the domain of validity
     xs = np.concatenate([test.x[:20], test.x[20:] + 4.0])
-    ref = model.predict(xs, test.yhat)
+    ref = model.predict_unguarded(xs, test.yhat)
     inside = model.domain.contains(xs, test.yhat)
     assert inside[:20].any() and not inside[20:].any()
     for i in range(len(xs)):

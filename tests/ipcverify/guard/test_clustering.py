@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from ipcverify.errors import InvalidInputError
-from ipcverify.guard import RUNS_LEVEL, ViolationMonitor, ViolationRuns
+from ipcverify.guard import ViolationMonitor
+from ipcverify.guard._clustering import RUNS_LEVEL, ViolationRuns
 
 
 def _sticky(n: int, rate: float, stick: float, rng: np.random.Generator) -> np.ndarray:

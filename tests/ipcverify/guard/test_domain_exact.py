@@ -58,7 +58,7 @@ def _queries(rng: np.random.Generator, n: int, dom: DomainModel) -> tuple[np.nda
 @pytest.fixture(scope="module", params=[1, 3], ids=["k1", "k3"])
 def model(request):
     x, yhat = _manifold(np.random.default_rng(0), 3000)
-    return DomainModel.fit(x, yhat, alpha=0.02, k=request.param)
+    return DomainModel.fit(x, yhat, flag_rate=0.02, k=request.param)
 
 
 @pytest.mark.slow
@@ -138,7 +138,7 @@ def test_batch_test_equals_the_exact_test_on_the_real_log():
         dom.forget()
         rows = np.hstack([x, yhat])[::7]
         assert [dom.contains_one(r) for r in rows] == want[::7].tolist()
-    by_run = DomainModel.fit(df[xs].to_numpy(), df[ys].to_numpy(), alpha=0.1, groups=group.to_numpy())
+    by_run = DomainModel.fit(df[xs].to_numpy(), df[ys].to_numpy(), flag_rate=0.1, groups=group.to_numpy())
     shifted = df[xs].to_numpy() * 1.3
     assert np.array_equal(by_run.contains(shifted, df[ys]), _oracle(by_run, shifted, df[ys].to_numpy()))
 

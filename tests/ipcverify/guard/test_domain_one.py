@@ -17,7 +17,7 @@ def _fit(k: int, seed: int = 0) -> tuple[DomainModel, np.ndarray, np.ndarray]:
     u = rng.uniform(-1, 1, (600, 2))
     x = np.column_stack([u[:, 0], u[:, 1], u[:, 0] ** 2]) + 0.05 * rng.standard_normal((600, 3))
     yhat = np.column_stack([np.sin(2 * u[:, 0]), u[:, 0] * u[:, 1]]) + 0.05 * rng.standard_normal((600, 2))
-    return DomainModel.fit(x, yhat, alpha=0.05, k=k), x, yhat
+    return DomainModel.fit(x, yhat, flag_rate=0.05, k=k), x, yhat
 
 
 DOMAINS = {k: _fit(k) for k in (1, 3)}

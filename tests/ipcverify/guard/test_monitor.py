@@ -211,8 +211,8 @@ def test_alarm_stays_and_e_value_overflows_to_inf():
 @pytest.mark.parametrize(
     ("violated", "in_domain", "match"),
     [
-        ([0, 2], None, r"observation 1: violated=.*2.* is not in \[0, 1\]"),
-        ([0.0, float("nan")], None, "observation 1: violated=.*nan"),
+        ([0, 2], None, r"observation 1 \(0-based\): violated=.*2.* is not in \[0, 1\]"),
+        ([0.0, float("nan")], None, r"observation 1 \(0-based\): violated=.*nan"),
         (["yes"], None, "violated must be booleans or numbers"),
         ([[0, 1]], None, r"one value per observation \(1-D\)"),
         ([0, 1], [True], r"in_domain has shape \(1,\) but violated has \(2,\)"),

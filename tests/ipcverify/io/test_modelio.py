@@ -22,7 +22,7 @@ def test_save_load_gives_identical_outputs(tmp_path):
     p = tmp_path / "m.pt"
     save_model(model, p)
     back = load_model(p)
-    a, b = model.predict(ds.x, ds.yhat), back.predict(ds.x, ds.yhat)
+    a, b = model.predict_unguarded(ds.x, ds.yhat), back.predict_unguarded(ds.x, ds.yhat)
     assert np.array_equal(a.centers, b.centers)
     assert np.array_equal(a.shapes, b.shapes)
     assert back.metadata["train_data_hash"] == ds.content_hash()
@@ -122,7 +122,9 @@ def test_paper_head_files_stay_version_1_and_lowrank_files_are_version_2(tmp_pat
         assert back.config == model.config and network_fingerprint(back.network) == network_fingerprint(
             model.network
         )
-        np.testing.assert_array_equal(back.predict(ds.x, ds.yhat).shapes, model.predict(ds.x, ds.yhat).shapes)
+        np.testing.assert_array_equal(
+            back.predict_unguarded(ds.x, ds.yhat).shapes, model.predict_unguarded(ds.x, ds.yhat).shapes
+        )
 
 
 def test_a_file_written_before_the_lowrank_head_loads_unchanged(tmp_path):
@@ -152,7 +154,9 @@ def test_a_file_written_before_the_lowrank_head_loads_unchanged(tmp_path):
     assert back.config == ModelConfig.recipe("v1", x_dim=2, y_dim=3)
     assert network_fingerprint(back.network) == network_fingerprint(net)
     x, yhat = np.ones((4, 2)), np.zeros((4, 3))
-    np.testing.assert_array_equal(back.predict(x, yhat).shapes, IPCModel(net).predict(x, yhat).shapes)
+    np.testing.assert_array_equal(
+        back.predict_unguarded(x, yhat).shapes, IPCModel(net).predict_unguarded(x, yhat).shapes
+    )
 
 
 def test_a_lowrank_network_in_a_version_1_file_is_refused(tmp_path):
@@ -188,7 +192,7 @@ def test_a_layout_the_torch_free_reader_does_not_know_is_read_by_torch(tmp_path,
         via_torch.weights.fingerprint() == direct.weights.fingerprint() == network_fingerprint(model.network)
     )
     np.testing.assert_array_equal(
-        via_torch.predict(ds.x, ds.yhat).shapes, direct.predict(ds.x, ds.yhat).shapes
+        via_torch.predict_unguarded(ds.x, ds.yhat).shapes, direct.predict_unguarded(ds.x, ds.yhat).shapes
     )
 
 
@@ -197,3 +201,67 @@ def test_a_torch_object_in_a_model_file_is_refused_by_torch_too(tmp_path):
     torch.save({"format": "ipcverify-model", "format_version": 2, "net": torch.nn.Linear(2, 2)}, p)
     with pytest.raises(ModelFileError, match=r"refused to load: the file holds objects other than tensors"):
         load_model(p)
+
+
+def test_row_fingerprints_are_written_as_int64_tensors_and_read_back_without_torch(tmp_path, monkeypatch):
+    import ipcverify.io._modelio as modelio
+    from ipcverify.contract._calibrate import calibrate
+    from ipcverify.data._fingerprints import ROWS_KEY, SCHEME, recorded_rows, row_fingerprints
+    from ipcverify.io._torchfile import read_torch_file
+
+    train_ds, cal_ds = make_lagged_perception(300, seed=0), make_lagged_perception(400, seed=1)
+    model = calibrate(train(train_ds, train_config=TrainConfig(epochs=1)).model, cal_ds, 0.1, 0.05)
+    p = tmp_path / "m.pt"
+    save_model(model, p)
+    stored = read_torch_file(p)["row_fingerprints"]  # the torch-free reader: plain int64 arrays
+    assert stored["scheme"] == SCHEME and stored["training"].dtype == np.int64
+    assert len(stored["training"]) == 300 and len(stored["calibration"]) == 400  # 8 bytes a row
+
+    def no_torch(*args, **kwargs):
+        raise AssertionError("torch.load was called")
+
+    monkeypatch.setattr(torch, "load", no_torch)
+    back = load_model(p)
+    for role, ds in (("training", train_ds), ("calibration", cal_ds)):
+        rows = recorded_rows(back.metadata, role)
+        assert rows.dtype == np.uint64 and not rows.flags.writeable
+        np.testing.assert_array_equal(rows, np.unique(row_fingerprints(ds)))
+        np.testing.assert_array_equal(rows, recorded_rows(model.metadata, role))
+    assert set(back.metadata[ROWS_KEY]) == {"scheme", "training", "calibration"}
+    assert "row_fingerprints" not in {k for k, v in read_torch_file(p)["metadata"].items()}  # not plain data
+    assert modelio.ROWS_KEY == ROWS_KEY
+
+
+@pytest.mark.parametrize(
+    ("damage", "match"),
+    [
+        (lambda t: t.flip(0), "the fingerprints are not sorted and distinct"),
+        (lambda t: t.to(torch.float64), "expected a 1-D int64 array"),
+        (lambda t: t.reshape(1, -1), "expected a 1-D int64 array"),
+    ],
+)
+def test_damaged_row_fingerprints_are_refused(tmp_path, damage, match):
+    model = train(make_lagged_perception(200, seed=0), train_config=TrainConfig(epochs=1)).model
+    p = tmp_path / "m.pt"
+    save_model(model, p)
+    payload = torch.load(p, weights_only=True)
+    payload["row_fingerprints"]["training"] = damage(payload["row_fingerprints"]["training"])
+    torch.save(payload, p)
+    with pytest.raises(ModelFileError, match=rf"damaged row-fingerprint record \(training: {match}"):
+        load_model(p)
+
+
+def test_a_file_without_row_fingerprints_reads_with_none(tmp_path):
+    from ipcverify.data._fingerprints import ROWS_KEY
+
+    model = train(make_lagged_perception(200, seed=0), train_config=TrainConfig(epochs=1)).model
+    p = tmp_path / "m.pt"
+    save_model(model, p)
+    payload = torch.load(p, weights_only=True)
+    del payload["row_fingerprints"]  # as ipcverify wrote model files before them
+    torch.save(payload, p)
+    back = load_model(p)
+    assert (
+        ROWS_KEY not in back.metadata
+        and back.metadata["train_data_hash"] == model.metadata["train_data_hash"]
+    )

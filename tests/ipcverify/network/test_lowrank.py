@@ -194,7 +194,7 @@ def _linear_bias_with_an_exact_axis(n: int, seed: int) -> PerceptionDataset:
 def test_training_keeps_an_exactly_known_axis_finite_and_tight():
     data, test = _linear_bias_with_an_exact_axis(1500, 0), _linear_bias_with_an_exact_axis(500, 1)
     model = train(data, train_config=TrainConfig(epochs=5)).model
-    sets = model.predict(test.x, test.yhat)  # validates: finite, non-singular shapes
+    sets = model.predict_unguarded(test.x, test.yhat)  # validates: finite, non-singular shapes
     sigma = model.network.sigma.numpy()
     assert sigma[2] == pytest.approx(SIGMA_FLOOR * (data.y - data.yhat)[:, 2].std(), rel=1e-9)  # the floor
     assert sigma[0] > 1e3 * sigma[2]

@@ -24,19 +24,17 @@ import numpy as np
 import pytest
 
 import ipcverify.sets._outer as outer_module
-from ipcverify.decision.containment import (
-    Status,
-    certificate_from_dict,
-    contained_float,
-    prove,
-    set_from_dict,
-    set_to_dict,
-    support_slack_bounds,
-    verify,
-)
+from ipcverify.decision.containment import Status, prove, verify
+from ipcverify.decision.containment._certificate import certificate_from_dict
+from ipcverify.decision.containment._io import set_from_dict, set_to_dict
+from ipcverify.decision.containment._margin import contained_float
+from ipcverify.decision.containment._rounding import support_slack_bounds
 from ipcverify.errors import SetError
-from ipcverify.sets import Box, Ellipsoid, FacedSet, OuterSet, json_field, json_number, json_vector
+from ipcverify.sets import Box, Ellipsoid
 from ipcverify.sets._exact import exact_matrix, exact_vector, inverse, sqnorm
+from ipcverify.sets._faces import FacedSet
+from ipcverify.sets._json import json_field, json_number, json_vector
+from ipcverify.sets._outer import OuterSet
 
 ROOT = Path(__file__).resolve().parents[3]
 SHAPES = {"Box", "Polytope", "Ellipsoid"}

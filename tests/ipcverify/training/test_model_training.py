@@ -128,7 +128,7 @@ def test_network_logdet_and_sets_are_consistent(param, center):
         assert torch.all(torch.triu(C, diagonal=1) == 0)
         assert torch.all(torch.diagonal(C, dim1=1, dim2=2) > 0)
     m = IPCModel(net)
-    e = m.predict(x, yhat)
+    e = m.predict_unguarded(x, yhat)
     assert np.allclose(e.g(y), m.raw_scores(x, y, yhat))
     # the float64 engine agrees with torch's float32 forward to float32 precision ...
     assert np.allclose(e.centers, c.detach().double().numpy(), rtol=1e-5, atol=1e-6)
@@ -172,7 +172,7 @@ def test_training_reaches_the_expected_violation_rate_and_size():
     train_data, _ = _heteroscedastic(5000, 0)
     test_data, sigma = _heteroscedastic(50_000, 1)
     model = train(train_data, train_config=_v1(alpha=alpha, lam=lam, seed=0), recipe="v1").model
-    sets = model.predict(test_data.x, test_data.yhat)
+    sets = model.predict_unguarded(test_data.x, test_data.yhat)
     # the learned radius follows sigma(x): half-width / sigma ~ 1/k* (to 10 %)
     ratio = np.median(sets.half_widths().mean(axis=1) / sigma)
     assert ratio == pytest.approx(1 / k, rel=0.10)
@@ -293,7 +293,7 @@ def test_bad_model_config_and_inputs():
         train(_heteroscedastic(50, 0)[0], train_config=TrainConfig(epochs=1, center_warm_start=True))
     m = IPCModel(IPCNetwork(ModelConfig(x_dim=2, y_dim=3, hidden=(4,), param="cholesky")))
     with pytest.raises(InvalidInputError, match=r"expects x of shape \(B, 2\)"):
-        m.predict(np.zeros((3, 3)), np.zeros((3, 3)))
+        m.predict_unguarded(np.zeros((3, 3)), np.zeros((3, 3)))
     data, _ = _heteroscedastic(50, 0)
     with pytest.raises(InvalidInputError, match="model expects x_dim=5"):
         train(data, ModelConfig(x_dim=5, y_dim=3), TrainConfig(epochs=1))

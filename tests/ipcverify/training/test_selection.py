@@ -191,7 +191,7 @@ def test_the_rule_can_hold_out_whole_groups(run_cli, tmp_path):
     r = run_cli("train", tmp_path / "flights.csv", "--out", tmp_path / "m.pt", "--recipe", "paper",
                 "--epochs", "1", "--group-column", "flight")  # fmt: skip
     assert r.code == 0, r.stderr
-    r = run_cli("train", tmp_path / "flights.csv", "--out", tmp_path / "m.pt", "--group-column", "flight")
+    r = run_cli("train", tmp_path / "flights.csv", "--out", tmp_path / "m2.pt", "--group-column", "flight")
     assert r.code == 2 and "--group-column only chooses the paper recipe's" in r.stderr
     with pytest.raises(InvalidInputError, match="group_column must be a column name"):
         HingeSelection(group_column="")

@@ -38,7 +38,8 @@ def test_an_uncalibrated_contract_is_flown_only_when_asked_and_only_raw(make_ipc
 
 def test_learned_contract_refuses_the_wrong_dimensions():
     m = IPCModel(IPCNetwork(ModelConfig(x_dim=6, y_dim=3, hidden=(4,), param="cholesky")))
-    from ipcverify.calibration import GlobalCalibration, threshold_scores
+    from ipcverify.calibration._global_scale import GlobalCalibration
+    from ipcverify.calibration._threshold import threshold_scores
 
     t = threshold_scores(np.linspace(0.1, 1.0, 200), 0.1, 0.1, "marginal")
     with pytest.raises(InvalidInputError, match="x_dim=6"):
@@ -53,7 +54,7 @@ def test_learned_contract_matches_predict_moved_to_the_world(make_ipc):
     m = flight.measure()
     d = contract.decide(m, G)
     e = Ellipsoid(d.center, d.shape)
-    ref = model.predict(m.x_c, m.yhat_c)
+    ref = model.predict_unguarded(m.x_c, m.yhat_c)
     T = m.world_from_camera
     np.testing.assert_allclose(e.centers[0], T.apply(ref.centers[0]), atol=1e-12)
     # the same set: a point inside in C is inside in W, with the same score

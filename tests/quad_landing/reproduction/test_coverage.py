@@ -25,7 +25,7 @@ def test_coverage_check_counts_every_query_and_keeps_the_layout(baseline_runs, m
     model = make_ipc(True)
     with pytest.raises(InvalidInputError, match="no domain-of-validity test"):
         coverage_check(model, ref, ref, baseline_runs)
-    domain = DomainModel.fit(ref.x, ref.yhat, alpha=0.1, k=2)
+    domain = DomainModel.fit(ref.x, ref.yhat, flag_rate=0.1, k=2)
     model = model.with_calibration(model.calibration, domain)
     check = coverage_check(model, ref, ref, baseline_runs, delta=0.05)
     d_queries = domain.distance(x, yhat)
@@ -34,7 +34,7 @@ def test_coverage_check_counts_every_query_and_keeps_the_layout(baseline_runs, m
     assert check.groups["all"].exceed == int((d_queries > domain.threshold).sum())
     lo, hi = check.groups["all"].interval
     assert lo <= check.groups["all"].rate <= hi and check.groups["all"].lower <= check.groups["all"].rate
-    assert check.shift_detected == any(g.lower > domain.alpha for g in check.groups.values())
+    assert check.shift_detected == any(g.lower > domain.flag_rate for g in check.groups.values())
     assert sorted(check.distances["queries"]) == sorted(d_queries.tolist())
     full, kept = check.to_dict(), check.to_dict(distances=False)
     assert list(full) == ["method", "quantile", "threshold", "test", "null_rate", "confidence", "groups",

@@ -292,3 +292,17 @@ def test_reproduce_reports_bad_input_on_one_line(tmp_path, capsys):
     bad.write_text("[landing]\ncap = 3\n")
     assert _run(["reproduce", "--out", str(tmp_path / "o"), "--settings", str(bad), "--quiet"]) == 2
     assert "unknown key landing.cap" in capsys.readouterr().err
+
+
+def test_the_run_level_claim_beside_each_contract(quick):
+    """Every calibrated contract reports the run-level PAC claim of its network (issue 38)."""
+    from ipcverify.calibration import plan_runs
+
+    _, summary = quick
+    for info in summary["ipc"].values():
+        fl = info["flight_level"]
+        plan = plan_runs(fl["n_flights"], info["calibration"]["delta"])
+        assert fl["run_floor"] == pytest.approx(plan.floor)
+        assert fl["run_epsilon"] == max(fl["epsilon"], plan.claim("expected-share").smallest)
+        assert fl["run_scale"] > 0 and "expected fraction of a new group's samples" in fl["run_guarantee"]
+        assert 0.0 <= fl["run_mean_share"] <= fl["run_epsilon"]

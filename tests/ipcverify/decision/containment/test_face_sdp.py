@@ -14,15 +14,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import ipcverify.decision.containment._face_sdp as face_sdp
-from ipcverify.decision.containment import (
-    ContainmentCertificate,
-    Method,
-    Status,
-    certificate_from_dict,
-    prove,
-    prove_batch,
-    verify,
-)
+from ipcverify.decision.containment import Status, prove, verify
+from ipcverify.decision.containment._certificate import ContainmentCertificate, certificate_from_dict
 from ipcverify.decision.containment._face_lmi import (
     FaceSystem,
     check_face_lmis,
@@ -30,6 +23,8 @@ from ipcverify.decision.containment._face_lmi import (
     integer_definiteness,
 )
 from ipcverify.decision.containment._face_sdp import FaceSolution, prove_sdp_faces, solve_face_sdp
+from ipcverify.decision.containment._prove import prove_batch
+from ipcverify.decision.containment._status import Method
 from ipcverify.errors import InvalidInputError
 from ipcverify.sets._box import Box
 from ipcverify.sets._ellipsoid import Ellipsoid

@@ -27,7 +27,8 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from ipcverify.decision.containment import ContainmentCertificate, Status, prove, verify
+from ipcverify.decision.containment import Status, prove, verify
+from ipcverify.decision.containment._certificate import ContainmentCertificate
 from ipcverify.sets._box import Box
 from ipcverify.sets._ellipsoid import Ellipsoid
 from ipcverify.sets._polytope import Polytope

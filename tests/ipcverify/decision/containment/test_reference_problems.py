@@ -11,19 +11,12 @@ import pytest
 
 import ipcverify.decision.containment._sdp as sdp_module
 import ipcverify.decision.containment._socp as socp_module
-from ipcverify.decision.containment import (
-    ContainmentCertificate,
-    Method,
-    Status,
-    certificate_from_dict,
-    contained_float,
-    problem_from_dict,
-    prove,
-    prove_batch,
-    set_from_dict,
-    support_slack,
-    verify,
-)
+from ipcverify.decision.containment import Status, prove, verify
+from ipcverify.decision.containment._certificate import ContainmentCertificate, certificate_from_dict
+from ipcverify.decision.containment._io import problem_from_dict, set_from_dict
+from ipcverify.decision.containment._margin import contained_float, support_slack
+from ipcverify.decision.containment._prove import prove_batch
+from ipcverify.decision.containment._status import Method
 from ipcverify.errors import InvalidInputError, SetError
 from ipcverify.sets._box import Box
 from ipcverify.sets._ellipsoid import Ellipsoid

@@ -12,8 +12,10 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ipcverify.decision.containment import Status, prove, support_slack, support_slack_bounds, verify
+from ipcverify.decision.containment import Status, prove, verify
 from ipcverify.decision.containment._geometry import ExactEllipsoid, exact_faces
+from ipcverify.decision.containment._margin import support_slack
+from ipcverify.decision.containment._rounding import support_slack_bounds
 from ipcverify.sets._box import Box
 from ipcverify.sets._ellipsoid import Ellipsoid
 from ipcverify.sets._polytope import Polytope

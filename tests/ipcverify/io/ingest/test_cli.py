@@ -54,7 +54,7 @@ def test_ingested_runs_train_and_calibrate_by_run(run_cli, tum, tmp_path):
     assert run_cli("train", train, "--out", tmp_path / "m.pt", "--epochs", "2", "--hidden", "8").code == 0
     res = run_cli(
         "calibrate", tmp_path / "m.pt", cal, "--epsilon", "0.2", "--delta", "0.1",
-        "--group-column", "run", "--domain-alpha", "0.1", "--out", tmp_path / "cal.pt",
+        "--group-column", "run", "--domain-flag-rate", "0.1", "--out", tmp_path / "cal.pt",
     )  # fmt: skip
     assert res.code == 0, res.stderr
     assert "20 calibration groups (by 'run')" in " ".join(res.stdout.split())
@@ -188,7 +188,7 @@ def test_error_zero_header_stamps(run_cli, tmp_path, motions, bagkit):
 @pytest.mark.parametrize(
     ("extra", "fragment"),
     [
-        (["--out", "o.json"], "write the samples as .csv or .parquet"),
+        (["--out", "o.json"], "--out must end in .csv, .parquet or .pq (a table); got o.json"),
         (["--tag", "novalue", "--out", "o.csv"], "--tag 'novalue': write KEY=VALUE"),
         (["--align", "se3", "--out", "o.csv"], "--align se3 needs the quantity position or pose"),
         (
@@ -232,3 +232,10 @@ def test_the_truth_file_given_as_the_estimate_is_refused(run_cli, tum, tmp_path)
     )
     _one_line_error(res, "has its estimate equal to its truth", "gt.txt")
     assert not (tmp_path / "o.csv").exists()
+
+
+def test_topics_of_an_empty_bag_is_a_user_error_not_an_empty_listing(run_cli, tmp_path, bagkit):
+    path = bagkit.write_bag("ros1", tmp_path / "empty", [])
+    res = run_cli("ingest", "topics", path)
+    assert res.code == 2 and res.stdout == ""
+    assert res.stderr == f"error: {path}: no topic in it (the recording is empty)\n"

@@ -243,7 +243,7 @@ def test_from_frame_validates_like_a_file():
     import pandas as pd
 
     bad = pd.DataFrame({"x_0": [0.1, np.nan], "y_0": [1.0, 2.0], "yhat_0": [1.1, 1.9]})
-    with pytest.raises(DataError, match=r"<frame>: row 1, column 'x_0': non-finite value nan"):
+    with pytest.raises(DataError, match=r"<frame>: row 1 \(0-based\), column 'x_0': non-finite value nan"):
         PerceptionDataset.from_frame(bad)
     with pytest.raises(DataError, match=r"log: no yhat columns"):
         PerceptionDataset.from_frame(bad.drop(columns="yhat_0"), source="log")

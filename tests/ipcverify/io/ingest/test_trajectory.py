@@ -48,9 +48,9 @@ def test_from_unsorted_sorts_and_keeps_the_first_of_a_repeated_stamp():
 @pytest.mark.parametrize(
     ("t", "p", "q", "match"),
     [
-        ([0.0, 1.0], np.zeros((2, 3)), [[0, 0, 0, 1], [0, 0, 0, 0]], "pose 1: quaternion of length 0"),
-        ([0.0, np.nan], np.zeros((2, 3)), np.tile([0.0, 0, 0, 1], (2, 1)), "pose 1: non-finite stamp"),
-        ([0.0, 0.0], np.zeros((2, 3)), np.tile([0.0, 0, 0, 1], (2, 1)), "pose 1: stamp 0.0 does not follow"),
+        ([0.0, 1.0], np.zeros((2, 3)), [[0, 0, 0, 1], [0, 0, 0, 0]], r"pose 1 \(0-based\): quaternion of"),
+        ([0.0, np.nan], np.zeros((2, 3)), np.tile([0.0, 0, 0, 1], (2, 1)), r"1 \(0-based\): non-finite st"),
+        ([0.0, 0.0], np.zeros((2, 3)), np.tile([0.0, 0, 0, 1], (2, 1)), r"1 \(0-based\): stamp 0.0 does not"),
         ([0.0], np.zeros((1, 3)), [[0, 0, 0, 1]], "needs at least 2"),
         ([0.0, 1.0], np.zeros((2, 2)), np.tile([0.0, 0, 0, 1], (2, 1)), r"positions \(N, 3\)"),
     ],
