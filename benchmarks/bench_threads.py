@@ -123,7 +123,8 @@ def prepare(folder: Path, quick: bool = False, euroc: bool = True) -> None:
     if euroc:
         _prepare_euroc(folder / "euroc", quick)
     code = (
-        "import sys; from ipcverify.data import make_lagged_perception, save_dataset; "
+        "import sys; from ipcverify.data import save_dataset; "
+        "from ipcverify.data._synthetic import make_lagged_perception; "
         f"save_dataset(make_lagged_perception({n_big}, seed=3), sys.argv[1])"
     )
     subprocess.run([py, "-c", code, str(folder / "big.parquet")], check=True, cwd=ROOT)
@@ -147,7 +148,7 @@ def _prepare_euroc(euroc: Path, quick: bool) -> None:
                    capture_output=True, cwd=ROOT)  # fmt: skip
     subprocess.run(
         [*cli, "calibrate", f"{euroc}/model.pt", f"{euroc}/calibration.csv", "--epsilon", "0.5"]
-        + ["--delta", "0.1", "--group-column", "flight", "--domain-alpha", "0.2"]
+        + ["--delta", "0.1", "--group-column", "flight", "--domain-flag-rate", "0.2"]
         + ["--out", f"{euroc}/calibrated.pt"],
         check=True,
         capture_output=True,
