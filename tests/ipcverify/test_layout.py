@@ -27,8 +27,8 @@ from pathlib import Path
 
 import pytest
 
-from benchmarks.architecture import top_entries
-from benchmarks.import_graph import cycles, import_graph, imports, module_files, package_graph
+from docgen.architecture import top_entries
+from docgen.import_graph import cycles, import_graph, imports, module_files, package_graph
 from ipcverify._package import exported_names
 
 ROOT = Path(__file__).resolve().parents[2]
