@@ -1,4 +1,4 @@
-"""Paste measured numbers into README.md and docs/benchmarks.md: nothing there is typed by hand.
+"""Paste measured numbers into README.md and docs/ (results.md, benchmarks.md): none is typed by hand.
 
 The documents mark each generated block::
 
@@ -50,7 +50,7 @@ __all__ = [
 
 ROOT = Path(__file__).resolve().parent.parent
 HERE = ROOT / "benchmarks"  # the benchmark results the blocks are made from
-DOCUMENTS = (ROOT / "README.md", ROOT / "docs" / "benchmarks.md")
+DOCUMENTS = (ROOT / "README.md", ROOT / "docs" / "results.md", ROOT / "docs" / "benchmarks.md")
 BLOCK = re.compile(
     r"(<!-- BEGIN generated:(?P<name>[\w-]+) \(python -m docgen\.readme[^)]*\) -->\n)(?P<body>.*?)"
     r"(<!-- END generated:(?P=name) -->)",

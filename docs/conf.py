@@ -79,3 +79,23 @@ html_show_sourcelink = False
 
 # the examples render their figures off-screen
 os.environ.setdefault("MPLBACKEND", "Agg")
+
+
+def _copy_page_images(app, exception):  # noqa: ANN001, ANN202 (Sphinx's event signature)
+    """Copy ``docs/img/`` beside the built pages.
+
+    The pages show figures in raw HTML (``<p align="center"><img src="img/...">``, as GitHub
+    renders them), which Sphinx passes through without collecting the files; copying the
+    folder makes those paths resolve in the site as they do in the repository.
+    """
+    import shutil
+    from pathlib import Path
+
+    if exception is None and app.builder.format == "html":
+        img = Path("docs") / "img"
+        shutil.copytree(Path(app.srcdir) / img, Path(app.outdir) / img, dirs_exist_ok=True)
+
+
+def setup(app):  # noqa: ANN001, ANN201
+    app.connect("build-finished", _copy_page_images)
+    return {"parallel_read_safe": True}

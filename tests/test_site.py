@@ -107,6 +107,18 @@ def test_the_gallery_ran_every_example(site):
         assert f"{script.stem}.html" in index
 
 
+def test_every_image_and_page_link_of_the_site_resolves(site):
+    """The figures the pages show in raw HTML are copied too (docs/conf.py), and no link is dead."""
+    missing = []
+    for page in site.rglob("*.html"):
+        text = page.read_text(encoding="utf-8")
+        targets = re.findall(r'<img[^>]+src="([^"]+)"', text) + re.findall(r'<a[^>]+href="([^"#]+)', text)
+        for target in targets:
+            if not re.match(r"^[a-z]+:", target) and not (page.parent / target).exists():
+                missing.append(f"{page.relative_to(site)}: {target}")
+    assert not missing, missing[:20]
+
+
 def _imports(tree: ast.AST) -> list[tuple[str, list[str]]]:
     """(module, names) of every ``import`` and ``from ... import`` of ipcverify in a module."""
     out = []
