@@ -4,7 +4,7 @@ A landing decision with its proof
 
 A landing controller measures the pad, gets the IPC's calibrated ellipsoid, and lands only when
 it can prove that every position in the ellipsoid keeps the vehicle inside the target box ``G``
-at the turn-off point (the paper's Proposition 1). :class:`ipcverify.LandingQuery` takes one
+at the turn-off point (the paper's Proposition 1). :class:`~ipcverify.decision.LandingQuery` takes one
 query (state, estimate) through the model, the calibration scale and the domain test, and
 answers ACCEPT (with a proof), REJECT (measure again) or OUTSIDE_DOMAIN (never accepted).
 
@@ -48,7 +48,7 @@ top = np.linalg.cholesky(np.linalg.inv(C.T @ C)[:2, :2])
 angles = np.linspace(0.0, 2 * np.pi, 200)
 rim = accepted.center[:2] + (top @ np.vstack([np.cos(angles), np.sin(angles)])).T
 lo, up = proof.turnoff - G.upper, proof.turnoff - G.lower
-fig, ax = plt.subplots(figsize=(4, 4))
+fig, ax = plt.subplots(figsize=(6.5, 4))
 ax.plot(rim[:, 0], rim[:, 1], label="calibrated set (top view)")
 ax.add_patch(
     plt.Rectangle((lo[0], lo[1]), up[0] - lo[0], up[1] - lo[1], fill=False, ls="--", label="{P} - G")
@@ -57,5 +57,5 @@ ax.set_aspect("equal")
 ax.autoscale_view()
 ax.set_xlabel("y_0 (m)")
 ax.set_ylabel("y_1 (m)")
-ax.legend(loc="upper right")
+ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0))
 fig.tight_layout()
