@@ -173,7 +173,7 @@ def test_no_private_name_crosses_a_module_boundary():
         for module, names in _imports(path, name):
             if module.startswith("ipcverify") and module != name:
                 bad += [f"{name} imports {module}.{n}" for n in names if n.startswith("_")]
-    for path in [*(ROOT / "case_studies").rglob("*.py"), *(ROOT / "benchmarks").rglob("*.py")]:
+    for path in (p for d in ("case_studies", "benchmarks", "docgen") for p in (ROOT / d).rglob("*.py")):
         for module, names in _imports(path, "case_studies._"):
             if module.startswith("ipcverify"):
                 bad += [f"{path.relative_to(ROOT)} imports {module}.{n}" for n in names if n.startswith("_")]
