@@ -82,7 +82,7 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 
 
 def _copy_page_images(app, exception):  # noqa: ANN001, ANN202 (Sphinx's event signature)
-    """Copy ``docs/img/`` beside the built pages.
+    """Copy ``docs/img/`` beside the built pages, and lead the output's ``index.html`` to the site.
 
     The pages show figures in raw HTML (``<p align="center"><img src="img/...">``, as GitHub
     renders them), which Sphinx passes through without collecting the files; copying the
@@ -94,6 +94,15 @@ def _copy_page_images(app, exception):  # noqa: ANN001, ANN202 (Sphinx's event s
     if exception is None and app.builder.format == "html":
         img = Path("docs") / "img"
         shutil.copytree(Path(app.srcdir) / img, Path(app.outdir) / img, dirs_exist_ok=True)
+        # the root document is docs/index; the output folder's own index.html leads there
+        (Path(app.outdir) / "index.html").write_text(REDIRECT, encoding="utf-8")
+
+
+REDIRECT = (
+    '<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8"><title>ipcverify</title>'
+    '<meta http-equiv="refresh" content="0; url=docs/index.html"></head>'
+    '<body><a href="docs/index.html">ipcverify documentation</a></body></html>\n'
+)
 
 
 def setup(app):  # noqa: ANN001, ANN201

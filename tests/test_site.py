@@ -107,6 +107,12 @@ def test_the_gallery_ran_every_example(site):
         assert f"{script.stem}.html" in index
 
 
+def test_the_output_folder_opens_on_the_site(site):
+    root = (site / "index.html").read_text(encoding="utf-8")
+    assert 'http-equiv="refresh" content="0; url=docs/index.html"' in root
+    assert "<h1>ipcverify documentation" in (site / "docs" / "index.html").read_text(encoding="utf-8")
+
+
 def test_every_image_and_page_link_of_the_site_resolves(site):
     """The figures the pages show in raw HTML are copied too (docs/conf.py), and no link is dead."""
     missing = []
