@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from ipcverify._wording._spelling import option
 from ipcverify.calibration._protocol import Calibration, row_counts
 from ipcverify.certification._certificate import CertificateStatus
 from ipcverify.certification._test_result import Consistency, GroupTest, GroupTestResult, TestResult
@@ -75,7 +76,7 @@ def check_inputs(
             raise InvalidInputError(
                 f"{train_data.source}: this is not the data the model was trained on (its content SHA-256 "
                 "differs from the one the model file recorded at training), and Theorem 1 is a statement "
-                "about the training set itself; pass the training file, or leave --train-data out to use "
+                f"about the training set itself; pass the training file, or leave {option('train_data')} out to use "
                 "the statistics the model file stored at training"
             )
     cal = model.calibration

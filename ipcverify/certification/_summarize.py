@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from ipcverify._wording._spelling import option
 from ipcverify._package import VERSION
 from ipcverify.calibration._protocol import GroupUnit
 from ipcverify.certification._certificate import Certificate, CertificateStatus
@@ -127,7 +128,7 @@ def _independence_check(cert: Certificate) -> Check:
     if cert.group_test is not None:
         counted = f"the test is also counted per group of {cert.group_test.column!r} above"
     elif test_col is not None:
-        counted = f"certify with --group-column {test_col} to also count the test per {test_col}"
+        counted = f"certify with {option('group_column', test_col)} to also count the test per {test_col}"
     else:
         counted = "test data with a column naming its runs could also be counted per run"
     runs = cert.runs or {}
@@ -141,7 +142,7 @@ def _independence_check(cert: Certificate) -> Check:
         detail=(
             f"{' and '.join(found)}: rows of one {col} are usually correlated, but the row-level claim, "
             "and the calibration behind it, count every row as an independent sample, which their "
-            f"exact bounds need{worth}; {counted}, and recalibrate with --group-column {col} for a claim "
+            f"exact bounds need{worth}; {counted}, and recalibrate with {option('grouped', col)} for a claim "
             f"about whole {col}s"
         ),
     )
@@ -377,7 +378,7 @@ def check_labels(labels: Sequence[str], n: int) -> tuple[str, ...]:
         )
         raise InvalidInputError(
             f"labels must name the {n} coordinates of y (the output columns), one non-empty label each; got "
-            f"{len(given)}: {list(given)}; pass them comma-separated, e.g. --labels {example}"
+            f"{len(given)}: {list(given)}; pass one each, e.g. {option('labels', tuple(example.split(',')))}"
         )
     return given
 

@@ -26,7 +26,7 @@ import click
 from click.core import ParameterSource
 from rich.console import Console
 
-from ipcverify._wording import Audience, speaking
+from ipcverify._wording._audience import Audience, speaking
 from ipcverify.errors import Hint, InvalidInputError
 
 __all__ = [

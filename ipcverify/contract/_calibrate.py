@@ -17,6 +17,7 @@ import warnings
 import numpy as np
 from numpy.typing import NDArray
 
+from ipcverify._wording._spelling import option
 from ipcverify.calibration._bounds import pac_rows_allowing
 from ipcverify.calibration._kinds import check_registered
 from ipcverify.calibration._method import CalibrationMethod, CalibrationSample
@@ -163,7 +164,7 @@ def calibrate(
                 f"{calibration_data.source}: its rows come in runs of {method.unit_column!r}, so the claim "
                 "is "
                 "about runs (the expected share of a new run's rows outside their sets); for a row-level "
-                "claim, which assumes independent rows, choose Global() (CLI: --unit row)"
+                f"claim, which assumes independent rows, choose {option('unit_row')}"
             ),
             stacklevel=2,
         )
@@ -198,7 +199,7 @@ def _fit(
     try:
         cal = method.fit(sample)
     except SampleSizeError as exc:
-        row_claim = " or make a row-level claim explicitly with Global() (CLI: --unit row)"
+        row_claim = f" or make a row-level claim explicitly with {option('unit_row')}"
         unmet.append(str(exc).rstrip(".") + (row_claim if chosen and method.unit_column is not None else ""))
     dom: DomainModel | None = None
     if domain is not None:
@@ -265,7 +266,7 @@ def _check_inputs(
     if model.calibration is not None and not recalibrate:
         raise InvalidInputError(
             "the model is already calibrated; calibrating it again on top would compound the scale "
-            "factors and void the guarantee -- pass recalibrate=True (CLI: --recalibrate) to "
+            f"factors and void the guarantee -- pass {option('recalibrate')} to "
             "calibrate the raw network afresh"
         )
     cfg = model.config

@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy import stats
 
+from ipcverify._wording._spelling import option
 from ipcverify.errors import InvalidInputError
 
 #: Level of the one-sided binomial test behind "the violations come in runs".
@@ -112,7 +113,7 @@ class ViolationRuns:
             f"{self.violations_after} violated too, {100 * self.rate_after:.0f} %, against "
             f"{100 * self.rate:.1f} % of all rows): neighbouring rows are correlated, and such runs can "
             "raise this alarm even when the overall rate is within the calibration's; monitor one "
-            "observation per run or time block (--group-column COL) to tell the two apart"
+            f"observation per run or time block ({option('group_column', 'COL')}) to tell the two apart"
         )
 
     def to_dict(self) -> dict[str, float | int | bool]:

@@ -51,7 +51,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
-from ipcverify._wording import flag_rate_floor, option
+from ipcverify._wording._spelling import flag_rate_floor, option
 from ipcverify.calibration._bounds import (
     marginal_conformal_index,
     min_calibration_size,
