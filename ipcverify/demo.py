@@ -226,7 +226,8 @@ def _check_demo_sizes(n_train: int, n_calibration: int, seed: int) -> None:
             or not low <= value <= DEMO_MAX_SAMPLES
         ):
             raise InvalidInputError(
-                f"the demo needs {option(name) if flagged else name} between {low:,} and {DEMO_MAX_SAMPLES:,}; got {value!r}"
+                f"the demo needs {option(name) if flagged else name} between {low:,} and "
+                f"{DEMO_MAX_SAMPLES:,}; got {value!r}"
             )
     if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0:
         raise InvalidInputError(f"the demo's {option('seed')} must be a non-negative integer; got {seed!r}")

@@ -137,7 +137,8 @@ def too_few_groups(
         "The groups "
         "(flights, runs), not the rows, are the exchangeable units, so more rows per group do not help "
         f"(from {G} groups no claim about a new group goes below {run_floor(G, delta):.3g} at this delta); "
-        f"collect more independent groups, or raise {option(rate)} (with {G} groups the smallest is {smallest:g}"
+        f"collect more independent groups, or raise {option(rate)} (with {G} groups the smallest is "
+        f"{smallest:g}"
     )
     if mode == "pac":
         marginal = runs_needed(guarantee, "marginal", epsilon, delta, gamma)

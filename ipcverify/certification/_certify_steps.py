@@ -76,7 +76,8 @@ def check_inputs(
             raise InvalidInputError(
                 f"{train_data.source}: this is not the data the model was trained on (its content SHA-256 "
                 "differs from the one the model file recorded at training), and Theorem 1 is a statement "
-                f"about the training set itself; pass the training file, or leave {option('train_data')} out to use "
+                f"about the training set itself; pass the training file, or leave {option('train_data')} "
+                "out to use "
                 "the statistics the model file stored at training"
             )
     cal = model.calibration

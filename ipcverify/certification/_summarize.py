@@ -12,8 +12,8 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from ipcverify._wording._spelling import option
 from ipcverify._package import VERSION
+from ipcverify._wording._spelling import option
 from ipcverify.calibration._protocol import GroupUnit
 from ipcverify.certification._certificate import Certificate, CertificateStatus
 from ipcverify.certification._summary import CertificateSummary, Check, CheckLevel, target_strength, utc_now

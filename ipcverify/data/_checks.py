@@ -99,7 +99,8 @@ def check_informative(data: PerceptionDataset, purpose: Purpose) -> None:
         raise DataError(
             f"{data.source}: column{plural} {listed} {'are' if plural else 'is'} constant; "
             "the network cannot learn how the errors depend on a constant column, and would extrapolate "
-            f"on any other value -- leave it out ({options('x_columns', 'y_columns', 'yhat_columns')} name the "
+            f"on any other value -- leave it out ({options('x_columns', 'y_columns', 'yhat_columns')} "
+            "name the "
             "columns to use) or train on data where it varies"
         )
     warnings.warn(
@@ -283,7 +284,8 @@ def warn_correlated_rows(
         few = (
             f"; but with {groups} groups a calibration by group can certify no epsilon below "
             f"{floor:.2g} at delta = {FEW_GROUPS_DELTA:g}: for one or a few long runs, cut them into "
-            f"contiguous time blocks ({command('split', [('...', 'DATA')], block='SECONDS', group_name='segment')}) "
+            "contiguous time blocks "
+            f"({command('split', [('...', 'DATA')], block='SECONDS', group_name='segment')}) "
             "and use "
             "those as the groups"
         )

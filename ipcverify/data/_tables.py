@@ -22,7 +22,7 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
-from ipcverify._wording._spelling import option, options
+from ipcverify._wording._spelling import options
 from ipcverify.errors import DataError
 
 SUFFIXES = (".csv", ".parquet", ".pq", ".npz")

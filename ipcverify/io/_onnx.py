@@ -56,8 +56,8 @@ import numpy as np
 import torch
 from numpy.typing import NDArray
 
-from ipcverify._wording._spelling import option
 from ipcverify._package import VERSION
+from ipcverify._wording._spelling import option
 from ipcverify.contract._model import IPCModel
 from ipcverify.data._files import atomic_write
 from ipcverify.errors import InvalidInputError
@@ -86,7 +86,8 @@ def _scale(model: IPCModel) -> float | None:
     raise InvalidInputError(
         f"cannot export a model calibrated per group ({cal.summary().grouping}): its scale depends on a "
         "group looked up per query, which the ONNX graph does not do; calibrate it globally (without "
-        f"{option('mondrian_column')}) to export it, or export the uncalibrated network and apply the group scales "
+        f"{option('mondrian_column')}) to export it, or export the uncalibrated network and apply the "
+        "group scales "
         "yourself"
     )
 

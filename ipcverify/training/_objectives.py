@@ -201,7 +201,8 @@ class TrainConfig:
             ),
             (
                 self.patience is None or self.val_fraction > 0,
-                f"{option('patience')} (early stopping) needs a validation split: set {option('val_fraction')} "
+                f"{option('patience')} (early stopping) needs a validation split: set "
+                f"{option('val_fraction')} "
                 f"above 0, or leave {option('patience')} out",
             ),
             (

@@ -53,7 +53,8 @@ def run_names(paths: Sequence[PathLike], names: Sequence[str] | None) -> list[st
     if names:
         if len(names) != len(paths):
             raise DataError(
-                f"{len(names)} run name(s) for {len(paths)} input(s); give one name per input ({option('runs')})"
+                f"{len(names)} run name(s) for {len(paths)} input(s); give one name per input "
+                f"({option('runs')})"
             )
         return [str(n) for n in names]
     out = []
@@ -87,7 +88,8 @@ def _refuse_the_truth_as_estimate(frame: pd.DataFrame, truth: str, estimate: str
         raise DataError(
             f"every one of the {len(frame)} samples has its estimate equal to its truth (truth: {truth}; "
             f"estimate: {estimate}): they are the same poses, and the log would hold no error to learn; "
-            f"give the ground truth (motion capture, GPS/INS) as {option('truth')} and the estimator's output "
+            f"give the ground truth (motion capture, GPS/INS) as {option('truth')} and the estimator's "
+            "output "
             f"as {option('estimates')}"
         )
 

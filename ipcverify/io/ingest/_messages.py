@@ -88,7 +88,8 @@ def check_pose_type(topic: str, msgtype: str, child_frame: str | None) -> None:
         )
     if msgtype == TF_TYPE and not child_frame:
         raise DataError(
-            f"topic {topic} is a transform tree ({TF_TYPE}); name the body's frame with {option('child_frame')}"
+            f"topic {topic} is a transform tree ({TF_TYPE}); name the body's frame with "
+            f"{option('child_frame')}"
         )
 
 

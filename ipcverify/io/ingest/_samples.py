@@ -86,7 +86,7 @@ class IngestOptions:
     >>> IngestOptions(align="se3")  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
-    ipcverify.errors.DataError: --align se3 needs the quantity position or pose; ...
+    ipcverify.errors.DataError: align='se3' needs the quantity position or pose; ...
     """
 
     quantity: Quantity = "displacement"
@@ -114,18 +114,21 @@ class IngestOptions:
         object.__setattr__(self, "align_runs", tuple(str(r) for r in self.align_runs))
         if self.align != "none" and self.quantity == "displacement":
             raise DataError(
-                f"{option('align', self.align)} needs the quantity position or pose; the displacement is measured in "
+                f"{option('align', self.align)} needs the quantity position or pose; the displacement is "
+                "measured in "
                 "each trajectory's own body frame and needs no alignment"
             )
         if self.align != "none" and not self.align_runs:
             raise DataError(
-                f"{option('align', self.align)}: name the runs to fit the alignment on with {option('align_runs')}; "
+                f"{option('align', self.align)}: name the runs to fit the alignment on with "
+                f"{option('align_runs')}; "
                 "rows of those runs depend on each other through the fit, "
                 "so keep them out of calibration and test"
             )
         if self.align == "none" and self.align_runs:
             raise DataError(
-                f"{option('align_runs')} is given but {option('align', 'none')}; choose {option('align', 'se3')} "
+                f"{option('align_runs')} is given but {option('align', 'none')}; choose "
+                f"{option('align', 'se3')} "
                 f"or {option('align', 'sim3')}"
             )
 
@@ -167,7 +170,8 @@ def warn_camera_frame(runs: Sequence[RunData]) -> None:
         Hint(
             f"the estimate of run {which} starts at the identity pose, as a visual odometry or SLAM "
             "system's does when its world frame is its first camera frame; the tilt columns x_2..x_4 "
-            f"then hold that frame's +z axis (a camera's viewing direction), not up: pass {option('up')} with "
+            f"then hold that frame's +z axis (a camera's viewing direction), not up: pass {option('up')} "
+            "with "
             f"the axis that points up in it ({option('up', '-y')} for a level camera with y down), or "
             f"{option('up', '+z')} if it is gravity-aligned"
         ),
@@ -217,11 +221,13 @@ def _overlap_error(run: RunData, options: IngestOptions, hint: str) -> DataError
         why = "one set of stamps looks like nanoseconds and the other like seconds: convert them to seconds"
     else:
         why = (
-            f"if their clocks differ, add {option('t_offset')} (about {c - a + options.t_offset:.6g} s lines up their "
+            f"if their clocks differ, add {option('t_offset')} (about {c - a + options.t_offset:.6g} s "
+            "lines up their "
             "starts)" + hint
         )
     return DataError(
-        f"run {run.name}: the truth ({a:.6f}..{b:.6f} s, with {option('t_offset', options.t_offset)}) and the "
+        f"run {run.name}: the truth ({a:.6f}..{b:.6f} s, with {option('t_offset', options.t_offset)}) and "
+        "the "
         f"estimate ({c:.6f}..{d:.6f} s) do not overlap in time; {why}"
     )
 
@@ -235,7 +241,8 @@ def _too_many_starts(run: RunData, span: float, starts: int, options: IngestOpti
         else f"use a larger {option('stride')}"
     )
     return DataError(
-        f"run {run.name}: the estimate spans {span:.6g} s, which at {option('stride', options.stride)} s makes "
+        f"run {run.name}: the estimate spans {span:.6g} s, which at {option('stride', options.stride)} s "
+        "makes "
         f"{starts:.3g} sample starts for its {len(run.estimate)} poses; {why}"
     )
 
@@ -333,11 +340,14 @@ def _warn_frames(frame: pd.DataFrame, options: IngestOptions) -> None:
     run = str(medians.idxmax())
     warnings.warn(
         Hint(
-            f"{option('quantity', options.quantity)} without {option('align')} compares positions in the truth's and the "
+            f"{option('quantity', options.quantity)} without {option('align')} compares positions in the "
+            "truth's and the "
             f"estimate's world frames as they are (median position error up to {medians.max():.4g} in "
             f"run {run}); if the estimator's frame is not the truth's (a VIO or SLAM map starts at its "
-            f"own origin), fit it with {option('align', 'se3')} {option('align_runs', 'RUN')} on runs you then keep "
-            f"out of calibration and test, or use {option('quantity', 'displacement')}, which needs no common "
+            f"own origin), fit it with {option('align', 'se3')} {option('align_runs', 'RUN')} on runs you "
+            "then keep "
+            f"out of calibration and test, or use {option('quantity', 'displacement')}, which needs no "
+            "common "
             "frame"
         ),
         stacklevel=3,
@@ -351,7 +361,8 @@ def _no_rows_error(p: _Prepared, counts: dict[str, int], options: IngestOptions)
         who, inside, largest = _gap(p, worst, options)
         return DataError(
             f"run {run.name}: no sample kept: the {who} has {inside} stamps within the "
-            f"estimate's span and its largest gap there is {largest:.6g} s, above {option('max_gap', gap)} s; "
+            f"estimate's span and its largest gap there is {largest:.6g} s, above "
+            f"{option('max_gap', gap)} s; "
             f"raise {option('max_gap')}, or check the {who} topic's rate and stamps"
         )
     if worst == "no_state":
