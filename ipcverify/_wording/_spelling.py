@@ -34,6 +34,7 @@ __all__ = [
     "flag_rate_floor",
     "option",
     "options",
+    "regroup_domain",
     "render",
     "speaking",
 ]
@@ -236,6 +237,28 @@ def command(name: str, args: Sequence[tuple[str, str]] = (), **values: object) -
     said = [a[1] if cli else a[0] for a in args]
     said = [a for a in said if a] + [option(k, v) for k, v in values.items()]
     return " ".join([cli_name, *said]) if cli else f"{python_name}({', '.join(said)})"
+
+
+def regroup_domain(column: str, flag_rate: float | None = None) -> str:
+    """The ``calibrate`` call that fits the domain test by ``column`` (at ``flag_rate``, if given).
+
+    The remedy for a domain test fitted row by row on rows that come in runs: the caller states
+    the facts (the column, and the smallest flag rate its groups allow when the current one is
+    below it).
+
+    Examples
+    --------
+    >>> regroup_domain("run", 0.091)
+    "calibrate(..., domain=DomainSpec(group_column='run', flag_rate=0.091))"
+    >>> with speaking(Audience.CLI):
+    ...     regroup_domain("run")
+    'calibrate --domain-group-column run'
+    """
+    if audience() is Audience.CLI:
+        rate = "" if flag_rate is None else f" {option('flag_rate', flag_rate)}"
+        return f"calibrate {option('domain_group_column', column)}{rate}"
+    rate = "" if flag_rate is None else f", flag_rate={flag_rate:g}"
+    return f"calibrate(..., domain=DomainSpec(group_column={column!r}{rate}))"
 
 
 @dataclass(frozen=True)

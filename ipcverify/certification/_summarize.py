@@ -13,7 +13,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from ipcverify._package import VERSION
-from ipcverify._wording._spelling import option
+from ipcverify._wording._spelling import option, regroup_domain
 from ipcverify.calibration._protocol import GroupUnit
 from ipcverify.certification._certificate import Certificate, CertificateStatus
 from ipcverify.certification._summary import CertificateSummary, Check, CheckLevel, target_strength, utc_now
@@ -284,7 +284,8 @@ def _domain_check(d: DomainReport | None) -> Check:
             "false alarms explain",
             level="warn",
             detail=counted + f"; the certificate promises nothing for them. The test was fitted row by "
-            f"row on calibration data with a column {col!r}: refit it by {col} ({d.regroup_command()}) "
+            f"row on calibration data with a column {col!r}: refit it by {col} "
+            f"({regroup_domain(col, d.regroup_flag_rate)}) "
             f"to tell a shift from a threshold too short for a new {col}",
         )
     if d.well_above_flag_rate:
