@@ -28,12 +28,16 @@ FloatArray = NDArray[np.float64]
 
 #: Confidence parameter of the test-set bound when the model carries no calibration.
 DEFAULT_DELTA = 0.001
-#: Why Theorem 1 is not computed for a model file without training statistics and no training data.
-NO_STATISTICS = (
-    "not computed: training data not given, and the model records no training statistics (a model "
-    "not built by ipcverify.training.train, or a default-recipe model file written before Theorem 1 "
-    "covered the default recipe); pass the training data (--train-data), or retrain the model"
-)
+
+
+def no_statistics() -> str:
+    """Why Theorem 1 is not computed for a model file without training statistics and no training data."""
+    return (
+        "not computed: training data not given, and the model records no training statistics (a model "
+        "not built by ipcverify.training.train, or a default-recipe model file written before Theorem 1 "
+        f"covered the default recipe); pass the training data ({option('train_data')}), or retrain the "
+        "model"
+    )
 
 
 def _check_dims(model: IPCModel, data: PerceptionDataset, role: str) -> None:
@@ -238,7 +242,7 @@ def theorem1_step(
         return theorem1(model, train_data, delta, radius=radius), "", "training data"
     stored = model.metadata.get("training_statistics")
     if stored is None:
-        return None, NO_STATISTICS, ""
+        return None, no_statistics(), ""
     stats = TrainingStatistics.from_dict(stored)
     return theorem1(model, stats, delta, radius=radius), "", "statistics stored at training time"
 

@@ -14,6 +14,7 @@ from collections.abc import Sequence
 
 from ipcverify._package import VERSION
 from ipcverify._wording._spelling import option, regroup_domain
+from ipcverify._wording._verdicts import NOT_RUN, domain_verdict, held_out_remedy, theorem1_verdict
 from ipcverify.calibration._protocol import GroupUnit
 from ipcverify.certification._certificate import Certificate, CertificateStatus
 from ipcverify.certification._summary import CertificateSummary, Check, CheckLevel, target_strength, utc_now
@@ -22,8 +23,6 @@ from ipcverify.contract._model import IPCModel
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import InvalidInputError
 from ipcverify.guard._domain_report import DomainReport
-
-_NOT_RUN = "no test data given: the held-out test was not run"
 
 
 def capitalized(text: str) -> str:
@@ -45,7 +44,7 @@ def capitalized(text: str) -> str:
 
 def _status_detail(status: CertificateStatus) -> str:
     """The status text without a leading repetition of its name ("certified: ...")."""
-    return status.value.removeprefix(status.name.lower().replace("_", " ") + ": ")
+    return status.text.removeprefix(status.name.lower().replace("_", " ") + ": ")
 
 
 def _shift_note(cert: Certificate) -> str:
@@ -172,7 +171,7 @@ def _test_check(cert: Certificate, rows_outside: tuple[int, int] | None) -> Chec
     t, c = cert.test, cert.consistency
     name = "held-out test"
     if t is None:
-        return Check(name=name, verdict="not run", level="info", detail=_NOT_RUN + " (pass --data TEST)")
+        return Check(name=name, verdict="not run", level="info", detail=f"{NOT_RUN} ({held_out_remedy()})")
     level: CheckLevel
     if not c.checked:
         verdict, level, versus = (
@@ -256,10 +255,21 @@ def _group_checks(g: GroupTest, test: TestResult | None = None) -> list[Check]:
 
 def _domain_check(d: DomainReport | None) -> Check:
     name = "domain of validity"
+    verdict = (
+        domain_verdict(present=False, radius_zero=False, queries=0, well_above=False, row_level=False)
+        if d is None
+        else domain_verdict(
+            present=True,
+            radius_zero=d.threshold == 0,
+            queries=d.n,
+            well_above=d.well_above_flag_rate,
+            row_level=d.row_level_column is not None,
+        )
+    )
     if d is None:
         return Check(
             name=name,
-            verdict="absent",
+            verdict=verdict,
             level="warn",
             detail="the model carries no domain-of-validity test; recalibrate with a current ipcverify",
         )
@@ -267,21 +277,20 @@ def _domain_check(d: DomainReport | None) -> Check:
     if d.threshold == 0:  # only in a model file from before the test was fitted on distinct inputs
         return Check(
             name=name,
-            verdict="radius 0: flags every query not equal to a calibration input",
+            verdict=verdict,
             level="warn",
             detail=f"{fitted}; its threshold is 0 because it was fitted on repeated calibration inputs by an "
             "older ipcverify, so the queries it flags say nothing about a shift -- recalibrate to refit it "
             "on the distinct inputs",
         )
     if d.n == 0:
-        return Check(name=name, verdict="not run", level="info", detail=f"{fitted}; {_NOT_RUN}")
+        return Check(name=name, verdict=verdict, level="info", detail=f"{fitted}; {NOT_RUN}")
     counted = f"{d.outside:,} of {d.n:,} test queries ({100 * d.outside_fraction:.3g} %) outside; {fitted}"
     if d.well_above_flag_rate and d.row_level_column is not None:
         col = d.row_level_column
         return Check(
             name=name,
-            verdict="SHIFT, or a row-level test on correlated rows: far more queries outside than "
-            "false alarms explain",
+            verdict=verdict,
             level="warn",
             detail=counted + f"; the certificate promises nothing for them. The test was fitted row by "
             f"row on calibration data with a column {col!r}: refit it by {col} "
@@ -291,11 +300,11 @@ def _domain_check(d: DomainReport | None) -> Check:
     if d.well_above_flag_rate:
         return Check(
             name=name,
-            verdict="SHIFT: far more queries outside than false alarms explain",
+            verdict=verdict,
             level="warn",
             detail=counted + "; the certificate promises nothing for them",
         )
-    return Check(name=name, verdict="as expected in distribution", level="pass", detail=counted)
+    return Check(name=name, verdict=verdict, level="pass", detail=counted)
 
 
 def _theorem1_check(cert: Certificate) -> Check:
@@ -315,13 +324,13 @@ def _theorem1_check(cert: Certificate) -> Check:
     if s.vacuous:
         return Check(
             name=name,
-            verdict="vacuous (proves nothing)",
+            verdict=theorem1_verdict(vacuous=True),
             level="info",
             detail=f"bound {s.bound:.3g} >= 1 ({terms}; {need}); the certificate does not rest on it",
         )
     return Check(
         name=name,
-        verdict="not vacuous",
+        verdict=theorem1_verdict(vacuous=False),
         level="pass",
         detail=f"bound {s.bound:.4g} < 1 ({terms}), under the assumptions of proofs/theorem1.md",
     )
