@@ -166,7 +166,12 @@ def option(name: str, value: object = None) -> str:
     spelled = PARAMETERS[name]
     cli = audience() is Audience.CLI
     fixed = spelled.cli if cli else spelled.python  # a spelling that holds its value: "--unit row"
-    if value is None or (" " in fixed if cli else ("{}" not in fixed and ("=" in fixed or "(" in fixed))):
+    if (
+        value is None
+        or value is True
+        and cli
+        or (" " in fixed if cli else ("{}" not in fixed and ("=" in fixed or "(" in fixed)))
+    ):
         return fixed.replace("{}", "...")
     shown = _shown(value, cli)
     if cli:

@@ -17,7 +17,7 @@ import warnings
 import numpy as np
 from numpy.typing import NDArray
 
-from ipcverify._wording._spelling import option
+from ipcverify._wording._spelling import Remedy, option
 from ipcverify.calibration._bounds import pac_rows_allowing
 from ipcverify.calibration._kinds import check_registered
 from ipcverify.calibration._method import CalibrationMethod, CalibrationSample
@@ -267,7 +267,8 @@ def _check_inputs(
         raise InvalidInputError(
             "the model is already calibrated; calibrating it again on top would compound the scale "
             f"factors and void the guarantee -- pass {option('recalibrate')} to "
-            "calibrate the raw network afresh"
+            "calibrate the raw network afresh",
+            remedies=(Remedy("recalibrate", True),),
         )
     cfg = model.config
     if (calibration_data.x_dim, calibration_data.y_dim) != (cfg.x_dim, cfg.y_dim):

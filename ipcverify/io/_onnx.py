@@ -57,7 +57,7 @@ import torch
 from numpy.typing import NDArray
 
 from ipcverify._package import VERSION
-from ipcverify._wording._spelling import option
+from ipcverify._wording._spelling import Remedy, option
 from ipcverify.contract._model import IPCModel
 from ipcverify.data._files import atomic_write
 from ipcverify.errors import InvalidInputError
@@ -157,7 +157,8 @@ def build_onnx(model: IPCModel, dtype: Dtype = "float64", *, without_domain: boo
     if model.config.activation == "elu" and dtype == "float64":
         raise InvalidInputError(
             "ONNX Runtime has no float64 Elu kernel, so an elu network cannot be exported in float64; "
-            f"export it with {option('dtype', 'float32')}"
+            f"export it with {option('dtype', 'float32')}",
+            remedies=(Remedy("dtype", "float32"),),
         )
     scale = _scale(model)
     eng = model.engine
