@@ -144,9 +144,9 @@ def test_the_recalibrate_remedy_works():
 def certified(tmp_path_factory):
     """One certificate written by the CLI: its summary, its console output and its page."""
     from ipcverify import calibrate, example, train
-    from ipcverify.training import TrainConfig
     from ipcverify.data import save_dataset
     from ipcverify.io import save_model
+    from ipcverify.training import TrainConfig
 
     ex = example(1500, seed=3)
     parts = ex.data.split((0.4, 0.3, 0.3), seed=0)
