@@ -50,9 +50,10 @@ def _status_detail(status: CertificateStatus) -> str:
 def _shift_note(cert: Certificate) -> str:
     """For a certified contract whose test queries lie far outside its domain: the verdict says so.
 
-    Seen on a room change (EuRoC MH_04 -> V1_02, calibrated by flight at epsilon 0.25): the test
-    was consistent with the claim, and the verdict line said only that, while 87 % of the queries
-    lay outside the domain of validity, for which the certificate promises nothing.
+    The rule is on the certificate's facts: a CERTIFIED status whose domain report counts far more
+    test queries outside than its flag rate explains (:attr:`DomainReport.well_above_flag_rate`).
+    The test can then be consistent with the claim while most queries lie where the certificate
+    promises nothing, and the verdict line must not say only the former.
     """
     d = cert.domain
     if cert.status is not CertificateStatus.CERTIFIED or d is None or not d.well_above_flag_rate:
