@@ -46,10 +46,13 @@ class IPCVerifyError(Exception):
 
     Examples
     --------
-    >>> from ipcverify._wording._spelling import Remedy
-    >>> err = InvalidInputError("flag_rate too small", remedies=[Remedy("flag_rate", 0.091)])
-    >>> err.remedies[0].value, str(err)
-    (0.091, 'flag_rate too small')
+    >>> from ipcverify import calibrate, example
+    >>> ex = example(200)
+    >>> try:
+    ...     calibrate(calibrate(ex.model, ex.data, 0.2, 0.05, domain=None), ex.data, 0.2, 0.05)
+    ... except InvalidInputError as err:
+    ...     print(err.remedies[0].parameter, err.remedies[0].value)
+    recalibrate True
     """
 
     def __init__(self, *args: object, remedies: Iterable[Remedy] = ()) -> None:
