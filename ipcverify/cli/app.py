@@ -65,7 +65,7 @@ class CliGroup(click.Group):
     """A click group whose commands speak CLI: library messages name flags, not parameters.
 
     Every run (:func:`run_group`, or click's test runner calling :meth:`main`) happens inside
-    :func:`ipcverify._wording.speaking` for the command line, and the audience is restored after.
+    :func:`ipcverify._wording._audience.speaking` for the command line, and the audience is restored after.
     """
 
     def main(self, *args: Any, **kwargs: Any) -> Any:  # noqa: D102 - as click.Group.main
