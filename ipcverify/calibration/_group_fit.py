@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ipcverify._wording._spelling import option
+from ipcverify._wording._spelling import Remedy, option
 from ipcverify.calibration._bounds import CalibrationMode, count_text, min_calibration_size
 from ipcverify.calibration._group_counts import GuaranteeKind, check_guarantee, group_layout
 from ipcverify.calibration._risk_control import risk_control_threshold
@@ -218,7 +218,12 @@ def group_threshold(
         )
     G = len(labels)
     if G < runs_needed(guarantee, mode, epsilon, delta, gamma):
-        raise SampleSizeError(too_few_groups(G, column, epsilon, delta, mode, guarantee, gamma))
+        rate = "gamma" if guarantee == "share-of-runs" else "epsilon"
+        smallest = smallest_run_rate(guarantee, mode, G, delta)
+        raise SampleSizeError(
+            too_few_groups(G, column, epsilon, delta, mode, guarantee, gamma),
+            remedies=(Remedy(rate, smallest),) if smallest < 1.0 else (),
+        )
     order, starts, sizes = group_layout(codes, G)
     method = METHOD_OF[(guarantee, mode)]
     k_groups: int | None = None

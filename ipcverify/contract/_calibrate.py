@@ -144,17 +144,18 @@ def calibrate(
         data_hash=calibration_data.content_hash(),
         network_hash=model.weights.fingerprint(),
     )
-    unmet: list[str] = []  # every sample-size requirement is reported at once
+    unmet: list[tuple[str, tuple[Remedy, ...]]] = []  # every unmet sample-size requirement, at once
     cal: Calibration | None = None
     with warnings.catch_warnings(record=True) as caught:  # a hint is shown only if no error follows
         warnings.simplefilter("always")
         cal, dom = _fit(method, domain, sample, calibration_data, chosen, unmet)
     if unmet:
         raise SampleSizeError(
-            unmet[0]
+            unmet[0][0]
             if len(unmet) == 1
             else f"{len(unmet)} requirements are not met: "
-            + " ".join(f"({i}) {m.rstrip('.')}." for i, m in enumerate(unmet, 1))
+            + " ".join(f"({i}) {m.rstrip('.')}." for i, (m, _) in enumerate(unmet, 1)),
+            remedies=unmet[0][1] if len(unmet) == 1 else (),  # one requirement: its own remedies
         )
     if cal is None:  # unreachable: the fit above assigns or raises
         raise SampleSizeError("no calibration was fitted")
@@ -192,7 +193,7 @@ def _fit(
     sample: CalibrationSample,
     data: PerceptionDataset,
     chosen: bool,
-    unmet: list[str],
+    unmet: list[tuple[str, tuple[Remedy, ...]]],
 ) -> tuple[Calibration | None, DomainModel | None]:
     """Fit the calibration and the domain test; every unmet sample-size requirement goes to ``unmet``."""
     cal: Calibration | None = None
@@ -200,13 +201,14 @@ def _fit(
         cal = method.fit(sample)
     except SampleSizeError as exc:
         row_claim = f" or make a row-level claim explicitly with {option('unit_row')}"
-        unmet.append(str(exc).rstrip(".") + (row_claim if chosen and method.unit_column is not None else ""))
+        said = str(exc).rstrip(".") + (row_claim if chosen and method.unit_column is not None else "")
+        unmet.append((said, exc.remedies))
     dom: DomainModel | None = None
     if domain is not None:
         try:
             dom = domain.fit(data, method.unit_column)
         except SampleSizeError as exc:
-            unmet.append(str(exc))
+            unmet.append((str(exc), exc.remedies))
     return cal, dom
 
 

@@ -140,6 +140,19 @@ def test_the_recalibrate_remedy_works():
     assert twice.calibration is not None
 
 
+def test_the_smallest_rate_a_few_groups_allow_works():
+    from ipcverify import Grouped, calibrate, example
+
+    ex = example(400, seed=4, runs=20)
+    with pytest.raises(SampleSizeError) as refused:
+        calibrate(ex.model, ex.data, 0.05, 0.01, Grouped(column="run"), domain=None)
+    (remedy,) = refused.value.remedies
+    assert remedy.parameter == "epsilon" and 0.05 < float(remedy.value) < 1  # type: ignore[arg-type]
+    assert render(remedy) in str(refused.value).replace("the smallest is ", "epsilon=")
+    model = calibrate(ex.model, ex.data, remedy.value, 0.01, Grouped(column="run"), domain=None)
+    assert model.calibration is not None
+
+
 @pytest.fixture(scope="module")
 def certified(tmp_path_factory):
     """One certificate written by the CLI: its summary, its console output and its page."""
