@@ -81,7 +81,7 @@ PARAMETERS: dict[str, Spelling] = {
     "unit_row": _s("Global()", "--unit row"),
     "unit_run": _s("Grouped(column={})", "--unit run"),
     "mondrian_column": _s("Mondrian(column={})", "--mondrian-column"),
-    "mondrian_bins": _s("Mondrian(bins={})", "--bins"),
+    "mondrian_bins": _s("Mondrian(column=..., bins={})", "--bins"),
     "recalibrate": _s("recalibrate=True", "--recalibrate"),
     "seed": _s("seed", "--seed"),
     # certification and its report
