@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
+from ipcverify._wording._spelling import option
 from ipcverify.calibration._group_counts import group_shares
 from ipcverify.certification._test_result import TestResult
 from ipcverify.contract._guarded import mark_row_level, mark_runs
@@ -235,7 +236,7 @@ def coverage_by_bin(
         If ``bins < 1``, or a value is missing (NaN, empty) or infinite.
     """
     if bins < 1:
-        raise InvalidInputError(f"bins must be >= 1 (--bins); got {bins}")
+        raise InvalidInputError(f"{option('bins')} must be >= 1; got {bins}")
     raw = np.asarray(values)
     if raw.shape != np.shape(violated) or raw.ndim != 1 or raw.size == 0:
         raise InvalidInputError(f"bin column {column!r}: need one value per sample; got shape {raw.shape}")
