@@ -16,7 +16,7 @@ way a user types it after ``pip install``:
 * ``reproduce_quick`` -- ``reproduce --quick --fly-uncalibrated`` into an empty folder
   (README and docs/reproduce.md; issue 26's target: at most 90 s);
 * ``sensitivity`` -- ``python -m case_studies.quad_landing sensitivity`` (docs/case_study.md);
-* ``ingest_example`` -- ``python -m benchmarks.ingest_example`` (docs/ingest.md's worked example:
+* ``ingest_example`` -- ``python -m docgen.ingest_example`` (docs/ingest.md's worked example:
   100 bags written, ingested, trained, calibrated and certified);
 * ``certify_euroc`` -- docs/certify.md's worked example on the EuRoC log (split, train,
   calibrate by flight, certify with the report);
@@ -83,7 +83,7 @@ def commands(folder: Path, full: bool = False, quick: bool = False) -> dict[str,
         + ["--quick", "--fly-uncalibrated"],
     }
     out["sensitivity"] = [*quad, "sensitivity", "--out", str(folder / "sens")]
-    out["ingest_example"] = [py, "-m", "benchmarks.ingest_example", "--out", str(folder / "ingest")]
+    out["ingest_example"] = [py, "-m", "docgen.ingest_example", "--out", str(folder / "ingest")]
     out["ingest_example"] += ["--figure", str(folder / "ingest.png")]
     out["certify_euroc"] = ["bash", "-c", _EUROC.format(py=py, cli=_CLI, folder=folder, root=ROOT)]
     if quick:

@@ -11,7 +11,7 @@ Measures, for n = 3:
   relative margins (1e-1 to 1e-12, contained and not);
 * the S-lemma SDP route for Proposition 1 (``prove(..., method="sdp")`` against the box
   ``{P} ⊕ (-G_tau)``) on landing decisions of a trained IPC (``tests/data/landing_sets.npz``,
-  ``python -m benchmarks.landing_sets``): its cost per decision (Clarabel alone, the whole
+  ``python -m docgen.landing_sets``): its cost per decision (Clarabel alone, the whole
   route with its exact certificate, ``verify``) beside the closed form's (``landing_decision``)
   and the controller's (``LandingRule.decide``), wall and CPU time; its agreement with the
   closed form; how far Clarabel's multipliers lie from the program's exact solution ``s / 2``;
@@ -289,7 +289,7 @@ def bench_landing_sdp(count=None):
     rel_slack, kinds = np.array(rel_slack), np.array(kinds)
     return {
         "decisions": count,
-        "source": "tests/data/landing_sets.npz (python -m benchmarks.landing_sets): a trained IPC's sets "
+        "source": "tests/data/landing_sets.npz (python -m docgen.landing_sets): a trained IPC's sets "
         "on the case study's flights, world frame, against {P} + (-G_tau)",
         "per_decision": {
             "landing_rule_decide (controller, float64 with rounding bound)": t_rule,

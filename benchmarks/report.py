@@ -7,7 +7,7 @@ from typing import Any
 
 from benchmarks.bench_tightness import worst_bin_allowance
 from benchmarks.common import save_figure
-from benchmarks.report_tables import (
+from docgen.report_tables import (
     CM3,
     LABELS,
     before_after_table,

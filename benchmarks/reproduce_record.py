@@ -2,7 +2,7 @@
 
 A full ``python -m case_studies.quad_landing reproduce`` takes about six minutes and writes a
 ``summary.json`` of about 0.7 MB, which is not committed. This script extracts from it what
-docs/reproduce.md and the README quote: per contract Table I (rates and counts), the landings
+docs/reproduce_results.md and the README quote: per contract Table I (rates and counts), the landings
 (Monte Carlo and paper-style), the hover half-widths and the certified bound on unsafe landings;
 the baseline's landings; and the summary's format version (times are not kept: they come from
 ``python -m benchmarks.bench_commands --full`` on an idle machine). It writes

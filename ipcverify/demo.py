@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
+from ipcverify._wording._spelling import option
 from ipcverify.calibration._bounds import min_calibration_size
 from ipcverify.calibration._global_scale import Global
 from ipcverify.certification._baselines import fit_global_mahalanobis
@@ -215,21 +216,21 @@ def run_demo(
 def _check_demo_sizes(n_train: int, n_calibration: int, seed: int) -> None:
     """Refuse sample counts and a seed the demo cannot run with, before it computes anything."""
     need_cal = min_calibration_size(DEMO_EPSILON, DEMO_DELTA, "pac")
-    for name, value, low, option in (
-        ("n_train", n_train, DEMO_MIN_TRAIN, "--n"),
-        ("n_calibration", n_calibration, need_cal, None),
+    for name, value, low, flagged in (
+        ("n_train", n_train, DEMO_MIN_TRAIN, True),
+        ("n_calibration", n_calibration, need_cal, False),
     ):
         if (
             isinstance(value, bool)
             or not isinstance(value, numbers.Integral)
             or not low <= value <= DEMO_MAX_SAMPLES
         ):
-            where = f" ({option})" if option else ""
             raise InvalidInputError(
-                f"the demo needs {name}{where} between {low:,} and {DEMO_MAX_SAMPLES:,}; got {value!r}"
+                f"the demo needs {option(name) if flagged else name} between {low:,} and "
+                f"{DEMO_MAX_SAMPLES:,}; got {value!r}"
             )
     if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0:
-        raise InvalidInputError(f"the demo's seed (--seed) must be a non-negative integer; got {seed!r}")
+        raise InvalidInputError(f"the demo's {option('seed')} must be a non-negative integer; got {seed!r}")
 
 
 def plot_demo_sets(data: PerceptionDataset, ipc: Ellipsoid, base: Ellipsoid) -> Figure:

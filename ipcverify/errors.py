@@ -11,6 +11,12 @@ Data that can be used but probably should not be as it is raises a :class:`DataW
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from ipcverify._wording._spelling import Remedy
+
 __all__ = [
     "IPCVerifyError",
     "InvalidInputError",
@@ -25,7 +31,33 @@ __all__ = [
 
 
 class IPCVerifyError(Exception):
-    """Base class of every error raised on purpose by ipcverify."""
+    """Base class of every error raised on purpose by ipcverify.
+
+    An error whose fix is a parameter value carries it as facts: :attr:`remedies`, each a
+    :class:`~ipcverify._wording._spelling.Remedy` (which parameter, what value) with which the
+    refused call succeeds, all else equal. The message says the same in words, for the audience of
+    the running code (``--domain-flag-rate 0.091`` on the command line, ``flag_rate=0.091`` in
+    Python).
+
+    Attributes
+    ----------
+    remedies : tuple of Remedy
+        Parameter values that fix the error, each on its own (empty: none is known).
+
+    Examples
+    --------
+    >>> from ipcverify import calibrate, example
+    >>> ex = example(200)
+    >>> try:
+    ...     calibrate(calibrate(ex.model, ex.data, 0.2, 0.05, domain=None), ex.data, 0.2, 0.05)
+    ... except InvalidInputError as err:
+    ...     print(err.remedies[0].parameter, err.remedies[0].value)
+    recalibrate True
+    """
+
+    def __init__(self, *args: object, remedies: Iterable[Remedy] = ()) -> None:
+        super().__init__(*args)
+        self.remedies: tuple[Remedy, ...] = tuple(remedies)
 
 
 class InvalidInputError(IPCVerifyError, ValueError):

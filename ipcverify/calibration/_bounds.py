@@ -29,6 +29,7 @@ from typing import Literal
 
 from scipy import stats
 
+from ipcverify._wording._spelling import option, options
 from ipcverify.errors import InvalidInputError, SampleSizeError
 
 CalibrationMode = Literal["pac", "marginal"]
@@ -262,7 +263,8 @@ def _pac_index(n: int, epsilon: float, delta: float) -> int:
         raise SampleSizeError(
             f"{n} calibration samples are too few for a PAC calibration at epsilon={epsilon:g}, "
             f"delta={delta:g}: at least {count_text(need)} are needed (n >= ln(delta) / ln(1 - epsilon)); "
-            "use more calibration data, a larger --epsilon or --delta, or --mode marginal"
+            f"use more calibration data, a larger {options('epsilon', 'delta', last='or')}, or "
+            f"{option('mode', 'marginal')}"
         )
     # largest m in [0, n - 1] with cdf(m) <= threshold; cdf is increasing in m
     lo, hi = 0, n - 1

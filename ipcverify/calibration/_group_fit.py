@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ipcverify._wording._spelling import Remedy, option
 from ipcverify.calibration._bounds import CalibrationMode, count_text, min_calibration_size
 from ipcverify.calibration._group_counts import GuaranteeKind, check_guarantee, group_layout
 from ipcverify.calibration._risk_control import risk_control_threshold
@@ -136,12 +137,14 @@ def too_few_groups(
         "The groups "
         "(flights, runs), not the rows, are the exchangeable units, so more rows per group do not help "
         f"(from {G} groups no claim about a new group goes below {run_floor(G, delta):.3g} at this delta); "
-        f"collect more independent groups, or raise --{rate} (with {G} groups the smallest is {smallest:g}"
+        f"collect more independent groups, or raise {option(rate)} (with {G} groups the smallest is "
+        f"{smallest:g}"
     )
     if mode == "pac":
         marginal = runs_needed(guarantee, "marginal", epsilon, delta, gamma)
         return (
-            text + f" at this delta) or --delta, or use --mode marginal (needs {count_text(marginal)} groups)"
+            text + f" at this delta) or {option('delta')}, or use {option('mode', 'marginal')} "
+            f"(needs {count_text(marginal)} groups)"
         )
     return text + ")"
 
@@ -215,7 +218,12 @@ def group_threshold(
         )
     G = len(labels)
     if G < runs_needed(guarantee, mode, epsilon, delta, gamma):
-        raise SampleSizeError(too_few_groups(G, column, epsilon, delta, mode, guarantee, gamma))
+        rate = "gamma" if guarantee == "share-of-runs" else "epsilon"
+        smallest = smallest_run_rate(guarantee, mode, G, delta)
+        raise SampleSizeError(
+            too_few_groups(G, column, epsilon, delta, mode, guarantee, gamma),
+            remedies=(Remedy(rate, smallest),) if smallest < 1.0 else (),
+        )
     order, starts, sizes = group_layout(codes, G)
     method = METHOD_OF[(guarantee, mode)]
     k_groups: int | None = None

@@ -34,6 +34,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ipcverify._wording._spelling import option
 from ipcverify.calibration._bounds import CalibrationMode, min_calibration_size
 from ipcverify.calibration._group_counts import (
     CountStatistic,
@@ -270,7 +271,7 @@ class GroupedCalibration:
             raise InvalidInputError(
                 f"{test_data.source}: the calibration's claim is about runs (its calibration data named them "
                 f"{self.column!r}), so the test is counted per run: name the column of the test data's runs "
-                "(CLI: --group-column COL)"
+                f"({option('group_column', 'COL')})"
             )
         labels = test_data.extra[self.column]
         unit = f"groups of {self.column}"

@@ -14,6 +14,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from ipcverify._wording._spelling import option
 from ipcverify.calibration._protocol import FloatArray
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import InvalidInputError
@@ -33,7 +34,7 @@ def discrete_groups(values: FloatArray, column: str) -> Groups:
     if len(uniq) > MAX_GROUPS:
         raise InvalidInputError(
             f"column {column!r} has {len(uniq)} distinct values (more than {MAX_GROUPS}); "
-            "it looks continuous -- pass bins=K (CLI: --bins K) to calibrate per quantile bin"
+            f"it looks continuous -- pass {option('mondrian_bins', 'K')} to calibrate per quantile bin"
         )
     specs: list[dict[str, Any]] = [{"label": f"{column}={u:g}", "value": float(u)} for u in uniq]
     return specs, [values == u for u in uniq], (), 0

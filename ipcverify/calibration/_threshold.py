@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy import stats
 
+from ipcverify._wording._spelling import option
 from ipcverify.calibration._bounds import (
     CalibrationMode,
     calibration_index,
@@ -54,7 +55,7 @@ def check_seed(seed: int) -> None:
     if isinstance(seed, bool) or not whole:
         raise InvalidInputError(f"seed must be an integer; got {seed!r}")
     if seed < 0:
-        raise InvalidInputError(f"seed must be a non-negative integer (--seed); got {seed!r}")
+        raise InvalidInputError(f"{option('seed')} must be a non-negative integer; got {seed!r}")
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -28,6 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ipcverify._package import VERSION
+from ipcverify._wording._verdicts import status_verdict
 from ipcverify.calibration._protocol import CalibrationSummary, GroupClaim
 from ipcverify.certification._evaluation import BinCoverage, WorstBin
 from ipcverify.certification._summary import CertificateSummary
@@ -51,26 +52,29 @@ RUN_ASSUMPTION = (
 
 
 class CertificateStatus(Enum):
-    """Outcome of :func:`~ipcverify.certification.certify`; the value is the text shown to the user."""
+    """Outcome of :func:`~ipcverify.certification.certify`; the value is its name in words.
 
-    CERTIFIED = "certified: calibrated contract, test data consistent with the calibration"
-    CONTRADICTED = (
-        "contradicted: the test data violates the calibration's claim -- check that calibration and "
-        "test data come from the deployment distribution; recalibrate on representative data"
-    )
-    NOT_CALIBRATED = (
-        "no calibration certificate: only the test-set bound holds -- run `ipcverify calibrate` on "
-        "held-out data to obtain one"
-    )
-    UNCHECKED = "certified by calibration; consistency with the test data not checkable in this mode"
-    ROWS_ASSUMED = (
-        "row-level claim on rows that come in runs: it holds only if those rows are independent samples, "
-        "which rows of one run usually are not -- calibrate by runs for a claim that does not assume it"
-    )
-    UNTESTED = (
-        "certified by calibration; no test data was given, so nothing checked it independently -- "
-        "pass --data with fresh held-out samples to add the test"
-    )
+    The sentence shown to the user (what the status means, what to do next) is :attr:`text`,
+    worded by the wording layer for the audience of the running code.
+    """
+
+    CERTIFIED = "certified"
+    CONTRADICTED = "contradicted"
+    NOT_CALIBRATED = "not calibrated"
+    UNCHECKED = "unchecked"
+    ROWS_ASSUMED = "rows assumed"
+    UNTESTED = "untested"
+
+    @property
+    def text(self) -> str:
+        """The status's sentence (``certificate.json``'s ``status_text``).
+
+        Examples
+        --------
+        >>> CertificateStatus.CERTIFIED.text
+        'certified: calibrated contract, test data consistent with the calibration'
+        """
+        return status_verdict(self.name)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -334,7 +338,7 @@ class Certificate:
             "ipcverify_version": VERSION,
             "summary": None if self.summary is None else self.summary.to_dict(),
             "status": self.status.name,
-            "status_text": self.status.value,
+            "status_text": self.status.text,
             "statement": self.statement,
             "assumption": ASSUMPTION if self.group_claim is None else RUN_ASSUMPTION,
             "n_parameters": self.model.n_parameters,

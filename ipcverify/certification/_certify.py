@@ -38,6 +38,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from ipcverify._wording._spelling import option
 from ipcverify.certification._certificate import (
     Certificate,
     CertifyEvidence,
@@ -205,7 +206,9 @@ def certify(
         test_data, group_column = _runs_named(test_data, claim.column, group_column)
     y_labels = output_labels(model, test_data)
     if group_column is not None and test_data is None:
-        raise InvalidInputError(f"group column {group_column!r} needs test data to count per group (--data)")
+        raise InvalidInputError(
+            f"group column {group_column!r} needs test data to count per group ({option('test_data')})"
+        )
     cal = model.calibration
     tested = (
         _tested(model, test_data, delta, bin_column, bins, group_column) if test_data is not None else None
@@ -383,7 +386,7 @@ def labelled(
         return result
     if units is not None and not units.strip():
         raise InvalidInputError(
-            "the units of y must not be empty; name them (e.g. --units m) or leave them out"
+            f"the units of y must not be empty; name them (e.g. {option('units', 'm')}) or leave them out"
         )
     names = cert.summary.labels if labels is None else check_labels(labels, len(cert.summary.labels))
     violated = None if result.evidence is None else result.evidence.violated

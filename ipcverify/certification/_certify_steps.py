@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from ipcverify._wording._spelling import option
 from ipcverify.calibration._protocol import Calibration, row_counts
 from ipcverify.certification._certificate import CertificateStatus
 from ipcverify.certification._test_result import Consistency, GroupTest, GroupTestResult, TestResult
@@ -27,12 +28,16 @@ FloatArray = NDArray[np.float64]
 
 #: Confidence parameter of the test-set bound when the model carries no calibration.
 DEFAULT_DELTA = 0.001
-#: Why Theorem 1 is not computed for a model file without training statistics and no training data.
-NO_STATISTICS = (
-    "not computed: training data not given, and the model records no training statistics (a model "
-    "not built by ipcverify.training.train, or a default-recipe model file written before Theorem 1 "
-    "covered the default recipe); pass the training data (--train-data), or retrain the model"
-)
+
+
+def no_statistics() -> str:
+    """Why Theorem 1 is not computed for a model file without training statistics and no training data."""
+    return (
+        "not computed: training data not given, and the model records no training statistics (a model "
+        "not built by ipcverify.training.train, or a default-recipe model file written before Theorem 1 "
+        f"covered the default recipe); pass the training data ({option('train_data')}), or retrain the "
+        "model"
+    )
 
 
 def _check_dims(model: IPCModel, data: PerceptionDataset, role: str) -> None:
@@ -75,7 +80,8 @@ def check_inputs(
             raise InvalidInputError(
                 f"{train_data.source}: this is not the data the model was trained on (its content SHA-256 "
                 "differs from the one the model file recorded at training), and Theorem 1 is a statement "
-                "about the training set itself; pass the training file, or leave --train-data out to use "
+                f"about the training set itself; pass the training file, or leave {option('train_data')} "
+                "out to use "
                 "the statistics the model file stored at training"
             )
     cal = model.calibration
@@ -236,7 +242,7 @@ def theorem1_step(
         return theorem1(model, train_data, delta, radius=radius), "", "training data"
     stored = model.metadata.get("training_statistics")
     if stored is None:
-        return None, NO_STATISTICS, ""
+        return None, no_statistics(), ""
     stats = TrainingStatistics.from_dict(stored)
     return theorem1(model, stats, delta, radius=radius), "", "statistics stored at training time"
 

@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
+from ipcverify._wording._spelling import option
 from ipcverify.calibration._group_counts import group_shares
 from ipcverify.certification._test_result import TestResult
 from ipcverify.contract._guarded import mark_row_level, mark_runs
@@ -17,6 +18,7 @@ from ipcverify.data._checks import group_like_counts
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import DataError, InvalidInputError
 from ipcverify.guard._domain_report import DomainReport
+from ipcverify.guard._index import one_blas_thread
 
 FloatArray = NDArray[np.float64]
 
@@ -235,7 +237,7 @@ def coverage_by_bin(
         If ``bins < 1``, or a value is missing (NaN, empty) or infinite.
     """
     if bins < 1:
-        raise InvalidInputError(f"bins must be >= 1 (--bins); got {bins}")
+        raise InvalidInputError(f"{option('bins')} must be >= 1; got {bins}")
     raw = np.asarray(values)
     if raw.shape != np.shape(violated) or raw.ndim != 1 or raw.size == 0:
         raise InvalidInputError(f"bin column {column!r}: need one value per sample; got shape {raw.shape}")
@@ -394,10 +396,12 @@ def evaluate(
             f"{data.source}: data has x_dim={data.x_dim}, y_dim={data.y_dim} but the model "
             f"expects x_dim={model.config.x_dim}, y_dim={model.config.y_dim}"
         )
-    sets = model.predict_unguarded(data.x, data.yhat)
-    violated = ~sets.contains(data.y)
-    logvol = sets.log_volume()
-    extent = 2.0 * sets.half_widths()
+    with one_blas_thread():  # as fast idle, and not slowed by other busy processes (bench_threads)
+        sets = model.predict_unguarded(data.x, data.yhat)
+        violated = ~sets.contains(data.y)
+        logvol = sets.log_volume()
+        extent = 2.0 * sets.half_widths()
+        outside = None if model.domain is None else ~model.domain.contains(data.x, data.yhat)
     by_bin = None
     if bin_column is not None:
         by_bin = coverage_by_bin(data.column(bin_column), violated, bin_column, bins)
@@ -409,7 +413,6 @@ def evaluate(
             group_column = claim.column
         elif len(runs) == 1:
             group_column = next(iter(runs))
-    outside = None if model.domain is None else ~model.domain.contains(data.x, data.yhat)
     delta = 0.05 if model.calibration is None else model.calibration.delta
     by_run = (
         None

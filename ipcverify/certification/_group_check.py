@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from ipcverify._wording._spelling import option
 from ipcverify.calibration._group_counts import (
     CountStatistic,
     allowed_outside,
@@ -35,14 +36,14 @@ def _group_labels(test_data: PerceptionDataset, column: str) -> NDArray[np.intp]
     if column not in names:
         raise InvalidInputError(
             f"{test_data.source}: no group column {column!r} in the test data (columns: {', '.join(names)}); "
-            "name the column of flights or runs, e.g. --group-column run"
+            f"name the column of flights or runs, e.g. {option('group_column', 'run')}"
         )
     codes, distinct = group_codes(test_data.column(column), f"{test_data.source}: group column {column!r}")
     if len(distinct) < 2:
         raise InvalidInputError(
             f"{test_data.source}: group column {column!r} has one group only ({distinct.tolist()[0]!r}); a "
             "group-level test needs test data from several independent groups (flights, runs) -- add "
-            "more, or drop --group-column"
+            f"more, or drop {option('group_column')}"
         )
     return codes
 

@@ -23,6 +23,7 @@ from typing import Any
 
 from matplotlib.figure import Figure
 
+from ipcverify._wording._verdicts import calibrate_call, certify_call, domain_verdict, theorem1_verdict
 from ipcverify.calibration._protocol import CalibrationSummary
 from ipcverify.certification._certificate import Certificate, CertifyEvidence, CertifyResult
 from ipcverify.certification._report_head import html_table, html_value, page_header
@@ -52,8 +53,7 @@ def _calibration_section(cal: CalibrationSummary | None) -> list[str]:
     if cal is None:
         parts.append(
             "<p><b>Absent.</b> This model carries no calibration, so the calibration certificate is "
-            "missing. Run <code>ipcverify calibrate MODEL CALIBRATION_DATA --epsilon E --delta D --out "
-            "calibrated.pt</code> on held-out data.</p>"
+            f"missing. Run <code>{html.escape(calibrate_call())}</code> on held-out data.</p>"
         )
         return parts
     rows: list[tuple[str, Any]] = [
@@ -81,12 +81,22 @@ def _domain_section(cert: Certificate) -> list[str]:
     d = cert.domain
     parts = ["<h2>Domain of validity</h2>"]
     if d is None:
+        absent = domain_verdict(
+            present=False, radius_zero=False, queries=0, well_above=False, row_level=False
+        )
         parts.append(
-            "<p><b>Absent.</b> This model carries no domain-of-validity test, so nothing flags queries "
-            "unlike the calibration data. Recalibrate with a current ipcverify to fit one.</p>"
+            f"<p><b>{capitalized(absent)}.</b> This model carries no domain-of-validity test, so nothing "
+            "flags queries unlike the calibration data. Recalibrate with a current ipcverify to fit one.</p>"
         )
         return parts
-    parts.append(f"<p>{html.escape(d.sentence())}</p>")
+    verdict = domain_verdict(
+        present=True,
+        radius_zero=d.threshold == 0,
+        queries=d.n,
+        well_above=d.well_above_flag_rate,
+        row_level=d.row_level_column is not None,
+    )
+    parts.append(f"<p><b>Verdict: {html.escape(verdict)}.</b> {html.escape(d.sentence())}</p>")
     rows: list[tuple[str, Any]] = [
         ("method", d.method),
         ("false-alarm rate alpha", d.flag_rate),
@@ -108,8 +118,8 @@ def _test_section(cert: Certificate, ev: CertifyEvidence | None, s: CertificateS
         parts.append(
             "<p><b>No test data was given: the held-out test was not run.</b> The calibration certificate "
             "above does not need one, but "
-            "nothing on this page checks it independently: run <code>ipcverify certify MODEL --data "
-            "TEST</code> with fresh held-out samples.</p>"
+            f"nothing on this page checks it independently: run <code>{html.escape(certify_call())}</code> "
+            "with fresh held-out samples.</p>"
         )
         return parts
     n_y = len(s.labels)
@@ -246,7 +256,8 @@ def _theorem1_section(cert: Certificate) -> list[str]:
         parts.append(f"<p><b>{html.escape(capitalized(cert.theorem1_reason))}.</b> Nothing is claimed.</p>")
         return parts
     cls = "ok" if t1.usable else "vacuous"
-    parts.append(f'<p class="{cls}">{html.escape(t1.explanation())}</p>')
+    verdict = html.escape(theorem1_verdict(t1.sound.vacuous))
+    parts.append(f'<p class="{cls}"><b>Verdict: {verdict}.</b> {html.escape(t1.explanation())}</p>')
 
     def nneed(v: int | None) -> str:
         return "no N" if v is None else f"{v:.3g}"

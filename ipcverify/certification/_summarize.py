@@ -13,6 +13,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from ipcverify._package import VERSION
+from ipcverify._wording._spelling import option, regroup_domain
+from ipcverify._wording._verdicts import NOT_RUN, domain_verdict, held_out_remedy, theorem1_verdict
 from ipcverify.calibration._protocol import GroupUnit
 from ipcverify.certification._certificate import Certificate, CertificateStatus
 from ipcverify.certification._summary import CertificateSummary, Check, CheckLevel, target_strength, utc_now
@@ -21,8 +23,6 @@ from ipcverify.contract._model import IPCModel
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import InvalidInputError
 from ipcverify.guard._domain_report import DomainReport
-
-_NOT_RUN = "no test data given: the held-out test was not run"
 
 
 def capitalized(text: str) -> str:
@@ -44,15 +44,16 @@ def capitalized(text: str) -> str:
 
 def _status_detail(status: CertificateStatus) -> str:
     """The status text without a leading repetition of its name ("certified: ...")."""
-    return status.value.removeprefix(status.name.lower().replace("_", " ") + ": ")
+    return status.text.removeprefix(status.name.lower().replace("_", " ") + ": ")
 
 
 def _shift_note(cert: Certificate) -> str:
     """For a certified contract whose test queries lie far outside its domain: the verdict says so.
 
-    Seen on a room change (EuRoC MH_04 -> V1_02, calibrated by flight at epsilon 0.25): the test
-    was consistent with the claim, and the verdict line said only that, while 87 % of the queries
-    lay outside the domain of validity, for which the certificate promises nothing.
+    The rule is on the certificate's facts: a CERTIFIED status whose domain report counts far more
+    test queries outside than its flag rate explains (:attr:`DomainReport.well_above_flag_rate`).
+    The test can then be consistent with the claim while most queries lie where the certificate
+    promises nothing, and the verdict line must not say only the former.
     """
     d = cert.domain
     if cert.status is not CertificateStatus.CERTIFIED or d is None or not d.well_above_flag_rate:
@@ -127,7 +128,7 @@ def _independence_check(cert: Certificate) -> Check:
     if cert.group_test is not None:
         counted = f"the test is also counted per group of {cert.group_test.column!r} above"
     elif test_col is not None:
-        counted = f"certify with --group-column {test_col} to also count the test per {test_col}"
+        counted = f"certify with {option('group_column', test_col)} to also count the test per {test_col}"
     else:
         counted = "test data with a column naming its runs could also be counted per run"
     runs = cert.runs or {}
@@ -141,7 +142,7 @@ def _independence_check(cert: Certificate) -> Check:
         detail=(
             f"{' and '.join(found)}: rows of one {col} are usually correlated, but the row-level claim, "
             "and the calibration behind it, count every row as an independent sample, which their "
-            f"exact bounds need{worth}; {counted}, and recalibrate with --group-column {col} for a claim "
+            f"exact bounds need{worth}; {counted}, and recalibrate with {option('grouped', col)} for a claim "
             f"about whole {col}s"
         ),
     )
@@ -171,7 +172,7 @@ def _test_check(cert: Certificate, rows_outside: tuple[int, int] | None) -> Chec
     t, c = cert.test, cert.consistency
     name = "held-out test"
     if t is None:
-        return Check(name=name, verdict="not run", level="info", detail=_NOT_RUN + " (pass --data TEST)")
+        return Check(name=name, verdict="not run", level="info", detail=f"{NOT_RUN} ({held_out_remedy()})")
     level: CheckLevel
     if not c.checked:
         verdict, level, versus = (
@@ -255,10 +256,21 @@ def _group_checks(g: GroupTest, test: TestResult | None = None) -> list[Check]:
 
 def _domain_check(d: DomainReport | None) -> Check:
     name = "domain of validity"
+    verdict = (
+        domain_verdict(present=False, radius_zero=False, queries=0, well_above=False, row_level=False)
+        if d is None
+        else domain_verdict(
+            present=True,
+            radius_zero=d.threshold == 0,
+            queries=d.n,
+            well_above=d.well_above_flag_rate,
+            row_level=d.row_level_column is not None,
+        )
+    )
     if d is None:
         return Check(
             name=name,
-            verdict="absent",
+            verdict=verdict,
             level="warn",
             detail="the model carries no domain-of-validity test; recalibrate with a current ipcverify",
         )
@@ -266,34 +278,34 @@ def _domain_check(d: DomainReport | None) -> Check:
     if d.threshold == 0:  # only in a model file from before the test was fitted on distinct inputs
         return Check(
             name=name,
-            verdict="radius 0: flags every query not equal to a calibration input",
+            verdict=verdict,
             level="warn",
             detail=f"{fitted}; its threshold is 0 because it was fitted on repeated calibration inputs by an "
             "older ipcverify, so the queries it flags say nothing about a shift -- recalibrate to refit it "
             "on the distinct inputs",
         )
     if d.n == 0:
-        return Check(name=name, verdict="not run", level="info", detail=f"{fitted}; {_NOT_RUN}")
+        return Check(name=name, verdict=verdict, level="info", detail=f"{fitted}; {NOT_RUN}")
     counted = f"{d.outside:,} of {d.n:,} test queries ({100 * d.outside_fraction:.3g} %) outside; {fitted}"
     if d.well_above_flag_rate and d.row_level_column is not None:
         col = d.row_level_column
         return Check(
             name=name,
-            verdict="SHIFT, or a row-level test on correlated rows: far more queries outside than "
-            "false alarms explain",
+            verdict=verdict,
             level="warn",
             detail=counted + f"; the certificate promises nothing for them. The test was fitted row by "
-            f"row on calibration data with a column {col!r}: refit it by {col} ({d.regroup_command()}) "
+            f"row on calibration data with a column {col!r}: refit it by {col} "
+            f"({regroup_domain(col, d.regroup_flag_rate)}) "
             f"to tell a shift from a threshold too short for a new {col}",
         )
     if d.well_above_flag_rate:
         return Check(
             name=name,
-            verdict="SHIFT: far more queries outside than false alarms explain",
+            verdict=verdict,
             level="warn",
             detail=counted + "; the certificate promises nothing for them",
         )
-    return Check(name=name, verdict="as expected in distribution", level="pass", detail=counted)
+    return Check(name=name, verdict=verdict, level="pass", detail=counted)
 
 
 def _theorem1_check(cert: Certificate) -> Check:
@@ -313,13 +325,13 @@ def _theorem1_check(cert: Certificate) -> Check:
     if s.vacuous:
         return Check(
             name=name,
-            verdict="vacuous (proves nothing)",
+            verdict=theorem1_verdict(vacuous=True),
             level="info",
             detail=f"bound {s.bound:.3g} >= 1 ({terms}; {need}); the certificate does not rest on it",
         )
     return Check(
         name=name,
-        verdict="not vacuous",
+        verdict=theorem1_verdict(vacuous=False),
         level="pass",
         detail=f"bound {s.bound:.4g} < 1 ({terms}), under the assumptions of proofs/theorem1.md",
     )
@@ -377,7 +389,7 @@ def check_labels(labels: Sequence[str], n: int) -> tuple[str, ...]:
         )
         raise InvalidInputError(
             f"labels must name the {n} coordinates of y (the output columns), one non-empty label each; got "
-            f"{len(given)}: {list(given)}; pass them comma-separated, e.g. --labels {example}"
+            f"{len(given)}: {list(given)}; pass one each, e.g. {option('labels', tuple(example.split(',')))}"
         )
     return given
 

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from typing import Any, Literal
 
+from ipcverify._wording._spelling import option
 from ipcverify.errors import InvalidInputError
 
 #: A calibration target ``epsilon`` at or above this is a weak target.
@@ -217,7 +218,9 @@ class CertificateSummary:
         if self.delta is not None and not (0 < self.delta < 1):
             raise InvalidInputError(f"delta must lie strictly between 0 and 1; got {self.delta!r}")
         if self.units is not None and not self.units.strip():
-            raise InvalidInputError("the units of y, if given, must not be empty; e.g. --units m")
+            raise InvalidInputError(
+                f"the units of y, if given, must not be empty; e.g. {option('units', 'm')}"
+            )
         if not self.labels or any(not lab.strip() for lab in self.labels):
             raise InvalidInputError(f"every coordinate of y needs a non-empty label; got {list(self.labels)}")
 

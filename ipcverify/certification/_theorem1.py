@@ -35,6 +35,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ipcverify._wording._spelling import option
 from ipcverify.contract._model import IPCModel
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import InvalidInputError
@@ -431,7 +432,7 @@ def theorem1(
         if stats.alpha != alpha:
             raise InvalidInputError(
                 f"the stored training statistics use alpha={stats.alpha:g}, not {alpha:g}; pass the training "
-                "data (--train-data) to evaluate Theorem 1 at another alpha"
+                f"data ({option('train_data')}) to evaluate Theorem 1 at another alpha"
             )
     emp, n, p = stats.truncated_hinge_mean, stats.n, model.n_parameters
     high = sound_lipschitz(model, stats.box, radius=radius)

@@ -26,7 +26,7 @@ import click
 from click.core import ParameterSource
 from rich.console import Console
 
-from ipcverify._wording import Audience, speaking
+from ipcverify._wording._audience import Audience, speaking
 from ipcverify.errors import Hint, InvalidInputError
 
 __all__ = [
@@ -65,7 +65,7 @@ class CliGroup(click.Group):
     """A click group whose commands speak CLI: library messages name flags, not parameters.
 
     Every run (:func:`run_group`, or click's test runner calling :meth:`main`) happens inside
-    :func:`ipcverify._wording.speaking` for the command line, and the audience is restored after.
+    :func:`ipcverify._wording._audience.speaking` for the command line, and the audience is restored after.
     """
 
     def main(self, *args: Any, **kwargs: Any) -> Any:  # noqa: D102 - as click.Group.main

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any, cast
 import click
 from rich.table import Table
 
+from ipcverify._wording._verdicts import NOT_RUN, domain_verdict, held_out_remedy, theorem1_verdict
 from ipcverify.cli.app import (
     EXISTING_FILE,
     OUTPUT_FILE,
@@ -381,7 +382,7 @@ def certify_cmd(
         table.add_row("calibration", "ABSENT (no calibration certificate)")
     t = cert.test
     if t is None:
-        table.add_row("test data", "none given (pass --data TEST for an independent check)")
+        table.add_row("test data", f"none given ({held_out_remedy()} for an independent check)")
     else:
         table.add_row(
             "test violations",
@@ -422,17 +423,24 @@ def certify_cmd(
             table.add_row("set size", cert.volume.size_text(unit=units))
     if cert.domain is not None:
         d = cert.domain
+        verdict = domain_verdict(
+            present=True,
+            radius_zero=d.threshold == 0,
+            queries=d.n,
+            well_above=d.well_above_flag_rate,
+            row_level=d.row_level_column is not None,
+        )
         table.add_row(
             "domain of validity",
-            f"{d.outside}/{d.n} test queries outside (flag rate {d.flag_rate:g})"
+            f"{verdict}: {d.outside}/{d.n} test queries outside (flag rate {d.flag_rate:g})"
             if d.n
-            else f"fitted (flag rate {d.flag_rate:g}); no test data given: the held-out test was not run",
+            else f"{verdict}: fitted (flag rate {d.flag_rate:g}); {NOT_RUN}",
         )
     if cert.theorem1 is None:
         table.add_row("Theorem 1", cert.theorem1_reason)
     else:
         t1 = cert.theorem1
-        verdict = "VACUOUS" if t1.sound.vacuous else "usable"
+        verdict = theorem1_verdict(t1.sound.vacuous)
         need = "no N" if t1.sound.n_needed is None else f"N >= {t1.sound.n_needed:.3g}"
         table.add_row(
             "Theorem 1",

@@ -17,6 +17,7 @@ import warnings
 import numpy as np
 from numpy.typing import NDArray
 
+from ipcverify._wording._spelling import Remedy, option
 from ipcverify.calibration._bounds import pac_rows_allowing
 from ipcverify.calibration._kinds import check_registered
 from ipcverify.calibration._method import CalibrationMethod, CalibrationSample
@@ -143,17 +144,18 @@ def calibrate(
         data_hash=calibration_data.content_hash(),
         network_hash=model.weights.fingerprint(),
     )
-    unmet: list[str] = []  # every sample-size requirement is reported at once
+    unmet: list[tuple[str, tuple[Remedy, ...]]] = []  # every unmet sample-size requirement, at once
     cal: Calibration | None = None
     with warnings.catch_warnings(record=True) as caught:  # a hint is shown only if no error follows
         warnings.simplefilter("always")
         cal, dom = _fit(method, domain, sample, calibration_data, chosen, unmet)
     if unmet:
         raise SampleSizeError(
-            unmet[0]
+            unmet[0][0]
             if len(unmet) == 1
             else f"{len(unmet)} requirements are not met: "
-            + " ".join(f"({i}) {m.rstrip('.')}." for i, m in enumerate(unmet, 1))
+            + " ".join(f"({i}) {m.rstrip('.')}." for i, (m, _) in enumerate(unmet, 1)),
+            remedies=unmet[0][1] if len(unmet) == 1 else (),  # one requirement: its own remedies
         )
     if cal is None:  # unreachable: the fit above assigns or raises
         raise SampleSizeError("no calibration was fitted")
@@ -163,7 +165,7 @@ def calibrate(
                 f"{calibration_data.source}: its rows come in runs of {method.unit_column!r}, so the claim "
                 "is "
                 "about runs (the expected share of a new run's rows outside their sets); for a row-level "
-                "claim, which assumes independent rows, choose Global() (CLI: --unit row)"
+                f"claim, which assumes independent rows, choose {option('unit_row')}"
             ),
             stacklevel=2,
         )
@@ -191,21 +193,22 @@ def _fit(
     sample: CalibrationSample,
     data: PerceptionDataset,
     chosen: bool,
-    unmet: list[str],
+    unmet: list[tuple[str, tuple[Remedy, ...]]],
 ) -> tuple[Calibration | None, DomainModel | None]:
     """Fit the calibration and the domain test; every unmet sample-size requirement goes to ``unmet``."""
     cal: Calibration | None = None
     try:
         cal = method.fit(sample)
     except SampleSizeError as exc:
-        row_claim = " or make a row-level claim explicitly with Global() (CLI: --unit row)"
-        unmet.append(str(exc).rstrip(".") + (row_claim if chosen and method.unit_column is not None else ""))
+        row_claim = f" or make a row-level claim explicitly with {option('unit_row')}"
+        said = str(exc).rstrip(".") + (row_claim if chosen and method.unit_column is not None else "")
+        unmet.append((said, exc.remedies))
     dom: DomainModel | None = None
     if domain is not None:
         try:
             dom = domain.fit(data, method.unit_column)
         except SampleSizeError as exc:
-            unmet.append(str(exc))
+            unmet.append((str(exc), exc.remedies))
     return cal, dom
 
 
@@ -265,8 +268,9 @@ def _check_inputs(
     if model.calibration is not None and not recalibrate:
         raise InvalidInputError(
             "the model is already calibrated; calibrating it again on top would compound the scale "
-            "factors and void the guarantee -- pass recalibrate=True (CLI: --recalibrate) to "
-            "calibrate the raw network afresh"
+            f"factors and void the guarantee -- pass {option('recalibrate')} to "
+            "calibrate the raw network afresh",
+            remedies=(Remedy("recalibrate", True),),
         )
     cfg = model.config
     if (calibration_data.x_dim, calibration_data.y_dim) != (cfg.x_dim, cfg.y_dim):

@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ipcverify._wording._spelling import option
 from ipcverify.calibration._group_counts import allowed_outside
 from ipcverify.contract._guarded import Predictions, predict_sets
 from ipcverify.contract._model import IPCModel
@@ -300,7 +301,7 @@ def monitor_log(
         raise InvalidInputError(
             f"{data.source}: the calibration's claim is about runs (its calibration data named them "
             f"{claim.column!r}), and the log has no column {column!r}; name the column of the log's runs "
-            "(CLI: --group-column COL)"
+            f"({option('group_column', 'COL')})"
         )
     statistic = claim.unit if claim is not None else "share"
     limit = None if claim is None else claim.share_limit

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ipcverify._wording._spelling import option
 from ipcverify.calibration._dependence import measure_dependence
 from ipcverify.calibration._global_scale import Global
 from ipcverify.calibration._grouped_spec import Grouped
@@ -74,8 +75,8 @@ def choose_method(
         listed = ", ".join(f"{c!r} ({g} groups)" for c, g in runs.items())
         raise AmbiguousRunsError(
             f"{data.source}: several columns could name the runs ({listed}); say which one's groups are "
-            "independent runs, calibration kind Grouped(column=...) (CLI: --group-column COL), or make a "
-            "row-level claim explicitly with Global() (CLI: --unit row)"
+            f"independent runs ({option('grouped', 'COL')}), or make a row-level claim explicitly with "
+            f"{option('unit_row')}"
         )
     return Grouped(column=next(iter(runs))), True
 
@@ -135,12 +136,12 @@ def run_record(
             Hint(
                 f"{data.source}: a row-level claim on data with runs of {column!r}"
                 + (" (chosen explicitly)" if not chosen else "")
-                + f" assumes independent rows: {dependence.sentence()}; a claim about runs (calibration kind "
-                f"Grouped(column={column!r}), CLI: --unit run) would hold without that assumption; "
+                + f" assumes independent rows: {dependence.sentence()}; a claim about runs "
+                f"({option('unit_run', column)}) would hold without that assumption; "
                 + plan.sentence()
                 + (
                     " The domain test, fitted row by row, flags the rows of a new run too often: fit it by "
-                    f"runs (DomainSpec(group_column={column!r}), CLI: --domain-group-column {column})."
+                    f"runs ({option('domain_group_column', column)})."
                     if domain_by_rows
                     else ""
                 )

@@ -21,6 +21,7 @@ from typing import Any, Literal
 import numpy as np
 from scipy import stats
 
+from ipcverify._wording._spelling import command, option, options
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import DataError, DataWarning, Hint
 
@@ -98,7 +99,8 @@ def check_informative(data: PerceptionDataset, purpose: Purpose) -> None:
         raise DataError(
             f"{data.source}: column{plural} {listed} {'are' if plural else 'is'} constant; "
             "the network cannot learn how the errors depend on a constant column, and would extrapolate "
-            "on any other value -- leave it out (--x-columns / --y-columns / --yhat-columns name the "
+            f"on any other value -- leave it out ({options('x_columns', 'y_columns', 'yhat_columns')} "
+            "name the "
             "columns to use) or train on data where it varies"
         )
     warnings.warn(
@@ -251,7 +253,7 @@ def group_like_counts(data: PerceptionDataset) -> dict[str, int]:
 
 
 def warn_correlated_rows(
-    data: PerceptionDataset, what: str, remedy: str, python: str = "group_column={col!r}"
+    data: PerceptionDataset, what: str, remedy: str, parameter: str = "group_column"
 ) -> None:
     """A :class:`~ipcverify.errors.Hint` that rows of one run (flight, ...) are likely correlated.
 
@@ -262,18 +264,19 @@ def warn_correlated_rows(
     what : str
         What is done row by row ("calibrating", "certifying").
     remedy : str
-        What the option ``--group-column COL`` would do instead, e.g. "to calibrate with whole runs
+        What naming the group column would do instead, e.g. "to calibrate with whole runs
         as the exchangeable units".
-    python : str
-        The Python spelling of that option, formatted with the column as ``col``
-        (``"group_column={col!r}"``; ``calibrate`` takes ``"Grouped(column={col!r})"``).
+    parameter : str
+        The parameter that names the column (a key of
+        :data:`ipcverify._wording._spelling.PARAMETERS`): ``"group_column"``, or ``"grouped"`` for
+        a calibration.
     """
     counts = group_like_counts(data)
     if not counts:
         return
     columns = list(counts)
     col, groups = columns[0], counts[columns[0]]
-    others = "".join(f" (or --group-column {c})" for c in columns[1:])
+    others = "".join(f" (or {option(parameter, c)})" for c in columns[1:])
     few = ""
     # the smallest epsilon a PAC calibration by group certifies: k = n, (1 - eps)^groups <= delta
     floor = 1.0 - FEW_GROUPS_DELTA ** (1.0 / groups)
@@ -281,14 +284,16 @@ def warn_correlated_rows(
         few = (
             f"; but with {groups} groups a calibration by group can certify no epsilon below "
             f"{floor:.2g} at delta = {FEW_GROUPS_DELTA:g}: for one or a few long runs, cut them into "
-            "contiguous time blocks (ipcverify split --block SECONDS --name-groups segment) and use "
+            "contiguous time blocks "
+            f"({command('split', [('...', 'DATA')], block='SECONDS', group_name='segment')}) "
+            "and use "
             "those as the groups"
         )
     warnings.warn(
         Hint(
             f"{data.source} has a {col!r} column ({groups} groups): rows of one {col} are usually "
             f"correlated, and {what} row by row treats every row as an independent sample; pass "
-            f"--group-column {col}{others} (Python: {python.format(col=col)}) {remedy}{few}"
+            f"{option(parameter, col)}{others} {remedy}{few}"
         ),
         stacklevel=3,
     )

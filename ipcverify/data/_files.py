@@ -37,6 +37,7 @@ from typing import IO, Any
 
 import numpy as np
 
+from ipcverify._wording._spelling import option as spell
 from ipcverify.errors import InvalidInputError
 
 
@@ -91,7 +92,9 @@ def atomic_write(path: str | os.PathLike[str], write: Callable[[IO[Any]], Any], 
 
 
 def refuse_overwriting_input(
-    out: str | os.PathLike[str], inputs: Mapping[str, str | os.PathLike[str] | None], option: str = "--out"
+    out: str | os.PathLike[str],
+    inputs: Mapping[str, str | os.PathLike[str] | None],
+    option: str | None = None,
 ) -> None:
     """Refuse an output path that is one of the command's input files (writing would destroy it).
 
@@ -104,8 +107,8 @@ def refuse_overwriting_input(
         The file about to be written.
     inputs : mapping of str to path-like or None
         The inputs by the name the user knows them by (``"DATA"``, ``"--truth"``); None is skipped.
-    option : str
-        The output's option name, for the message.
+    option : str, optional
+        The output's option name, for the message (default: the ``out`` parameter's spelling).
 
     Raises
     ------
@@ -122,7 +125,7 @@ def refuse_overwriting_input(
     >>> refuse_overwriting_input(os.path.join(d, ".", "log.csv"), {"DATA": data})  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
-    ipcverify.errors.InvalidInputError: --out .../log.csv is also the input DATA; writing it would destroy ...
+    ipcverify.errors.InvalidInputError: the output .../log.csv is also the input DATA; ...
     """
     o = Path(out)
     for name, given in inputs.items():
@@ -134,9 +137,10 @@ def refuse_overwriting_input(
         except OSError:  # one of them does not exist (yet)
             same = o.resolve() == i.resolve()
         if same:
+            said = option if option is not None else spell("out")
             raise InvalidInputError(
-                f"{option} {o} is also the input {name}; writing it would destroy that input -- "
-                f"choose another path for {option}"
+                f"{said} {o} is also the input {name}; writing it would destroy that input -- "
+                f"choose another path for {said}"
             )
 
 

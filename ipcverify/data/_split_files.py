@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ipcverify._wording._spelling import option
 from ipcverify.data._checks import TIME_NAMES, time_column
 from ipcverify.data._dataset import PerceptionDataset, load_dataset, save_dataset
 from ipcverify.data._files import file_sha256, refuse_overwriting_input, write_json
@@ -188,12 +189,12 @@ def split_outputs(
 def _check_targets(source: Path, paths: dict[str, Path], empty: Sequence[str]) -> None:
     """Refuse to overwrite the source, and to leave a stale file where this split has no part."""
     for name, p in paths.items():
-        refuse_overwriting_input(p, {"DATA": source}, option=f"--out's {name} part")
+        refuse_overwriting_input(p, {"DATA": source}, option=f"{option('out_dir')}'s {name} part")
     for name in empty:
         if paths[name].exists():
             raise InvalidInputError(
                 f"{paths[name]} exists, but this split has no {name} part (its share is 0); "
-                "remove the file or choose another --out folder"
+                f"remove the file or choose another {option('out_dir')} folder"
             )
 
 
@@ -221,7 +222,7 @@ def _time_column(data: PerceptionDataset, name: str | None) -> str:
         return found
     raise DataError(
         f"{data.source}: time blocks need a column of times in seconds ({', '.join(TIME_NAMES)}); "
-        "name yours with --time-column (Python: time_column=...)"
+        f"name yours with {option('time_column', 'COL')}"
     )
 
 
@@ -236,7 +237,8 @@ def _with_group_column(
     block's number) joined by ``":"``."""
     if labels is None:
         raise InvalidInputError(
-            f"a group column ({name!r}) needs the columns that name a group (--by) or time blocks (--block)"
+            f"a group column ({name!r}) needs the columns that name a group ({option('split_by')}) or time "
+            f"blocks ({option('block')})"
         )
     taken = {*data.x_columns, *data.y_columns, *data.yhat_columns, *data.extra}
     if name in taken:
@@ -339,10 +341,16 @@ def split_file(
         t_col = _time_column(data, time_column)
         runs = _group_labels(data, columns)
         blocks = time_blocks(
-            data.column(t_col), block, runs, f"{source}: time column {t_col!r}", f"{source}: --by groups"
+            data.column(t_col),
+            block,
+            runs,
+            f"{source}: time column {t_col!r}",
+            f"{source}: {option('split_by')} groups",
         )
     elif time_column is not None:
-        raise InvalidInputError("a time column (--time-column) is used only to cut time blocks (--block)")
+        raise InvalidInputError(
+            f"a time column ({option('time_column')}) is used only to cut time blocks ({option('block')})"
+        )
     labels = _group_labels(data, columns, blocks)
     if group_name is not None:
         data = _with_group_column(data, columns, labels, group_name, blocks)
@@ -355,7 +363,7 @@ def split_file(
     except DataError as e:
         if blocks is None:
             raise
-        raise DataError(f"{e}; shorter --block gives more blocks") from None
+        raise DataError(f"{e}; a shorter {option('block')} gives more blocks") from None
     if labels is None:  # of rows: a part with a share must get one (groups are checked by split_parts)
         refuse_empty_parts(fr, [len(i) for i in index], f"{source} has", "row", fractions)
     parts_data: list[PerceptionDataset | None] = [

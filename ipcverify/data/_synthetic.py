@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ipcverify._wording._spelling import option
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import InvalidInputError
 
@@ -49,7 +50,7 @@ def make_lagged_perception(
     ((100, 6), (100, 3))
     """
     if n < 1:
-        raise InvalidInputError(f"the number of samples (CLI: --n) must be >= 1; got {n}")
+        raise InvalidInputError(f"the number of samples ({option('n')}) must be >= 1; got {n}")
     if lag_frames < 0 or noise < 0:
         raise InvalidInputError("lag_frames and noise must be >= 0")
     rng = np.random.default_rng(seed)

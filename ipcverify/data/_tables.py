@@ -22,6 +22,7 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
+from ipcverify._wording._spelling import options
 from ipcverify.errors import DataError
 
 SUFFIXES = (".csv", ".parquet", ".pq", ".npz")
@@ -240,7 +241,7 @@ def _refuse_shared_columns(chosen: Mapping[str, Sequence[str]], source: str) -> 
                 )
                 raise DataError(
                     f"{source}: column {c!r} is {where}; every column plays one role once -- fix the "
-                    "column lists (CLI: --x-columns, --y-columns, --yhat-columns)"
+                    f"column lists ({options('x_columns', 'y_columns', 'yhat_columns')})"
                 )
             role[c] = kind
 

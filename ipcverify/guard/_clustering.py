@@ -5,9 +5,9 @@ violates with probability at most epsilon *given the rows before it*. Rows of a 
 correlated -- ``ipcverify ingest`` writes 0.5 s displacements every 0.25 s, so neighbouring rows
 share half their interval -- and their violations come in runs: after a violation, the next row
 violates far more often than the overall rate. Such a log can raise the alarm although its
-overall rate is within the calibration's (on KITTI 00's held-out time blocks: an alarm at row 22
-of 760, with 7.9 % of rows outside against a certified 9.87 %). :class:`ViolationRuns` measures
-that, so the alarm can say so.
+overall rate is within the calibration's: the rule is stated on the log's facts -- the rate of
+violation right after a violation against the overall rate -- not on any one log.
+:class:`ViolationRuns` measures that, so the alarm can say so.
 """
 
 from __future__ import annotations
@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy import stats
 
+from ipcverify._wording._spelling import option
 from ipcverify.errors import InvalidInputError
 
 #: Level of the one-sided binomial test behind "the violations come in runs".
@@ -112,7 +113,7 @@ class ViolationRuns:
             f"{self.violations_after} violated too, {100 * self.rate_after:.0f} %, against "
             f"{100 * self.rate:.1f} % of all rows): neighbouring rows are correlated, and such runs can "
             "raise this alarm even when the overall rate is within the calibration's; monitor one "
-            "observation per run or time block (--group-column COL) to tell the two apart"
+            f"observation per run or time block ({option('group_column', 'COL')}) to tell the two apart"
         )
 
     def to_dict(self) -> dict[str, float | int | bool]:

@@ -51,7 +51,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
-from ipcverify._wording import flag_rate_floor, option
+from ipcverify._wording._spelling import Remedy, flag_rate_floor, option
 from ipcverify.calibration._bounds import (
     marginal_conformal_index,
     min_calibration_size,
@@ -244,10 +244,12 @@ class DomainModel:
         n = len(z)
         need = min_calibration_size(flag_rate, 0.5, "marginal")  # ceil((1 - flag_rate) / flag_rate), exactly
         if n < max(need, k + 1):
+            smallest = smallest_marginal_epsilon(n)
             raise SampleSizeError(
                 f"the domain test at flag rate {flag_rate:g} needs at least {max(need, k + 1)} calibration "
                 f"inputs; got {n} -- use more calibration data or a larger {option('flag_rate')}"
-                + ("" if n < k + 1 else f" ({flag_rate_floor(n, 'inputs', smallest_marginal_epsilon(n))})")
+                + ("" if n < k + 1 else f" ({flag_rate_floor(n, 'inputs', smallest)})"),
+                remedies=() if n < k + 1 else (Remedy("flag_rate", smallest),),
             )
         mean = z.mean(axis=0)
         cov = np.atleast_2d(np.cov(z, rowvar=False))
@@ -263,11 +265,13 @@ class DomainModel:
             try:
                 threshold, _ = risk_control_threshold(scores, codes, flag_rate)
             except SampleSizeError:
+                smallest = smallest_marginal_epsilon(len(distinct))
                 raise SampleSizeError(
                     f"the group-aware domain test at flag rate {flag_rate:g} needs at least "
                     f"{math.ceil(1 / flag_rate - 1)} groups; got {len(distinct)} -- use more groups "
                     f"(flights, runs) or a larger {option('flag_rate')} "
-                    f"({flag_rate_floor(len(distinct), 'groups', smallest_marginal_epsilon(len(distinct)))})"
+                    f"({flag_rate_floor(len(distinct), 'groups', smallest)})",
+                    remedies=(Remedy("flag_rate", smallest),),
                 ) from None
             return cls(mean=mean, whitening=whitening, reference=ref, k=int(k), flag_rate=float(flag_rate),
                        threshold=_positive(threshold, scores), n=n, method=GROUP_METHOD,

@@ -7,6 +7,7 @@ from typing import Any
 
 from scipy import stats
 
+from ipcverify._wording._spelling import regroup_domain
 from ipcverify.calibration._bounds import smallest_marginal_epsilon
 from ipcverify.calibration._share_bound import share_lower_bound
 from ipcverify.errors import InvalidInputError
@@ -122,27 +123,27 @@ class DomainReport:
                 text += (
                     f", or the test, fitted row by row while rows of one {col} are near-copies of each "
                     f"other, has a threshold too short for a new {col}; refit it with whole groups "
-                    f"({self.regroup_command()}) to tell the two apart"
+                    f"({regroup_domain(col, self.regroup_flag_rate)}) to tell the two apart"
                 )
         return text + "."
 
-    def regroup_command(self) -> str:
-        """The ``calibrate`` options that fit the test by :attr:`row_level_column`, with a large enough rate.
+    @property
+    def regroup_flag_rate(self) -> float | None:
+        """The flag rate a test refitted by :attr:`row_level_column` needs, if above :attr:`flag_rate`.
+
+        The test by groups needs a flag rate of at least ``1 / (G + 1)`` with ``G`` groups; None
+        when the current rate is enough, or the number of groups is not known.
 
         Examples
         --------
         >>> DomainReport(method="knn", flag_rate=0.01, threshold=1.0, n_reference=400, n=0, outside=0,
-        ...              row_level_column="run", row_level_groups=10).regroup_command()
-        'calibrate --domain-group-column run --domain-flag-rate 0.091'
+        ...              row_level_column="run", row_level_groups=10).regroup_flag_rate  # 1/11, rounded up
+        0.091
         """
-        if self.row_level_column is None:
-            raise InvalidInputError("a domain test fitted by group has no row-level column to regroup by")
-        text = f"calibrate --domain-group-column {self.row_level_column}"
-        if self.row_level_groups is not None:
-            smallest = smallest_marginal_epsilon(self.row_level_groups)
-            if smallest > self.flag_rate:
-                text += f" --domain-flag-rate {smallest:g}"
-        return text
+        if self.row_level_groups is None:
+            return None
+        smallest = smallest_marginal_epsilon(self.row_level_groups)
+        return smallest if smallest > self.flag_rate else None
 
     @property
     def outside_fraction(self) -> float:

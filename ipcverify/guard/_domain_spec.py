@@ -10,7 +10,7 @@ from __future__ import annotations
 import warnings
 from dataclasses import dataclass
 
-from ipcverify._wording import option
+from ipcverify._wording._spelling import option
 from ipcverify.calibration._bounds import min_calibration_size, smallest_marginal_epsilon
 from ipcverify.calibration._threshold import check_seed
 from ipcverify.data._dataset import PerceptionDataset

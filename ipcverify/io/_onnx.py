@@ -57,6 +57,7 @@ import torch
 from numpy.typing import NDArray
 
 from ipcverify._package import VERSION
+from ipcverify._wording._spelling import Remedy, option
 from ipcverify.contract._model import IPCModel
 from ipcverify.data._files import atomic_write
 from ipcverify.errors import InvalidInputError
@@ -85,7 +86,8 @@ def _scale(model: IPCModel) -> float | None:
     raise InvalidInputError(
         f"cannot export a model calibrated per group ({cal.summary().grouping}): its scale depends on a "
         "group looked up per query, which the ONNX graph does not do; calibrate it globally (without "
-        "--mondrian-column) to export it, or export the uncalibrated network and apply the group scales "
+        f"{option('mondrian_column')}) to export it, or export the uncalibrated network and apply the "
+        "group scales "
         "yourself"
     )
 
@@ -146,14 +148,17 @@ def build_onnx(model: IPCModel, dtype: Dtype = "float64", *, without_domain: boo
     _scale(model)  # a Mondrian calibration cannot be exported at all: say that first
     check_domain_export(model, without_domain)
     if dtype not in ("float64", "float32"):
-        raise InvalidInputError(f"dtype must be 'float64' or 'float32'; got {dtype!r} (use --dtype float64)")
+        raise InvalidInputError(
+            f"dtype must be 'float64' or 'float32'; got {dtype!r} (use {option('dtype', 'float64')})"
+        )
     onnx = _require("onnx")
     from onnx import TensorProto, helper, numpy_helper
 
     if model.config.activation == "elu" and dtype == "float64":
         raise InvalidInputError(
             "ONNX Runtime has no float64 Elu kernel, so an elu network cannot be exported in float64; "
-            "export it with dtype='float32' (CLI: --dtype float32)"
+            f"export it with {option('dtype', 'float32')}",
+            remedies=(Remedy("dtype", "float32"),),
         )
     scale = _scale(model)
     eng = model.engine
@@ -239,7 +244,7 @@ def check_domain_export(model: IPCModel, without_domain: bool) -> None:
         raise InvalidInputError(
             f"this model carries a domain-of-validity test (its guarantee covers only queries within "
             f"distance {dom.threshold:.3g} of its {dom.n} calibration inputs), and an ONNX graph cannot "
-            "reproduce that test exactly; pass --no-domain (Python: without_domain=True) to export the "
+            f"reproduce that test exactly; pass {option('without_domain')} to export the "
             "sets alone, and check each query with ipcverify predict (in_domain) or IPCQuery before "
             "trusting its set"
         )

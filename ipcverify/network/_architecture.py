@@ -11,6 +11,7 @@ from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 from typing import Any, Literal
 
+from ipcverify._wording._spelling import option
 from ipcverify.errors import InvalidInputError
 
 #: Bound on the log of the Cholesky diagonal (keeps exp finite in float32).
@@ -146,7 +147,7 @@ class ModelConfig:
             raise InvalidInputError(
                 f"hidden sizes {','.join(map(str, self.hidden))} make a network of more than {weights:.3g} "
                 f"weights ({self.members} member(s)), above the {MAX_HIDDEN_WEIGHTS:.0e} ipcverify trains; "
-                "choose narrower layers, e.g. --hidden 64,64"
+                f"choose narrower layers, e.g. {option('hidden', (64, 64))}"
             )
         if self.param == "lowrank" and self.center != "offset":
             raise InvalidInputError("the low-rank head predicts an offset from yhat: use center='offset'")
@@ -172,7 +173,7 @@ linear_center=False, members=1)
             raise InvalidInputError(f"unknown recipe {name!r}; choose one of {', '.join(RECIPES)}")
         if overrides.get("members", 1) == 0:  # 0 means "the head's default" to the constructor only
             raise InvalidInputError(
-                f"members must be in [1, {MAX_MEMBERS}] (--members); got 0 -- leave it out for the recipe's "
+                f"{option('members')} must be in [1, {MAX_MEMBERS}]; got 0 -- leave it out for the recipe's "
                 "ensemble size"
             )
         return cls(x_dim=x_dim, y_dim=y_dim, **{**_RECIPE_MODEL[name], **overrides})

@@ -27,6 +27,7 @@ import math
 import numpy as np
 import torch
 
+from ipcverify._wording._spelling import option
 from ipcverify.data._dataset import PerceptionDataset
 from ipcverify.errors import InvalidInputError
 from ipcverify.network._architecture import ModelConfig
@@ -74,7 +75,7 @@ def _splits(n: int, members: int, val_fraction: float, seed: int) -> tuple[np.nd
     if val_fraction > 0 and not 1 <= n_val < n:
         raise InvalidInputError(
             f"too few samples ({n}) to hold out a validation split of {val_fraction:g}: pass "
-            "--val-fraction 0 (Python: val_fraction=0, patience=None) or give more data"
+            f"{option('val_fraction', 0)} (and no {option('patience')}) or give more data"
         )
     rng = np.random.default_rng(seed)
     perms = np.stack([rng.permutation(n) for _ in range(members)])
@@ -164,7 +165,7 @@ def train_lowrank(
                 if not bool(torch.isfinite(losses[active]).all()):
                     raise NonFiniteLossError(
                         f"non-finite training loss at epoch {epoch + 1} (low-rank head); lower the learning "
-                        "rate (--lr) or check the data for extreme values"
+                        f"rate ({option('lr')}) or check the data for extreme values"
                     )
                 loss = (torch.nan_to_num(losses) * mask).sum()
                 opt.zero_grad(set_to_none=True)

@@ -26,6 +26,7 @@ from typing import Any, Literal
 import torch
 from rich.progress import BarColumn, Progress, TaskID, TextColumn, TimeRemainingColumn
 
+from ipcverify._wording._spelling import option
 from ipcverify.errors import InvalidInputError
 from ipcverify.network._architecture import RECIPES
 
@@ -178,27 +179,31 @@ class TrainConfig:
                 f"center_warm_start must be True or False; got {self.center_warm_start!r}"
             )
         checks = [
-            (self.epochs >= 1, f"epochs must be >= 1 (--epochs); got {self.epochs}"),
+            (self.epochs >= 1, f"{option('epochs')} must be >= 1; got {self.epochs}"),
             (
                 isinstance(self.seed, numbers.Integral) and 0 <= self.seed < 2**64,
-                f"seed must be an integer in [0, 2**64) (--seed); got {self.seed!r}",
+                f"{option('seed')} must be an integer in [0, 2**64); got {self.seed!r}",
             ),
-            (self.lr > 0 and math.isfinite(self.lr), f"lr must be > 0 (--lr); got {self.lr}"),
-            (self.batch_size >= 1, f"batch size must be >= 1 (--batch-size); got {self.batch_size}"),
-            (self.alpha > 0 and math.isfinite(self.alpha), f"alpha must be > 0 (--alpha); got {self.alpha}"),
-            (self.lam >= 0 and math.isfinite(self.lam), f"lam must be >= 0 (--lam); got {self.lam}"),
+            (self.lr > 0 and math.isfinite(self.lr), f"{option('lr')} must be > 0; got {self.lr}"),
+            (self.batch_size >= 1, f"{option('batch_size')} must be >= 1; got {self.batch_size}"),
+            (
+                self.alpha > 0 and math.isfinite(self.alpha),
+                f"{option('alpha')} must be > 0; got {self.alpha}",
+            ),
+            (self.lam >= 0 and math.isfinite(self.lam), f"{option('lam')} must be >= 0; got {self.lam}"),
             (
                 0 <= self.val_fraction < 1,
-                f"val_fraction must be in [0, 1) (--val-fraction); got {self.val_fraction}",
+                f"{option('val_fraction')} must be in [0, 1); got {self.val_fraction}",
             ),
             (
                 self.patience is None or self.patience >= 1,
-                f"patience must be >= 1 (--patience); got {self.patience}",
+                f"{option('patience')} must be >= 1; got {self.patience}",
             ),
             (
                 self.patience is None or self.val_fraction > 0,
-                "patience (early stopping) needs a validation split: set --val-fraction above 0 "
-                "(Python: val_fraction > 0), or leave --patience out",
+                f"{option('patience')} (early stopping) needs a validation split: set "
+                f"{option('val_fraction')} "
+                f"above 0, or leave {option('patience')} out",
             ),
             (
                 0 <= self.warmup_epochs < self.epochs,

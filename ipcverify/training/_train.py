@@ -20,6 +20,7 @@ import numpy as np
 import torch
 from rich.progress import Progress
 
+from ipcverify._wording._spelling import option, options
 from ipcverify.certification._theorem1 import TrainingStatistics
 from ipcverify.contract._model import IPCModel
 from ipcverify.data._checks import check_informative, input_ranges
@@ -169,7 +170,7 @@ def _train_network(
                 if not torch.isfinite(loss):
                     raise NonFiniteLossError(
                         f"non-finite training loss at epoch {epoch + 1} "
-                        f"(param={mc.param!r}); use --param cholesky, whose log det is always "
+                        f"(param={mc.param!r}); use {option('param', 'cholesky')}, whose log det is always "
                         "finite, or lower the learning rate"
                     )
                 opt.zero_grad(set_to_none=True)
@@ -285,7 +286,7 @@ def _select_hinge(
     if parts.train is None or parts.test is None:
         raise InvalidInputError(
             f"too few training rows ({len(train_data)}) to hold out {rule.val_fraction:g} of them for the "
-            "hinge selection; give more data, or set --alpha, --lam and --batch-size yourself"
+            f"hinge selection; give more data, or set {options('alpha', 'lam', 'batch_size')} yourself"
         )
     started = time.perf_counter()
     candidates = []

@@ -12,7 +12,8 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from benchmarks import bench_ingest, ingest_example  # noqa: E402
+from benchmarks import bench_ingest  # noqa: E402
+from docgen import ingest_example  # noqa: E402
 
 
 @pytest.mark.slow

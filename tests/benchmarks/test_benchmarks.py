@@ -11,9 +11,9 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from benchmarks.bench_tightness import METHODS  # noqa: E402
-from benchmarks.readme import DOCUMENTS, console_block, load_results, render_blocks, replace_blocks  # noqa: E402
 from benchmarks.report import targets  # noqa: E402
 from benchmarks.run import RunConfig, run  # noqa: E402
+from docgen.readme import DOCUMENTS, console_block, load_results, render_blocks, replace_blocks  # noqa: E402
 
 
 @pytest.mark.slow
@@ -82,7 +82,7 @@ def test_quick_run_writes_every_required_key(tmp_path):
     assert {"bench-summary", "bench-table", "before-after", "diagnosis", "shift", "targets"} <= set(blocks)
     assert "guarded `predict_sets`" in blocks["latency-table"] and "SciPy k-d tree" in blocks["guard-latency"]
     doc = (
-        "a\n<!-- BEGIN generated:targets (python -m benchmarks.readme) -->\nold\n"
+        "a\n<!-- BEGIN generated:targets (python -m docgen.readme) -->\nold\n"
         "<!-- END generated:targets -->\nb"
     )
     new, changed = replace_blocks(doc, blocks)
@@ -173,11 +173,11 @@ def test_the_demo_block_is_the_console_output_with_its_wrapped_last_line():
 
 
 def test_the_documents_numbers_are_the_committed_results():
-    """README.md and docs/benchmarks.md hold exactly what ``python -m benchmarks.readme`` pastes."""
+    """README.md and docs/benchmarks.md hold exactly what ``python -m docgen.readme`` pastes."""
     blocks = render_blocks(*load_results())
     for doc in DOCUMENTS:
         text = doc.read_text(encoding="utf-8")
-        assert replace_blocks(text, blocks)[1] == [], f"{doc.name}: run python -m benchmarks.readme"
+        assert replace_blocks(text, blocks)[1] == [], f"{doc.name}: run python -m docgen.readme"
         assert "READING_" not in text
 
 

@@ -26,8 +26,8 @@ def _contract_row(name: str, c: dict) -> str:
     return f"| {name} | {rates} | {paper} | {_outcomes(mc)} of {mc['runs']} | {widths} |"
 
 
-def test_reproduce_md_quotes_the_recorded_full_run():
-    page = (ROOT / "docs" / "reproduce.md").read_text()
+def test_the_results_page_quotes_the_recorded_full_run():
+    page = (ROOT / "docs" / "reproduce_results.md").read_text()
     rows = [_contract_row(name, c) for name, c in RECORD["contracts"].items()]
     assert len(rows) == 3 and [r for r in rows if r not in page] == []
     for name, c in RECORD["contracts"].items():

@@ -27,8 +27,8 @@ from pathlib import Path
 
 import pytest
 
-from benchmarks.architecture import top_entries
-from benchmarks.import_graph import cycles, import_graph, imports, module_files, package_graph
+from docgen.architecture import top_entries
+from docgen.import_graph import cycles, import_graph, imports, module_files, package_graph
 from ipcverify._package import exported_names
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -173,7 +173,7 @@ def test_no_private_name_crosses_a_module_boundary():
         for module, names in _imports(path, name):
             if module.startswith("ipcverify") and module != name:
                 bad += [f"{name} imports {module}.{n}" for n in names if n.startswith("_")]
-    for path in [*(ROOT / "case_studies").rglob("*.py"), *(ROOT / "benchmarks").rglob("*.py")]:
+    for path in (p for d in ("case_studies", "benchmarks", "docgen") for p in (ROOT / d).rglob("*.py")):
         for module, names in _imports(path, "case_studies._"):
             if module.startswith("ipcverify"):
                 bad += [f"{path.relative_to(ROOT)} imports {module}.{n}" for n in names if n.startswith("_")]

@@ -1,6 +1,6 @@
 """The case study's layout rules: no import cycle between modules, no loop between subpackages.
 
-The graph is read from the source by :mod:`benchmarks.import_graph` (every ``import`` counts,
+The graph is read from the source by :mod:`docgen.import_graph` (every ``import`` counts,
 also one inside a function or under ``if TYPE_CHECKING:``), the reading the library's layout
 test shares. The planted cycles at the end check that the checks can fail.
 """
@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from benchmarks.import_graph import cycles, import_graph, module_files, package_graph
+from docgen.import_graph import cycles, import_graph, module_files, package_graph
 
 ROOT = Path(__file__).resolve().parents[2]
 CASE_STUDY = "case_studies.quad_landing"

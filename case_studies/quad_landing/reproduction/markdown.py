@@ -1,6 +1,6 @@
 """The results of a reproduction as Markdown tables, read from its ``summary.json``.
 
-The numbers in ``README.md`` and ``docs/reproduce.md`` are pasted from
+The numbers in ``README.md`` and ``docs/reproduce_results.md`` are pasted from
 ``python -m case_studies.quad_landing summarize OUT`` after a real run, never typed:
 :func:`results_markdown` formats Table I beside the paper's, the ablation, the image ages,
 the landing experiments and the stage timings.

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from ipcverify._wording._spelling import option
 from ipcverify.errors import DataError
 from ipcverify.io.ingest._bagio import PoseRequest, Stamp, read_bag
 from ipcverify.io.ingest._formats import Format, read_trajectory
@@ -51,7 +52,10 @@ def run_names(paths: Sequence[PathLike], names: Sequence[str] | None) -> list[st
     """
     if names:
         if len(names) != len(paths):
-            raise DataError(f"{len(names)} run name(s) for {len(paths)} input(s); give one --run per input")
+            raise DataError(
+                f"{len(names)} run name(s) for {len(paths)} input(s); give one name per input "
+                f"({option('runs')})"
+            )
         return [str(n) for n in names]
     out = []
     for p in map(Path, paths):
@@ -84,8 +88,9 @@ def _refuse_the_truth_as_estimate(frame: pd.DataFrame, truth: str, estimate: str
         raise DataError(
             f"every one of the {len(frame)} samples has its estimate equal to its truth (truth: {truth}; "
             f"estimate: {estimate}): they are the same poses, and the log would hold no error to learn; "
-            "give the ground truth (motion capture, GPS/INS) as --truth and the estimator's output as "
-            "--estimate"
+            f"give the ground truth (motion capture, GPS/INS) as {option('truth')} and the estimator's "
+            "output "
+            f"as {option('estimates')}"
         )
 
 
@@ -149,7 +154,7 @@ def ingest_trajectories(
     options = with_up(options, "-y" if frame_format == "kitti" else "+z")
     truths = [truth] if isinstance(truth, (str, os.PathLike)) else list(truth)
     if not estimates:
-        raise DataError("no estimate file; give at least one --estimate")
+        raise DataError(f"no estimate file; give at least one in {option('estimates')}")
     if len(truths) not in (1, len(estimates)):
         raise DataError(
             f"{len(truths)} truth files for {len(estimates)} estimates; "
@@ -158,7 +163,10 @@ def ingest_trajectories(
     names = run_names(estimates, runs)
     kitti_times = {"kitti"} & {truth_format, estimate_format}
     if times is not None and not kitti_times:
-        raise DataError("--times applies to KITTI poses only; give --format kitti or drop --times")
+        raise DataError(
+            f"{option('times')} applies to KITTI poses only; give {option('format', 'kitti')} or drop "
+            f"{option('times')}"
+        )
     read_truth = {
         str(p): read_trajectory(p, truth_format, times if truth_format == "kitti" else None) for p in truths
     }
@@ -243,7 +251,11 @@ def ingest_bags(
         )
         repeated[name] = dict(got.repeated_stamps)
         run_list.append(RunData(name, got.poses["truth"], got.poses["estimate"], got.state))
-    hint = "; or time both by the recorder's clock with --stamp receive" if stamp == "header" else ""
+    hint = (
+        f"; or time both by the recorder's clock with {option('stamp', 'receive')}"
+        if stamp == "header"
+        else ""
+    )
     frame = build_samples(run_list, options, hint)
     _refuse_the_truth_as_estimate(
         frame,

@@ -28,6 +28,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from ipcverify._wording._spelling import option
 from ipcverify.errors import DataError
 from ipcverify.io.ingest._messages import TF_TYPE, check_pose_type, field_reader, pose_rows
 from ipcverify.io.ingest._rawpose import raw_pose_parser
@@ -164,7 +165,7 @@ def _open(path: str | os.PathLike[str], typestore: str | None) -> Iterator[Any]:
         if "no type definitions" in text:
             raise DataError(
                 f"{p}: the bag carries no message type definitions; name the ROS distribution it was "
-                "recorded with, e.g. --typestore ros2_humble (or ros1_noetic, ros2_foxy, ...)"
+                f"recorded with, e.g. {option('typestore', 'ros2_humble')} (or ros1_noetic, ros2_foxy, ...)"
             ) from None
         raise DataError(f"{p}: cannot read as a bag: {text}") from None
     except (ValueError, EOFError, struct.error) as exc:  # the reader meets bytes it cannot parse
@@ -288,7 +289,9 @@ def read_bag(
         for req in poses.values():
             check_pose_type(req.topic, by_topic[req.topic].msgtype, req.child_frame)
         if state_topic and not state_fields:
-            raise DataError(f"state topic {state_topic}: name the fields to read with --state-fields")
+            raise DataError(
+                f"state topic {state_topic}: name the fields to read with {option('state_fields')}"
+            )
         readers = [field_reader(f) for f in state_fields]
         topics = set(wanted)
         conns = [c for c in reader.connections if c.topic in topics]
@@ -342,7 +345,7 @@ def read_bag(
             if not (sec.any() or nsec.any()):
                 raise DataError(
                     f"{path}: topic {req.topic}: every header stamp is zero (the publisher does not stamp "
-                    "its messages); use --stamp receive to time them by the recorder's clock"
+                    f"its messages); use {option('stamp', 'receive')} to time them by the recorder's clock"
                 )
             t = _seconds(sec, nsec)
         else:

@@ -28,6 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
+from ipcverify._wording._spelling import option
 from ipcverify.errors import DataError
 from ipcverify.io.ingest._trajectory import Trajectory
 
@@ -81,7 +82,11 @@ def _rows(
                     raise DataError(
                         f"{path}, line {lineno}: {len(parts)} values; "
                         f"a {fmt.upper()} line holds {_LAYOUT[fmt]}"
-                        + ("; pick the right --format" if fmt != "kitti" or len(parts) != 8 else "")
+                        + (
+                            f"; pick the right {option('format')}"
+                            if fmt != "kitti" or len(parts) != 8
+                            else ""
+                        )
                     )
                 try:
                     stamp = int(parts[0]) if first_as_int else 0
@@ -177,7 +182,7 @@ def read_trajectory(
     else:
         if times is None:
             raise DataError(
-                f"{p}: KITTI poses carry no stamps; give the times file (--times, one time a line)"
+                f"{p}: KITTI poses carry no stamps; give the times file ({option('times')}, one time a line)"
             )
         a, _ = _rows(p, fmt, 12, at_least=False, first_as_int=False)
         t = read_times(times)

@@ -17,6 +17,7 @@ import re
 from collections.abc import Callable
 from typing import Any
 
+from ipcverify._wording._spelling import option
 from ipcverify.errors import DataError
 
 TF_TYPE = "tf2_msgs/msg/TFMessage"
@@ -87,7 +88,8 @@ def check_pose_type(topic: str, msgtype: str, child_frame: str | None) -> None:
         )
     if msgtype == TF_TYPE and not child_frame:
         raise DataError(
-            f"topic {topic} is a transform tree ({TF_TYPE}); name the body's frame with --child-frame"
+            f"topic {topic} is a transform tree ({TF_TYPE}); name the body's frame with "
+            f"{option('child_frame')}"
         )
 
 

@@ -27,6 +27,7 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
+from ipcverify._wording._spelling import option
 from ipcverify.errors import DataError, Hint
 from ipcverify.io.ingest._align import Alignment, fit_alignment
 from ipcverify.io.ingest._bagio import StateSeries
@@ -85,7 +86,7 @@ class IngestOptions:
     >>> IngestOptions(align="se3")  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
-    ipcverify.errors.DataError: --align se3 needs the quantity position or pose; ...
+    ipcverify.errors.DataError: align='se3' needs the quantity position or pose; ...
     """
 
     quantity: Quantity = "displacement"
@@ -107,23 +108,29 @@ class IngestOptions:
             if not (math.isfinite(v) and v > 0):
                 raise DataError(f"--{name.replace('_', '-')} must be a positive number of seconds; got {v!r}")
         if not math.isfinite(self.t_offset):
-            raise DataError(f"--t-offset must be a finite number of seconds; got {self.t_offset!r}")
+            raise DataError(f"{option('t_offset')} must be a finite number of seconds; got {self.t_offset!r}")
         if self.align not in ("none", "se3", "sim3"):
             raise DataError(f"unknown alignment {self.align!r}; use none, se3 or sim3")
         object.__setattr__(self, "align_runs", tuple(str(r) for r in self.align_runs))
         if self.align != "none" and self.quantity == "displacement":
             raise DataError(
-                f"--align {self.align} needs the quantity position or pose; the displacement is measured in "
+                f"{option('align', self.align)} needs the quantity position or pose; the displacement is "
+                "measured in "
                 "each trajectory's own body frame and needs no alignment"
             )
         if self.align != "none" and not self.align_runs:
             raise DataError(
-                f"--align {self.align}: name the runs to fit the alignment on with --align-runs; "
+                f"{option('align', self.align)}: name the runs to fit the alignment on with "
+                f"{option('align_runs')}; "
                 "rows of those runs depend on each other through the fit, "
                 "so keep them out of calibration and test"
             )
         if self.align == "none" and self.align_runs:
-            raise DataError("--align-runs is given but --align is none; choose --align se3 or sim3")
+            raise DataError(
+                f"{option('align_runs')} is given but {option('align', 'none')}; choose "
+                f"{option('align', 'se3')} "
+                f"or {option('align', 'sim3')}"
+            )
 
 
 def with_up(options: IngestOptions, default: UpAxis) -> IngestOptions:
@@ -163,9 +170,10 @@ def warn_camera_frame(runs: Sequence[RunData]) -> None:
         Hint(
             f"the estimate of run {which} starts at the identity pose, as a visual odometry or SLAM "
             "system's does when its world frame is its first camera frame; the tilt columns x_2..x_4 "
-            "then hold that frame's +z axis (a camera's viewing direction), not up: pass --up with the "
-            "axis that points up in it (-y for a level camera with y down), or --up +z if it is "
-            "gravity-aligned"
+            f"then hold that frame's +z axis (a camera's viewing direction), not up: pass {option('up')} "
+            "with "
+            f"the axis that points up in it ({option('up', '-y')} for a level camera with y down), or "
+            f"{option('up', '+z')} if it is gravity-aligned"
         ),
         stacklevel=3,
     )
@@ -213,11 +221,13 @@ def _overlap_error(run: RunData, options: IngestOptions, hint: str) -> DataError
         why = "one set of stamps looks like nanoseconds and the other like seconds: convert them to seconds"
     else:
         why = (
-            f"if their clocks differ, add --t-offset (about {c - a + options.t_offset:.6g} s lines up their "
+            f"if their clocks differ, add {option('t_offset')} (about {c - a + options.t_offset:.6g} s "
+            "lines up their "
             "starts)" + hint
         )
     return DataError(
-        f"run {run.name}: the truth ({a:.6f}..{b:.6f} s, with --t-offset {options.t_offset:g}) and the "
+        f"run {run.name}: the truth ({a:.6f}..{b:.6f} s, with {option('t_offset', options.t_offset)}) and "
+        "the "
         f"estimate ({c:.6f}..{d:.6f} s) do not overlap in time; {why}"
     )
 
@@ -225,12 +235,14 @@ def _overlap_error(run: RunData, options: IngestOptions, hint: str) -> DataError
 def _too_many_starts(run: RunData, span: float, starts: int, options: IngestOptions) -> DataError:
     looks_ns = span > 1e7  # 116 days of seconds; a nanosecond clock reaches it in 0.01 s
     why = (
-        "the stamps look like nanoseconds: this --format reads seconds (a EuRoC file is --format euroc)"
+        f"the stamps look like nanoseconds: this {option('format')} reads seconds (a EuRoC file is "
+        f"{option('format', 'euroc')})"
         if looks_ns
-        else "use a larger --stride"
+        else f"use a larger {option('stride')}"
     )
     return DataError(
-        f"run {run.name}: the estimate spans {span:.6g} s, which at --stride {options.stride:g} s makes "
+        f"run {run.name}: the estimate spans {span:.6g} s, which at {option('stride', options.stride)} s "
+        "makes "
         f"{starts:.3g} sample starts for its {len(run.estimate)} poses; {why}"
     )
 
@@ -251,7 +263,7 @@ def _prepare(run: RunData, options: IngestOptions, hint: str) -> _Prepared:
         raise DataError(
             f"run {run.name}: the estimate spans {est.span[1]:.6g} s, "
             f"less than the horizon {options.horizon:g} s; "
-            "use a shorter --horizon"
+            f"use a shorter {option('horizon')}"
         )
     t1 = t0 + options.horizon
     gap = options.max_gap
@@ -268,7 +280,9 @@ def _fit(prepared: Sequence[_Prepared], options: IngestOptions) -> Alignment:
     names = [p.run.name for p in prepared]
     unknown = [r for r in options.align_runs if r not in names]
     if unknown:
-        raise DataError(f"--align-runs: no run named {', '.join(unknown)}; the runs are {', '.join(names)}")
+        raise DataError(
+            f"{option('align_runs')}: no run named {', '.join(unknown)}; the runs are {', '.join(names)}"
+        )
     est, tru = [], []
     for p in prepared:
         if p.run.name in options.align_runs:
@@ -300,8 +314,8 @@ def _warn_gaps(p: _Prepared, counts: dict[str, int], starts: int, options: Inges
     warnings.warn(
         Hint(
             f"run {p.run.name}: {counts[reason]} of {starts} samples dropped as {reason}: the {who}'s "
-            f"stamps are up to {largest:.6g} s apart, above --max-gap {options.max_gap:g} s; to keep "
-            f"them, raise --max-gap above {largest:.6g} (poses are then interpolated across such "
+            f"stamps are up to {largest:.6g} s apart, above {option('max_gap', options.max_gap)} s; to keep "
+            f"them, raise {option('max_gap')} above {largest:.6g} (poses are then interpolated across such "
             f"gaps), or check the {who} topic's rate and stamps"
         ),
         stacklevel=4,
@@ -326,11 +340,15 @@ def _warn_frames(frame: pd.DataFrame, options: IngestOptions) -> None:
     run = str(medians.idxmax())
     warnings.warn(
         Hint(
-            f"--quantity {options.quantity} without --align compares positions in the truth's and the "
+            f"{option('quantity', options.quantity)} without {option('align')} compares positions in the "
+            "truth's and the "
             f"estimate's world frames as they are (median position error up to {medians.max():.4g} in "
             f"run {run}); if the estimator's frame is not the truth's (a VIO or SLAM map starts at its "
-            "own origin), fit it with --align se3 --align-runs RUN on runs you then keep out of "
-            "calibration and test, or use --quantity displacement, which needs no common frame"
+            f"own origin), fit it with {option('align', 'se3')} {option('align_runs', 'RUN')} on runs you "
+            "then keep "
+            f"out of calibration and test, or use {option('quantity', 'displacement')}, which needs no "
+            "common "
+            "frame"
         ),
         stacklevel=3,
     )
@@ -343,8 +361,9 @@ def _no_rows_error(p: _Prepared, counts: dict[str, int], options: IngestOptions)
         who, inside, largest = _gap(p, worst, options)
         return DataError(
             f"run {run.name}: no sample kept: the {who} has {inside} stamps within the "
-            f"estimate's span and its largest gap there is {largest:.6g} s, above --max-gap {gap:g} s; "
-            f"raise --max-gap, or check the {who} topic's rate and stamps"
+            f"estimate's span and its largest gap there is {largest:.6g} s, above "
+            f"{option('max_gap', gap)} s; "
+            f"raise {option('max_gap')}, or check the {who} topic's rate and stamps"
         )
     if worst == "no_state":
         first = (
@@ -359,7 +378,7 @@ def _no_rows_error(p: _Prepared, counts: dict[str, int], options: IngestOptions)
     return DataError(
         f"run {run.name}: no sample kept: the truth ({_span(run.truth, options.t_offset)}) does not cover "
         f"any sample start and end {options.horizon:g} s apart within the estimate ({_span(run.estimate)}); "
-        "check --t-offset and --horizon"
+        f"check {option('t_offset')} and {option('horizon')}"
     )
 
 
@@ -444,9 +463,7 @@ def build_samples(runs: Sequence[RunData], options: IngestOptions, hint: str = "
         raise DataError("no run to ingest")
     if len(set(names)) != len(names):
         twice = sorted({n for n in names if names.count(n) > 1})
-        raise DataError(
-            f"run name(s) {', '.join(twice)} used twice; name the runs apart (--run NAME per input)"
-        )
+        raise DataError(f"run name(s) {', '.join(twice)} used twice; name the runs apart ({option('runs')})")
     widths = {0 if r.state is None else r.state.values.shape[1] for r in runs}
     prepared = [_prepare(r, options, hint) for r in runs]
     alignment = None

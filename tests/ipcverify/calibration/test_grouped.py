@@ -362,16 +362,16 @@ def test_too_few_groups_names_the_minimum_and_says_rows_do_not_help():
         _fit(scores, runs, 0.01, 0.001, "pac", "trajectory")
     msg = str(info.value)
     assert "20 groups of column 'run' are too few" in msg and "at least 688 groups are needed" in msg
-    assert "more rows per group do not help" in msg and "--mode marginal (needs 99 groups)" in msg
+    assert "more rows per group do not help" in msg and "mode='marginal' (needs 99 groups)" in msg
     assert "the smallest is 0.293" in msg and "no claim about a new group goes below 0.292" in msg
     with pytest.raises(SampleSizeError, match=r"at least 99 groups .* the smallest is 0\.0477\)$"):
         _fit(scores, runs, 0.01, 0.001, "marginal", "expected-share")
     with pytest.raises(
-        SampleSizeError, match=r"at least 46 groups .* --epsilon \(with 20 groups the smallest is 0\.212"
+        SampleSizeError, match=r"at least 46 groups .* epsilon \(with 20 groups the smallest is 0\.212"
     ):
         _fit(scores, runs, 0.1, 0.01, "pac", "expected-share")
     with pytest.raises(
-        SampleSizeError, match=r"at least 44 groups .* --gamma \(with 20 groups the smallest is 0\.206"
+        SampleSizeError, match=r"at least 44 groups .* gamma \(with 20 groups the smallest is 0\.206"
     ):
         _fit(scores, runs, 0.1, 0.01, "pac", "share-of-runs", gamma=0.1)
     # the suggested rate works

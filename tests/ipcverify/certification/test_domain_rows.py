@@ -14,6 +14,7 @@ import pytest
 import torch
 
 from ipcverify import calibrate
+from ipcverify._wording._audience import Audience, speaking
 from ipcverify.calibration import Global
 from ipcverify.certification._certify import certify
 from ipcverify.certification._summarize import summarize
@@ -56,7 +57,9 @@ def _calibrated(net: IPCModel, cal: PerceptionDataset, group_column: str | None)
     domain = DomainSpec(flag_rate=ALPHA, group_column=group_column)
     if group_column is not None:
         return calibrate(net, cal, 0.2, 0.05, Global(), domain=domain)
-    with pytest.warns(Hint, match="--domain-group-column"):  # the row-level claim's hint names the remedy
+    with pytest.warns(
+        Hint, match=r"DomainSpec\(group_column='run'\)"
+    ):  # the row-level claim's hint names the remedy
         return calibrate(net, cal, 0.2, 0.05, Global(), domain=domain)
 
 
@@ -67,11 +70,14 @@ def test_a_row_level_test_on_correlated_rows_is_named_beside_the_shift(net, data
     assert d.row_level_column == "run" and d.to_dict()["row_level_column"] == "run"
     # 60 calibration runs allow a test by run at this flag rate (0.05) as it is: no --domain-flag-rate named
     assert d.row_level_groups == 60
-    assert "refit it with whole groups (calibrate --domain-group-column run) to tell" in d.sentence()
+    assert (
+        "refit it with whole groups (calibrate(..., domain=DomainSpec(group_column='run'))) to tell"
+        in d.sentence()
+    )
     cert = certify(model, data["test"]).certificate
     (check,) = [c for c in summarize(cert).checks if c.name == "domain of validity"]
     assert check.verdict.startswith("SHIFT, or a row-level test on correlated rows")
-    assert "--domain-group-column run" in check.detail
+    assert "DomainSpec(group_column='run')" in check.detail
 
 
 def test_the_same_runs_fitted_by_group_are_not_a_shift(net, data):
@@ -84,7 +90,11 @@ def test_the_same_runs_fitted_by_group_are_not_a_shift(net, data):
 def test_the_remedy_names_the_flag_rate_the_calibration_groups_allow():
     r = DomainReport(method="knn", flag_rate=0.01, threshold=1.0, n_reference=800, n=600, outside=180,
                      row_level_column="segment", row_level_groups=10)  # fmt: skip
-    assert "(calibrate --domain-group-column segment --domain-flag-rate 0.091) to tell" in r.sentence()
+    assert (
+        "(calibrate(..., domain=DomainSpec(group_column='segment', flag_rate=0.091))) to tell" in r.sentence()
+    )
+    with speaking(Audience.CLI):  # the same remedy, on the command line
+        assert "(calibrate --domain-group-column segment --domain-flag-rate 0.091) to tell" in r.sentence()
     assert r.to_dict()["row_level_groups"] == 10
 
 
@@ -92,9 +102,9 @@ def test_the_remedy_names_the_flag_rate_the_calibration_groups_allow():
 def test_the_remedy_is_said_only_for_a_share_well_above_flag_rate(outside, named):
     r = DomainReport(method="knn", flag_rate=0.01, threshold=1.0, n_reference=100, n=100, outside=outside,
                      row_level_column="segment")  # fmt: skip
-    assert ("--domain-group-column segment" in r.sentence()) is named
+    assert ("DomainSpec(group_column='segment')" in r.sentence()) is named
     plain = DomainReport(method="knn", flag_rate=0.01, threshold=1.0, n_reference=100, n=100, outside=outside)
-    assert "--domain-group-column" not in plain.sentence()
+    assert "DomainSpec(" not in plain.sentence()
 
 
 def test_a_run_column_of_the_test_data_alone_names_no_row_level_test(net, data):
@@ -104,7 +114,7 @@ def test_a_run_column_of_the_test_data_alone_names_no_row_level_test(net, data):
     model = calibrate(net, plain, 0.2, 0.05, Global(), domain=DomainSpec(flag_rate=ALPHA))
     d = certify(model, data["test"]).certificate.domain
     assert d is not None and d.well_above_flag_rate and d.row_level_column is None
-    assert "--domain-group-column" not in d.sentence()
+    assert "DomainSpec(" not in d.sentence()
 
 
 def test_the_cli_warning_names_the_remedy(net, data, tmp_path, run_cli):
@@ -132,4 +142,7 @@ def test_predict_and_evaluate_give_the_same_second_explanation(net, data):
         evaluate(model, test).domain,
     ):
         assert report is not None and report.well_above_flag_rate and report.row_level_column == "run"
-        assert "(calibrate --domain-group-column run) to tell the two apart" in report.sentence()
+        assert (
+            "(calibrate(..., domain=DomainSpec(group_column='run'))) to tell the two apart"
+            in report.sentence()
+        )

@@ -364,7 +364,7 @@ def test_a_row_level_claim_on_test_rows_grouped_by_flight_is_flagged_as_an_assum
     check = next(c for c in cert.summary.checks if c.name == "independent rows")
     assert (check.verdict, check.level) == ("assumed, in doubt", "warn")
     assert "'flight' column (12 groups in 600 test rows)" in check.detail
-    assert "recalibrate with --group-column flight" in check.detail
+    assert "recalibrate with Grouped(column='flight')" in check.detail
     # the test data's one flight column: counted per flight by default, and the row says so
     assert "counted per group of 'flight' above" in check.detail
     assert certify(row_level, test, group_column="flight").certificate.group_test == cert.group_test
@@ -374,7 +374,7 @@ def test_a_row_level_claim_on_test_rows_grouped_by_flight_is_flagged_as_an_assum
     )
     asked = certify(row_level, two).certificate
     check = next(c for c in asked.summary.checks if c.name == "independent rows")
-    assert asked.group_test is None and "certify with --group-column flight" in check.detail
+    assert asked.group_test is None and "certify with group_column='flight'" in check.detail
     # no such row for a claim about flights, nor for test data without a run or flight column
     by_flight = calibrate(
         net, _flights(make_lagged_perception(3000, seed=83), 10), 0.2, 0.05, Grouped(column="flight"),
@@ -420,7 +420,7 @@ def test_a_row_level_calibration_on_rows_grouped_by_flight_is_recorded_and_flagg
     )
     assert (
         "could also be counted per run" in check.detail
-        and "recalibrate with --group-column flight" in check.detail
+        and "recalibrate with Grouped(column='flight')" in check.detail
     )
     # recalibrated by flight, the record is dropped and the check is gone
     by_flight = calibrate(

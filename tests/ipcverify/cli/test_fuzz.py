@@ -271,7 +271,7 @@ train-epochs-0               | 2 | epochs must be >= 1              | train {tra
 train-hidden-text            | 2 | --hidden                         | train {train} --out {tmp}/m.pt --hidden a,b
 train-lr-nan                 | 2 | lr must be > 0                   | train {train} --out {tmp}/m.pt --lr nan
 train-lr-text                | 2 | 'fast' is not a valid float      | train {train} --out {tmp}/m.pt --lr fast
-train-val-fraction-1         | 2 | val_fraction                     | train {train} --out {tmp}/m.pt --val-fraction 1
+train-val-fraction-1         | 2 | --val-fraction must be in [0, 1) | train {train} --out {tmp}/m.pt --val-fraction 1
 train-unknown-x-column       | 2 | speed                            | train {train} --out {tmp}/m.pt --x-columns speed
 train-unknown-recipe         | 2 | 'best' is not one of             | train {train} --out {tmp}/m.pt --recipe best
 evaluate-missing-model       | 2 | does not exist                   | evaluate {tmp}/none.pt {test}
@@ -408,7 +408,7 @@ calibrate-epsilon-1e-15      | 2 | at least 4.6e+15 are needed      | calibrate 
 calibrate-seed-negative      | 2 | seed must be a non-negative      | calibrate {model} {cal} {cal_ok} --seed -1 --mondrian-column x_0 --bins 2
 demo-n-too-small             | 2 | between 100 and 10,000,000       | demo --n 3 --out {tmp}/demo
 demo-n-enormous              | 2 | between 100 and 10,000,000       | demo --n 100000000000000 --out {tmp}/demo
-demo-seed-negative           | 2 | seed (--seed) must be a non-neg  | demo --seed -1 --out {tmp}/demo
+demo-seed-negative           | 2 | --seed must be a non-negative    | demo --seed -1 --out {tmp}/demo
 ingest-topics-corrupt-ros1   | 2 | its content is not a ROS bag's   | ingest topics {ros1_garbage}
 ingest-bag-corrupt-ros1      | 2 | its content is not a ROS bag's   | ingest bag {ros1_garbage} --truth /gt --estimate /est --out {tmp}/o.csv
 ingest-traj-nanoseconds      | 2 | look like nanoseconds            | ingest trajectories --truth {tum_ns} --estimate {tum_ns} --format tum --out {tmp}/o.csv

@@ -98,7 +98,7 @@ def test_a_failed_demo_leaves_no_files_and_keeps_the_old_ones(tmp_path, run_cli,
     out.mkdir()
     (out / "train.csv").write_text("an earlier run's file\n", encoding="utf-8")
     res = run_cli("demo", "--n", "3", "--out", out, "--force")
-    assert res.code == 2 and "the demo needs n_train (--n) between 100 and 10,000,000; got 3" in res.stderr
+    assert res.code == 2 and "the demo needs --n between 100 and 10,000,000; got 3" in res.stderr
     assert [p.name for p in out.iterdir()] == ["train.csv"]
 
     def calibration_fails(*args, **kwargs):
@@ -116,11 +116,11 @@ def test_the_demo_refuses_bad_sizes_before_computing_anything(tmp_path):
     from ipcverify.errors import InvalidInputError
 
     for kwargs, match in (
-        ({"n_train": 99}, r"n_train \(--n\) between 100 and 10,000,000; got 99"),
+        ({"n_train": 99}, r"n_train between 100 and 10,000,000; got 99"),
         ({"n_train": 10**7 + 1}, r"got 10000001"),
         ({"n_train": np.float64(500.0)}, r"got np\.float64\(500\.0\)"),
         ({"n_calibration": 687}, r"n_calibration between 688 and"),
-        ({"seed": -1}, r"seed \(--seed\) must be a non-negative integer; got -1"),
+        ({"seed": -1}, r"the demo's seed must be a non-negative integer; got -1"),
     ):
         with pytest.raises(InvalidInputError, match=match):
             run_demo(tmp_path / "d", **kwargs)

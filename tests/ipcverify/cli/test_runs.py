@@ -169,8 +169,7 @@ def test_a_log_that_names_its_runs_otherwise_is_certified_and_monitored_by_them(
         "certify", tmp_path / "c.pt", "--data", tmp_path / "flights.csv", "--out", tmp_path / "x"
     )
     assert (
-        missing.code == 2
-        and "name the column of the test data's runs (CLI: --group-column COL)" in missing.stderr
+        missing.code == 2 and "name the column of the test data's runs (--group-column COL)" in missing.stderr
     )
     named = run_cli("certify", tmp_path / "c.pt", "--data", tmp_path / "flights.csv",
                     "--group-column", "flight", "--out", tmp_path / "cert")  # fmt: skip

@@ -111,7 +111,7 @@ def test_calibrate_warns_far_from_training_and_hints_at_runs(recwarn):
     assert any("lie outside the ranges of the training inputs" in m for c, m in messages if c is DataWarning)
     hint = [m for c, m in messages if c is Hint]
     assert len(hint) == 1 and "a row-level claim on data with runs of 'run'" in hint[0]
-    assert "1,500 rows in 15 runs of 'run'" in hint[0] and "CLI: --unit run" in hint[0]
+    assert "1,500 rows in 15 runs of 'run'" in hint[0] and "Grouped(column='run')" in hint[0]
     recwarn.clear()
     calibrate(model, far, 0.3, 0.2, Grouped(column="run"), domain=DomainSpec(flag_rate=0.1))
     assert not [w for w in recwarn if w.category is Hint]  # grouped by choice: no hint
@@ -129,7 +129,7 @@ def test_group_like_counts_need_a_fitting_name_and_more_than_one_group():
     assert group_like_counts(ds) == {"Flight_ID": 3}
     two = _ds(np.arange(n), run=np.tile([0, 1], 6), flight=np.repeat(["a", "b", "c"], 4))
     assert list(group_like_counts(two).items()) == [("flight", 3), ("run", 2)]  # the most groups first
-    with pytest.warns(Hint, match=r"--group-column flight \(or --group-column run\)"):
+    with pytest.warns(Hint, match=r"group_column=\'flight\' \(or group_column=\'run\'\)"):
         warn_correlated_rows(two, "calibrating", "to calibrate by group")
     with pytest.warns(Hint, match=r"log.csv has a 'Flight_ID' column \(3 groups\).*certifying row by row"):
         warn_correlated_rows(ds, "certifying", "to count per group")
@@ -177,7 +177,7 @@ def test_the_runs_hint_says_when_the_runs_are_too_few_to_be_the_units(groups, to
         warnings.simplefilter("always")
         warn_correlated_rows(data, "calibrating", "to calibrate by run")
     (text,) = [str(w.message) for w in seen if issubclass(w.category, Hint)]
-    assert text.count("--group-column run") == 1
+    assert text.count("group_column='run'") == 1
     floor = smallest_epsilon(groups, 0.01)  # the calibration's own number, by group
     assert (f"can certify no epsilon below {floor:.2g} at delta = 0.01" in text) is too_few
     assert ("contiguous time blocks" in text) is too_few

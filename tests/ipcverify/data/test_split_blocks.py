@@ -86,7 +86,7 @@ def test_a_named_group_column_joins_the_run_and_the_block_number(tmp_path):
         ({"block": 10.0, "time_column": "run"}, DataError, "must hold numbers"),
         ({"block": 10.0, "time_column": "clock"}, DataError, "no column 'clock'"),
         ({"time_column": "t"}, InvalidInputError, "only to cut time blocks"),
-        ({"block": 100.0}, DataError, "shorter --block gives more blocks"),
+        ({"block": 100.0}, DataError, "a shorter block gives more blocks"),
     ],
 )
 def test_bad_block_requests_are_refused_before_anything_is_written(tmp_path, kwargs, error, match):
@@ -99,7 +99,7 @@ def test_bad_block_requests_are_refused_before_anything_is_written(tmp_path, kwa
 def test_blocks_need_a_time_column_and_say_how_to_name_one(tmp_path):
     z = np.zeros((10, 1))
     save_dataset(PerceptionDataset(z, z, z, extra={"clock": np.arange(10.0)}), tmp_path / "log.csv")
-    with pytest.raises(DataError, match="--time-column"):
+    with pytest.raises(DataError, match="time_column=COL"):
         split_file(tmp_path / "log.csv", tmp_path / "out", block=2.0)
     s = split_file(tmp_path / "log.csv", tmp_path / "out", block=2.0, time_column="clock")
     assert s.time_column == "clock" and [p.groups for p in s.parts] == [3, 1, 1]

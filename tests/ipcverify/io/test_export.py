@@ -70,7 +70,7 @@ def test_the_calibration_is_in_the_graph(data, tmp_path):
 def test_a_model_with_a_domain_test_is_exported_only_without_it_on_request(data, tmp_path):
     cal = calibrate(_model(data), data[1], 0.05, 0.01)
     assert cal.domain is not None
-    with pytest.raises(InvalidInputError, match=r"domain-of-validity test .* pass --no-domain"):
+    with pytest.raises(InvalidInputError, match=r"domain-of-validity test .* pass without_domain=True"):
         export_onnx(cal, tmp_path / "cal.onnx")
     assert not (tmp_path / "cal.onnx").exists()
     no_domain = calibrate(_model(data), data[1], 0.05, 0.01, domain=None)

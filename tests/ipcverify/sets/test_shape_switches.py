@@ -38,7 +38,7 @@ from ipcverify.sets._outer import OuterSet
 
 ROOT = Path(__file__).resolve().parents[3]
 SHAPES = {"Box", "Polytope", "Ellipsoid"}
-SCANNED = ("ipcverify", "case_studies", "benchmarks")
+SCANNED = ("ipcverify", "case_studies", "benchmarks", "docgen")
 
 
 # ---------------------------------------------------------------------------- the switch check

@@ -1,7 +1,7 @@
 """Proposition 1 by the S-lemma SDP: the two routes agree on 10^4 landing decisions.
 
 The sets are a trained IPC's on the case study's flights, in the world frame, as the landing
-poses them (``tests/data/landing_sets.npz``, made by ``python -m benchmarks.landing_sets``); the
+poses them (``tests/data/landing_sets.npz``, made by ``python -m docgen.landing_sets``); the
 containment problem of each is ``landing_decision``'s: the ellipsoid against ``{P} ⊕ (-G_tau)``.
 The closed form is the decision of record; the SDP route (Clarabel, then the exact check of its
 multipliers or witness) must give the same verdict wherever it is conclusive. Near-tie cases

@@ -68,7 +68,7 @@ def test_kitti_poses_with_a_times_file(tmp_path, poses):
 @pytest.mark.parametrize(
     ("fmt", "text", "match"),
     [
-        ("tum", "1 2 3\n", r"a\.txt, line 1: 3 values; a TUM line holds t x y z qx qy qz qw .*--format"),
+        ("tum", "1 2 3\n", r"a\.txt, line 1: 3 values; a TUM line holds t x y z qx qy qz qw .*_format"),
         ("tum", "0 0 0 0 0 0 0 1\n1 0 0 0 0 0 0 1 7\n", "line 2: 9 values"),
         ("tum", "0 0 0 0 0 0 0 1\n1 0 x 0 0 0 0 1\n", "line 2: not a number"),
         ("tum", "# only a comment\n", "no poses"),

@@ -115,7 +115,7 @@ def test_se3_alignment_fitted_on_named_runs_recovers_the_frame():
     )
     # unaligned, the estimate is off by the frame change, and a hint quotes the error it makes
     with pytest.warns(
-        Hint, match=r"--quantity position without --align .*median position error up to 3\."
+        Hint, match=r"quantity=\'position\' without align .*median position error up to 3\."
     ) as w:
         raw = build_samples([RunData("fit", truth, other)], IngestOptions(quantity="position"))
     err = np.linalg.norm(
@@ -145,7 +145,7 @@ def test_the_frame_makes_a_dataset_with_runs_as_groups(motions):
 def test_no_overlap_prints_both_spans_and_hints_at_units_or_offset(motions):
     truth, est = motions
     t = np.arange(0.0, 5.0, 0.05)
-    with pytest.raises(DataError, match=r"truth \(100\.000000\.\.104\.950000 s.*--t-offset \(about -100 s"):
+    with pytest.raises(DataError, match=r"truth \(100\.000000\.\.104\.950000 s.*t_offset \(about -100 s"):
         build_samples([RunData("r", truth.trajectory(t + 100.0), est.trajectory(t))], IngestOptions())
     ns = truth.trajectory(t * 1e9 + 1.4e18)
     with pytest.raises(DataError, match="looks like nanoseconds"):
@@ -160,13 +160,13 @@ def test_a_grid_far_denser_than_the_poses_is_refused_before_it_is_allocated(moti
     run = RunData("r", truth.trajectory(ns), est.trajectory(ns + 1e6))
     ns_match = (
         r"run r: the estimate spans 1\.995e\+10 s, .*7\.98e\+10 sample starts for its 400 poses; the stamps "
-        r"look like nanoseconds: this --format reads seconds"
+        r"look like nanoseconds: this estimate_format reads seconds"
     )
     with pytest.raises(DataError, match=ns_match):
         build_samples([run], IngestOptions())
     run = RunData("r", truth.trajectory(t), est.trajectory(t))
     with pytest.raises(
-        DataError, match=r"at --stride 1e-09 s makes 1\.95e\+10 sample starts .*use a larger --stride"
+        DataError, match=r"at stride=1e-09 s makes 1\.95e\+10 sample starts .*use a larger stride"
     ):
         build_samples([run], IngestOptions(stride=1e-9))
     fine = build_samples([run], IngestOptions(stride=0.05 / 1000))  # 1000 starts a pose: still accepted
@@ -196,7 +196,7 @@ def test_gaps_that_drop_most_samples_give_a_hint_with_the_largest_gap(motions):
     with pytest.warns(
         Hint,
         match=r"run kf: \d+ of \d+ samples dropped as estimate_gap: the estimate's stamps "
-        r"are up to 0\.4 s apart, above --max-gap 0\.2 s; to keep them, raise --max-gap above 0\.4",
+        r"are up to 0\.4 s apart, above max_gap=0\.2 s; to keep them, raise max_gap above 0\.4",
     ):
         df = build_samples([run], IngestOptions())
     account = df.attrs[MANIFEST_KEY]["runs"][0]
@@ -219,8 +219,8 @@ def test_gaps_that_drop_most_samples_give_a_hint_with_the_largest_gap(motions):
         ({"horizon": 0.0}, "--horizon must be a positive number"),
         ({"max_gap": float("nan")}, "--max-gap must be a positive number"),
         ({"quantity": "velocity"}, "unknown quantity 'velocity'"),
-        ({"quantity": "position", "align": "se3"}, "name the runs to fit the alignment on with --align-runs"),
-        ({"align_runs": ("a",)}, "--align-runs is given but --align is none"),
+        ({"quantity": "position", "align": "se3"}, "name the runs to fit the alignment on with align_runs"),
+        ({"align_runs": ("a",)}, "align_runs is given but align='none'"),
         ({"up": "up"}, "unknown up axis 'up'"),
     ],
 )
@@ -235,7 +235,7 @@ def test_repeated_run_names_and_unknown_alignment_runs_are_refused(motions):
     run = RunData("a", truth.trajectory(t), est.trajectory(t))
     with pytest.raises(DataError, match="run name\\(s\\) a used twice"):
         build_samples([run, run], IngestOptions())
-    with pytest.raises(DataError, match="--align-runs: no run named b; the runs are a"):
+    with pytest.raises(DataError, match="align_runs: no run named b; the runs are a"):
         build_samples([run], IngestOptions(quantity="position", align="sim3", align_runs=("b",)))
 
 
@@ -317,7 +317,7 @@ def test_an_estimate_starting_at_the_identity_with_z_taken_as_up_gets_a_hint(tmp
     rows = np.column_stack([t, t, 0 * t, 0 * t, 0 * t, 0 * t, 0 * t, 1 + 0 * t])  # TUM: identity start
     np.savetxt(tmp_path / "gt.txt", rows)
     np.savetxt(tmp_path / "vo.txt", rows * [1, 1.05, 1, 1, 1, 1, 1, 1])  # 5 % fast along x
-    with pytest.warns(Hint, match=r"run vo starts at the identity pose.*pass --up"):
+    with pytest.warns(Hint, match=r"run vo starts at the identity pose.*pass up"):
         ingest_trajectories(tmp_path / "gt.txt", [tmp_path / "vo.txt"])
     with warnings.catch_warnings():
         warnings.simplefilter("error", Hint)  # told: no hint

@@ -1,8 +1,8 @@
 """The library's layout, measured from its source: the stage packages, their sizes and imports.
 
-Run ``python -m benchmarks.architecture`` (a few seconds). It reads every module of
+Run ``python -m docgen.architecture`` (a few seconds). It reads every module of
 ``ipcverify/`` with :mod:`ast` (nothing is imported), and writes
-``benchmarks/architecture_results.json`` and ``docs/img/architecture.png``:
+``docgen/architecture_results.json`` and ``docs/img/architecture.png``:
 
 * the top-level entries (modules plus packages, ``__init__``/``__main__`` not counted), the
   largest module, and per package its modules, lines and public names (its ``__all__``);
@@ -30,8 +30,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.patches import FancyBboxPatch  # noqa: E402
 
 from benchmarks.common import save_figure, write_json  # noqa: E402
-from benchmarks.import_graph import import_graph, module_files  # noqa: E402
-from benchmarks.import_graph import package_graph as collapse  # noqa: E402
+from docgen.import_graph import import_graph, module_files  # noqa: E402
+from docgen.import_graph import package_graph as collapse  # noqa: E402
 
 __all__ = ["STAGES", "layers", "main", "package_graph", "plot", "top_entries"]
 

@@ -1,4 +1,4 @@
-"""benchmarks/docs_certify.py: the worked example of docs/certify.md and its pictures."""
+"""docgen/docs_certify.py: the worked example of docs/certify.md and its pictures."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import json
 
 import numpy as np
 
-from benchmarks.docs_certify import FIGURES, main, run_example
+from docgen.docs_certify import FIGURES, main, run_example
 from ipcverify import load_model
 from ipcverify.contract._prediction import predict_sets
 from ipcverify.data import PerceptionInputs, load_dataset
@@ -50,7 +50,7 @@ def test_the_numbers_docs_certify_quotes_are_those_of_the_committed_run():
 
     root = Path(__file__).resolve().parents[2]
     page = (root / "docs" / "certify.md").read_text()
-    r = json.loads((root / "benchmarks" / "docs_certify_results.json").read_text())
+    r = json.loads((root / "docgen" / "docs_certify_results.json").read_text())
     assert r["n_samples"] == 20_000 and r["train_args"] == []  # the page's example, as written
     quoted = [
         f"│ {r['calibration_n']} │ {r['calibration_k']} │ {r['calibration_scale']:>7.5g} │",

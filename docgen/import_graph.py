@@ -1,7 +1,7 @@
 """The import graph of a source tree, read with :mod:`ast` (nothing is imported).
 
 One reading of the layout rules, shared by what checks them (``tests/ipcverify/test_layout.py``,
-``tests/quad_landing/test_layout.py``) and what draws them (:mod:`benchmarks.architecture`).
+``tests/quad_landing/test_layout.py``) and what draws them (:mod:`docgen.architecture`).
 Every ``import`` counts, also one inside a function or under ``if TYPE_CHECKING:``. An import of
 ``a.b.c`` is an edge to ``a.b.c``, and ``from a.b import c`` one to ``a.b`` and, if it is a
 module, to ``a.b.c``; the parent packages' ``__init__`` it runs are not edges (every module

@@ -1,4 +1,4 @@
-"""benchmarks/architecture.py: the layout measured from the source, and its figure."""
+"""docgen/architecture.py: the layout measured from the source, and its figure."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import json
 
 import pytest
 
-from benchmarks.architecture import STAGES, layers, main, package_graph, top_entries
+from docgen.architecture import STAGES, layers, main, package_graph, top_entries
 
 
 def test_layers_place_each_package_above_what_it_imports_and_refuse_a_loop():

@@ -1,6 +1,6 @@
 """The pictures of docs/certify.md, made by running its worked example.
 
-Run ``python -m benchmarks.docs_certify`` (about a minute on 2 cores). It does what the worked
+Run ``python -m docgen.docs_certify`` (about a minute on 2 cores). It does what the worked
 example of docs/certify.md tells a user to do -- 20,000 synthetic samples split 25 / 25 / 50 %,
 ``ipcverify train``, ``ipcverify calibrate --epsilon 0.01 --delta 0.001`` and ``ipcverify
 certify --data test.csv --train-data train.csv`` (the CLI, in this process) -- and draws the
@@ -11,7 +11,7 @@ report's three plots from the certificate's evidence:
 * ``docs/img/certify_projections.png`` -- the smallest, median and largest set and a violated one.
 
 The numbers the page quotes (order statistic, scale, test violations, upper bound) go to
-``benchmarks/docs_certify_results.json``, so that a reader can check the page against a run.
+``docgen/docs_certify_results.json``, so that a reader can check the page against a run.
 The report's screenshot (``certify_report.png``) is of a EuRoC run and is made as the page says.
 """
 
@@ -120,7 +120,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     ----------
     argv : list of str, optional
         ``--n N``, ``--img DIR`` (default docs/img), ``--out FILE`` (default
-        benchmarks/docs_certify_results.json), ``--train-args "..."`` (extra ``train`` options).
+        docgen/docs_certify_results.json), ``--train-args "..."`` (extra ``train`` options).
 
     Returns
     -------

@@ -11,7 +11,7 @@ by the tracking tolerance, :func:`decision_target`). The file keeps the world-fr
 exactly (float64), the target and the landing's verdicts; the containment problem of each
 decision is ``landing_decision(Ellipsoid(c, C), G_tau)``'s (``E`` against ``{P} ⊕ (-G_tau)``).
 
-Run ``python -m benchmarks.landing_sets`` (about three minutes on two cores; it overwrites the
+Run ``python -m docgen.landing_sets`` (about three minutes on two cores; it overwrites the
 file). ``tests/ipcverify/decision/containment/test_landing_sdp.py`` reads it.
 """
 
@@ -69,7 +69,7 @@ def main() -> None:
         d = query.decide(x[i], yhat[i], transform=lambda c, C, pose=pose: transform_ellipsoid(c, C, pose))
         centers[i], shapes[i], accept[i], in_domain[i] = d.center, d.shape, d.accept, d.in_domain
     info = {
-        "made_by": "python -m benchmarks.landing_sets",
+        "made_by": "python -m docgen.landing_sets",
         "seeds": SEEDS,
         "sizes": {**SIZES, "queries": N_QUERIES},
         "ipc": {

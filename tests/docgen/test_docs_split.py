@@ -1,8 +1,8 @@
-"""benchmarks/docs_split.py: the quickstart's picture of a split by runs and by blocks of time."""
+"""docgen/docs_split.py: the quickstart's picture of a split by runs and by blocks of time."""
 
 from __future__ import annotations
 
-from benchmarks.docs_split import LOG, SPLITS, main, parts_of
+from docgen.docs_split import LOG, SPLITS, main, parts_of
 
 
 def test_each_run_or_each_block_of_time_is_in_one_part():

@@ -1,12 +1,12 @@
-"""Paste measured numbers into README.md and docs/benchmarks.md: nothing there is typed by hand.
+"""Paste measured numbers into README.md and docs/ (results.md, benchmarks.md): none is typed by hand.
 
 The documents mark each generated block::
 
-    <!-- BEGIN generated:NAME (python -m benchmarks.readme) -->
+    <!-- BEGIN generated:NAME (python -m docgen.readme) -->
     ...
     <!-- END generated:NAME -->
 
-``python -m benchmarks.readme`` rewrites every block from ``benchmarks/results.json``,
+``python -m docgen.readme`` rewrites every block from ``benchmarks/results.json``,
 ``benchmarks/training_results.json`` and ``benchmarks/diagnosis_results.json``;
 ``--demo`` also reruns ``ipcverify demo`` (about 15 s) and pastes its console output.
 ``--check`` only reports blocks that are out of date (exit status 1).
@@ -24,7 +24,7 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
-from benchmarks.report_tables import (
+from docgen.report_tables import (
     CM3,
     before_after_table,
     diagnosis_runs_table,
@@ -49,10 +49,10 @@ __all__ = [
 ]
 
 ROOT = Path(__file__).resolve().parent.parent
-HERE = Path(__file__).resolve().parent
-DOCUMENTS = (ROOT / "README.md", ROOT / "docs" / "benchmarks.md")
+HERE = ROOT / "benchmarks"  # the benchmark results the blocks are made from
+DOCUMENTS = (ROOT / "README.md", ROOT / "docs" / "results.md", ROOT / "docs" / "benchmarks.md")
 BLOCK = re.compile(
-    r"(<!-- BEGIN generated:(?P<name>[\w-]+) \(python -m benchmarks\.readme[^)]*\) -->\n)(?P<body>.*?)"
+    r"(<!-- BEGIN generated:(?P<name>[\w-]+) \(python -m docgen\.readme[^)]*\) -->\n)(?P<body>.*?)"
     r"(<!-- END generated:(?P=name) -->)",
     re.S,
 )

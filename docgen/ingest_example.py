@@ -1,6 +1,6 @@
 """The worked example of docs/ingest.md: simulated flights in ROS bags, to a certified contract.
 
-Run ``python -m benchmarks.ingest_example --out ingest-example`` (about 3 minutes on 2 cores).
+Run ``python -m docgen.ingest_example --out ingest-example`` (about 3 minutes on 2 cores).
 It writes 100 ROS 1 bags of 20 s flights (``flights/flight_NNN.bag``), each with
 
 * ``/vicon/drone/pose`` (``geometry_msgs/PoseStamped``, 120 Hz): motion-capture truth, stamped

@@ -1,6 +1,6 @@
 """The picture of docs/quickstart.md's split: whole runs (``--by``) against blocks of time (``--block``).
 
-Run ``python -m benchmarks.docs_split`` (a few seconds). It splits the repository's EuRoC log
+Run ``python -m docgen.docs_split`` (a few seconds). It splits the repository's EuRoC log
 (``data/euroc_mh04_vislam.csv``: 20 runs that replay one trajectory, two estimators x 10 runs)
 with :func:`ipcverify.data.split_file` twice, as ``ipcverify split`` does -- ``--by method,run``
 and ``--block 10`` -- and draws every row of the log at its run and time, coloured by the part it

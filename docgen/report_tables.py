@@ -1,7 +1,7 @@
 """Markdown tables of the benchmark results, shared by ``results.md``, the README and docs/benchmarks.md.
 
 Every function takes the parsed ``benchmarks/results.json`` (or a part of it) and returns
-lines of markdown; nothing here is typed in by hand (:mod:`benchmarks.readme` pastes the
+lines of markdown; nothing here is typed in by hand (:mod:`docgen.readme` pastes the
 tables into the documents between generated-block markers).
 """
 
