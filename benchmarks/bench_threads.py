@@ -268,7 +268,9 @@ def bench_threads(
 ) -> dict[str, Any]:
     """Time every workload at every load and thread setting, ``repeats`` rounds (rounds interleaved)."""
     chosen = [w for w in workloads(quick) if not only or w.name in only]
-    runs: dict[str, Any] = {w.name: {str(b): {s: [] for s in settings} for b in loads} for w in chosen}
+    runs: dict[str, Any] = {
+        w.name: {str(b): {s: [] for s in settings if w.torch or s != "2"} for b in loads} for w in chosen
+    }
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         prepare(folder, quick, euroc=any("euroc" in w.name for w in chosen))
