@@ -30,6 +30,7 @@ from ipcverify.cli.app import (
 from ipcverify.cli.outputs import check_model_output, check_outputs, force_option
 from ipcverify.errors import InvalidInputError
 from ipcverify.network._architecture import DEFAULT_RECIPE, RECIPES
+from ipcverify.training._threads import DEFAULT_THREADS, THREADS_VARIABLE, check_threads
 
 if TYPE_CHECKING:
     from ipcverify.certification._evaluation import Evaluation
@@ -169,6 +170,13 @@ def _given(**values: object) -> dict[str, object]:
 @click.option("--x-columns", default=None, help="Comma-separated state columns (default x_0, x_1, ...).")
 @click.option("--y-columns", default=None, help="Comma-separated truth columns (default y_0, ...).")
 @click.option("--yhat-columns", default=None, help="Comma-separated estimate columns (default yhat_0, ...).")
+@click.option(
+    "--threads",
+    default=None,
+    type=int,
+    help=f"torch threads to train on [{THREADS_VARIABLE} if set, else {DEFAULT_THREADS}: more threads "
+    "do not train these small networks faster, and beside busy processes they are much slower].",
+)
 def train_cmd(
     data: Path,
     out: Path,
@@ -194,6 +202,7 @@ def train_cmd(
     x_columns: str | None,
     y_columns: str | None,
     yhat_columns: str | None,
+    threads: int | None,
 ) -> None:
     """Train an IPC on DATA (CSV, Parquet or NPZ) and save it to --out.
 
@@ -209,6 +218,8 @@ def train_cmd(
     from ipcverify.training._train import HingeSelection, TrainConfig, train
 
     outputs = check_model_output(out, force=force, inputs={"DATA": data})
+    if threads is not None:
+        check_threads(threads)  # before the data are read
     ds = load_dataset(data, _columns(x_columns), _columns(y_columns), _columns(yhat_columns))
     mc = ModelConfig.recipe(
         recipe,
@@ -253,7 +264,7 @@ def train_cmd(
             "--recipe paper and without --alpha, --lam and --batch-size"
         )
     select = HingeSelection(group_column=group_column) if recipe == "paper" and not chosen_by_hand else None
-    result = train(ds, mc, tc, progress=True, select=select)
+    result = train(ds, mc, tc, progress=True, select=select, threads=threads)
     save_model(result.model, out)
     last = result.history[-1]
     what = f"{mc.members} networks" if mc.members > 1 else "1 network"

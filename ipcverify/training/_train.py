@@ -38,6 +38,7 @@ from ipcverify.training._objectives import (
     step_factor,
 )
 from ipcverify.training._selection import Candidate, HingeSelection, SelectionRecord
+from ipcverify.training._threads import torch_threads
 
 #: Recipes whose unstated hinge settings are chosen by :class:`HingeSelection` when no
 #: training configuration is given.
@@ -221,6 +222,8 @@ def select_hinge(
     train_config: TrainConfig,
     rule: HingeSelection,
     progress: bool = False,
+    *,
+    threads: int | None = None,
 ) -> tuple[TrainConfig, SelectionRecord]:
     """Choose ``alpha``, ``lam`` and the batch size by ``rule`` on held-out training rows.
 
@@ -241,6 +244,8 @@ def select_hinge(
         The grid and the rule.
     progress : bool
         Show a progress bar.
+    threads : int, optional
+        torch threads for the candidates' training, as in :func:`train`.
 
     Returns
     -------
@@ -259,6 +264,18 @@ def select_hinge(
     >>> len(rec.candidates), tc.alpha == rec.chosen.alpha
     (2, True)
     """
+    with torch_threads(threads):
+        return _select_hinge(train_data, model_config, train_config, rule, progress)
+
+
+def _select_hinge(
+    train_data: PerceptionDataset,
+    model_config: ModelConfig,
+    train_config: TrainConfig,
+    rule: HingeSelection,
+    progress: bool,
+) -> tuple[TrainConfig, SelectionRecord]:
+    """:func:`select_hinge` on the torch threads the caller set."""
     if not trainer_for(model_config).hinge_selection:
         raise InvalidInputError("the hinge selection is for the paper's heads (recipes 'paper', 'v1')")
     parts = train_data.split(
@@ -325,6 +342,7 @@ def train(
     *,
     recipe: str = DEFAULT_RECIPE,
     select: HingeSelection | None = None,
+    threads: int | None = None,
 ) -> TrainResult:
     """Learn an IPC from a perception log.
 
@@ -349,6 +367,11 @@ def train(
         stored as ``metadata["selection"]``. Default: :class:`HingeSelection()` for the recipe
         ``"paper"`` when no ``train_config`` is given (the paper states none of the three),
         none otherwise.
+    threads : int, optional
+        torch threads to train on (the previous setting is restored afterwards). Default: the
+        user's ``OMP_NUM_THREADS`` if set, else 1 -- these networks are too small to gain
+        from more, and beside other busy processes more threads are several times slower
+        (:mod:`ipcverify.training._threads`). The model does not depend on it.
 
     Returns
     -------
@@ -363,7 +386,8 @@ def train(
         If the loss becomes NaN or infinite (possible with ``param="full"``, whose
         ``log det`` is ``-inf`` at a singular ``C``); switch to ``cholesky``.
     InvalidInputError
-        For an unknown recipe or a configuration that does not fit the data.
+        For an unknown recipe, a configuration that does not fit the data, or ``threads``
+        not an integer >= 1.
 
     Examples
     --------
@@ -376,6 +400,19 @@ def train(
     'full'
     """
     check_informative(train_data, "training")
+    with torch_threads(threads):
+        return _train(train_data, model_config, train_config, progress, recipe, select)
+
+
+def _train(
+    train_data: PerceptionDataset,
+    model_config: ModelConfig | None,
+    train_config: TrainConfig | None,
+    progress: bool,
+    recipe: str,
+    select: HingeSelection | None,
+) -> TrainResult:
+    """:func:`train` on the torch threads the caller set."""
     tc = train_config or TrainConfig.recipe(recipe)
     mc = model_config or ModelConfig.recipe(recipe, x_dim=train_data.x_dim, y_dim=train_data.y_dim)
     if (mc.x_dim, mc.y_dim) != (train_data.x_dim, train_data.y_dim):
@@ -387,7 +424,7 @@ def train(
         select = HingeSelection()
     record = None
     if select is not None:
-        tc, record = select_hinge(train_data, mc, tc, select, progress)
+        tc, record = _select_hinge(train_data, mc, tc, select, progress)
     net, history = trainer_for(mc).fit(train_data, mc, tc, progress)
     model = IPCModel(net)
     metadata: dict[str, Any] = {

@@ -94,14 +94,10 @@ def learn_ipc(
     mc = ModelConfig.recipe(
         params.recipe, x_dim=train_data.x_dim, y_dim=train_data.y_dim, hidden=params.hidden
     )
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)  # a small MLP: one thread is fastest, and threads on a busy machine spin
-    try:
-        model = train(train_data, mc, params.train, progress=progress).model
-        return row_level_calibration(model, calibration_data, params.epsilon, params.delta,
-                                     params.coverage_quantile)  # fmt: skip
-    finally:
-        torch.set_num_threads(threads)
+    # on ipcverify's torch threads for training: one unless OMP_NUM_THREADS says otherwise
+    model = train(train_data, mc, params.train, progress=progress).model
+    return row_level_calibration(model, calibration_data, params.epsilon, params.delta,
+                                 params.coverage_quantile)  # fmt: skip
 
 
 def row_level_calibration(
