@@ -106,7 +106,7 @@ def run_example(work: Path, n: int = 20_000, train_args: tuple[str, ...] = ()) -
         "test_n": test.n,
         "test_violations": test.violations,
         "test_upper_bound": test.upper_bound,
-        "status": cert.status.value,
+        "status": cert.status.text,
         "mean_log_volume": None if cert.volume is None else cert.volume.mean_log,
         "domain_outside": None if cert.domain is None else cert.domain.outside,
     }

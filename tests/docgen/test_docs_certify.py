@@ -58,6 +58,7 @@ def test_the_numbers_docs_certify_quotes_are_those_of_the_committed_run():
         f"{r['test_violations']} of {r['test_n']} fresh test samples",
         f"is at most {r['test_upper_bound']:.4g}",
         f"│ mean log-volume    │ {r['mean_log_volume']:.2f}",
-        f"│ domain of validity │ {r['domain_outside']}/{r['test_n']} test queries outside",
+        f"│ domain of validity │ as expected in distribution: {r['domain_outside']}/{r['test_n']} test "
+        "queries outside",
     ]
     assert [q for q in quoted if q not in page] == []
