@@ -84,6 +84,7 @@ PARAMETERS: dict[str, Spelling] = {
     "mondrian_bins": _s("Mondrian(column=..., bins={})", "--bins"),
     "recalibrate": _s("recalibrate=True", "--recalibrate"),
     "seed": _s("seed", "--seed"),
+    "threads": _s("threads", "--threads"),
     # certification and its report
     "test_data": _s("test_data", "--data"),
     "train_data": _s("train_data", "--train-data"),

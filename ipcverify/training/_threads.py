@@ -25,6 +25,7 @@ import os
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 
+from ipcverify._wording._spelling import option
 from ipcverify.errors import InvalidInputError
 
 #: torch threads for training when neither an option nor ``OMP_NUM_THREADS`` says otherwise.
@@ -43,10 +44,10 @@ def check_threads(threads: object) -> int:
     >>> check_threads(0)
     Traceback (most recent call last):
     ...
-    ipcverify.errors.InvalidInputError: threads must be an integer >= 1 (--threads); got 0
+    ipcverify.errors.InvalidInputError: threads must be an integer >= 1; got 0
     """
     if isinstance(threads, bool) or not isinstance(threads, numbers.Integral) or threads < 1:
-        raise InvalidInputError(f"threads must be an integer >= 1 (--threads); got {threads!r}")
+        raise InvalidInputError(f"{option('threads')} must be an integer >= 1; got {threads!r}")
     return int(threads)
 
 

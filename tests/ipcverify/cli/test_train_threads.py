@@ -41,8 +41,8 @@ def test_the_option_reaches_the_library_and_its_absence_leaves_the_default(data,
 @pytest.mark.parametrize(
     ("value", "message"),
     [
-        ("0", "error: threads must be an integer >= 1 (--threads); got 0"),
-        ("-2", "error: threads must be an integer >= 1 (--threads); got -2"),
+        ("0", "error: --threads must be an integer >= 1; got 0"),
+        ("-2", "error: --threads must be an integer >= 1; got -2"),
         ("two", "'two' is not a valid integer"),
         ("1.5", "'1.5' is not a valid integer"),
     ],
