@@ -89,13 +89,7 @@ def _domain_section(cert: Certificate) -> list[str]:
             "flags queries unlike the calibration data. Recalibrate with a current ipcverify to fit one.</p>"
         )
         return parts
-    verdict = domain_verdict(
-        present=True,
-        radius_zero=d.threshold == 0,
-        queries=d.n,
-        well_above=d.well_above_flag_rate,
-        row_level=d.row_level_column is not None,
-    )
+    verdict = d.verdict
     parts.append(f"<p><b>Verdict: {html.escape(verdict)}.</b> {html.escape(d.sentence())}</p>")
     rows: list[tuple[str, Any]] = [
         ("method", d.method),

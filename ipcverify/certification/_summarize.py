@@ -259,13 +259,7 @@ def _domain_check(d: DomainReport | None) -> Check:
     verdict = (
         domain_verdict(present=False, radius_zero=False, queries=0, well_above=False, row_level=False)
         if d is None
-        else domain_verdict(
-            present=True,
-            radius_zero=d.threshold == 0,
-            queries=d.n,
-            well_above=d.well_above_flag_rate,
-            row_level=d.row_level_column is not None,
-        )
+        else d.verdict
     )
     if d is None:
         return Check(

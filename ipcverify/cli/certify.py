@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any, cast
 import click
 from rich.table import Table
 
-from ipcverify._wording._verdicts import NOT_RUN, domain_verdict, held_out_remedy, theorem1_verdict
+from ipcverify._wording._verdicts import NOT_RUN, held_out_remedy, theorem1_verdict
 from ipcverify.cli.app import (
     EXISTING_FILE,
     OUTPUT_FILE,
@@ -423,13 +423,7 @@ def certify_cmd(
             table.add_row("set size", cert.volume.size_text(unit=units))
     if cert.domain is not None:
         d = cert.domain
-        verdict = domain_verdict(
-            present=True,
-            radius_zero=d.threshold == 0,
-            queries=d.n,
-            well_above=d.well_above_flag_rate,
-            row_level=d.row_level_column is not None,
-        )
+        verdict = d.verdict
         table.add_row(
             "domain of validity",
             f"{verdict}: {d.outside}/{d.n} test queries outside (flag rate {d.flag_rate:g})"

@@ -8,6 +8,7 @@ from typing import Any
 from scipy import stats
 
 from ipcverify._wording._spelling import regroup_domain
+from ipcverify._wording._verdicts import domain_verdict
 from ipcverify.calibration._bounds import smallest_marginal_epsilon
 from ipcverify.calibration._share_bound import share_lower_bound
 from ipcverify.errors import InvalidInputError
@@ -163,6 +164,17 @@ class DomainReport:
         if self.run_shares is not None and len(self.run_shares) >= 2:
             return bool(share_lower_bound(self.run_shares, WELL_ABOVE_LEVEL) > self.flag_rate)
         return bool(stats.binom.sf(self.outside - 1, self.n, self.flag_rate) < WELL_ABOVE_LEVEL)
+
+    @property
+    def verdict(self) -> str:
+        """The domain verdict of these facts, as the wording layer words it (summary, CLI and page alike)."""
+        return domain_verdict(
+            present=True,
+            radius_zero=self.threshold == 0,
+            queries=self.n,
+            well_above=self.well_above_flag_rate,
+            row_level=self.row_level_column is not None,
+        )
 
     def to_dict(self) -> dict[str, Any]:
         """Plain-data form (the keys of ``certificate.json["domain"]``)."""
